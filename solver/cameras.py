@@ -1,0 +1,166 @@
+"""Cameras: how a photo sees the world. One class per camera model, all with one interface,
+so the fit, the texture bake and the landmarks file never branch on the kind of camera.
+
+Conventions (all cameras): world in metres, Blender axes (Z up, face toward -Y, subject's
+left +X). Pixels have their origin at the image's top-left corner, u to the right, v down.
+A camera's ``rotation`` is world -> camera with rows (u axis, v axis, viewing direction),
+the OpenCV convention, so 'depth' grows away from the camera.
+"""
+
+import importlib
+from abc import ABC, abstractmethod
+
+import numpy as np
+
+from .errors import as_points
+
+# kind -> class; filled by @register. Modules listed in _PLUGINS register further kinds
+# (e.g. "dlt") and are imported on first lookup, so this module needs no import of them.
+_KINDS = {}
+_PLUGINS = ("dlt",)
+
+
+def register(kind):
+    """Class decorator: make a Camera subclass constructible by ``camera_from_dict``."""
+
+    def deco(cls):
+        cls.kind = kind
+        _KINDS[kind] = cls
+        return cls
+
+    return deco
+
+
+def camera_kinds():
+    """All registered camera kinds (including plug-in modules that import cleanly)."""
+    _load_plugins()
+    return sorted(_KINDS)
+
+
+def camera_from_dict(d):
+    """Build a camera from its JSON form (``{"kind": ..., ...}``)."""
+    _load_plugins()
+    kind = d.get("kind") if isinstance(d, dict) else None
+    if kind not in _KINDS:
+        raise ValueError(f"camera: unknown kind {kind!r}; known: {', '.join(sorted(_KINDS))}")
+    return _KINDS[kind].from_dict(d)
+
+
+def _load_plugins():
+    for name in _PLUGINS:
+        try:
+            importlib.import_module(f"{__package__}.{name}")
+        except ModuleNotFoundError as e:  # plug-in not written yet in this checkout
+            if e.name != f"{__package__}.{name}":
+                raise
+
+
+class Camera(ABC):
+    """Interface every camera implements. ``size`` is (width, height) in pixels."""
+
+    kind = "abstract"
+
+    @abstractmethod
+    def project(self, points):
+        """Pixel coordinates of world points: (n, 3) metres -> (n, 2) pixels."""
+
+    @abstractmethod
+    def jacobian(self, points):
+        """d(pixel)/d(point) at each point: (n, 3) -> (n, 2, 3), pixels per metre."""
+
+    @abstractmethod
+    def to_camera(self, points):
+        """World points in this camera's frame (u, v, depth axes): (n, 3) -> (n, 3)."""
+
+    @abstractmethod
+    def toward_camera(self, points):
+        """Unit vectors from each point toward the camera: (n, 3) -> (n, 3). Texture
+        blending weighs a surface by its normal's dot product with these."""
+
+    @abstractmethod
+    def to_dict(self):
+        """JSON-ready parameters, including ``"kind"``."""
+
+    @classmethod
+    @abstractmethod
+    def from_dict(cls, d):
+        """Inverse of ``to_dict``."""
+
+
+# Nominal orientations of the orthographic views (rows: u axis, v axis, viewing direction).
+ORTHO_VIEWS = {
+    # camera in front, looking at the face (+Y); subject's left (+X) on the image's right
+    "orthographic-front": np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]]),
+    # camera at the subject's right (-X) looking +X; the face (-Y) points to the image's right
+    "orthographic-right": np.array([[0, -1.0, 0], [0, 0, -1], [1, 0, 0]]),
+    # camera at the subject's left (+X) looking -X; the face points to the image's left
+    "orthographic-left": np.array([[0, 1.0, 0], [0, 0, -1], [-1, 0, 0]]),
+}
+
+
+class OrthographicCamera(Camera):
+    """Scaled orthographic (parallel) projection: pixel = scale * R[:2] @ X + offset.
+
+    Parameters
+    ----------
+    rotation : ndarray, shape (3, 3)
+        World -> camera rotation (rows u, v, viewing direction).
+    scale : float
+        Pixels per metre.
+    offset : ndarray, shape (2,)
+        Pixel position of the world origin.
+    size : (int, int)
+        Image width and height in pixels.
+    view : str
+        Name of the nominal view this camera started from (a key of ORTHO_VIEWS).
+    """
+
+    def __init__(self, rotation, scale, offset, size, view="orthographic-front"):
+        self.rotation = np.asarray(rotation, dtype=np.float64).reshape(3, 3)
+        self.scale = float(scale)
+        self.offset = np.asarray(offset, dtype=np.float64).reshape(2)
+        self.size = (int(size[0]), int(size[1]))
+        self.view = view
+
+    @classmethod
+    def nominal(cls, view, size, scale=None, offset=None):
+        """The ideal camera of an ``orthographic-*`` view: the head (about 0.3 m tall)
+        filling about 80 % of the image height, centred, unless scale/offset are given."""
+        if view not in ORTHO_VIEWS:
+            raise ValueError(f"camera: unknown view {view!r}; known: {', '.join(ORTHO_VIEWS)}")
+        w, h = size
+        if scale is None:
+            scale = 0.8 * h / 0.3
+        if offset is None:
+            offset = (w / 2.0, h / 2.0)
+        return cls(ORTHO_VIEWS[view], scale, offset, size, view)
+
+    def project(self, points):
+        x = as_points(points, "points")
+        return self.scale * x @ self.rotation[:2].T + self.offset
+
+    def jacobian(self, points):
+        n = np.asarray(points).shape[0]
+        return np.broadcast_to(self.scale * self.rotation[:2], (n, 2, 3)).copy()
+
+    def to_camera(self, points):
+        return as_points(points, "points") @ self.rotation.T
+
+    def toward_camera(self, points):
+        n = np.asarray(points).shape[0]
+        return np.broadcast_to(-self.rotation[2], (n, 3)).copy()
+
+    def to_dict(self):
+        return {"kind": self.kind, "view": self.view, "rotation": self.rotation.tolist(),
+                "scale": self.scale, "offset": self.offset.tolist(), "size": list(self.size)}
+
+    @classmethod
+    def from_dict(cls, d):
+        try:
+            return cls(d["rotation"], d["scale"], d["offset"], d["size"],
+                       d.get("view", "orthographic-front"))
+        except KeyError as e:
+            raise ValueError(f"camera ({cls.kind}): missing field {e.args[0]!r}") from None
+
+
+register("orthographic")(OrthographicCamera)

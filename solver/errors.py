@@ -1,0 +1,28 @@
+"""Input checks shared by the solver: one place that turns bad input into a ValueError
+whose message names the argument at fault."""
+
+import numpy as np
+
+
+def as_points(a, name, dim=3, min_count=1):
+    """Return ``a`` as a float64 array of shape (n, dim), or raise ValueError naming ``name``.
+
+    Parameters
+    ----------
+    a : array_like, shape (n, dim)
+    name : str
+        What the caller calls this argument; used in the message.
+    dim : int
+        Number of coordinates per point.
+    min_count : int
+        Fewest points accepted.
+    """
+    arr = np.asarray(a, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] != dim:
+        raise ValueError(f"{name}: expected an array of shape (n, {dim}), got {arr.shape}")
+    if arr.shape[0] < min_count:
+        raise ValueError(f"{name}: needs at least {min_count} points, got {arr.shape[0]}")
+    bad = ~np.isfinite(arr).all(axis=1)
+    if bad.any():
+        raise ValueError(f"{name}: row {int(np.flatnonzero(bad)[0])} is not finite (NaN or inf)")
+    return arr
