@@ -56,9 +56,18 @@ def _load_plugins():
 
 
 class Camera(ABC):
-    """Interface every camera implements. ``size`` is (width, height) in pixels."""
+    """Interface every camera implements. ``size`` is (width, height) in pixels.
+
+    ``refit`` lets the fit re-estimate a camera's own free parameters from 3-D points and
+    the pixels they should land on, so the fit alternates "head given cameras" and
+    "cameras given head" without knowing any camera's parametrisation. The base class
+    treats a camera as calibrated (nothing free); kinds with free parameters override it
+    and set ``min_refit_points``.
+    """
 
     kind = "abstract"
+    #: fewest point/pixel pairs ``refit`` needs (0: the camera has no free parameters).
+    min_refit_points = 0
 
     @abstractmethod
     def project(self, points):
@@ -86,6 +95,52 @@ class Camera(ABC):
     def from_dict(cls, d):
         """Inverse of ``to_dict``."""
 
+    def refit(self, points, pixels, weights=None):
+        """The camera re-estimated so ``project(points)`` best matches ``pixels``.
+
+        Parameters
+        ----------
+        points : array_like, shape (n, 3), metres
+            World points (e.g. the fitted head's landmark vertices).
+        pixels : array_like, shape (n, 2), pixels
+            Where each point is seen in the photo.
+        weights : array_like, shape (n,), optional
+            Non-negative weight of each pair (default 1).
+
+        Returns
+        -------
+        Camera
+            A new camera of the same kind. This base version has no free parameters (a
+            calibrated camera) and returns ``self`` after checking the input.
+        """
+        _refit_input(points, pixels, weights, self.min_refit_points)
+        return self
+
+    def reprojection_error(self, points, pixels):
+        """Pixel distance between ``project(points)`` and ``pixels``: (n,) pixels."""
+        px = as_points(pixels, "pixels", dim=2)
+        return np.linalg.norm(self.project(points) - px, axis=1)
+
+
+def _refit_input(points, pixels, weights, min_count):
+    """Validated (points (n,3), pixels (n,2), weights (n,)) for ``Camera.refit``."""
+    x = as_points(points, "points", min_count=max(min_count, 1))
+    q = as_points(pixels, "pixels", dim=2)
+    if len(q) != len(x):
+        raise ValueError(f"pixels: {len(q)} rows for {len(x)} points")
+    if weights is None:
+        w = np.ones(len(x))
+    else:
+        w = np.asarray(weights, dtype=np.float64)
+        if w.shape != (len(x),):
+            raise ValueError(f"weights: expected shape ({len(x)},), got {w.shape}")
+        if not np.isfinite(w).all() or (w < 0).any():
+            raise ValueError("weights: must be finite and non-negative")
+    if np.count_nonzero(w) < min_count:
+        raise ValueError(f"points: a camera refit needs at least {min_count} weighted "
+                         f"points, got {np.count_nonzero(w)}")
+    return x, q, w
+
 
 # Nominal orientations of the orthographic views (rows: u axis, v axis, viewing direction).
 ORTHO_VIEWS = {
@@ -100,6 +155,12 @@ ORTHO_VIEWS = {
 
 class OrthographicCamera(Camera):
     """Scaled orthographic (parallel) projection: pixel = scale * R[:2] @ X + offset.
+
+    Its free parameters are a 2-D similarity of the image: ``scale``, ``offset`` and a
+    rotation about the viewing direction (in-plane). ``refit`` re-estimates exactly these,
+    keeping the viewing direction, because a single parallel projection cannot tell an
+    out-of-plane turn of the camera from a turn of the head (the fit's head rotation owns
+    that).
 
     Parameters
     ----------
@@ -135,9 +196,54 @@ class OrthographicCamera(Camera):
             offset = (w / 2.0, h / 2.0)
         return cls(ORTHO_VIEWS[view], scale, offset, size, view)
 
+    min_refit_points = 2
+
     def project(self, points):
         x = as_points(points, "points")
         return self.scale * x @ self.rotation[:2].T + self.offset
+
+    @property
+    def in_plane_angle(self):
+        """Rotation of the image about the viewing direction relative to the nominal view,
+        radians; positive turns the u axis toward +v (clockwise on screen, v points down)."""
+        base = ORTHO_VIEWS.get(self.view)
+        if base is None:
+            return 0.0
+        m = self.rotation[:2] @ base[:2].T  # 2x2 in-plane rotation (if the view axis agrees)
+        return float(np.arctan2(m[1, 0], m[0, 0]))
+
+    def refit(self, points, pixels, weights=None):
+        """Re-estimate scale, in-plane rotation and offset (a weighted 2-D similarity
+        between the points' current image-plane coordinates and ``pixels``).
+
+        Parameters
+        ----------
+        points : array_like, shape (n, 3), metres
+        pixels : array_like, shape (n, 2), pixels
+        weights : array_like, shape (n,), optional
+
+        Returns
+        -------
+        OrthographicCamera
+            Same viewing direction, new scale / in-plane rotation / offset.
+
+        Raises
+        ------
+        ValueError
+            Fewer than 2 (weighted) pairs, mismatched shapes, NaN, or points whose
+            projections coincide (the similarity is undetermined).
+        """
+        from .procrustes import similarity_procrustes
+
+        x, q, w = _refit_input(points, pixels, weights, self.min_refit_points)
+        a = x @ self.rotation[:2].T  # image-plane coordinates in metres
+        try:
+            sim = similarity_procrustes(a, q, w)
+        except ValueError as e:
+            raise ValueError(f"camera refit ({self.view}): {e}") from None
+        rot = self.rotation.copy()
+        rot[:2] = sim.rotation @ self.rotation[:2]
+        return OrthographicCamera(rot, sim.scale, sim.translation, self.size, self.view)
 
     def jacobian(self, points):
         n = np.asarray(points).shape[0]

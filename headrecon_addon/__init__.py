@@ -1,0 +1,30 @@
+"""HeadRecon's Blender layer: panels, operators and scene data around the solver.
+
+``register`` / ``unregister`` are what the extension root (the repository's
+``__init__.py``) exposes to Blender; tests and the headless script call them directly.
+"""
+
+import bpy
+
+from . import fit_ops, landmarks, panels, photos, properties, reference_head
+
+CLASSES = (*properties.CLASSES, *reference_head.CLASSES, *photos.CLASSES, *landmarks.CLASSES,
+           *fit_ops.CLASSES, *panels.CLASSES)
+
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(CLASSES)
+
+
+def is_registered():
+    return hasattr(bpy.types.Scene, "headrecon") and hasattr(bpy.types, "HEADRECON_OT_fit")
+
+
+def register():
+    _register_classes()
+    properties.register_properties()
+    fit_ops.register_handlers()
+
+
+def unregister():
+    fit_ops.unregister_handlers()
+    properties.unregister_properties()
+    _unregister_classes()

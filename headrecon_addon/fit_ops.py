@@ -1,0 +1,560 @@
+"""The Fit operator, writing a FitResult into the scene, and the live refit.
+
+The fit runs in three steps so the interactive operator can keep Blender responsive and
+cancel cleanly: ``prepare_job`` (main thread: reads landmarks and photo pixels from the
+scene), ``FitJob.run`` (any thread: solver only, no bpy), ``apply_job`` (main thread:
+shape keys, transform, texture, uncertainty, residual list). Until the last step the scene
+is untouched, so Esc (or an error) leaves it as it was.
+
+Live refit: a depsgraph handler watches the landmark positions; when one moved it asks
+the solver's fast path (``refit_landmarks``, cameras and correspondences of the last full
+fit) and updates only the coefficient values, the "fit_detail" key and the transform.
+"""
+
+import dataclasses
+import threading
+import time
+
+import bpy
+import numpy as np
+from bpy.app.handlers import persistent
+from mathutils import Matrix
+
+from . import landmarks, material, photos, reference_head, shape_keys
+from .data import Transaction
+from .solver_link import (
+    FitOptions,
+    bake_fit_texture,
+    fit_head,
+    landmarks_file,
+    load_model,
+    refit_landmarks,
+)
+
+UNCERTAINTY_COLOR = "fit_uncertainty"
+UNCERTAINTY_MM = "fit_uncertainty_mm"
+BAKED = "headrecon_baked"  # custom property on baked texture images
+
+
+class FitCancelled(Exception):
+    """Raised from the progress callback to stop a fit the artist cancelled."""
+
+
+# --------------------------------------------------------------------------------------
+# Inputs
+
+
+def options_from_props(props, progress=None):
+    """FitOptions from the scene's settings (``Scene.headrecon``)."""
+    return FitOptions(method=props.method, n_identity=props.n_identity,
+                      n_regional=props.n_regional, lambda1=props.lambda1,
+                      lambda2=props.lambda2, prior=props.prior,
+                      landmark_weight=props.landmark_weight,
+                      exact_landmarks=props.exact_landmarks, progress=progress)
+
+
+def fit_problem(scene):
+    """Why the scene cannot be fitted yet (a sentence for the artist), or None."""
+    planes = photos.photo_planes(scene)
+    if not planes:
+        return "Load a front and a profile photo first"
+    counts = {p.headrecon.view: len(landmarks.landmark_objects(p)) for p in planes}
+    need = landmarks_file.MIN_LANDMARKS_PER_VIEW
+    few = [f"{v} ({n})" for v, n in counts.items() if n < need]
+    if few:
+        return f"Too few landmarks on {', '.join(few)}: place at least {need} per photo"
+    total = sum(counts.values())
+    if total < landmarks_file.MIN_LANDMARKS_TOTAL:
+        return (f"Too few landmarks ({total}): place at least "
+                f"{landmarks_file.MIN_LANDMARKS_TOTAL} in all")
+    return None
+
+
+def photo_arrays(scene):
+    """Pixels of each view's real photo (not stand-ins): dict view -> (H, W, 4) float32."""
+    out = {}
+    for plane in photos.photo_planes(scene):
+        img = plane.headrecon.image
+        if img is None or img.get(photos.PLACEHOLDER) or img.size[0] == 0:
+            continue
+        out[plane.headrecon.view] = photos.image_to_array(img)
+    return out
+
+
+@dataclasses.dataclass
+class FitJob:
+    """Everything a fit needs, read from the scene; ``run`` touches no bpy data."""
+
+    model: object
+    case: object
+    options: object
+    photos: dict
+    texture_size: int = 1024
+    bake: bool = True
+    result: object = None
+    textures: dict = None
+    error: BaseException = None
+    cancelled: bool = False
+    fraction: float = 0.0
+    message: str = "starting"
+    timings: dict = dataclasses.field(default_factory=dict)
+
+    def progress(self, fraction, message):
+        if self.cancelled:
+            raise FitCancelled()
+        self.fraction = float(fraction)
+        self.message = str(message)
+
+    def run(self):
+        """Fit (and bake). Errors are kept in ``error``, never raised."""
+        try:
+            t = time.perf_counter()
+            self.options = dataclasses.replace(self.options, progress=self.progress)
+            self.result = fit_head(self.model, self.case, self.options)
+            self.timings["fit"] = time.perf_counter() - t
+            if self.bake and self.photos:
+                self.progress(1.0, "baking the texture")
+                t = time.perf_counter()
+                self.textures = bake_fit_texture(self.model, self.result, self.photos,
+                                                 size=self.texture_size)
+                self.timings["bake"] = time.perf_counter() - t
+        except BaseException as e:  # noqa: B036  (kept for the main thread to report)
+            self.error = e
+
+
+def prepare_job(scene):
+    """Read the scene into a FitJob (main thread).
+
+    Raises
+    ------
+    ValueError
+        Too few landmarks, no photos, bad landmarks (message names view and landmark).
+    FileNotFoundError
+        The head model is missing.
+    """
+    problem = fit_problem(scene)
+    if problem:
+        raise ValueError(problem)
+    props = scene.headrecon
+    case = landmarks.case_from_scene(scene)
+    model = load_model()
+    # The solver's own checks (names, bounds, counts), with its messages.
+    problems = landmarks_file.check_case(case, model, for_fit=True)
+    if problems:
+        raise landmarks_file.LandmarksError("scene", problems)
+    return FitJob(model=model, case=case, options=options_from_props(props),
+                  photos=photo_arrays(scene) if props.bake_texture else {},
+                  texture_size=int(props.texture_size), bake=props.bake_texture)
+
+
+# --------------------------------------------------------------------------------------
+# Writing a result
+
+
+def similarity_matrix(result):
+    m = np.eye(4)
+    m[:3, :3] = result.scale * np.asarray(result.rotation, dtype=np.float64)
+    m[:3, 3] = np.asarray(result.translation, dtype=np.float64)
+    return Matrix(m.tolist())
+
+
+def skin_group_tiles(model):
+    """UDIM tile of each skin material group, e.g. {"Face": 1001, "Head": 1002}."""
+    out = {}
+    first_uv = model.loop_uv[model.face_loop_start]
+    tile = (1001 + np.floor(first_uv[:, 0]) + 10 * np.floor(first_uv[:, 1])).astype(int)
+    for p, part in enumerate(model.part_names):
+        group = material.part_group(part)
+        if group in material.SKIN_GROUPS and group not in out:
+            t = tile[model.face_part == p]
+            if t.size:
+                out[group] = int(np.bincount(t - 1001).argmax() + 1001)
+    return out
+
+
+def write_textures(head, model, textures):
+    """Put baked tiles (dict tile -> (S, S, 3)) into the head's skin materials, packed into
+    the .blend so the file carries its texture."""
+    images = []
+    for group, tile in skin_group_tiles(model).items():
+        if tile not in textures:
+            continue
+        mat = reference_head.part_material(head, group)
+        if mat is None:
+            continue
+        old = material.skin_texture(mat)
+        reuse = old if old is not None and old.get(BAKED) and old.users <= 1 else None
+        img = photos.array_to_image(textures[tile], f"{head.name} {group} Texture", reuse)
+        img[BAKED] = True
+        img.pack()
+        material.set_skin_texture(mat, img)
+        images.append(img)
+    return images
+
+
+def write_uncertainty(mesh, mm):
+    """The fit's per-vertex uncertainty as a colour attribute (ramp) and raw millimetres."""
+    mm = np.asarray(mm, dtype=np.float64)
+    rgba, vmax = material.uncertainty_colors(mm)
+    attr = mesh.color_attributes.get(UNCERTAINTY_COLOR)
+    if attr is not None and (attr.data_type != "FLOAT_COLOR" or attr.domain != "POINT"):
+        mesh.color_attributes.remove(attr)
+        attr = None
+    if attr is None:
+        attr = mesh.color_attributes.new(UNCERTAINTY_COLOR, "FLOAT_COLOR", "POINT")
+    attr.data.foreach_set("color", rgba.ravel())
+    raw = mesh.attributes.get(UNCERTAINTY_MM)
+    if raw is None:
+        raw = mesh.attributes.new(UNCERTAINTY_MM, "FLOAT", "POINT")
+    raw.data.foreach_set("value", mm.astype(np.float32))
+    mesh.color_attributes.active_color = mesh.color_attributes[UNCERTAINTY_COLOR]
+    return vmax
+
+
+def rms_residual(result):
+    px = [np.asarray(r.pixels, dtype=np.float64) for r in result.residuals.values()]
+    px = np.concatenate(px) if px else np.zeros(0)
+    return float(np.sqrt(np.mean(px ** 2))) if px.size else 0.0
+
+
+def update_residuals(scene, result):
+    """Fill the residual list (flagged first, then worst first) and colour the landmarks."""
+    rows = []
+    for view, r in result.residuals.items():
+        flagged = set(r.flagged)
+        for name, px in zip(r.names, np.asarray(r.pixels, dtype=np.float64), strict=True):
+            rows.append((name in flagged, float(px), view, name))
+    rows.sort(key=lambda t: (not t[0], -t[1]))
+    props = scene.headrecon
+    props.residuals.clear()
+    for flagged, px, view, name in rows:
+        item = props.residuals.add()
+        item.view, item.landmark, item.pixels, item.flagged = view, name, px, flagged
+    props.residual_index = -1
+    by_view = {}
+    for flagged, px, view, name in rows:
+        by_view.setdefault(view, {})[name] = (flagged, px)
+    for plane in photos.photo_planes(scene):
+        res = by_view.get(plane.headrecon.view, {})
+        for name, obj in landmarks.landmark_objects(plane).items():
+            flagged, px = res.get(name, (False, -1.0))
+            if obj.headrecon.flagged != flagged or obj.headrecon.residual_px != px:
+                landmarks.set_landmark_state(obj, flagged, px)
+
+
+def apply_result(scene, model, result, textures=None, head=None, name=None):
+    """Write a FitResult into the scene: shape keys, transform, texture, uncertainty,
+    residuals, landmark colours; photo planes lined up with the fitted cameras.
+
+    Parameters
+    ----------
+    scene : bpy.types.Scene
+    model : HeadModel
+    result : FitResult
+    textures : dict of int -> ndarray (S, S, 3), optional
+        Baked tiles (``bake_fit_texture``).
+    head : bpy.types.Object, optional
+        Default: the scene's head; one is made (and linked) if there is none.
+    name : str, optional
+        Name of a head made here (default "HeadRecon Head").
+
+    Returns
+    -------
+    bpy.types.Object
+        The head.
+    """
+    head = head or scene.headrecon.head
+    if head is not None and not reference_head.is_head(head):
+        head = None
+    with Transaction():
+        created = head is None
+        if created:
+            head = reference_head.new_head_object(model, name or reference_head.HEAD_NAME)
+        try:
+            shape_keys.write_fit_keys(head, model, result)
+        except Exception:
+            if not created:
+                shape_keys.remove_fit_keys(head)
+            raise
+        if textures:
+            write_textures(head, model, textures)
+        head.headrecon.uncertainty_max_mm = write_uncertainty(head.data, result.uncertainty)
+        if created:
+            scene.collection.objects.link(head)
+    scene.headrecon.head = head
+    head.matrix_world = similarity_matrix(result)
+    head.headrecon.fit_method = str(result.info.get("chosen", result.method))
+    head.headrecon.fit_rms_px = rms_residual(result)
+    update_residuals(scene, result)
+    centre = result.world_vertices[model.skin].mean(axis=0)
+    for plane in photos.photo_planes(scene):
+        cam = result.cameras.get(plane.headrecon.view)
+        if isinstance(cam, photos.OrthographicCamera):
+            plane.matrix_world = photos.plane_matrix(plane, cam, centre=centre)
+    return head
+
+
+def apply_job(scene, job):
+    """Main-thread half of a fit: write the job's result; remember it for live refit."""
+    t = time.perf_counter()
+    head = apply_result(scene, job.model, job.result, job.textures)
+    job.timings["write"] = time.perf_counter() - t
+    remember_fit(scene, head, job.model, job.result, job.options)
+    flagged = job.result.flagged()
+    scene.headrecon.status = (f"{head.headrecon.fit_method}: RMS "
+                              f"{head.headrecon.fit_rms_px:.2f} px, {len(flagged)} flagged, "
+                              f"{sum(job.timings.values()):.2f} s")
+    return head
+
+
+def run_fit(scene):
+    """Synchronous fit of the scene (background mode, scripts, tests).
+
+    Returns
+    -------
+    head : bpy.types.Object
+    job : FitJob
+    """
+    job = prepare_job(scene)
+    job.run()
+    if job.error is not None:
+        raise job.error
+    return apply_job(scene, job), job
+
+
+# --------------------------------------------------------------------------------------
+# Live refit
+
+
+_live = {"base": None, "model": None, "options": None, "head": "", "signature": None,
+         "busy": False, "ms": 0.0, "error": ""}
+
+
+def remember_fit(scene, head, model, result, options):
+    """Keep the last full fit in memory: live refits start from its cameras and
+    correspondences (not saved in the .blend; after reopening, fit once again)."""
+    _live.update(base=result, model=model, head=head.name, error="",
+                 options=dataclasses.replace(options, progress=None),
+                 signature=landmarks.landmark_signature(photos.photo_planes(scene)))
+
+
+def reset_live_state():
+    """Forget the landmark positions seen last (the next step only records them)."""
+    _live["signature"] = None
+    _live["error"] = ""
+
+
+def forget_fit():
+    _live.update(base=None, model=None, options=None, head="", signature=None)
+
+
+def live_ready():
+    """Whether a full fit is in memory for live refits."""
+    return _live["base"] is not None and bpy.data.objects.get(_live["head"]) is not None
+
+
+def live_stats():
+    return {"ms": _live["ms"], "error": _live["error"], "ready": live_ready()}
+
+
+def live_refit_step(scene, force=False):
+    """Refit if a landmark moved since the last step (or ``force``).
+
+    Returns
+    -------
+    FitResult or None
+        The refit's result, None when nothing moved or no fit is in memory.
+    """
+    if not live_ready():
+        return None
+    head = bpy.data.objects.get(_live["head"])
+    planes = photos.photo_planes(scene)
+    sig = landmarks.landmark_signature(planes)
+    prev = _live["signature"]
+    _live["signature"] = sig
+    if not force and (prev is None or (prev.shape == sig.shape and np.array_equal(prev, sig))):
+        return None
+    t = time.perf_counter()
+    case = landmarks.case_from_scene(scene)
+    model = _live["model"]
+    result = refit_landmarks(model, case, _live["base"], _live["options"])
+    if not shape_keys.update_fit_values(head, model, result):
+        _live["error"] = "the head's shape keys changed: run Fit again"
+        return None
+    head.matrix_world = similarity_matrix(result)
+    head.headrecon.fit_rms_px = rms_residual(result)
+    update_residuals(scene, result)
+    _live["ms"] = (time.perf_counter() - t) * 1000.0
+    _live["error"] = ""
+    return result
+
+
+@persistent
+def _on_depsgraph_update(scene, depsgraph):
+    if _live["busy"] or _live["base"] is None:
+        return
+    props = getattr(scene, "headrecon", None)
+    if props is None or not props.live_refit or not depsgraph.id_type_updated("OBJECT"):
+        return
+    _live["busy"] = True
+    try:
+        live_refit_step(scene)
+    except Exception as e:  # a handler must not raise: show it in the panel instead
+        _live["error"] = str(e)
+    finally:
+        _live["busy"] = False
+
+
+@persistent
+def _on_load(*_args):
+    forget_fit()
+
+
+def register_handlers():
+    if _on_depsgraph_update not in bpy.app.handlers.depsgraph_update_post:
+        bpy.app.handlers.depsgraph_update_post.append(_on_depsgraph_update)
+    if _on_load not in bpy.app.handlers.load_post:
+        bpy.app.handlers.load_post.append(_on_load)
+
+
+def unregister_handlers():
+    for handlers, fn in ((bpy.app.handlers.depsgraph_update_post, _on_depsgraph_update),
+                         (bpy.app.handlers.load_post, _on_load)):
+        while fn in handlers:
+            handlers.remove(fn)
+    forget_fit()
+
+
+# --------------------------------------------------------------------------------------
+# The operator
+
+
+_running = {"job": None}
+
+
+class HEADRECON_OT_fit(bpy.types.Operator):
+    """Fit the head model to the landmarks on the photos: shape keys, texture, uncertainty"""
+
+    bl_idname = "headrecon.fit"
+    bl_label = "Fit Head"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        if context.mode != "OBJECT":
+            cls.poll_message_set("Switch to Object Mode first")
+            return False
+        if _running["job"] is not None:
+            cls.poll_message_set("A fit is running (Esc cancels it)")
+            return False
+        problem = fit_problem(context.scene)
+        if problem:
+            cls.poll_message_set(problem)
+            return False
+        return True
+
+    def _report_error(self, e):
+        if isinstance(e, FitCancelled):
+            self.report({"WARNING"}, "Fit cancelled; the scene is as it was")
+        elif isinstance(e, FileNotFoundError | ValueError):
+            self.report({"ERROR"}, str(e))
+        else:
+            self.report({"ERROR"}, f"The fit failed: {type(e).__name__}: {e}")
+
+    def _done(self, context, head, job):
+        self.report({"INFO"}, f"Fitted {head.name}: {context.scene.headrecon.status}")
+
+    def execute(self, context):
+        try:
+            head, job = run_fit(context.scene)
+        except Exception as e:
+            self._report_error(e)
+            return {"CANCELLED"}
+        self._done(context, head, job)
+        return {"FINISHED"}
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        try:
+            job = prepare_job(context.scene)
+        except Exception as e:
+            self._report_error(e)
+            return {"CANCELLED"}
+        self.job = job
+        _running["job"] = job
+        self.thread = threading.Thread(target=job.run, name="HeadRecon fit", daemon=True)
+        self.thread.start()
+        wm = context.window_manager
+        self.timer = wm.event_timer_add(0.05, window=context.window)
+        wm.progress_begin(0, 100)
+        wm.modal_handler_add(self)
+        self._status(context)
+        return {"RUNNING_MODAL"}
+
+    def _status(self, context):
+        pct = int(round(100 * min(max(self.job.fraction, 0.0), 1.0)))
+        context.window_manager.progress_update(pct)
+        if context.workspace is not None:
+            context.workspace.status_text_set(
+                f"HeadRecon: {self.job.message} ({pct} %)   Esc: cancel")
+
+    def _cleanup(self, context):
+        wm = context.window_manager
+        wm.event_timer_remove(self.timer)
+        wm.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        _running["job"] = None
+
+    def modal(self, context, event):
+        if event.type == "ESC":
+            self.job.cancelled = True  # the thread stops at its next progress report
+            self._cleanup(context)
+            self.report({"WARNING"}, "Fit cancelled; the scene is as it was")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"RUNNING_MODAL"}  # the scene must not change under a running fit
+        if self.thread.is_alive():
+            self._status(context)
+            return {"RUNNING_MODAL"}
+        self._cleanup(context)
+        if self.job.error is not None:
+            self._report_error(self.job.error)
+            return {"CANCELLED"}
+        try:
+            head = apply_job(context.scene, self.job)
+        except Exception as e:
+            self._report_error(e)
+            return {"CANCELLED"}
+        self._done(context, head, self.job)
+        return {"FINISHED"}
+
+
+class HEADRECON_OT_live_refit_now(bpy.types.Operator):
+    """Refit from the current landmark positions with the fast path (no new texture)"""
+
+    bl_idname = "headrecon.refit_landmarks"
+    bl_label = "Quick Refit"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        if not live_ready():
+            cls.poll_message_set("Run Fit once first (quick refits start from it)")
+            return False
+        return True
+
+    def execute(self, context):
+        try:
+            live_refit_step(context.scene, force=True)
+        except Exception as e:
+            self.report({"ERROR"}, f"Quick refit failed: {e}")
+            return {"CANCELLED"}
+        if _live["error"]:
+            self.report({"ERROR"}, _live["error"])
+            return {"CANCELLED"}
+        return {"FINISHED"}
+
+
+CLASSES = (HEADRECON_OT_fit, HEADRECON_OT_live_refit_now)

@@ -1,0 +1,172 @@
+"""The "HeadRecon" tab of the 3D viewport's sidebar: one panel per step of the artist's
+flow (reference head, photos, landmarks, fit, result)."""
+
+import bpy
+
+from . import fit_ops, landmarks, photos, reference_head
+
+
+class _Panel:
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "HeadRecon"
+
+
+class HEADRECON_PT_head(_Panel, bpy.types.Panel):
+    bl_label = "1. Reference Head"
+    bl_idname = "HEADRECON_PT_head"
+
+    def draw(self, context):
+        layout = self.layout
+        head = context.scene.headrecon.head
+        if reference_head.is_head(head):
+            layout.label(text=head.name, icon="USER")
+        else:
+            layout.label(text="No head yet (Fit makes one too)", icon="INFO")
+        layout.operator("headrecon.add_head", icon="ADD")
+        layout.prop(context.scene.headrecon, "head")
+
+
+class HEADRECON_PT_photos(_Panel, bpy.types.Panel):
+    bl_label = "2. Photos"
+    bl_idname = "HEADRECON_PT_photos"
+
+    def draw(self, context):
+        layout = self.layout
+        scene = context.scene
+        for view, cam, label in (("front", "orthographic-front", "Front"),
+                                 ("side", "orthographic-right", "Profile")):
+            plane = photos.find_plane(scene, view)
+            box = layout.box()
+            row = box.row(align=True)
+            if plane is not None and plane.headrecon.image is not None:
+                img = plane.headrecon.image
+                row.label(text=f"{label}: {img.name}", icon="IMAGE_DATA")
+                op = row.operator("headrecon.view_photo", text="", icon="HIDE_OFF")
+                op.view = view
+            else:
+                row.label(text=f"{label}: none", icon="IMAGE")
+            op = box.operator("headrecon.load_photo",
+                              text="Swap Photo..." if plane else f"Load {label} Photo...",
+                              icon="FILEBROWSER")
+            op.view = view
+            op.camera_view = plane.headrecon.camera_view if plane else cam
+            if plane is not None and view == "side":
+                box.prop(plane.headrecon, "camera_view", text="Side")
+        others = [p for p in photos.photo_planes(scene)
+                  if p.headrecon.view not in ("front", "side")]
+        for plane in others:
+            row = layout.row(align=True)
+            row.label(text=f"{plane.headrecon.view}: {plane.headrecon.image.name}"
+                      if plane.headrecon.image else plane.headrecon.view, icon="IMAGE_DATA")
+            row.operator("headrecon.view_photo", text="", icon="HIDE_OFF").view = \
+                plane.headrecon.view
+
+
+class HEADRECON_PT_landmarks(_Panel, bpy.types.Panel):
+    bl_label = "3. Landmarks"
+    bl_idname = "HEADRECON_PT_landmarks"
+
+    def draw(self, context):
+        layout = self.layout
+        planes = photos.photo_planes(context.scene)
+        if not planes:
+            layout.label(text="Load the photos first", icon="INFO")
+        for plane in planes:
+            view = plane.headrecon.view
+            placed = len(landmarks.landmark_objects(plane))
+            total = len(landmarks.landmark_definitions(photos.view_kind(plane)))
+            box = layout.box()
+            box.label(text=f"{view}: {placed} / {total} placed", icon="EMPTY_AXIS")
+            row = box.row(align=True)
+            row.operator("headrecon.place_landmarks", text="Place",
+                         icon="RESTRICT_SELECT_OFF").view = view
+            if photos.view_kind(plane) != "front":
+                n = len(landmarks.contour_local(plane))
+                row.operator("headrecon.draw_contour", text=f"Contour ({n})",
+                             icon="CURVE_PATH").view = view
+            row.operator("headrecon.clear_landmarks", text="", icon="TRASH").view = view
+        row = layout.row(align=True)
+        row.operator("headrecon.import_landmarks", text="Import...", icon="IMPORT")
+        row.operator("headrecon.export_landmarks", text="Export...", icon="EXPORT")
+
+
+class HEADRECON_PT_fit(_Panel, bpy.types.Panel):
+    bl_label = "4. Fit"
+    bl_idname = "HEADRECON_PT_fit"
+
+    def draw(self, context):
+        layout = self.layout
+        props = context.scene.headrecon
+        col = layout.column()
+        col.use_property_split = True
+        col.use_property_decorate = False
+        col.prop(props, "method")
+        col.prop(props, "n_identity")
+        col.prop(props, "n_regional")
+        col.prop(props, "lambda1")
+        col.prop(props, "lambda2")
+        col.prop(props, "landmark_weight")
+        col.prop(props, "prior")
+        col.prop(props, "exact_landmarks")
+        col.prop(props, "bake_texture")
+        sub = col.row()
+        sub.enabled = props.bake_texture
+        sub.prop(props, "texture_size")
+        layout.operator("headrecon.fit", icon="MOD_SHRINKWRAP")
+        row = layout.row(align=True)
+        row.prop(props, "live_refit", toggle=True, icon="PLAY")
+        row.operator("headrecon.refit_landmarks", text="", icon="FILE_REFRESH")
+        stats = fit_ops.live_stats()
+        if props.live_refit:
+            if not stats["ready"]:
+                layout.label(text="Live refit starts after a Fit", icon="INFO")
+            elif stats["error"]:
+                layout.label(text=stats["error"], icon="ERROR")
+            elif stats["ms"]:
+                layout.label(text=f"Last refit: {stats['ms']:.0f} ms", icon="TIME")
+        if props.status:
+            layout.label(text=props.status, icon="CHECKMARK")
+
+
+class HEADRECON_UL_residuals(bpy.types.UIList):
+    """Landmark residuals of the last fit; flagged ones first."""
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname,
+                  index=0):
+        row = layout.row(align=True)
+        row.label(text=f"{item.view}: {item.landmark}",
+                  icon="ERROR" if item.flagged else "CHECKMARK")
+        row.label(text=f"{item.pixels:.1f} px")
+
+
+class HEADRECON_PT_result(_Panel, bpy.types.Panel):
+    bl_label = "5. Result"
+    bl_idname = "HEADRECON_PT_result"
+
+    def draw(self, context):
+        layout = self.layout
+        scene = context.scene
+        head = scene.headrecon.head
+        if not reference_head.is_head(head) or head.data.shape_keys is None:
+            layout.label(text="Fit the head to see its result", icon="INFO")
+            return
+        props = head.headrecon
+        col = layout.column(align=True)
+        col.label(text=f"Method: {props.fit_method}")
+        col.label(text=f"RMS residual: {props.fit_rms_px:.2f} px")
+        flagged = sum(1 for r in scene.headrecon.residuals if r.flagged)
+        col.label(text=f"Flagged landmarks: {flagged}",
+                  icon="ERROR" if flagged else "CHECKMARK")
+        if props.uncertainty_max_mm > 0:
+            col.label(text=f"Uncertainty colours: blue 0 mm, red ≥ "
+                           f"{props.uncertainty_max_mm:.1f} mm")
+        layout.template_list("HEADRECON_UL_residuals", "", scene.headrecon, "residuals",
+                             scene.headrecon, "residual_index", rows=6)
+        key = head.data.shape_keys
+        layout.label(text=f"{len(key.key_blocks) - 1} shape keys (Object Data > Shape Keys)",
+                     icon="SHAPEKEY_DATA")
+
+
+CLASSES = (HEADRECON_PT_head, HEADRECON_PT_photos, HEADRECON_PT_landmarks, HEADRECON_PT_fit,
+           HEADRECON_UL_residuals, HEADRECON_PT_result)

@@ -1,0 +1,162 @@
+"""Add-on data stored in the .blend: ``Scene.headrecon`` (fit options, result summary,
+residual list) and ``Object.headrecon`` (what an object is to HeadRecon: the head, a photo
+plane, a landmark, a contour).
+
+The source of truth for landmark positions is the landmark object's location in its photo
+plane's local space (see photos.py for the pixel mapping): moving, grabbing, undoing or
+parenting a landmark needs nothing else kept in sync.
+"""
+
+import dataclasses
+
+import bpy
+from bpy.props import (
+    BoolProperty,
+    CollectionProperty,
+    EnumProperty,
+    FloatProperty,
+    IntProperty,
+    IntVectorProperty,
+    PointerProperty,
+    StringProperty,
+)
+
+from .solver_link import FitOptions
+
+
+def _fit_default(name):
+    """FitOptions' own default for a field, so the panel starts where the solver does."""
+    for f in dataclasses.fields(FitOptions):
+        if f.name == name:
+            if f.default is not dataclasses.MISSING:
+                return f.default
+            return f.default_factory()
+    raise KeyError(f"FitOptions has no field {name!r}")
+
+
+CAMERA_VIEWS = (
+    ("orthographic-front", "Front", "Photo taken from the front"),
+    ("orthographic-right", "Right Profile",
+     "Profile photo of the subject's right side (the face looks to the image's right)"),
+    ("orthographic-left", "Left Profile",
+     "Profile photo of the subject's left side (the face looks to the image's left)"),
+)
+
+ROLES = (
+    ("NONE", "None", ""),
+    ("HEAD", "Head", "The fitted head"),
+    ("PHOTO", "Photo", "A photo plane"),
+    ("LANDMARK", "Landmark", "A landmark on a photo plane"),
+    ("CONTOUR", "Contour", "The traced profile outline of a photo plane"),
+)
+
+
+def _on_camera_view(self, context):
+    # A photo plane's nominal view changed (e.g. right -> left profile): stand it there.
+    from . import photos
+
+    obj = self.id_data
+    if self.role == "PHOTO" and not self.camera_json and self.image_size[1] > 0:
+        obj.matrix_world = photos.plane_matrix(obj, centre=photos.head_centre(context.scene))
+
+
+class HEADRECON_PG_object(bpy.types.PropertyGroup):
+    role: EnumProperty(name="Role", items=ROLES, default="NONE")
+    view: StringProperty(name="View", description="Name of the photo's view, e.g. 'front'")
+    landmark: StringProperty(name="Landmark", description="Landmark name")
+    camera_view: EnumProperty(name="Camera", items=CAMERA_VIEWS, default="orthographic-front",
+                              update=_on_camera_view)
+    camera_json: StringProperty(
+        name="Camera Parameters",
+        description="The view's camera as JSON when it is not the nominal one (from an "
+                    "imported file); empty for the nominal orthographic camera")
+    image_size: IntVectorProperty(name="Image Size", size=2, min=0)
+    plane_height: FloatProperty(name="Plane Height", unit="LENGTH", default=0.375, min=1e-6,
+                                description="Height of the photo plane (its local units)")
+    image: PointerProperty(name="Image", type=bpy.types.Image)
+    flagged: BoolProperty(name="Flagged", description="The last fit flagged this landmark")
+    residual_px: FloatProperty(name="Residual", subtype="PIXEL", default=-1.0)
+    uncertainty_max_mm: FloatProperty(name="Uncertainty Scale", default=0.0,
+                                      description="Uncertainty shown red (mm)")
+    fit_method: StringProperty(name="Method")
+    fit_rms_px: FloatProperty(name="RMS Residual", subtype="PIXEL", default=-1.0)
+
+
+class HEADRECON_PG_residual(bpy.types.PropertyGroup):
+    view: StringProperty(name="View")
+    landmark: StringProperty(name="Landmark")
+    pixels: FloatProperty(name="Residual", subtype="PIXEL")
+    flagged: BoolProperty(name="Flagged")
+
+
+def _on_residual_index(self, context):
+    from .landmarks import select_landmark
+
+    if 0 <= self.residual_index < len(self.residuals):
+        item = self.residuals[self.residual_index]
+        select_landmark(context, item.view, item.landmark)
+
+
+def _on_live_refit(self, context):
+    from .fit_ops import reset_live_state
+
+    reset_live_state()
+
+
+METHODS = (
+    ("combined", "Combined", "Both thesis approaches, keeping the better fit"),
+    ("approach1", "Landmark ICP", "Thesis approach 1: shape-ICP on landmarks and profile"),
+    ("approach2", "TPS-ICP", "Thesis approach 2: thin-plate-spline ICP"),
+)
+PRIORS = (
+    ("eigen", "Eigenvalues", "Shape prior scaled by each component's variance (eq. 42)"),
+    ("identity", "Identity", "Equal prior on every coefficient"),
+)
+TEXTURE_SIZES = (("512", "512", ""), ("1024", "1024", ""), ("2048", "2048", ""))
+
+
+class HEADRECON_PG_scene(bpy.types.PropertyGroup):
+    head: PointerProperty(name="Head", type=bpy.types.Object,
+                          poll=lambda self, obj: obj.type == "MESH")
+    method: EnumProperty(name="Method", items=METHODS, default=_fit_default("method"))
+    n_identity: IntProperty(name="Components", min=1, max=100,
+                            default=_fit_default("n_identity"),
+                            description="Global identity components the fit uses")
+    n_regional: IntProperty(name="Regional Components", min=0, max=10,
+                            default=_fit_default("n_regional"),
+                            description="Components per region of the regional model "
+                                        "(0: global model only)")
+    lambda1: FloatProperty(name="λ1 Smoothness", min=0.0, soft_max=100.0,
+                           default=_fit_default("lambda1"),
+                           description="Weight of Γ: regions agree where they overlap")
+    lambda2: FloatProperty(name="λ2 Shape Prior", min=0.0, soft_max=100.0,
+                           default=_fit_default("lambda2"),
+                           description="Weight of Λ: keep the coefficients plausible")
+    prior: EnumProperty(name="Prior", items=PRIORS, default=_fit_default("prior"))
+    landmark_weight: FloatProperty(name="Landmark Weight", min=0.0, soft_max=100.0,
+                                   default=_fit_default("landmark_weight"),
+                                   description="Weight of the landmarks against the profile")
+    exact_landmarks: BoolProperty(name="Exact Landmarks", default=_fit_default("exact_landmarks"),
+                                  description="Add a detail shape so the landmarks hit exactly")
+    texture_size: EnumProperty(name="Texture", items=TEXTURE_SIZES, default="1024")
+    bake_texture: BoolProperty(name="Bake Texture", default=True,
+                               description="Bake the photos into the head's texture")
+    live_refit: BoolProperty(name="Live Refit", default=False, update=_on_live_refit,
+                             description="Refit while a landmark is moved, so the head "
+                                         "follows (run Fit once first)")
+    residuals: CollectionProperty(type=HEADRECON_PG_residual)
+    residual_index: IntProperty(name="Residual", default=-1, update=_on_residual_index)
+    status: StringProperty(name="Status")
+
+
+CLASSES = (HEADRECON_PG_object, HEADRECON_PG_residual, HEADRECON_PG_scene)
+
+
+def register_properties():
+    bpy.types.Object.headrecon = PointerProperty(type=HEADRECON_PG_object)
+    bpy.types.Scene.headrecon = PointerProperty(type=HEADRECON_PG_scene)
+
+
+def unregister_properties():
+    del bpy.types.Scene.headrecon
+    del bpy.types.Object.headrecon

@@ -1,0 +1,61 @@
+"""The one place the add-on reaches the solver.
+
+Inside Blender the extension is the package ``bl_ext.<repo>.headrecon`` and the solver is
+its sibling subpackage (``from .. import solver``). In a checkout run as plain Python
+(tests, ``python -m headrecon_addon.headless``) ``headrecon_addon`` and ``solver`` are both
+top-level packages and the relative import fails with "attempted relative import beyond
+top-level package"; then the absolute import is the right one. Any other ImportError (a
+missing scipy, a broken solver module) is re-raised so it is not mistaken for this case.
+"""
+
+import importlib
+
+_MODULES = ("cameras", "fit", "landmarks_file", "model", "result", "texture")
+
+
+try:
+    from .. import solver
+except ImportError as e:  # top-level headrecon_addon (a checkout): the solver is top-level too
+    if "beyond top-level package" not in str(e):
+        raise
+    solver = importlib.import_module("solver")
+
+_mods = {name: importlib.import_module(f"{solver.__name__}.{name}") for name in _MODULES}
+
+cameras = _mods["cameras"]
+fit = _mods["fit"]
+landmarks_file = _mods["landmarks_file"]
+model = _mods["model"]
+result = _mods["result"]
+texture = _mods["texture"]
+
+# What the add-on uses, by name.
+ORTHO_VIEWS = cameras.ORTHO_VIEWS
+OrthographicCamera = cameras.OrthographicCamera
+camera_from_dict = cameras.camera_from_dict
+FitOptions = fit.FitOptions
+fit_head = fit.fit_head
+refit_landmarks = fit.refit_landmarks
+View = landmarks_file.View
+LandmarkCase = landmarks_file.LandmarkCase
+parse_landmarks = landmarks_file.parse_landmarks
+load_landmarks = landmarks_file.load_landmarks
+landmarks_to_dict = landmarks_file.landmarks_to_dict
+save_landmarks = landmarks_file.save_landmarks
+load_landmark_set = landmarks_file.load_landmark_set
+camera_to_json = landmarks_file.camera_to_json
+camera_from_json = landmarks_file.camera_from_json
+HeadModel = model.HeadModel
+load_model = model.load_model
+FitResult = result.FitResult
+bake_texture = texture.bake_texture
+bake_fit_texture = texture.bake_fit_texture
+orthographic_uvs = texture.orthographic_uvs
+
+__all__ = [
+    "ORTHO_VIEWS", "FitOptions", "FitResult", "HeadModel", "LandmarkCase",
+    "OrthographicCamera", "View", "bake_fit_texture", "bake_texture", "camera_from_dict", "camera_from_json",
+    "camera_to_json", "fit_head", "landmarks_to_dict", "load_landmark_set", "load_landmarks",
+    "load_model", "orthographic_uvs", "parse_landmarks", "refit_landmarks", "save_landmarks",
+    "solver",
+]

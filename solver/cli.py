@@ -1,0 +1,466 @@
+"""Command line: ``python -m solver fit|validate|landmarks ...``.
+
+The same fit the Blender add-on runs, headless: read a landmarks file, fit the head model,
+write the head as OBJ (model topology and UVs, metres), optionally bake the photos into a
+texture, and write a JSON report. Progress goes to stderr; bad input ends with exit code 1
+and one line naming the file, view and key at fault (never a traceback). Only this module
+reads images (with Pillow); the solver's texture functions take arrays.
+"""
+
+import argparse
+import io
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .landmarks_file import (
+    MIN_LANDMARKS_PER_VIEW,
+    MIN_LANDMARKS_TOTAL,
+    LandmarksError,
+    load_landmark_set,
+    load_landmarks,
+    write_file_atomic,
+)
+
+PROG = "python -m solver"
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+REPORT_FORMAT = "headrecon-fit-report"
+
+
+class CliError(Exception):
+    """A problem with the user's input or environment: printed as one line, exit 1."""
+
+
+# --------------------------------------------------------------------------------------
+# Small helpers
+
+
+class _Progress:
+    """Prints ``[ 42%] message`` lines on stderr (nothing when quiet), with elapsed time."""
+
+    def __init__(self, quiet):
+        self.quiet = quiet
+        self.t0 = time.perf_counter()
+        self._last = None
+
+    def __call__(self, fraction, message):
+        if self.quiet:
+            return
+        line = f"[{100 * min(max(float(fraction), 0.0), 1.0):3.0f}%] {message}"
+        if line == self._last:  # a fit may report the same step repeatedly
+            return
+        self._last = line
+        print(f"{line}  ({time.perf_counter() - self.t0:.1f} s)", file=sys.stderr, flush=True)
+
+
+def _one_line(text):
+    return " ".join(str(text).split()) or "failed"
+
+
+def _jsonable(x):
+    """numpy / tuples / cameras -> plain JSON values (non-finite floats -> None)."""
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, np.generic):
+        return _jsonable(x.item())
+    if isinstance(x, bool | int | str) or x is None:
+        return x
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if hasattr(x, "to_dict"):
+        return _jsonable(x.to_dict())
+    return repr(x)
+
+
+def _read_photo(case, view_name):
+    """A view's photo as float32 (H, W, 3|4) in [0, 1], checked against the file's size."""
+    from PIL import Image, UnidentifiedImageError
+
+    view = case.views[view_name]
+    where = f"{case.source}: views.{view_name}.image"
+    path = case.image_path(view_name)
+    if not path.is_file():
+        raise CliError(f"{where}: photo {view.image!r} not found ({path})")
+    try:
+        with Image.open(path) as im:
+            # EXIF orientation is deliberately not applied: Blender ignores it too, and the
+            # landmarks were placed on the pixels as stored.
+            if tuple(im.size) != tuple(view.size):
+                raise CliError(f"{case.source}: views.{view_name}.size: the file says "
+                               f"{view.size[0]}x{view.size[1]} but {path.name} is "
+                               f"{im.size[0]}x{im.size[1]} pixels")
+            alpha = im.mode in ("RGBA", "LA", "PA") or "transparency" in im.info
+            arr = np.asarray(im.convert("RGBA" if alpha else "RGB"), dtype=np.float32)
+    except UnidentifiedImageError:
+        raise CliError(f"{where}: {path.name} is not an image Pillow can read") from None
+    except OSError as e:
+        raise CliError(f"{where}: cannot read {path.name}: {e}") from None
+    return arr / np.float32(255.0)
+
+
+def _png_bytes(image):
+    """float (H, W, 3|4) in [0, 1] -> PNG file contents."""
+    from PIL import Image
+
+    a = np.asarray(image, dtype=np.float64)
+    if a.ndim != 3 or a.shape[2] not in (3, 4):
+        raise ValueError(f"texture: expected (H, W, 3|4), got {a.shape}")
+    u8 = np.round(np.clip(np.nan_to_num(a), 0.0, 1.0) * 255.0).astype(np.uint8)
+    buf = io.BytesIO()
+    Image.fromarray(u8, "RGBA" if u8.shape[2] == 4 else "RGB").save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def texture_atlas(model, tiles):
+    """Put baked UDIM tiles side by side in one image and remap the UVs to match, so an
+    OBJ needs a single texture (the ICT skin spans tiles 1001 and 1002).
+
+    Parameters
+    ----------
+    model : HeadModel
+    tiles : dict of int -> ndarray (size, size, C)
+        UDIM tile -> texture (``texture.bake_tiles``); row 0 at the top.
+
+    Returns
+    -------
+    atlas : ndarray, shape (size, n * size, C)
+        The tiles in increasing tile order, left to right.
+    loop_uv : ndarray, shape (L, 2)
+        UVs into the atlas for the faces of baked tiles, the model's UVs elsewhere.
+    textured : ndarray, shape (F,), bool
+        Faces the atlas covers: parts the bake covers (the skin) whose UVs lie in a tile.
+    """
+    from .texture import resolve_parts
+
+    order = sorted(tiles)
+    n = len(order)
+    atlas = np.concatenate([np.asarray(tiles[t]) for t in order], axis=1)
+    start = np.asarray(model.face_loop_start)
+    total = np.asarray(model.face_loop_total)
+    uv = np.asarray(model.loop_uv, dtype=np.float64)
+    first = np.repeat(np.cumsum(total) - total, total)
+    loops = np.repeat(start, total) + np.arange(first.size) - first  # faces in order
+    face_mean = np.add.reduceat(uv[loops], np.cumsum(total) - total, axis=0) / total[:, None]
+    corner = np.floor(face_mean).astype(np.int64)
+    face_tile = 1001 + corner[:, 0] + 10 * corner[:, 1]  # same rule as the bake
+    part_idx, _ = resolve_parts(model)
+    textured = np.isin(np.asarray(model.face_part), part_idx) & np.isin(face_tile, order)
+    column = np.searchsorted(order, face_tile)  # tile's place in the atlas
+    face_of_loop = np.repeat(np.arange(total.size), total)
+    sel = textured[face_of_loop]
+    lp = loops[sel]
+    f = face_of_loop[sel]
+    out = uv.copy()
+    out[lp, 0] = (column[f] + uv[lp, 0] - corner[f, 0]) / n
+    out[lp, 1] = uv[lp, 1] - corner[f, 1]
+    return atlas, out, textured
+
+
+def _prepare_output(path, what):
+    p = Path(path)
+    if p.exists() and p.is_dir():
+        raise CliError(f"{what} {p}: is a folder; give a file name")
+    p.parent.mkdir(parents=True, exist_ok=True)
+    return p
+
+
+# --------------------------------------------------------------------------------------
+# fit
+
+
+def _fit_report(args, case, model, result, outputs, timings):
+    skin = getattr(model, "skin", None)
+    unc = np.asarray(result.uncertainty, dtype=np.float64)
+    unc_skin = unc[skin] if skin is not None and unc.size == model.n_vertices else unc
+    residuals = {}
+    for view, r in result.residuals.items():
+        px = np.asarray(r.pixels, dtype=np.float64)
+        residuals[view] = {
+            "landmarks": dict(zip(r.names, px.tolist(), strict=True)),
+            "mean_px": float(px.mean()) if px.size else None,
+            "rms_px": float(np.sqrt((px ** 2).mean())) if px.size else None,
+            "max_px": float(px.max()) if px.size else None,
+            "flagged": list(r.flagged),
+        }
+    landmark_unc = {}
+    for name, vertex in getattr(model, "landmarks", {}).items():
+        if 0 <= vertex < unc.size:
+            landmark_unc[name] = float(unc[vertex])
+    info = dict(result.info)
+    return _jsonable({
+        "format": REPORT_FORMAT,
+        "version": 1,
+        "landmarks_file": str(Path(case.source).resolve()),
+        "method": result.method,
+        "options": {k: v for k, v in vars(args).items() if k not in ("func", "debug")},
+        "similarity": {"scale": result.scale, "rotation": result.rotation,
+                       "translation_m": result.translation},
+        "coefficients": {
+            "identity": result.identity_coeffs,
+            "regional": dict(zip(result.regional_names,
+                                 np.asarray(result.regional_coeffs).tolist(), strict=True)),
+        },
+        "residuals": residuals,
+        "flagged": [list(x) for x in result.flagged()],
+        "cameras": result.cameras,
+        "uncertainty_mm": {
+            "over": "skin" if unc_skin is not unc else "all vertices",
+            "mean": float(unc_skin.mean()) if unc_skin.size else None,
+            "median": float(np.median(unc_skin)) if unc_skin.size else None,
+            "p95": float(np.percentile(unc_skin, 95)) if unc_skin.size else None,
+            "max": float(unc_skin.max()) if unc_skin.size else None,
+            "landmarks": landmark_unc,
+        },
+        "timings_s": timings,
+        "outputs": {k: str(v) for k, v in outputs.items()},
+        "info": info,
+    })
+
+
+def _cmd_fit(args):
+    progress = _Progress(args.quiet)
+    timings = {}
+    t_start = time.perf_counter()
+
+    # No progress output until the input is checked: bad input gets exactly one line.
+    t = time.perf_counter()
+    case = load_landmarks(args.landmarks)
+    photos = {}
+    if args.texture:  # read the photos before fitting: a missing photo fails fast
+        for name, view in case.views.items():
+            if view.image is not None:
+                photos[name] = _read_photo(case, name)
+        if not photos:
+            raise CliError(f"--texture: {case.source}: no view names a photo ('image')")
+    timings["read"] = time.perf_counter() - t
+    out = _prepare_output(args.out, "--out")
+    texture_path = _prepare_output(args.texture, "--texture") if args.texture else None
+    report_path = _prepare_output(args.report, "--report") if args.report else None
+
+    progress(0.0, "loading the head model")
+    t = time.perf_counter()
+    # Imported here, after the input checks: a bad file fails fast, before numpy-heavy
+    # modules load.
+    from .fit import FitOptions, fit_head
+    from .model import load_model
+    from .obj_export import write_obj
+
+    model = load_model(args.model)
+    timings["model"] = time.perf_counter() - t
+
+    kw = {"progress": progress}
+    for key, value in (("method", args.method), ("n_identity", args.components),
+                       ("n_regional", args.regional), ("lambda1", args.lambda1),
+                       ("lambda2", args.lambda2), ("prior", args.prior),
+                       ("max_iterations", args.max_iterations),
+                       ("noise_px", args.noise_px)):
+        if value is not None:
+            kw[key] = value
+    if args.exact:
+        kw["exact_landmarks"] = True
+    options = FitOptions(**kw)
+    progress(0.0, f"fitting ({options.method})")
+    t = time.perf_counter()
+    result = fit_head(model, case, options)
+    timings["fit"] = time.perf_counter() - t
+
+    outputs = {}
+    loop_uv, textured = model.loop_uv, None
+    if texture_path is not None:
+        from .texture import bake_fit_texture
+
+        progress(1.0, f"baking the texture from {len(photos)} photo(s)")
+        t = time.perf_counter()
+        tiles = bake_fit_texture(model, result, photos, size=args.texture_size)
+        atlas, loop_uv, textured = texture_atlas(model, tiles)
+        write_file_atomic(texture_path, _png_bytes(atlas))
+        outputs["texture"] = texture_path
+        timings["texture"] = time.perf_counter() - t
+
+    progress(1.0, f"writing {out}")
+    t = time.perf_counter()
+    vertices = result.world_vertices if args.frame == "world" else result.local_vertices
+    written = write_obj(out, vertices, model.loop_vertex, model.face_loop_start,
+                        model.face_loop_total, loop_uv, mtl_texture=texture_path,
+                        textured_faces=textured)
+    outputs["obj"] = written[0]
+    if len(written) > 1:
+        outputs["mtl"] = written[1]
+    timings["write"] = time.perf_counter() - t
+
+    if report_path is not None:
+        outputs["report"] = report_path
+        timings["total"] = time.perf_counter() - t_start
+        report = _fit_report(args, case, model, result, outputs, timings)
+        write_file_atomic(report_path, json.dumps(report, indent=1, allow_nan=False) + "\n")
+
+    if not args.quiet:
+        for view, r in result.residuals.items():
+            px = np.asarray(r.pixels, dtype=np.float64)
+            if px.size:
+                flag = f"; check {', '.join(r.flagged)}" if r.flagged else ""
+                print(f"{view}: landmark residual mean {px.mean():.2f} px, max {px.max():.2f} px"
+                      f"{flag}", file=sys.stderr)
+        print(f"done in {time.perf_counter() - t_start:.2f} s: "
+              + ", ".join(str(p) for p in outputs.values()), file=sys.stderr)
+    return EXIT_OK
+
+
+# --------------------------------------------------------------------------------------
+# validate / landmarks
+
+
+def _cmd_validate(args):
+    status = EXIT_OK
+    for path in args.files:
+        try:
+            case = load_landmarks(path, for_fit=not args.draft)
+        except LandmarksError as e:
+            for line in e.messages():
+                print(line, file=sys.stderr)
+            status = EXIT_FAILED
+            continue
+        except (ValueError, OSError) as e:
+            print(_one_line(e), file=sys.stderr)
+            status = EXIT_FAILED
+            continue
+        parts = []
+        for name, view in case.views.items():
+            text = f"{name} {len(view.points)} landmarks"
+            if view.contour is not None:
+                text += f" + contour of {len(view.contour)} points"
+            parts.append(text)
+            photo = case.image_path(name)
+            if photo is not None and not photo.is_file():
+                print(f"{path}: views.{name}.image: warning: photo {view.image!r} not found "
+                      f"({photo}); a fit works, --texture would not", file=sys.stderr)
+        print(f"{path}: OK ({'; '.join(parts)})")
+    return status
+
+
+def _cmd_landmarks(args):
+    lms = load_landmark_set()
+    if args.json:
+        print(json.dumps(list(lms.info), indent=1))
+        return EXIT_OK
+    for entry in lms.info:
+        ibug = entry.get("ibug")
+        tag = f"ibug{ibug:02d}" if ibug is not None else ""
+        views = ",".join(entry.get("views", []))
+        print(f"{entry['name']:<28} {tag:<7} {views:<12} {entry.get('description', '')}")
+    return EXIT_OK
+
+
+# --------------------------------------------------------------------------------------
+# Parser and entry point
+
+
+def _positive_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected 0 or more, got {value}")
+    return value
+
+
+def _non_negative_float(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text}")
+    return value
+
+
+def build_parser():
+    parser = argparse.ArgumentParser(
+        prog=PROG, description="HeadRecon: fit a 3D head to landmarks placed on a front and "
+                               "a profile photo.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+
+    fit = sub.add_parser(
+        "fit", help="fit the head to a landmarks file; write OBJ (+ texture, report)",
+        description="Fit the head model to the landmarks of LANDMARKS.json and write the "
+                    "head as OBJ (metres, Y up, the model's polygons and UVs).")
+    fit.add_argument("landmarks", metavar="LANDMARKS.json", help="the landmarks file")
+    fit.add_argument("--out", required=True, metavar="HEAD.obj", help="OBJ file to write")
+    fit.add_argument("--texture", metavar="HEAD.png",
+                     help="bake the photos into this PNG (and write HEAD.mtl using it)")
+    fit.add_argument("--texture-size", type=_positive_int, default=1024, metavar="PX",
+                     help="texture width and height in pixels (default 1024)")
+    fit.add_argument("--report", metavar="REPORT.json",
+                     help="write residuals, coefficients, uncertainty and timings as JSON")
+    fit.add_argument("--method", choices=("combined", "approach1", "approach2"),
+                     help="fitting method (default: the fit's default, combined)")
+    fit.add_argument("--components", type=_positive_int, metavar="N",
+                     help="global identity components to fit")
+    fit.add_argument("--regional", type=_positive_int, metavar="N",
+                     help="components per region of the regional model (0: global only)")
+    fit.add_argument("--exact", action="store_true",
+                     help="add thin-plate-spline detail so the landmarks are hit exactly")
+    fit.add_argument("--lambda1", type=_non_negative_float, metavar="W",
+                     help="weight of the region-border smoothness rows (Gamma)")
+    fit.add_argument("--lambda2", type=_non_negative_float, metavar="W",
+                     help="weight of the shape prior (Lambda)")
+    fit.add_argument("--prior", choices=("eigen", "identity"), help="shape prior")
+    fit.add_argument("--max-iterations", type=_positive_int, metavar="N",
+                     help="iteration limit of the fit")
+    fit.add_argument("--noise-px", type=_non_negative_float, metavar="PX",
+                     help="how precisely the landmarks were placed (standard deviation, "
+                          "pixels); weighs them against the shape prior")
+    fit.add_argument("--frame", choices=("local", "world"), default="local",
+                     help="OBJ coordinates: 'local' the head upright in the model's frame "
+                          "(default), 'world' posed as in the photos")
+    fit.add_argument("--model", metavar="HEAD_MODEL.npz",
+                     help="head model file (default: $HEADRECON_MODEL or generated/model/)")
+    fit.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    fit.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    fit.set_defaults(func=_cmd_fit)
+
+    val = sub.add_parser(
+        "validate", help="check landmarks files without fitting",
+        description="Check landmarks files: schema, landmark names, points inside the "
+                    f"images, at least {MIN_LANDMARKS_PER_VIEW} landmarks per view and "
+                    f"{MIN_LANDMARKS_TOTAL} in all. Lists every problem; exit code 1 if "
+                    "any file has one.")
+    val.add_argument("files", nargs="+", metavar="LANDMARKS.json")
+    val.add_argument("--draft", action="store_true",
+                     help="work in progress: do not require enough landmarks for a fit")
+    val.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    val.set_defaults(func=_cmd_validate)
+
+    lm = sub.add_parser("landmarks", help="list the landmark names a file may use",
+                        description="List every landmark (name, iBUG-68 alias, views it is "
+                                    "placed in, description) from assets/landmarks.json.")
+    lm.add_argument("--json", action="store_true", help="print the entries as JSON")
+    lm.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    lm.set_defaults(func=_cmd_landmarks)
+    return parser
+
+
+def main(argv=None):
+    """Run the command line; returns the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except (CliError, ValueError, OSError) as e:
+        # Bad input (a file, a photo, an option): one line, no traceback.
+        if args.debug:
+            raise
+        print(f"{PROG} {args.command}: error: {_one_line(e)}", file=sys.stderr)
+        return EXIT_FAILED

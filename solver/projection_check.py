@@ -1,0 +1,163 @@
+"""May a photo be treated as a parallel (orthographic) projection? Seed 001 (Hashimoto
+1984) chapter 2.2.1.
+
+A photo is a central projection. An object of size A at distance L images at a = l A / L;
+moved back by ΔL it images at a' = l A / (L + ΔL) (eq. 2.1). A parallel projection keeps
+the size fixed, so it may stand in for the photo only while the relative change
+
+    ε = (a - a') / a = ΔL / (L + ΔL)                                        (eq. 2.2)
+
+stays below ε_max, the relative error already present from reading the image (landmark
+placement error over the object's image size, γ of eq. 2.5). Equivalently the camera must be
+farther than
+
+    L > (1 - ε_max) / ε_max · ΔL                                            (eq. 2.3)
+
+For a head, ΔL is its depth along the line of sight and L the distance from the camera
+centre to its nearest point, so ε = 1 - d_min / d_max over the head's depths: at 1 m a
+0.1 m deep head gives 0.1 / 1.1 ≈ 9 %, while landmarks read to 2 px on a 600 px head are
+good to 0.3 %; the orthographic cameras then distort the head's proportions far more than
+the landmark error does, and a perspective (DLT) camera should be used.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .dlt import DLTCamera
+from .errors import as_points
+
+
+def perspective_ratio(depth_extent, distance):
+    """ε = ΔL / (L + ΔL) (eq. 2.2).
+
+    Parameters
+    ----------
+    depth_extent : float or ndarray, metres
+        ΔL, the object's depth along the line of sight.
+    distance : float or ndarray, metres
+        L, the distance to the object's nearest point.
+
+    Returns
+    -------
+    float or ndarray
+    """
+    dl = np.asarray(depth_extent, dtype=np.float64)
+    el = np.asarray(distance, dtype=np.float64)
+    if (dl < 0).any() or (el <= 0).any():
+        raise ValueError("perspective_ratio: depth_extent must be >= 0 and distance > 0")
+    return dl / (el + dl)
+
+
+def min_distance(depth_extent, epsilon_max):
+    """Smallest camera distance for a parallel projection, (1 - ε_max) / ε_max · ΔL
+    (eq. 2.3), metres."""
+    e = float(epsilon_max)
+    if not 0 < e < 1:
+        raise ValueError(f"epsilon_max: must lie in (0, 1), got {epsilon_max!r}")
+    return (1.0 - e) / e * float(depth_extent)
+
+
+@dataclass
+class ProjectionCheck:
+    """ε of one photo (``check_projection``).
+
+    Attributes
+    ----------
+    view : str
+    distance : float, metres
+        L: depth of the head's nearest point.
+    depth_extent : float, metres
+        ΔL: the head's extent along the viewing direction.
+    epsilon : float
+        ΔL / (L + ΔL) (eq. 2.2).
+    epsilon_max : float
+        The allowed ε (the reading error relative to the head's image size).
+    min_distance : float, metres
+        Eq. 2.3 for this head.
+    exceeds : bool
+        epsilon > epsilon_max: a parallel projection is not good enough for this photo.
+    message : str
+        Empty when fine, else a warning for the user.
+    """
+
+    view: str
+    distance: float
+    depth_extent: float
+    epsilon: float
+    epsilon_max: float
+    min_distance: float
+    exceeds: bool
+    message: str
+
+
+def check_projection(camera, points, epsilon_max=None, reading_error_px=2.0, view="photo"):
+    """ε of a photo for head points seen by a calibrated perspective camera.
+
+    Parameters
+    ----------
+    camera : DLTCamera
+        The photo's calibrated camera.
+    points : array_like, shape (n, 3), metres
+        Head points (e.g. landmark vertices or the whole skin) in the camera's world.
+    epsilon_max : float, optional
+        Allowed ε. Default: ``reading_error_px`` over the head's image size (the longer
+        side of its projected bounding box), γ of eq. 2.5.
+    reading_error_px : float, pixels
+        Landmark placement error used for the default ε_max.
+    view : str
+        Name used in the message.
+
+    Returns
+    -------
+    ProjectionCheck
+
+    Raises
+    ------
+    ValueError
+        Not a DLT camera, or head points on or behind the camera.
+    """
+    if not isinstance(camera, DLTCamera):
+        raise ValueError(f"view {view!r}: the projection check needs a calibrated "
+                         f"perspective (DLT) camera, got {type(camera).__name__}")
+    x = as_points(points, "points", min_count=2)
+    depth = camera.depth(x)
+    if (depth <= 0).any():
+        raise ValueError(f"view {view!r}: {int((depth <= 0).sum())} head point(s) lie on or "
+                         "behind the camera")
+    near, far = float(depth.min()), float(depth.max())
+    extent = far - near
+    eps = float(perspective_ratio(extent, near))
+    if epsilon_max is None:
+        px = camera.project(x)
+        span = float(np.max(px.max(axis=0) - px.min(axis=0)))
+        if not span > 0:
+            raise ValueError(f"view {view!r}: the head points project to one pixel")
+        epsilon_max = float(reading_error_px) / span
+    epsilon_max = float(epsilon_max)
+    lmin = min_distance(extent, epsilon_max) if epsilon_max < 1 else 0.0
+    exceeds = eps > epsilon_max
+    msg = ""
+    if exceeds:
+        msg = (f"view {view!r}: the camera is {near:.2f} m from a head {extent * 100:.1f} cm "
+               f"deep, so a parallel projection is off by {eps * 100:.1f} % (eq. 2.2) while "
+               f"landmarks are good to {epsilon_max * 100:.2f} %; treat this photo as a "
+               f"perspective (DLT) camera, or shoot from at least {lmin:.1f} m")
+    return ProjectionCheck(view, near, extent, eps, epsilon_max, lmin, exceeds, msg)
+
+
+def check_views(cameras, points, epsilon_max=None, reading_error_px=2.0):
+    """``check_projection`` for every photo.
+
+    Parameters
+    ----------
+    cameras : dict of str -> DLTCamera
+    points : array_like, shape (n, 3), metres
+    epsilon_max, reading_error_px : see ``check_projection``
+
+    Returns
+    -------
+    dict of str -> ProjectionCheck
+    """
+    return {name: check_projection(cam, points, epsilon_max, reading_error_px, name)
+            for name, cam in cameras.items()}

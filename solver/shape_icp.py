@@ -1,0 +1,1086 @@
+"""Shape-ICP: Gauss-Newton fit of a similarity and linear-model coefficients (thesis §4.3).
+
+A model vertex i sits in the world at
+
+    x_i = s R (mu_i + B_i c) + t                                       (thesis eq. 20, 22)
+
+with scale s, rotation R, coefficients c (standard-normal units) and translation t. One
+Gauss-Newton step linearises every residual around the current parameters (eq. 37-39):
+
+    dx_i = p~_i ds  +  dtheta x p~_i  +  s R B_i dc  +  dt,      p~_i = s R (mu_i + B_i c)
+
+and updates ``s <- (1 + ds) s``, ``R <- rot(dtheta) R``, ``c <- c + dc``, ``t <- t + dt``
+(eq. 44-45). The cost adds the smoothness rows lambda1 * Gamma (eq. 40-41) and the
+deformation prior lambda2 * Lambda (eq. 42) to the data (eq. 43):
+
+    E = sum_rows w r^2 + lambda1^2 |Gamma c|^2 + lambda2^2 |Lambda c|^2
+
+Data come in groups of rows ("Rows") that a caller composes freely in one solve:
+
+- ``PointRows``: vertex -> 3-D target, all coordinates or a subset (``mask``; thesis
+  approach 1 uses the two known coordinates of front landmarks, eq. 47);
+- ``ImageRows``: vertex -> pixel through any ``Camera`` (residual pixel - project(x), the
+  Jacobian by the chain rule through ``camera.jacobian``), so perspective cameras plug in;
+- ``ClosestPointRows``: ICP against a point cloud (KD-tree, distance threshold, optional
+  symmetric correspondences; thesis §4.3.3);
+- ``ClosestPixelRows``: ICP in an image against a contour, e.g. the profile line (§4.4.1).
+
+Why the assembly looks the way it does: a dense Jacobian of a 3-D registration is 33k rows
+by 7+K columns and its normal matrix would dominate the run time. Rows whose weight is the
+same for the three coordinates of a vertex ("isotropic", i.e. full 3-D targets) contribute
+``s^2 sum_i w_i B_i^T B_i`` to the shape block, independent of R and of the targets, so that
+Gram matrix is cached and only corrected for the vertices whose weight changed (outliers).
+Everything else costs O(n K).
+"""
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.linalg import cho_solve
+from scipy.spatial import cKDTree
+
+from .cameras import Camera
+from .errors import as_points
+
+SIMILARITY_PARAMS = ("scale", "rotation x", "rotation y", "rotation z",
+                     "translation x", "translation y", "translation z")
+_GROUPS = {"scale": [0], "rotation": [1, 2, 3], "translation": [4, 5, 6]}
+FREEZABLE = ("scale", "rotation", "translation", "shape")
+_RCOND = 1e-12  # smallest accepted eigenvalue ratio of the Jacobi-scaled normal matrix
+
+
+# --------------------------------------------------------------------------- rows
+
+
+@dataclass
+class _Iso:
+    """Full 3-D rows: per-vertex weight and world residual (target - x)."""
+
+    alpha: np.ndarray  # (n,)
+    resid: np.ndarray  # (n, 3)
+    sq: float  # sum of w |r|^2 (the data cost of this group)
+    wsum: float  # sum of the weights of points used (eq. 46 denominator)
+    nrows: int  # scalar residual rows with positive weight
+
+
+@dataclass
+class _General:
+    """Explicit scalar rows: residual r_j = obs_j - pred_j with d pred_j / d x = g_j."""
+
+    idx: np.ndarray  # (m,) position of the row's vertex within the group
+    g: np.ndarray  # (m, 3)
+    r: np.ndarray  # (m,)
+    w: np.ndarray  # (m,)
+    sq: float
+    wsum: float
+    nrows: int
+
+
+def _vertex_array(vertices, name):
+    v = np.asarray(vertices)
+    if v.ndim != 1 or v.size == 0:
+        raise ValueError(f"{name}: vertices must be a non-empty 1-D array, got shape {v.shape}")
+    if not np.issubdtype(v.dtype, np.integer):
+        raise ValueError(f"{name}: vertices must be integer indices, got dtype {v.dtype}")
+    return v.astype(np.intp)
+
+
+def _weight_array(weights, n, name):
+    w = np.asarray(weights, dtype=np.float64)
+    if w.ndim == 0:
+        w = np.full(n, float(w))
+    if w.shape != (n,):
+        raise ValueError(f"{name}: weights must be a scalar or shape ({n},), got {w.shape}")
+    if not np.isfinite(w).all() or (w < 0).any():
+        raise ValueError(f"{name}: weights must be finite and non-negative")
+    return w
+
+
+def _check_camera(camera, name):
+    if not isinstance(camera, Camera) and not (hasattr(camera, "project")
+                                               and hasattr(camera, "jacobian")):
+        raise ValueError(f"{name}: camera must be a Camera (with project and jacobian), "
+                         f"got {type(camera).__name__}")
+    return camera
+
+
+class Rows(ABC):
+    """A group of residual rows tied to model vertices. Subclasses below.
+
+    Attributes
+    ----------
+    vertices : ndarray, shape (n,)
+        Model vertex indices the rows use.
+    name : str
+        Used in error messages and in ``ShapeFit.info``.
+    """
+
+    vertices: np.ndarray
+    name: str
+    _version = 0  # bumped when targets change, so a cached system is not reused
+
+    def update(self, world):
+        """Refresh correspondences from the current world positions (n, 3) of ``vertices``.
+        Fixed-target groups do nothing."""
+        return None
+
+    @abstractmethod
+    def block(self, world, jacobian=True):
+        """Residuals (and, with ``jacobian``, their derivatives) at world positions (n, 3)."""
+
+
+class PointRows(Rows):
+    """Vertices pulled toward 3-D targets, in all coordinates or only the masked ones.
+
+    Parameters
+    ----------
+    vertices : array_like of int, shape (n,)
+    targets : array_like, shape (n, 3), metres (world)
+        Unused coordinates (mask False) may hold any finite value or NaN.
+    weights : float or array_like, shape (n,)
+        Multiplies each point's squared residual.
+    mask : array_like of bool, shape (n, 3), optional
+        Which world coordinates of each target are known (default: all). A front-view
+        landmark known in x and z only has mask ``[True, False, True]``.
+    name : str
+    """
+
+    def __init__(self, vertices, targets, weights=1.0, mask=None, name="points"):
+        self.name = name
+        self.vertices = _vertex_array(vertices, name)
+        n = len(self.vertices)
+        if mask is None:
+            self.mask = None
+        else:
+            m = np.asarray(mask)
+            if m.shape != (n, 3) or m.dtype != bool:
+                raise ValueError(f"{name}: mask must be a bool array of shape ({n}, 3), "
+                                 f"got {m.dtype} {m.shape}")
+            self.mask = None if m.all() else m
+        self.weights = _weight_array(weights, n, name)
+        self.set_targets(targets)
+
+    def set_targets(self, targets):
+        """Replace the targets (same shape), e.g. while a landmark is dragged."""
+        n = len(self.vertices)
+        t = np.asarray(targets, dtype=np.float64)
+        if t.shape != (n, 3):
+            raise ValueError(f"{self.name}: targets must have shape ({n}, 3), got {t.shape}")
+        used = np.ones((n, 3), bool) if self.mask is None else self.mask
+        bad = used & ~np.isfinite(t)
+        if bad.any():
+            raise ValueError(f"{self.name}: target row {int(np.flatnonzero(bad.any(1))[0])} "
+                             "is not finite (NaN or inf)")
+        self.targets = np.where(used, t, 0.0)
+        self._version += 1
+
+    def block(self, world, jacobian=True):
+        r = self.targets - world
+        w = self.weights
+        if self.mask is None:
+            sq = float(w @ np.einsum("ij,ij->i", r, r))
+            return _Iso(w, r, sq, float(w.sum()), 3 * int((w > 0).sum()))
+        pt, ax = np.nonzero(self.mask)
+        rr = r[pt, ax]
+        ww = w[pt]
+        g = np.zeros((len(pt), 3))
+        g[np.arange(len(pt)), ax] = 1.0
+        used = np.zeros(len(w), bool)
+        used[pt] = True
+        return _General(pt, g, rr, ww, float(ww @ rr**2), float(w[used].sum()),
+                        int((ww > 0).sum()))
+
+
+class ImageRows(Rows):
+    """Vertices pulled toward pixels of a photo through its camera.
+
+    The residual of point i is ``pixels[i] - camera.project(x_i)`` in pixels, so weights
+    convert pixels^2 to the cost's unit (e.g. ``(metres per pixel)^2`` to mix with 3-D rows).
+
+    Parameters
+    ----------
+    vertices : array_like of int, shape (n,)
+    pixels : array_like, shape (n, 2), pixels (origin top-left, v down)
+    camera : Camera
+    weights : float or array_like, shape (n,)
+    name : str
+    """
+
+    def __init__(self, vertices, pixels, camera, weights=1.0, name="image"):
+        self.name = name
+        self.vertices = _vertex_array(vertices, name)
+        self.camera = _check_camera(camera, name)
+        self.weights = _weight_array(weights, len(self.vertices), name)
+        self.set_pixels(pixels)
+
+    def set_pixels(self, pixels):
+        """Replace the target pixels (same shape), e.g. while a landmark is dragged."""
+        n = len(self.vertices)
+        p = np.asarray(pixels, dtype=np.float64)
+        if p.shape != (n, 2):
+            raise ValueError(f"{self.name}: pixels must have shape ({n}, 2), got {p.shape}")
+        self.pixels = as_points(p, f"{self.name}: pixels", dim=2)
+        self._version += 1
+
+    def block(self, world, jacobian=True):
+        r = self.pixels - self.camera.project(world)  # (n, 2)
+        w = self.weights
+        sq = float(w @ np.einsum("ij,ij->i", r, r))
+        n = len(w)
+        if not jacobian:
+            return _General(None, None, None, None, sq, float(w.sum()), 2 * int((w > 0).sum()))
+        jac = np.asarray(self.camera.jacobian(world), dtype=np.float64).reshape(n, 2, 3)
+        return _General(np.repeat(np.arange(n), 2), jac.reshape(2 * n, 3), r.reshape(-1),
+                        np.repeat(w, 2), sq, float(w.sum()), 2 * int((w > 0).sum()))
+
+
+def _reject(dist, ok, max_distance, reject_factor, keep_distance=0.0):
+    """Inlier mask: within ``max_distance``, and within ``reject_factor`` x median unless
+    closer than ``keep_distance``."""
+    ok = ok & (dist <= max_distance)
+    if reject_factor is not None and ok.any():
+        ok &= dist <= max(reject_factor * np.median(dist[ok]), keep_distance)
+    return ok
+
+
+class ClosestPointRows(Rows):
+    """ICP rows: each vertex is pulled toward its nearest cloud point (thesis §4.3.3).
+
+    Without normals the cost of an inlier vertex is the thesis' point-to-point
+    ``w |q - x|^2``. With cloud normals it is point-to-plane plus a little point-to-point,
+    ``w ((n . (q - x))^2 + tangential |q - x|^2)``: the distance along the normal is what
+    the nearest point measures reliably, so ICP converges in a few steps instead of sliding
+    slowly along the surface, and the small tangential term keeps the shape from drifting
+    sideways.
+
+    Parameters
+    ----------
+    vertices : array_like of int, shape (n,)
+    cloud : array_like, shape (m, 3), metres (world)
+    weights : float or array_like, shape (n,)
+        Per-vertex weight of inliers.
+    max_distance : float
+        Correspondences farther than this (metres) are dropped (the thesis' threshold).
+    reject_factor : float, optional
+        Also drop correspondences farther than this many times the median distance...
+    keep_distance : float
+        ... unless they are closer than this (metres): early in a fit, true shape
+        differences of several millimetres must not be mistaken for outliers.
+    symmetric : bool
+        Also pull, for every cloud point, its nearest vertex toward it (helps where the
+        cloud is thinner than the model). Per vertex these pulls average into one target.
+    normals : array_like, shape (m, 3), optional
+        Unit normals of the cloud (sign irrelevant) for the point-to-plane cost.
+    tangential : float
+        Weight of the point-to-point term when ``normals`` are given.
+    tree : scipy.spatial.cKDTree, optional
+        A tree already built on ``cloud`` (reused across solves).
+    workers : int
+        Threads for the KD-tree query (-1: all).
+    name : str
+    """
+
+    def __init__(self, vertices, cloud, weights=1.0, max_distance=np.inf, reject_factor=None,
+                 keep_distance=0.0, symmetric=False, normals=None, tangential=0.1, tree=None,
+                 workers=1, name="cloud"):
+        self.name = name
+        self.vertices = _vertex_array(vertices, name)
+        self.weights = _weight_array(weights, len(self.vertices), name)
+        self.cloud = as_points(cloud, f"{name}: cloud")
+        if tree is not None and tree.n != len(self.cloud):
+            raise ValueError(f"{name}: tree has {tree.n} points, cloud has {len(self.cloud)}")
+        self.tree = cKDTree(self.cloud) if tree is None else tree
+        md = float(max_distance)
+        if not md > 0:
+            raise ValueError(f"{name}: max_distance must be > 0, got {max_distance!r}")
+        if reject_factor is not None and not float(reject_factor) > 0:
+            raise ValueError(f"{name}: reject_factor must be > 0, got {reject_factor!r}")
+        self.normals = None
+        if normals is not None:
+            nrm = as_points(normals, f"{name}: normals")
+            if nrm.shape != self.cloud.shape:
+                raise ValueError(f"{name}: normals must have the cloud's shape "
+                                 f"{self.cloud.shape}, got {nrm.shape}")
+            length = np.linalg.norm(nrm, axis=1)
+            if (length < 1e-12).any():
+                raise ValueError(f"{name}: normal {int(np.argmin(length))} has zero length")
+            self.normals = nrm / length[:, None]
+        if not np.isfinite(tangential) or tangential < 0:
+            raise ValueError(f"{name}: tangential must be finite and >= 0, got {tangential!r}")
+        self.tangential = float(tangential)
+        self.max_distance = md
+        self.reject_factor = reject_factor
+        self.keep_distance = float(keep_distance)
+        self.symmetric = bool(symmetric)
+        self.workers = workers
+        self.targets = None
+        self.inliers = None
+        self.distances = None
+
+    def update(self, world):
+        dist, idx = self.tree.query(world, distance_upper_bound=self.max_distance,
+                                    workers=self.workers)
+        ok = _reject(dist, np.isfinite(dist), self.max_distance, self.reject_factor,
+                     self.keep_distance)
+        idx = np.where(ok, idx, 0)
+        self.distances = dist
+        self.inliers = ok
+        alpha = np.where(ok, self.weights, 0.0)
+        tgt = self.cloud[idx]
+        self.targets = tgt
+        self._plane = None
+        if self.normals is not None:
+            self._plane = (self.normals[idx], alpha)
+            alpha = self.tangential * alpha
+        self._const = 0.0
+        if self.symmetric:
+            # Cloud -> model: each cloud point pulls its nearest vertex. For one vertex the
+            # sum of w |q_j - x|^2 equals (sum w) |mean q - x|^2 + const, so the pulls fold
+            # into one weighted target per vertex and the rows stay isotropic.
+            d2, v = cKDTree(world).query(self.cloud, workers=self.workers)
+            okr = _reject(d2, np.isfinite(d2), self.max_distance, self.reject_factor,
+                          self.keep_distance)
+            v, q = v[okr], self.cloud[okr]
+            wr = self.weights[v]
+            n = len(world)
+            cnt = np.bincount(v, wr, minlength=n)
+            acc = np.stack([np.bincount(v, wr * q[:, k], minlength=n) for k in range(3)], 1)
+            tot = alpha + cnt
+            use = tot > 0
+            folded = np.where(use[:, None], (alpha[:, None] * tgt + acc)
+                              / np.where(use, tot, 1.0)[:, None], tgt)
+            # The constant the folding drops, so the reported error (eq. 46) stays the sum
+            # of both directions' squared distances.
+            self._const = float(alpha @ (tgt**2).sum(1) + wr @ (q**2).sum(1)
+                                - tot @ (folded**2).sum(1))
+            tgt, alpha = folded, tot
+        self._iso_targets = tgt
+        self.alpha = alpha
+
+    def block(self, world, jacobian=True):
+        if self.targets is None:
+            self.update(world)
+        blocks = []
+        plane = self._plane
+        a = self.alpha
+        if a.any():
+            r = self._iso_targets - world
+            sq = max(float(a @ np.einsum("ij,ij->i", r, r)) + self._const, 0.0)
+            blocks.append(_Iso(a, r, sq, 0.0 if plane else float(a.sum()),
+                               3 * int((a > 0).sum())))
+        if plane is not None:
+            nq, w = plane
+            rp = np.einsum("ij,ij->i", self.targets - world, nq)
+            blocks.append(_General(None, nq, rp, w, float(w @ rp**2), float(w.sum()),
+                                   int((w > 0).sum())))
+        if not blocks:
+            blocks.append(_Iso(a, np.zeros_like(world), 0.0, 0.0, 0))
+        return blocks
+
+
+class ClosestPixelRows(Rows):
+    """ICP rows in a photo: each vertex's projection is pulled toward the nearest pixel of a
+    contour (e.g. the profile line, thesis §4.4.1). Residuals in pixels as ``ImageRows``.
+
+    Parameters
+    ----------
+    vertices : array_like of int, shape (n,)
+    pixels : array_like, shape (m, 2)
+        Contour pixels (densely sampled along the line).
+    camera : Camera
+    weights : float or array_like, shape (n,)
+    max_distance : float
+        Pixel distance beyond which a correspondence is dropped.
+    reject_factor : float, optional
+        Also drop correspondences beyond this many times the median pixel distance.
+    name : str
+    """
+
+    def __init__(self, vertices, pixels, camera, weights=1.0, max_distance=np.inf,
+                 reject_factor=None, name="contour"):
+        self.name = name
+        self.vertices = _vertex_array(vertices, name)
+        self.camera = _check_camera(camera, name)
+        self.weights = _weight_array(weights, len(self.vertices), name)
+        self.pixels = as_points(pixels, f"{name}: pixels", dim=2)
+        md = float(max_distance)
+        if not md > 0:
+            raise ValueError(f"{name}: max_distance must be > 0, got {max_distance!r}")
+        self.max_distance = md
+        self.reject_factor = reject_factor
+        self.tree = cKDTree(self.pixels)
+        self.targets = None
+        self.inliers = None
+
+    def update(self, world):
+        proj = self.camera.project(world)
+        dist, idx = self.tree.query(proj, distance_upper_bound=self.max_distance)
+        ok = _reject(dist, np.isfinite(dist), self.max_distance, self.reject_factor)
+        self.inliers = ok
+        self.targets = self.pixels[np.where(ok, idx, 0)]
+
+    def block(self, world, jacobian=True):
+        if self.targets is None:
+            self.update(world)
+        w = np.where(self.inliers, self.weights, 0.0)
+        r = self.targets - self.camera.project(world)
+        sq = float(w @ np.einsum("ij,ij->i", r, r))
+        n = len(w)
+        nrows = 2 * int((w > 0).sum())
+        if not jacobian:
+            return _General(None, None, None, None, sq, float(w.sum()), nrows)
+        jac = np.asarray(self.camera.jacobian(world), dtype=np.float64).reshape(n, 2, 3)
+        return _General(np.repeat(np.arange(n), 2), jac.reshape(2 * n, 3), r.reshape(-1),
+                        np.repeat(w, 2), sq, float(w.sum()), nrows)
+
+
+# --------------------------------------------------------------------------- result
+
+
+@dataclass
+class ShapeFit:
+    """Outcome of a shape-ICP solve.
+
+    World vertices are ``scale * (mean + basis . coeffs) @ rotation.T + translation``.
+
+    Attributes
+    ----------
+    scale : float
+    rotation : ndarray, shape (3, 3)
+        Proper rotation, model -> world.
+    translation : ndarray, shape (3,), metres
+    coeffs : ndarray, shape (K,)
+        All model coefficients (standard deviations); inactive ones keep their start value.
+    error_history : list of float
+        Error of eq. 46 (weighted mean squared residual per point, in the rows' units
+        squared) before each step and at the end; ``error_history[-1]`` is the final one.
+    iterations : int
+        Gauss-Newton steps taken.
+    converged : bool
+        The relative change of the error fell below the tolerance (or no step could lower
+        the cost any more) before ``max_iterations``.
+    free : tuple of str
+        Names of the free parameters, the order of ``normal_matrix`` and ``covariance``.
+    normal_matrix : ndarray, shape (P, P)
+        ``J^T W J`` plus prior terms at the final parameters, in step units (scale as a
+        relative change, rotation in radians, translation in metres, coefficients).
+    sigma : float
+        Residual noise level used for the covariance (given, or estimated from the fit).
+    covariance : ndarray, shape (P, P)
+        ``sigma^2 * inverse(normal_matrix)``.
+    coeff_covariance : ndarray, shape (Ka, Ka), or None
+        The block of ``covariance`` for the active coefficients (None when shape frozen).
+    active : ndarray of int, shape (Ka,)
+        Indices of the coefficients the fit could change.
+    info : dict
+        Per group: name, rows used, error; cost; solve details.
+    """
+
+    scale: float
+    rotation: np.ndarray
+    translation: np.ndarray
+    coeffs: np.ndarray
+    error_history: list
+    iterations: int
+    converged: bool
+    free: tuple
+    normal_matrix: np.ndarray
+    sigma: float
+    covariance: np.ndarray
+    coeff_covariance: np.ndarray | None
+    active: np.ndarray
+    info: dict = field(default_factory=dict)
+
+    @property
+    def error(self):
+        """Final error of eq. 46."""
+        return self.error_history[-1]
+
+    def transform(self, points):
+        """Apply the fitted similarity to model-space points: (n, 3) -> (n, 3)."""
+        x = as_points(points, "points")
+        return self.scale * x @ self.rotation.T + self.translation
+
+    def local_vertices(self, model):
+        """Model-space vertices ``mean + basis . coeffs``, shape (V, 3)."""
+        return model.instance(self.coeffs)
+
+    def world_vertices(self, model):
+        """World-space vertices, shape (V, 3)."""
+        return self.transform(self.local_vertices(model))
+
+
+def vertex_std(basis, coeff_covariance):
+    """Posterior standard deviation of each vertex position from a coefficient covariance.
+
+    Parameters
+    ----------
+    basis : ndarray, shape (Ka, V, 3)
+        The basis rows of the active coefficients (``model.basis[fit.active]``), metres.
+    coeff_covariance : ndarray, shape (Ka, Ka)
+
+    Returns
+    -------
+    ndarray, shape (V,), metres
+        ``sqrt(trace(B_v Sigma B_v^T))``: the RMS length of the position error (the pose
+        uncertainty is not included; multiply by the fit's scale for world units).
+    """
+    b = np.asarray(basis, dtype=np.float64)
+    cov = np.asarray(coeff_covariance, dtype=np.float64)
+    k = b.shape[0]
+    if b.ndim != 3 or b.shape[2] != 3 or cov.shape != (k, k):
+        raise ValueError(f"vertex_std: basis (Ka, V, 3) and covariance (Ka, Ka) disagree: "
+                         f"{b.shape} vs {cov.shape}")
+    evals, evecs = np.linalg.eigh(0.5 * (cov + cov.T))
+    f = np.sqrt(np.clip(evals, 0.0, None))[:, None] * evecs.T  # f^T f = cov
+    y = f @ b.reshape(k, -1)
+    return np.sqrt((y * y).sum(axis=0).reshape(-1, 3).sum(axis=1))
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def skew(v):
+    """Cross-product matrices: (n, 3) -> (n, 3, 3) with ``skew(a) @ b == a x b``."""
+    v = np.asarray(v, dtype=np.float64)
+    out = np.zeros(v.shape[:-1] + (3, 3))
+    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
+    return out
+
+
+def rotation_from_vector(theta):
+    """Rotation matrix of the rotation vector ``theta`` (axis * angle, radians), shape (3, 3).
+    The exact form of the thesis' ``I + [theta]_x`` (eq. 14/25)."""
+    th = np.asarray(theta, dtype=np.float64).reshape(3)
+    a = float(np.linalg.norm(th))
+    k = skew(th)
+    if a < 1e-8:
+        return np.eye(3) + k + 0.5 * k @ k
+    return np.eye(3) + (np.sin(a) / a) * k + ((1 - np.cos(a)) / a**2) * (k @ k)
+
+
+def orthonormalize(r):
+    """Nearest proper rotation to a 3 x 3 matrix (polar decomposition by SVD)."""
+    u, _, vt = np.linalg.svd(r)
+    if np.linalg.det(u @ vt) < 0:
+        u[:, -1] *= -1
+    return u @ vt
+
+
+def _check_rotation(r, name="rotation"):
+    r = np.asarray(r, dtype=np.float64)
+    if r.shape != (3, 3) or not np.isfinite(r).all():
+        raise ValueError(f"{name}: expected a finite (3, 3) matrix, got shape {r.shape}")
+    if np.abs(r @ r.T - np.eye(3)).max() > 1e-6 or np.linalg.det(r) < 0:
+        raise ValueError(f"{name}: not a proper rotation (R R^T != I or det < 0)")
+    return orthonormalize(r)
+
+
+class _Prepared:
+    """Per-group model slices, reused across iterations and solves."""
+
+    def __init__(self, rows, model, active, full_active):
+        self.rows = rows
+        v = rows.vertices
+        n_model = model.mean.shape[0]
+        if v.min() < 0 or v.max() >= n_model:
+            bad = int(v[(v < 0) | (v >= n_model)][0])
+            raise ValueError(f"{rows.name}: vertex index {bad} out of range 0..{n_model - 1}")
+        whole = len(v) == n_model and np.array_equal(v, np.arange(n_model))
+        if whole:  # no copy of a large basis when a group covers the whole model
+            self.mean = model.mean
+            b = model.basis if full_active else model.basis[active]
+        else:
+            self.mean = model.mean[v]
+            b = model.basis[active][:, v] if not full_active else model.basis[:, v]
+        self.basis = np.ascontiguousarray(b, dtype=np.float64)  # (Ka, n, 3)
+        self.b2 = self.basis.reshape(self.basis.shape[0], -1)  # (Ka, 3n), a view
+        self.inactive_basis = None
+        if not full_active:
+            mask = np.ones(model.n_coeffs, bool)
+            mask[active] = False
+            self.inactive_idx = np.flatnonzero(mask)
+            ib = model.basis[self.inactive_idx]
+            self.inactive_basis = ib if whole else ib[:, v]
+        self.base = self.mean
+        self._gram_alpha = None
+        self._gram = None
+        self._gram_updates = 0
+
+    def set_inactive(self, coeffs):
+        if self.inactive_basis is None:
+            self.base = self.mean
+            return
+        ci = coeffs[self.inactive_idx]
+        self.base = self.mean + np.tensordot(ci, self.inactive_basis, axes=1) if ci.any() \
+            else self.mean
+
+    def gram(self, alpha):
+        """``sum_i alpha_i B_i^T B_i`` (Ka, Ka), updated from the last one when few weights
+        changed (outliers in ICP) instead of a full 3n x Ka^2 product."""
+        n = len(alpha)
+        if self._gram is not None and self._gram_updates < 50:
+            diff = alpha - self._gram_alpha
+            nz = np.flatnonzero(diff)
+            if len(nz) == 0:
+                return self._gram
+            if len(nz) < n // 4:
+                cols = (3 * nz[:, None] + np.arange(3)).ravel()
+                bs = self.b2[:, cols]
+                self._gram = self._gram + (bs * np.repeat(diff[nz], 3)) @ bs.T
+                self._gram_alpha = alpha.copy()
+                self._gram_updates += 1
+                return self._gram
+        self._gram = (self.b2 * np.repeat(alpha, 3)) @ self.b2.T
+        self._gram_alpha = alpha.copy()
+        self._gram_updates = 0
+        return self._gram
+
+
+@dataclass
+class _System:
+    n: np.ndarray  # (7+Ka, 7+Ka)
+    b: np.ndarray  # (7+Ka,)
+    sq: float  # data cost
+    prior: float  # prior cost
+    wsum: float
+    nrows: int
+    groups: list
+
+    @property
+    def error(self):
+        return self.sq / self.wsum if self.wsum > 0 else 0.0
+
+
+# --------------------------------------------------------------------------- solver
+
+
+class ShapeProblem:
+    """A shape-ICP problem: a model, groups of rows, priors and what is free.
+
+    Build it once and call :meth:`solve` repeatedly (e.g. after changing a group's targets
+    with ``set_targets``/``set_pixels``): the model slices and Gram matrices are cached.
+
+    Parameters
+    ----------
+    model : LinearModel
+        ``mean (V, 3)``, ``basis (K, V, 3)``, ``stddev (K,)``, ``gamma (G, K)`` or None.
+    rows : Rows or sequence of Rows
+        Groups of residual rows, composed in one cost.
+    lambda1 : float
+        Weight of the smoothness rows ``lambda1 * Gamma`` (eq. 40-41); ignored when the
+        model has no ``gamma``.
+    lambda2 : float
+        Weight of the deformation prior ``lambda2 * Lambda`` (eq. 42).
+    prior : {"eigen", "identity"}
+        Lambda: "eigen" penalises ``c`` (Mahalanobis distance, c in standard deviations);
+        "identity" is the thesis' ``w I`` on raw unit-eigenvector coefficients, i.e. it
+        penalises ``stddev * c`` (metres).
+    freeze : iterable of str
+        Parameters to keep at their start values: any of "scale", "rotation",
+        "translation", "shape" (shape frozen = the similarity-only ICP).
+    active : array_like of int, optional
+        Indices of the coefficients that may change (default: all).
+    n_coeffs : int, optional
+        Shorthand for ``active = range(n_coeffs)``.
+    """
+
+    def __init__(self, model, rows, lambda1=0.0, lambda2=0.0, prior="eigen", freeze=(),
+                 active=None, n_coeffs=None):
+        mean = np.asarray(getattr(model, "mean", None))
+        basis = getattr(model, "basis", None)
+        if mean.ndim != 2 or mean.shape[1] != 3 or basis is None \
+                or np.ndim(basis) != 3 or basis.shape[1:] != mean.shape:
+            raise ValueError("model: expected a LinearModel with mean (V, 3) and basis "
+                             "(K, V, 3)")
+        self.model = model
+        k = basis.shape[0]
+        if isinstance(rows, Rows):
+            rows = [rows]
+        rows = list(rows)
+        if not rows:
+            raise ValueError("rows: at least one group of rows is needed")
+        for r in rows:
+            if not isinstance(r, Rows):
+                raise ValueError(f"rows: expected Rows objects, got {type(r).__name__}")
+        freeze = frozenset((freeze,) if isinstance(freeze, str) else freeze)
+        unknown = freeze - set(FREEZABLE)
+        if unknown:
+            raise ValueError(f"freeze: unknown parameter(s) {sorted(unknown)}; "
+                             f"known: {', '.join(FREEZABLE)}")
+        for name, lam in (("lambda1", lambda1), ("lambda2", lambda2)):
+            if not np.isfinite(lam) or lam < 0:
+                raise ValueError(f"{name}: must be finite and >= 0, got {lam!r}")
+        if prior not in ("eigen", "identity"):
+            raise ValueError(f"prior: must be 'eigen' or 'identity', got {prior!r}")
+        if active is not None and n_coeffs is not None:
+            raise ValueError("active and n_coeffs: give at most one")
+        if n_coeffs is not None:
+            if not 0 <= int(n_coeffs) <= k:
+                raise ValueError(f"n_coeffs: must be in 0..{k}, got {n_coeffs}")
+            active = np.arange(int(n_coeffs))
+        elif active is None:
+            active = np.arange(k)
+        else:
+            active = np.asarray(active)
+            if active.ndim != 1 or not np.issubdtype(active.dtype, np.integer) or (
+                    active.size and (active.min() < 0 or active.max() >= k)) or \
+                    len(np.unique(active)) != len(active):
+                raise ValueError(f"active: expected unique coefficient indices in 0..{k - 1}")
+        self.active = np.asarray(active, dtype=np.intp)
+        if len(self.active) == 0:
+            freeze = freeze | {"shape"}
+        self.freeze = freeze
+        self.lambda1 = float(lambda1)
+        self.lambda2 = float(lambda2)
+        self.prior = prior
+        full_active = len(self.active) == k and np.array_equal(self.active, np.arange(k))
+        self.groups = [_Prepared(r, model, self.active, full_active) for r in rows]
+        ka = len(self.active)
+        self.shape_free = "shape" not in freeze
+        sim = [i for g, idx in _GROUPS.items() if g not in freeze for i in idx]
+        self.free = np.array(sim + ([7 + j for j in range(ka)] if self.shape_free else []),
+                             dtype=np.intp)
+        if len(self.free) == 0:
+            raise ValueError("freeze: every parameter is frozen; nothing to fit")
+        names = tuple(model.names) if len(getattr(model, "names", ())) == k else \
+            tuple(f"coefficient {i}" for i in range(k))
+        self.param_names = SIMILARITY_PARAMS + tuple(names[i] for i in self.active)
+        sd = np.asarray(model.stddev, dtype=np.float64)
+        if sd.shape != (k,):
+            raise ValueError(f"model: stddev must have shape ({k},), got {sd.shape}")
+        self._sd = sd
+        self.anneal = 0.0
+        self._cache = None
+        self.set_priors()
+
+    def set_priors(self, lambda1=None, lambda2=None, anneal=None):
+        """Change the prior weights between solves (the cached model slices stay valid).
+
+        ``anneal`` adds ``anneal^2 |c|^2`` on top of the chosen prior: a stiffness that
+        ``register`` lowers step by step so the shape follows the data gradually instead of
+        bending into the first wrong correspondences.
+        """
+        k = self.model.basis.shape[0]
+        for name, lam in (("lambda1", lambda1), ("lambda2", lambda2), ("anneal", anneal)):
+            if lam is not None and (not np.isfinite(lam) or lam < 0):
+                raise ValueError(f"{name}: must be finite and >= 0, got {lam!r}")
+        if lambda1 is not None:
+            self.lambda1 = float(lambda1)
+        if lambda2 is not None:
+            self.lambda2 = float(lambda2)
+        if anneal is not None:
+            self.anneal = float(anneal)
+        gamma = getattr(self.model, "gamma", None)
+        self.gamma = None
+        if gamma is not None and self.lambda1 > 0:
+            gamma = np.asarray(gamma, dtype=np.float64)
+            if gamma.ndim != 2 or gamma.shape[1] != k:
+                raise ValueError(f"model: gamma must have shape (G, {k}), got {gamma.shape}")
+            self.gamma = gamma
+            ga = gamma[:, self.active]
+            self._gtg = self.lambda1**2 * (ga.T @ ga)
+            self._ga = ga
+        weight = self._sd**2 if self.prior == "identity" else np.ones(k)
+        self._lam_all = self.lambda2**2 * weight + self.anneal**2
+        self._lam = self._lam_all[self.active]
+        ka = len(self.active)
+        self._prior_rows = (ka if (self.lambda2 > 0 or self.anneal > 0) else 0) + \
+            (self.gamma.shape[0] if self.gamma is not None else 0)
+
+    # ---------------------------------------------------------------- assembly
+
+    def _prior_cost(self, c):
+        cost = float(self._lam_all @ c**2)
+        if self.gamma is not None:
+            gc = self.gamma @ c
+            cost += self.lambda1**2 * float(gc @ gc)
+        return cost
+
+    def _build(self, state, update, jacobian=True):
+        s, rot, t, c = state
+        ka = len(self.active)
+        ca = c[self.active]
+        p = 7 + ka
+        n_mat = np.zeros((p, p))
+        b = np.zeros(p)
+        sq = wsum = 0.0
+        nrows = 0
+        info = []
+        shape = self.shape_free and jacobian
+        for pg in self.groups:
+            m = pg.base + np.tensordot(ca, pg.basis, axes=1) if ka else pg.base
+            pt = s * m @ rot.T  # p~ of eq. 38 (no translation)
+            x = pt + t
+            if update:
+                pg.rows.update(x)
+            blocks = pg.rows.block(x, jacobian)
+            if not isinstance(blocks, list | tuple):
+                blocks = [blocks]
+            g_sq = sum(bl.sq for bl in blocks)
+            g_w = sum(bl.wsum for bl in blocks)
+            g_rows = sum(bl.nrows for bl in blocks)
+            sq += g_sq
+            wsum += g_w
+            nrows += g_rows
+            info.append({"name": pg.rows.name, "rows": g_rows,
+                         "error": g_sq / g_w if g_w > 0 else 0.0})
+            if not jacobian:
+                continue
+            nv = len(x)
+            sj = np.zeros((nv, 3, 7))  # d x / d(ds, dtheta, dt)  (eq. 39)
+            sj[:, :, 0] = pt
+            sj[:, :, 1:4] = -skew(pt)  # dtheta x p~ = -[p~]_x dtheta
+            sj[:, 0, 4] = sj[:, 1, 5] = sj[:, 2, 6] = 1.0
+            for blk in blocks:
+                if isinstance(blk, _Iso):
+                    self._add_iso(n_mat, b, blk, sj, pg, s, rot, shape)
+                else:
+                    self._add_general(n_mat, b, blk, sj, pg, s, rot, shape)
+        if jacobian:
+            n_mat[:7, 7:] = n_mat[7:, :7].T
+        return _System(n_mat, b, sq, self._prior_cost(c), wsum, nrows, info)
+
+    def _with_priors(self, sys, c):
+        """The system plus the prior rows (eq. 43) at coefficients ``c``."""
+        n_mat, b = sys.n.copy(), sys.b.copy()
+        if self.shape_free:
+            n_mat[7:, 7:] += np.diag(self._lam)
+            b[7:] -= self._lam * c[self.active]
+            if self.gamma is not None:
+                n_mat[7:, 7:] += self._gtg
+                b[7:] -= self.lambda1**2 * (self._ga.T @ (self.gamma @ c))
+        return _System(n_mat, b, sys.sq, self._prior_cost(c), sys.wsum, sys.nrows, sys.groups)
+
+    def _key(self, state):
+        s, rot, t, c = state
+        versions = [getattr(pg.rows, "_version", 0) for pg in self.groups]
+        return np.concatenate([[s], rot.ravel(), t, c, versions])
+
+    def _build_cached(self, state):
+        """Data system at ``state`` with fresh correspondences; reuses the previous solve's
+        final build when a new solve starts where that one ended (annealing stages)."""
+        key = self._key(state)
+        if self._cache is not None and np.array_equal(self._cache[0], key):
+            sys = self._cache[1]
+        else:
+            sys = self._build(state, update=True)
+        self._cache = (key, sys)
+        return self._with_priors(sys, state[3])
+
+    @staticmethod
+    def _add_iso(n_mat, b, blk, sj, pg, s, rot, shape):
+        a = blk.alpha
+        sw = sj * a[:, None, None]
+        sw2 = sw.reshape(-1, 7)
+        n_mat[:7, :7] += sw2.T @ sj.reshape(-1, 7)
+        b[:7] += sw2.T @ blk.resid.reshape(-1)
+        if shape:
+            q = np.matmul(rot.T, sw)  # model-frame rows: (s R B)^T y = s B^T R^T y
+            n_mat[7:, :7] += s * (pg.b2 @ q.reshape(-1, 7))
+            b[7:] += s * (pg.b2 @ ((blk.resid * a[:, None]) @ rot).reshape(-1))
+            n_mat[7:, 7:] += (s * s) * pg.gram(a)
+
+    @staticmethod
+    def _add_general(n_mat, b, blk, sj, pg, s, rot, shape):
+        if blk.idx is None:  # one row per vertex, in order (e.g. point-to-plane)
+            keep = np.flatnonzero(blk.w > 0)
+            dense = len(keep) > 0.5 * len(blk.w)
+            if dense:
+                keep = slice(None)
+            idx = keep
+        else:
+            keep = blk.w > 0
+            idx = blk.idx[keep]
+            dense = False
+        g, r, w = blk.g[keep], blk.r[keep], blk.w[keep]
+        a_s = np.einsum("mi,mij->mj", g, sj[idx])
+        a_sw = a_s * w[:, None]
+        n_mat[:7, :7] += a_sw.T @ a_s
+        b[:7] += a_sw.T @ r
+        if shape:
+            h = s * g @ rot  # row of s R B_i seen from the model frame
+            bas = pg.basis if dense else pg.basis[:, idx, :]
+            a_c = np.einsum("kmi,mi->mk", bas, h)  # (m, Ka)
+            a_cw = a_c * w[:, None]
+            n_mat[7:, :7] += a_cw.T @ a_s
+            n_mat[7:, 7:] += a_cw.T @ a_c
+            b[7:] += a_cw.T @ r
+
+    def _factor(self, sys):
+        """Cholesky factor of the Jacobi-scaled normal matrix of the free parameters, or a
+        ValueError naming the parameters nothing constrains."""
+        nf = sys.n[np.ix_(self.free, self.free)]
+        d = np.sqrt(np.clip(np.diag(nf), 0.0, None))
+        names = [self.param_names[i] for i in self.free]
+        zero = d <= 1e-300
+        if zero.any():
+            which = ", ".join(repr(names[i]) for i in np.flatnonzero(zero)[:6])
+            raise ValueError(f"singular system: no row constrains {which}; add rows, freeze "
+                             "them or use lambda2 > 0")
+        ns = nf / d[:, None] / d[None, :]
+        ok = True
+        try:
+            low = np.linalg.cholesky(ns)
+            diag = np.diag(low)
+            ok = (diag.min() / diag.max()) ** 2 > _RCOND
+        except np.linalg.LinAlgError:
+            ok = False
+        if not ok:
+            evals, evecs = np.linalg.eigh(ns)
+            if evals[0] > _RCOND * evals[-1]:  # the cheap test was too pessimistic
+                low = np.linalg.cholesky(ns)
+            else:
+                v = np.abs(evecs[:, 0])
+                which = ", ".join(repr(names[i]) for i in np.argsort(-v)[:4]
+                                  if v[i] > 0.25 * v.max())
+                raise ValueError(f"singular system: the rows do not determine {which} "
+                                 f"(condition {evals[-1] / max(evals[0], 1e-300):.1e}); add "
+                                 "rows, freeze parameters or use lambda1/lambda2 > 0")
+        return low, d, nf
+
+    @staticmethod
+    def _chol_solve(low, rhs):
+        return cho_solve((low, True), rhs, check_finite=False)
+
+    def _apply(self, state, full, frac):
+        s, rot, t, c = state
+        step = frac * full
+        ds = step[0]
+        s_new = s * max(1.0 + ds, 0.5)  # a factor <= 0 would flip the head; cap the step
+        r_new = orthonormalize(rotation_from_vector(step[1:4]) @ rot)
+        t_new = t + step[4:7]
+        c_new = c.copy()
+        c_new[self.active] += step[7:]
+        return (s_new, r_new, t_new, c_new)
+
+    # ---------------------------------------------------------------- solve
+
+    def solve(self, scale=1.0, rotation=None, translation=None, coeffs=None,
+              max_iterations=30, tolerance=1e-6, sigma=None):
+        """Run Gauss-Newton from the given start.
+
+        Parameters
+        ----------
+        scale : float
+        rotation : ndarray, shape (3, 3), optional (default identity)
+        translation : ndarray, shape (3,), optional (default zero)
+        coeffs : ndarray, shape (K,), optional (default zero)
+        max_iterations : int
+            Most Gauss-Newton steps (1 = one linear solve, the fast refit path; 0 only
+            evaluates the error and the covariance at the start).
+        tolerance : float
+            Stop when the error of eq. 46 changes by less than this fraction.
+        sigma : float, optional
+            Residual noise level for the covariance; default: estimated as
+            ``sqrt(weighted SSR / (rows - free parameters))``.
+
+        Returns
+        -------
+        ShapeFit
+        """
+        k = self.model.basis.shape[0]
+        s = float(scale)
+        if not np.isfinite(s) or s <= 0:
+            raise ValueError(f"scale: must be finite and > 0, got {scale!r}")
+        rot = np.eye(3) if rotation is None else _check_rotation(rotation)
+        t = np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64)
+        if t.shape != (3,) or not np.isfinite(t).all():
+            raise ValueError(f"translation: expected 3 finite numbers, got shape {t.shape}")
+        c = np.zeros(k) if coeffs is None else np.array(coeffs, dtype=np.float64)
+        if c.shape != (k,) or not np.isfinite(c).all():
+            raise ValueError(f"coeffs: expected {k} finite numbers, got shape {c.shape}")
+        if int(max_iterations) < 0:
+            raise ValueError(f"max_iterations: must be >= 0, got {max_iterations}")
+        if not tolerance >= 0:
+            raise ValueError(f"tolerance: must be >= 0, got {tolerance!r}")
+        for pg in self.groups:
+            pg.set_inactive(c)
+        state = (s, rot, t, c)
+        history = []
+        converged = False
+        steps = 0
+        n_free = len(self.free)
+        while True:
+            sys = self._build_cached(state)
+            history.append(sys.error)
+            if steps == 0 and sys.nrows + (self._prior_rows if self.shape_free else 0) < n_free:
+                detail = ", ".join(f"{g['name']}: {g['rows']}" for g in sys.groups)
+                raise ValueError(f"too few observations: {sys.nrows} residual rows ({detail}) "
+                                 f"for {n_free} free parameters; add points, freeze "
+                                 "parameters, use fewer coefficients or lambda2 > 0")
+            if len(history) >= 2:
+                prev = history[-2]
+                if abs(prev - history[-1]) <= tolerance * max(prev, 1e-300):
+                    converged = True
+            if history[-1] == 0.0:
+                converged = True
+            low, d, nf = self._factor(sys)
+            if converged or steps >= int(max_iterations):
+                break
+            rhs = sys.b[self.free] / d
+            delta = self._chol_solve(low, rhs) / d
+            full = np.zeros(len(sys.b))
+            full[self.free] = delta
+            cost0 = sys.sq + sys.prior
+            accepted = None
+            frac = 1.0
+            for _ in range(8):
+                cand = self._apply(state, full, frac)
+                trial = self._build(cand, update=False, jacobian=False)
+                if trial.sq + trial.prior <= cost0 * (1 + 1e-12) + 1e-300:
+                    accepted = cand
+                    break
+                frac *= 0.5
+            if accepted is None:  # no step lowers the cost: a (numerical) minimum
+                converged = True
+                break
+            state = accepted
+            steps += 1
+        s, rot, t, c = state
+        dof = sys.nrows + (self._prior_rows if self.shape_free else 0) - n_free
+        if sigma is None:
+            sig = float(np.sqrt(sys.sq / max(dof, 1)))
+        else:
+            sig = float(sigma)
+            if not np.isfinite(sig) or sig < 0:
+                raise ValueError(f"sigma: must be finite and >= 0, got {sigma!r}")
+        inv = self._chol_solve(low, np.eye(n_free)) / d[:, None] / d[None, :]
+        cov = sig**2 * inv
+        ccov = None
+        if self.shape_free:
+            n_sim = n_free - len(self.active)
+            ccov = cov[n_sim:, n_sim:]
+        return ShapeFit(
+            scale=s, rotation=rot, translation=t, coeffs=c, error_history=history,
+            iterations=steps, converged=converged,
+            free=tuple(self.param_names[i] for i in self.free), normal_matrix=nf,
+            sigma=sig, covariance=cov, coeff_covariance=ccov, active=self.active.copy(),
+            info={"groups": sys.groups, "cost": sys.sq + sys.prior, "data_cost": sys.sq,
+                  "prior_cost": sys.prior, "rows": sys.nrows},
+        )
+
+
+def shape_icp(model, rows, *, scale=1.0, rotation=None, translation=None, coeffs=None,
+              lambda1=0.0, lambda2=0.0, prior="eigen", freeze=(), active=None, n_coeffs=None,
+              max_iterations=30, tolerance=1e-6, sigma=None):
+    """Fit a similarity and model coefficients to groups of rows (thesis §4.3).
+
+    A one-call form of ``ShapeProblem(model, rows, ...).solve(...)``; see those for the
+    parameters. Returns a :class:`ShapeFit`.
+
+    Raises
+    ------
+    ValueError
+        Wrong shapes or NaN in rows or start values, vertex indices out of range, fewer
+        residual rows than free parameters, or a singular system (names the parameters no
+        row determines).
+    """
+    problem = ShapeProblem(model, rows, lambda1=lambda1, lambda2=lambda2, prior=prior,
+                           freeze=freeze, active=active, n_coeffs=n_coeffs)
+    return problem.solve(scale=scale, rotation=rotation, translation=translation,
+                         coeffs=coeffs, max_iterations=max_iterations, tolerance=tolerance,
+                         sigma=sigma)

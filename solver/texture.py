@@ -1,0 +1,852 @@
+"""Texturing the fitted head from its photos.
+
+Two ways, both from thesis §5 onward:
+
+* :func:`orthographic_uvs` is the thesis' own method (eq. 48-49): every vertex gets the
+  texture coordinate of its projection into one photo, so the photo itself is the texture.
+  Cheap and exact on the photo's side, but the far side of the head smears.
+* :func:`bake_tiles` / :func:`bake_texture` bake a texture in the model's own UV layout
+  (``model.loop_uv``) from all photos at once, which the thesis names as the missing piece
+  (§9): each texel's surface point is projected into every photo, sampled where the photo
+  sees it (depth-buffer occlusion test) and blended by how squarely the surface faces that
+  photo; a profile photo is also used mirrored across the head's mid-sagittal plane so the
+  far cheek gets the near cheek's colours; what no photo sees is filled smoothly over the
+  mesh, and the UV islands get a few texels of bleed so mipmapping shows no seams.
+
+Texture convention: ``texture[row, column]`` with row 0 at the top (v = 1), as written to a
+PNG; texel (r, c) is centred on UV ((c + 0.5) / size, 1 - (r + 0.5) / size) inside its UDIM
+tile. Blender's ``Image.pixels`` run bottom-up, so the add-on flips rows when it fills an
+image from memory (not when it saves a PNG and loads that).
+
+UV tiles: the ICT layout puts the parts "Face" in UDIM tile 1001 (u in [0, 1]) and
+"Head and Neck" in 1002 (u in [1, 2]); :func:`bake_tiles` returns one texture per tile.
+Blender maps either as a tiled (UDIM) image or, since an Image Texture node repeats by
+default, as one image per material (u in [1, 2] samples the second image at u - 1).
+
+Photo convention: pixel (u, v) with the origin at the image's top-left corner and the
+image spanning [0, W] x [0, H], so pixel (i, j) is centred on (i + 0.5, j + 0.5) (the
+nominal orthographic camera puts the world origin at (W / 2, H / 2)). Colours are blended
+in the photos' own encoding (sRGB values in, sRGB values out).
+
+Parts: by default the skin ("Face", "Head and Neck"). Eyes, teeth, mouth interior and the
+eye overlay meshes are not baked: they are hidden or transparent on the photos, and the
+add-on gives them their own materials.
+"""
+
+import threading
+import weakref
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.ndimage as ndi
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .errors import as_points
+from .raster import depth_buffer, first_per_pixel, rasterize
+
+SKIN_PARTS = ("Face", "Head and Neck")
+
+
+# --------------------------------------------------------------------------------------
+# Per-vertex UVs into one photo (thesis §5)
+# --------------------------------------------------------------------------------------
+
+def orthographic_uvs(vertices, camera, image_size=None):
+    """Texture coordinates of each vertex in one photo (thesis §5, eq. 48-49).
+
+    The thesis maps the front photo orthographically: with the model in image-height
+    units centred on the nose tip, u = (U_n + Y h) / b and v = 1 - V_n / h + X, i.e. the
+    pixel the point projects to, divided by the image size, with v flipped because UVs
+    start at the bottom-left. With a fitted camera that is exactly
+    ``u = U / W, v = 1 - V / H`` for ``(U, V) = camera.project(vertex)``, which is what
+    this computes (so it also works for a fitted, rotated or DLT camera).
+
+    Parameters
+    ----------
+    vertices : ndarray, shape (V, 3), metres
+        World positions (the fitted head).
+    camera : Camera
+        The photo's camera; its ``size`` (W, H) gives the image size unless
+        ``image_size`` is given.
+    image_size : (int, int), optional
+        (width, height) in pixels of the photo the UVs index.
+
+    Returns
+    -------
+    ndarray, shape (V, 2)
+        UVs with (0, 0) at the photo's bottom-left and (1, 1) at its top-right (Blender's
+        convention); points outside the photo get UVs outside [0, 1].
+    """
+    x = as_points(vertices, "vertices")
+    w, h = _image_size(camera, image_size, "camera")
+    px = np.asarray(camera.project(x), dtype=np.float64)
+    return np.column_stack([px[:, 0] / w, 1.0 - px[:, 1] / h])
+
+
+def _image_size(camera, image_size, name):
+    size = image_size if image_size is not None else getattr(camera, "size", None)
+    if size is None:
+        raise ValueError(f"{name}: has no size; pass image_size=(width, height)")
+    w, h = (float(s) for s in size)
+    if not (w > 0 and h > 0):
+        raise ValueError(f"{name}: image size must be positive, got {tuple(size)}")
+    return w, h
+
+
+# --------------------------------------------------------------------------------------
+# Options and the cached UV raster
+# --------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class BakeOptions:
+    """Knobs of the texture bake (defaults suit two photos of about 1 megapixel).
+
+    Attributes
+    ----------
+    power : float
+        Blend weight of a view is ``max(0, n . toward_camera) ** power``: larger prefers
+        the photo that sees a spot most squarely and fades grazing samples faster.
+    mirror_weight : float
+        Factor on the weight of a mirrored profile photo, below 1 so a photo that sees a
+        spot directly wins over the mirrored guess.
+    mirror_min_lateral : float
+        A view is used mirrored (with ``mirror=True``) when its direction toward the camera
+        has at least this component along the symmetry plane's normal (0.5: 30 degrees or
+        more off the front, i.e. side and three-quarter views, never the front photo).
+    fill_weight : float
+        Texels whose total weight is below this are blended with the smooth fill, fully
+        where nothing sees them; keeps grazing, noisy samples from standing out.
+    depth_resolution : int
+        Longer side, in pixels, of each photo's depth buffer (at most the photo's size).
+    depth_tolerance : float
+        Slack of the occlusion test as a fraction of the head's size (its bounding-box
+        diagonal); a buffer pixel's own depth slope is added on top.
+    feather : float
+        Width, in depth-buffer pixels, over which a photo's weight fades in from its
+        silhouettes and occlusion edges (0: no fading).
+    bleed : int
+        Texels outside the UV islands that copy their nearest island texel, so filtering
+        and mipmaps never sample the background colour at a seam.
+    """
+
+    power: float = 3.0
+    mirror_weight: float = 0.5
+    mirror_min_lateral: float = 0.5
+    fill_weight: float = 0.05
+    depth_resolution: int = 512
+    depth_tolerance: float = 0.015
+    feather: float = 3.0
+    bleed: int = 4
+
+    def __post_init__(self):
+        checks = {"power": self.power > 0, "mirror_weight": self.mirror_weight >= 0,
+                  "mirror_min_lateral": 0 <= self.mirror_min_lateral <= 1,
+                  "fill_weight": self.fill_weight > 0,
+                  "depth_resolution": self.depth_resolution >= 8,
+                  "depth_tolerance": self.depth_tolerance >= 0, "feather": self.feather >= 0,
+                  "bleed": self.bleed >= 0}
+        for name, ok in checks.items():
+            if not ok:
+                raise ValueError(f"BakeOptions.{name}: out of range ({getattr(self, name)!r})")
+
+
+@dataclass(frozen=True, eq=False)
+class UVRaster:
+    """Which surface point every texel of one UV tile shows: built once per (model, size,
+    parts, tile) because the UV layout never changes; reuse it for every bake.
+
+    Attributes
+    ----------
+    size : int
+        Texture width and height in texels.
+    tile : int
+        UDIM tile number (1001 + floor(u) + 10 floor(v)).
+    parts : tuple of str
+        Geometry parts rasterised.
+    n_vertices : int
+        Vertex count of the model.
+    triangles : ndarray, shape (T, 3)
+        Vertex indices of the tile's triangles.
+    texel : ndarray, shape (N,)
+        Flat index ``row * size + column`` of each covered texel (one triangle each).
+    interp : scipy.sparse.csr_matrix, shape (N, V)
+        Barycentric weights: ``interp @ vertex_values`` is the value at each texel.
+    vertices : ndarray, shape (M,)
+        Vertices of the tile's triangles (the hole fill's unknowns live among them).
+    gather : scipy.sparse.csr_matrix, shape (M, N)
+        ``interp`` transposed, rows ``vertices``: sums texel values onto vertices.
+    laplacian : scipy.sparse.csr_matrix, shape (M, M)
+        Cotangent Laplacian over ``vertices`` (the tile's triangles, mean shape).
+    bleed_to, bleed_from : ndarray, shape (B,)
+        Flat texel indices: uncovered texels within ``bleed`` of an island and the nearest
+        covered texel each copies.
+    """
+
+    size: int
+    tile: int
+    parts: tuple
+    n_vertices: int
+    triangles: np.ndarray
+    texel: np.ndarray
+    interp: sp.csr_matrix
+    vertices: np.ndarray
+    gather: sp.csr_matrix
+    laplacian: sp.csr_matrix
+    bleed_to: np.ndarray
+    bleed_from: np.ndarray
+
+    @property
+    def mask(self):
+        """Covered texels, shape (size, size), bool (row 0 = top)."""
+        m = np.zeros(self.size * self.size, dtype=bool)
+        m[self.texel] = True
+        return m.reshape(self.size, self.size)
+
+
+_raster_cache = {}  # (id(model), size, parts, tile, bleed) -> (weakref to model, UVRaster)
+_raster_lock = threading.Lock()
+_RASTER_CACHE_MAX = 8
+
+
+def resolve_parts(model, parts=None):
+    """Part indices and names to bake.
+
+    Parameters
+    ----------
+    model : HeadModel
+    parts : sequence of str or int, optional
+        Part names (as in ``model.part_names``, case-insensitive) or indices. Default: the
+        skin parts ("Face", "Head and Neck").
+
+    Returns
+    -------
+    tuple of int, tuple of str
+    """
+    names = tuple(model.part_names)
+    lower = {n.lower(): i for i, n in enumerate(names)}
+    if parts is None:
+        parts = [p for p in SKIN_PARTS if p.lower() in lower]
+        if not parts:
+            raise ValueError(f"parts: the model has none of the skin parts {SKIN_PARTS}; "
+                             f"pass parts= from {names}")
+    if isinstance(parts, str | int | np.integer):
+        parts = [parts]
+    idx = []
+    for p in parts:
+        if isinstance(p, str):
+            if p.lower() not in lower:
+                raise ValueError(f"parts: unknown part {p!r}; known: {', '.join(names)}")
+            idx.append(lower[p.lower()])
+        elif isinstance(p, int | np.integer) and 0 <= int(p) < len(names):
+            idx.append(int(p))
+        else:
+            raise ValueError(f"parts: {p!r} is neither a part name nor an index "
+                             f"0..{len(names) - 1}")
+    idx = tuple(sorted(set(idx)))
+    return idx, tuple(names[i] for i in idx)
+
+
+def _selected_triangles(model, part_idx):
+    """Triangles (vertex, loop) of the chosen parts and the UDIM tile of each."""
+    tri_vertex, tri_loop, tri_face = model.triangles()
+    keep = np.isin(np.asarray(model.face_part)[tri_face], part_idx)
+    tri_vertex = np.asarray(tri_vertex)[keep]
+    tri_loop = np.asarray(tri_loop)[keep]
+    uv = np.asarray(model.loop_uv, dtype=np.float64)[tri_loop]  # (T, 3, 2)
+    corner = np.floor(uv.mean(axis=1)).astype(np.int64)
+    tile = 1001 + corner[:, 0] + 10 * corner[:, 1]
+    return tri_vertex, uv, tile
+
+
+def uv_tiles(model, parts=None):
+    """UDIM tiles the chosen parts' UVs occupy, sorted (e.g. (1001, 1002) for the skin)."""
+    idx, _ = resolve_parts(model, parts)
+    _, _, tile = _selected_triangles(model, idx)
+    return tuple(int(t) for t in np.unique(tile))
+
+
+def uv_raster(model, size=1024, *, parts=None, tile=None, bleed=BakeOptions.bleed):
+    """The (cached) UV raster of one tile of the chosen parts.
+
+    Parameters
+    ----------
+    model : HeadModel
+    size : int
+        Texture size in texels (square).
+    parts : sequence of str or int, optional
+        See :func:`resolve_parts`; default the skin.
+    tile : int, optional
+        UDIM tile; default the only tile the parts use (ValueError if they use several).
+    bleed : int
+        Texels of bleed around the islands.
+
+    Returns
+    -------
+    UVRaster
+    """
+    size = _check_size(size)
+    idx, names = resolve_parts(model, parts)
+    tile = _pick_tile(model, idx, names, tile)
+    key = (id(model), size, idx, tile, int(bleed))
+    with _raster_lock:
+        hit = _raster_cache.get(key)
+        if hit is not None and hit[0]() is model:
+            return hit[1]
+    raster = _build_raster(model, size, idx, names, tile, int(bleed))
+    with _raster_lock:
+        try:
+            ref = weakref.ref(model)
+        except TypeError:  # a model class without weakref support: keep it alive instead
+            ref = (lambda m: (lambda: m))(model)
+        _raster_cache[key] = (ref, raster)
+        while len(_raster_cache) > _RASTER_CACHE_MAX:
+            _raster_cache.pop(next(iter(_raster_cache)))
+    return raster
+
+
+def clear_raster_cache():
+    """Forget every cached UVRaster (e.g. after reloading a model, or to time a cold bake)."""
+    with _raster_lock:
+        _raster_cache.clear()
+
+
+def _check_size(size):
+    try:
+        s = int(size)
+    except (TypeError, ValueError):
+        raise ValueError(f"size: expected a positive integer, got {size!r}") from None
+    if s != size or not 8 <= s <= 16384:
+        raise ValueError(f"size: expected an integer in 8..16384, got {size!r}")
+    return s
+
+
+def _pick_tile(model, idx, names, tile):
+    _, _, tiles = _selected_triangles(model, idx)
+    present = sorted(int(t) for t in np.unique(tiles))
+    if not present:
+        raise ValueError(f"parts: {', '.join(names)} have no polygons")
+    if tile is None:
+        if len(present) > 1:
+            raise ValueError(f"parts: {', '.join(names)} use UV tiles "
+                             f"{', '.join(map(str, present))}; pass tile= or use bake_tiles()")
+        return present[0]
+    if int(tile) not in present:
+        raise ValueError(f"tile: {tile!r} is not used by parts {', '.join(names)} "
+                         f"(they use {', '.join(map(str, present))})")
+    return int(tile)
+
+
+def _build_raster(model, size, idx, names, tile, bleed):
+    n_vertices = int(np.asarray(model.vertices).shape[0])
+    tri_vertex, uv, tiles = _selected_triangles(model, idx)
+    sel = tiles == tile
+    tri_vertex, uv = tri_vertex[sel], uv[sel]
+    tu, tv = (tile - 1001) % 10, (tile - 1001) // 10
+    # UV -> texel grid with row 0 at the top (v = 1)
+    xy = np.stack([(uv[..., 0] - tu) * size, (1.0 - (uv[..., 1] - tv)) * size], axis=-1)
+    pixel, tri, bary = rasterize(xy, size, size)
+    texel, tri, bary = first_per_pixel(pixel, tri, bary)  # overlapping UVs: one wins
+
+    n = len(texel)
+    rows = np.repeat(np.arange(n), 3)
+    interp = sp.csr_matrix((bary.ravel().astype(np.float32), (rows, tri_vertex[tri].ravel())),
+                           shape=(n, n_vertices))
+    interp.sum_duplicates()
+
+    verts = np.unique(tri_vertex)
+    lap = _cotan_laplacian(np.asarray(model.vertices, dtype=np.float64)[verts],
+                           np.searchsorted(verts, tri_vertex))
+
+    covered = np.zeros((size, size), dtype=bool)
+    covered.flat[texel] = True
+    if bleed > 0 and n:
+        dist, (ri, ci) = ndi.distance_transform_edt(~covered, return_indices=True)
+        ring = (~covered) & (dist <= bleed)
+        bleed_to = np.flatnonzero(ring)
+        bleed_from = (ri * size + ci).ravel()[bleed_to]
+    else:
+        bleed_to = bleed_from = np.zeros(0, np.int64)
+    gather = interp.T.tocsr()[verts]
+    return UVRaster(size, tile, names, n_vertices, tri_vertex, texel, interp, verts, gather,
+                    lap, bleed_to, bleed_from)
+
+
+def _cotan_laplacian(points, triangles):
+    """Cotangent Laplacian (M, M) of a triangle mesh, weights clamped positive.
+
+    Geometric weights make the hole fill follow surface distance rather than mesh
+    density (ICT is dense on the face, coarse on the skull); clamping obtuse corners'
+    negative weights keeps the discrete maximum principle, so a fill never overshoots.
+    """
+    m = len(points)
+    p = points[triangles]
+    rows, cols, vals = [], [], []
+    for k in range(3):  # the corner opposite each of a triangle's three edges
+        i, j = (k + 1) % 3, (k + 2) % 3
+        a, b = p[:, i] - p[:, k], p[:, j] - p[:, k]
+        cross = np.linalg.norm(np.cross(a, b), axis=1)
+        cot = np.einsum("ij,ij->i", a, b) / np.maximum(cross, 1e-30)
+        rows.append(triangles[:, i])
+        cols.append(triangles[:, j])
+        vals.append(0.5 * np.clip(cot, -1e3, 1e3))
+    r, c, v = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+    w = sp.coo_matrix((np.r_[v, v], (np.r_[r, c], np.r_[c, r])), shape=(m, m)).tocsr()
+    w.sum_duplicates()
+    floor = 1e-2 * np.abs(w.data).mean() if w.nnz else 0.0
+    w.data = np.maximum(w.data, floor)
+    return (sp.diags(np.asarray(w.sum(axis=1)).ravel()) - w).tocsr()
+
+
+# --------------------------------------------------------------------------------------
+# The bake
+# --------------------------------------------------------------------------------------
+
+def bake_texture(model, world_vertices, views, size=1024, *, parts=None, tile=None,
+                 similarity=None, mirror=True, occluders=None, raster=None, options=None):
+    """Bake one UV tile's texture from photos.
+
+    Parameters
+    ----------
+    model : HeadModel
+    world_vertices : ndarray, shape (V, 3), metres
+        The fitted head in world space (``FitResult.world_vertices``).
+    views : list of (image, camera)
+        ``image`` ndarray (H, W, 3 or 4) float in [0, 1] (an alpha channel weighs the
+        pixel: 0 = background); ``camera`` the photo's fitted Camera.
+    size : int
+        Texture size in texels.
+    parts, tile
+        What to bake: see :func:`uv_raster` (default the skin; ``tile`` must be given when
+        the parts span several UV tiles, as the ICT skin does: use :func:`bake_tiles`).
+    similarity : Similarity or (scale, rotation, translation), optional
+        The fit's local -> world map (``FitResult.scale, .rotation, .translation``); the
+        mid-sagittal plane is local x = 0. Default: world = local.
+    mirror : bool or sequence of bool
+        Use side views mirrored across the mid-sagittal plane too: True picks the views
+        that look at the head from the side (see ``BakeOptions.mirror_min_lateral``); a
+        sequence says it per view.
+    occluders : sequence of str or int, optional
+        Parts besides the baked ones that can hide a texel from a photo (they go into the
+        depth buffers); default the skin, so e.g. eyelids hide the eyeball behind them.
+    raster : UVRaster, optional
+        A raster from :func:`uv_raster` to reuse (must match model, size, parts, tile).
+    options : BakeOptions, optional
+
+    Returns
+    -------
+    ndarray, shape (size, size, 3), float32
+        Row 0 is the top of the texture (v = 1).
+    """
+    if raster is None:
+        raster = uv_raster(model, size, parts=parts, tile=tile,
+                           bleed=(options or BakeOptions()).bleed)
+    else:
+        _check_raster(raster, model, size, parts, tile)
+    return _bake(model, world_vertices, views, [raster], parts, occluders, similarity,
+                 mirror, options)[raster.tile]
+
+
+def bake_tiles(model, world_vertices, views, size=1024, *, parts=None, similarity=None,
+               mirror=True, occluders=None, rasters=None, options=None):
+    """Bake every UV tile the chosen parts use (the skin: tiles 1001 and 1002).
+
+    Parameters are those of :func:`bake_texture`; ``rasters`` optionally gives the cached
+    rasters (a dict tile -> UVRaster, e.g. from a previous call's :func:`uv_raster`).
+
+    Returns
+    -------
+    dict of int -> ndarray (size, size, 3) float32
+        UDIM tile number -> texture.
+    """
+    opts = options or BakeOptions()
+    tiles = uv_tiles(model, parts)
+    rs = []
+    for t in tiles:
+        r = (rasters or {}).get(t)
+        if r is None:
+            r = uv_raster(model, size, parts=parts, tile=t, bleed=opts.bleed)
+        else:
+            _check_raster(r, model, size, parts, t)
+        rs.append(r)
+    return _bake(model, world_vertices, views, rs, parts, occluders, similarity, mirror, opts)
+
+
+def bake_fit_texture(model, result, images, size=1024, *, parts=None, mirror=True,
+                     options=None):
+    """Bake from a FitResult: its world vertices, cameras and similarity.
+
+    Parameters
+    ----------
+    model : HeadModel
+    result : FitResult
+    images : dict of str -> ndarray (H, W, 3 or 4)
+        Photo of each view to use, keyed like ``result.cameras``.
+    size, parts, mirror, options
+        As in :func:`bake_tiles`.
+
+    Returns
+    -------
+    dict of int -> ndarray (size, size, 3) float32
+    """
+    views = []
+    for name, image in images.items():
+        if name not in result.cameras:
+            raise ValueError(f"images: view {name!r} has no camera in the fit result "
+                             f"(it has {', '.join(result.cameras)})")
+        views.append((image, result.cameras[name]))
+    return bake_tiles(model, result.world_vertices, views, size, parts=parts,
+                      similarity=(result.scale, result.rotation, result.translation),
+                      mirror=mirror, options=options)
+
+
+def _check_raster(raster, model, size, parts, tile):
+    if not isinstance(raster, UVRaster):
+        raise ValueError(f"raster: expected a UVRaster, got {type(raster).__name__}")
+    _, names = resolve_parts(model, parts)
+    n = int(np.asarray(model.vertices).shape[0])
+    if raster.size != size or raster.parts != names or raster.n_vertices != n or (
+            tile is not None and raster.tile != int(tile)):
+        raise ValueError(f"raster: built for size {raster.size}, parts {raster.parts}, tile "
+                         f"{raster.tile}, {raster.n_vertices} vertices; asked size {size}, "
+                         f"parts {names}, tile {tile}, {n} vertices")
+
+
+def _check_views(views):
+    if isinstance(views, tuple) and len(views) == 2 and hasattr(views[1], "project"):
+        views = [views]  # a single (image, camera) pair
+    out = []
+    for i, view in enumerate(views):
+        try:
+            image, camera = view
+        except (TypeError, ValueError):
+            raise ValueError(f"views[{i}]: expected an (image, camera) pair") from None
+        img = np.asarray(image)
+        if img.ndim != 3 or img.shape[2] not in (3, 4) or min(img.shape[:2]) < 1:
+            raise ValueError(f"views[{i}]: image must have shape (H, W, 3) or (H, W, 4), "
+                             f"got {img.shape}")
+        if np.issubdtype(img.dtype, np.integer):
+            img = img.astype(np.float32) / np.iinfo(img.dtype).max
+        elif not np.issubdtype(img.dtype, np.floating):
+            raise ValueError(f"views[{i}]: image dtype {img.dtype} is not numeric")
+        img = np.array(img, dtype=np.float32)
+        if img.shape[2] == 4:  # premultiply, so bilinear samples never mix in hidden colour
+            img[..., 3] = np.clip(img[..., 3], 0.0, 1.0)
+            img[..., :3] *= img[..., 3:]
+        if not hasattr(camera, "project") or not hasattr(camera, "to_camera"):
+            raise ValueError(f"views[{i}]: camera must be a Camera, got {type(camera).__name__}")
+        size = getattr(camera, "size", None)
+        h, w = img.shape[:2]
+        if size is not None and (int(size[0]), int(size[1])) != (w, h):
+            raise ValueError(f"views[{i}]: image is {w}x{h} pixels but its camera expects "
+                             f"{int(size[0])}x{int(size[1])}")
+        out.append((img, camera))
+    if not out:
+        raise ValueError("views: no photos given")
+    return out
+
+
+def _plane(similarity):
+    """Mid-sagittal plane (point, unit normal) in world space from local x = 0."""
+    if similarity is None:
+        return np.zeros(3), np.array([1.0, 0.0, 0.0])
+    if hasattr(similarity, "rotation"):
+        scale, rot, trans = similarity.scale, similarity.rotation, similarity.translation
+    else:
+        try:
+            scale, rot, trans = similarity
+        except (TypeError, ValueError):
+            raise ValueError("similarity: expected (scale, rotation, translation)") from None
+    rot = np.asarray(rot, dtype=np.float64)
+    trans = np.asarray(trans, dtype=np.float64)
+    if rot.shape != (3, 3) or trans.shape != (3,) or not np.isfinite(rot).all() or \
+            not np.isfinite(trans).all() or not np.isfinite(float(scale)):
+        raise ValueError("similarity: rotation must be a finite (3, 3) and translation a "
+                         "finite (3,) array")
+    normal = rot[:, 0]
+    norm = np.linalg.norm(normal)
+    if norm < 1e-12:
+        raise ValueError("similarity: rotation has a zero first column")
+    return trans, normal / norm
+
+
+def _vertex_normals(world, triangles):
+    """Area-weighted vertex normals (V, 3), unit length (zero where no triangle); the
+    triangles' winding (counter-clockwise seen from outside, as ICT's) decides the side."""
+    p = world[triangles]
+    fn = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    n = np.zeros_like(world)
+    for k in range(3):  # three corners, not a per-vertex loop
+        for d in range(3):
+            n[:, d] += np.bincount(triangles[:, k], fn[:, d], minlength=len(world))
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    n /= np.maximum(length, 1e-300)
+    return n
+
+
+class _ViewSampler:
+    """One photo with its camera and a depth buffer of the head, ready to colour texels.
+
+    The camera is evaluated at the vertices only and its pixel position, depth and
+    direction interpolated to the texels like any vertex attribute: exact for parallel
+    projection, and off by far less than a pixel for a perspective camera over triangles
+    of a few millimetres; a million texels then cost sparse products, not camera calls.
+    """
+
+    def __init__(self, image, camera, world, occluders, head_size, centre, opts):
+        self.h, self.w = image.shape[:2]
+        self.alpha = image.shape[2] == 4
+        # Four float32 channels viewed as one complex128: one 16-byte gather per pixel.
+        # A one-pixel edge-replicated border spares clamping the bilinear neighbours.
+        rgba = np.zeros((self.h + 2, self.w + 2, 4), np.float32)
+        rgba[1:-1, 1:-1, :image.shape[2]] = image
+        rgba[0], rgba[-1] = rgba[1], rgba[-2]
+        rgba[:, 0], rgba[:, -1] = rgba[:, 1], rgba[:, -2]
+        self.texels = rgba.reshape(-1, 4).view(np.complex128).ravel()
+        self.camera = camera
+        self.power = opts.power
+        f = min(1.0, opts.depth_resolution / max(self.w, self.h))
+        self.bw, self.bh = max(1, round(self.w * f)), max(1, round(self.h * f))
+        self.fx, self.fy = self.bw / self.w, self.bh / self.h
+        self.used = np.unique(occluders)
+        self.direct = self._vertex_terms(world)
+        px = self.direct[0][:, :2] * (self.fx, self.fy)
+        depth = depth_buffer(px[occluders], self.direct[0][occluders, 2], self.bw, self.bh)
+        # Nearest depth over each pixel's 3x3 neighbourhood: a point just beside a nearer
+        # silhouette counts as hidden, so the occluder's blurred edge in the photo (and a
+        # slightly-off fit) does not paint a rim of the front surface onto the one behind.
+        near = ndi.minimum_filter(depth, size=3, mode="nearest")
+        self.depth = near.astype(np.float32).ravel()
+        # one buffer pixel in metres at the head, for the slope part of the tolerance
+        jac = np.asarray(camera.jacobian(centre[None]), dtype=np.float64)[0]
+        ppm = np.sqrt((jac ** 2).sum() / 2.0)
+        self.footprint = np.float32(1.0 / (ppm * min(self.fx, self.fy)))
+        self.tol = np.float32(opts.depth_tolerance * head_size)
+        self.feather = self._feather(depth, near, opts.feather)
+        self.mirrored = None
+
+    def _feather(self, depth, near, feather):
+        """Weight factor (bh * bw,) rising from 0 at depth discontinuities (silhouettes
+        against the background or a nearer part) to 1 ``feather`` buffer pixels away, so
+        the blend fades out where the photo's colour switches objects and a small fit
+        error would show the wrong one; None when feathering is off."""
+        if feather <= 0:
+            return None
+        far = ndi.maximum_filter(np.where(np.isfinite(depth), depth, np.inf), size=3,
+                                 mode="nearest")
+        with np.errstate(invalid="ignore"):
+            jump = ~(far - near <= 2.0 * self.tol)  # inf - finite and inf - inf count too
+        if not jump.any():
+            return None
+        dist = ndi.distance_transform_edt(~jump)
+        return np.clip((dist - 0.5) / feather, 0.0, 1.0).astype(np.float32).ravel()
+
+    def _vertex_terms(self, world):
+        """Per vertex: (pixel u, pixel v, depth) (V, 3) and toward-camera (V, 3) or (3,)."""
+        pts = world[self.used]
+        # float32 per texel: 1e-4 pixel and sub-micrometre depth resolution, half the traffic
+        uvz = np.zeros((len(world), 3), np.float32)
+        uvz[self.used, :2] = self.camera.project(pts)
+        uvz[self.used, 2] = self.camera.to_camera(pts)[:, 2]
+        toward = np.asarray(self.camera.toward_camera(pts), dtype=np.float64)
+        if np.ptp(toward, axis=0).max() < 1e-12:  # parallel projection: one direction
+            return uvz, toward[0].astype(np.float32)
+        full = np.zeros((len(world), 3), np.float32)
+        full[self.used] = toward
+        return uvz, full
+
+    def mirror(self, world, plane_point, plane_normal):
+        """Use the photo for the head reflected through the mid-sagittal plane."""
+        if self.mirrored is None:
+            refl = world - 2.0 * ((world - plane_point) @ plane_normal)[:, None] * plane_normal
+            uvz, toward = self._vertex_terms(refl)
+            # the reflected surface's normal is the reflected normal: n' . t = n . refl(t)
+            toward = toward - 2.0 * (toward @ plane_normal)[..., None] * plane_normal
+            self.mirrored = (uvz, toward.astype(np.float32))
+        return self.mirrored
+
+    def sample(self, normals, cos, uvz, factor=1.0):
+        """Texels (k,) the photo sees, their weights (k,) and colours (k, 3).
+
+        ``normals`` (N, 3) are the texels' unit normals, ``cos`` (N,) their cosine with
+        the direction toward the camera, ``uvz`` (N, 3) their pixel position and depth
+        (all interpolated from the vertex terms of the direct or mirrored head).
+        """
+        u, v, z = uvz[:, 0], uvz[:, 1], uvz[:, 2]
+        idx = np.flatnonzero((cos > 1e-3) & (u >= 0) & (u < self.w) & (v >= 0) & (v < self.h))
+        u, v, z, c = u[idx], v[idx], z[idx], cos[idx]
+        bx = np.minimum((u * np.float32(self.fx)).astype(np.intp), self.bw - 1)
+        by = np.minimum((v * np.float32(self.fy)).astype(np.intp), self.bh - 1)
+        slope = np.minimum(np.sqrt(np.maximum(1 - c * c, 0)) / c, np.float32(8))
+        reach = self.tol + self.footprint * (1 + 2 * slope)  # own pixel + neighbours
+        cell = by * self.bw + bx
+        ok = z <= self.depth[cell] + reach
+        idx, u, v, c, cell = idx[ok], u[ok], v[ok], c[ok], cell[ok]
+        rgba = _bilinear(self.texels, self.w, u, v)
+        w = np.float32(factor) * c ** np.float32(self.power)
+        if self.feather is not None:
+            w *= self.feather[cell]
+        rgb = rgba[:, :3]
+        if self.alpha:  # premultiplied: un-premultiply, weigh by coverage
+            alpha = rgba[:, 3]
+            w *= alpha
+            rgb = rgb / np.maximum(alpha, 1e-6)[:, None]
+        return idx, w, rgb
+
+
+def _bilinear(texels, w, u, v):
+    """Bilinear samples (n, 4) float32 at pixel positions ``u`` in [0, w), ``v`` in [0, h)
+    (n,) of an image stored with a one-pixel border, one complex128 (= four float32
+    channels) per pixel, row-major ((h + 2) * (w + 2),)."""
+    x = u + np.float32(0.5)  # pixel centres at +0.5, shifted by the border
+    y = v + np.float32(0.5)
+    x0 = np.floor(x)
+    y0 = np.floor(y)
+    tx = (x - x0)[:, None]
+    ty = (y - y0)[:, None]
+    stride = w + 2
+    i = y0.astype(np.intp) * stride + x0.astype(np.intp)
+
+    def gather(j):
+        return texels.take(j).view(np.float32).reshape(-1, 4)
+
+    top = gather(i)
+    top += (gather(i + 1) - top) * tx
+    bottom = gather(i + stride)
+    bottom += (gather(i + stride + 1) - bottom) * tx
+    top += (bottom - top) * ty
+    return top
+
+
+def _bake(model, world_vertices, views, rasters, parts, occluders, similarity, mirror,
+          options):
+    opts = options or BakeOptions()
+    if not isinstance(opts, BakeOptions):
+        raise ValueError(f"options: expected BakeOptions, got {type(opts).__name__}")
+    n_vertices = int(np.asarray(model.vertices).shape[0])
+    world = as_points(world_vertices, "world_vertices")
+    if len(world) != n_vertices:
+        raise ValueError(f"world_vertices: expected {n_vertices} vertices (the model's), "
+                         f"got {len(world)}")
+    views = _check_views(views)
+    point, normal_m = _plane(similarity)
+    idx, _ = resolve_parts(model, parts)
+    if occluders is None:
+        skin = {n.lower() for n in SKIN_PARTS}
+        occ_idx = set(idx) | {i for i, n in enumerate(model.part_names) if n.lower() in skin}
+    else:
+        occ_idx = set(resolve_parts(model, occluders)[0])
+    occluders, _, _ = _selected_triangles(model, tuple(sorted(occ_idx | set(idx))))
+
+    normals = _vertex_normals(world, occluders)
+    used = np.unique(occluders)
+    lo, hi = world[used].min(axis=0), world[used].max(axis=0)
+    head_size = float(np.linalg.norm(hi - lo))
+    centre = (lo + hi) / 2.0
+
+    if isinstance(mirror, bool | np.bool_):
+        mirror_flags = None if mirror else [False] * len(views)
+    else:
+        mirror_flags = [bool(m) for m in mirror]
+        if len(mirror_flags) != len(views):
+            raise ValueError(f"mirror: {len(mirror_flags)} flags for {len(views)} views")
+    samplers = []
+    for i, (img, cam) in enumerate(views):
+        s = _ViewSampler(img, cam, world, occluders, head_size, centre, opts)
+        if mirror_flags is None:
+            toward = np.asarray(cam.toward_camera(centre[None]), dtype=np.float64)[0]
+            use_mirror = abs(float(toward @ normal_m)) >= opts.mirror_min_lateral
+        else:
+            use_mirror = mirror_flags[i]
+        samplers.append((s, use_mirror))
+
+    out = {}
+    for raster in rasters:
+        out[raster.tile] = _bake_tile(raster, world, normals, samplers, point, normal_m, opts)
+    return out
+
+
+def _bake_tile(raster, world, normals, samplers, plane_point, plane_normal, opts):
+    size = raster.size
+    tex = np.empty((size * size, 3), np.float32)
+    n = len(raster.texel)
+    if n == 0:
+        tex[:] = 0.5
+        return tex.reshape(size, size, 3)
+
+    # Every per-vertex quantity the passes need goes through the sparse interpolation in
+    # one product: (normal | per pass: pixel u, v, depth [, toward x, y, z]).
+    passes = []
+    for sampler, use_mirror in samplers:
+        passes.append((sampler, sampler.direct, 1.0))
+        if use_mirror and opts.mirror_weight > 0:
+            passes.append((sampler, sampler.mirror(world, plane_point, plane_normal),
+                           opts.mirror_weight))
+    columns = [normals.astype(np.float32)]
+    for _, (uvz, toward), _ in passes:
+        columns.append(uvz)
+        if toward.ndim == 2:
+            columns.append(toward)
+    values = raster.interp @ np.hstack(columns)
+    nrm = values[:, :3]
+    nrm /= np.maximum(np.sqrt(np.einsum("ij,ij->i", nrm, nrm)), 1e-30)[:, None]
+
+    acc = np.zeros((n, 3), np.float32)
+    wsum = np.zeros(n, np.float32)
+    col = 3
+    for sampler, (_, toward), factor in passes:
+        uvz = values[:, col:col + 3]
+        col += 3
+        if toward.ndim == 1:
+            cos = nrm @ toward
+        else:
+            cos = np.einsum("ij,ij->i", nrm, values[:, col:col + 3])
+            col += 3
+        idx, w, rgb = sampler.sample(nrm, cos, uvz, factor)
+        acc[idx] += w[:, None] * rgb
+        wsum[idx] += w
+
+    fill = _smooth_fill(raster, acc, wsum, opts.fill_weight)
+    short = np.maximum(opts.fill_weight - wsum, 0.0)
+    acc += short[:, None] * fill
+    acc /= (wsum + short)[:, None]
+
+    tex[:] = acc.mean(axis=0)
+    tex[raster.texel] = acc
+    tex[raster.bleed_to] = tex[raster.bleed_from]
+    return tex.reshape(size, size, 3)
+
+
+def _smooth_fill(raster, acc, wsum, fill_weight):
+    """Colour (N, 3) at each texel from vertex colours filled harmonically over the mesh.
+
+    Vertices whose surroundings the photos see well enough keep their seen (averaged)
+    colour; the others solve the graph Laplace equation, so a hole gets the smoothest
+    blend of its rim, consistently across UV seams, and never leaves the rim's range.
+    """
+    verts = raster.vertices
+    interp_t = raster.gather  # (M, N)
+    cover = np.asarray(interp_t.sum(axis=1)).ravel()
+    seen = (interp_t @ wsum).astype(np.float64)
+    colsum = (interp_t @ acc).astype(np.float64)
+    known = (cover > 0) & (seen >= fill_weight * cover) & (seen > 0)
+    m = len(verts)
+    value = np.zeros((m, 3))
+    if known.any():
+        value[known] = colsum[known] / seen[known, None]
+        mean = value[known].mean(axis=0)
+    else:
+        mean = np.full(3, 0.5)
+    unknown = np.flatnonzero(~known)
+    if len(unknown):
+        lap = raster.laplacian
+        k = np.flatnonzero(known)
+        # A tiny screening term pulls parts that touch no seen vertex to the mean colour
+        # and keeps the system regular; it is far too weak to bend the fill elsewhere.
+        eps = 1e-6
+        a = lap[unknown][:, unknown] + eps * sp.identity(len(unknown), format="csr")
+        rhs = -(lap[unknown][:, k] @ value[k]) + eps * mean
+        value[unknown] = spla.spsolve(a.tocsc(), rhs).reshape(len(unknown), 3)
+    full = np.zeros((raster.n_vertices, 3), np.float32)
+    full[verts] = value
+    return raster.interp @ full

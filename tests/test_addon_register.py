@@ -1,0 +1,67 @@
+"""The add-on registers and unregisters cleanly (bpy module, background)."""
+
+import bpy
+from addon_support import ROOT, run_python
+
+
+def _state():
+    types = sorted(n for n in dir(bpy.types) if n.startswith("HEADRECON_"))
+    return {
+        "types": types,
+        "scene_prop": hasattr(bpy.types.Scene, "headrecon"),
+        "object_prop": hasattr(bpy.types.Object, "headrecon"),
+        "depsgraph": len(bpy.app.handlers.depsgraph_update_post),
+        "load_post": len(bpy.app.handlers.load_post),
+        "operators": sorted(n for n in dir(bpy.ops.headrecon)),
+    }
+
+
+def test_register_unregister_leaves_nothing_behind():
+    import headrecon_addon
+
+    if headrecon_addon.is_registered():
+        headrecon_addon.unregister()
+    before = _state()
+    assert before["types"] == [] and not before["scene_prop"]
+
+    headrecon_addon.register()
+    during = _state()
+    assert during["scene_prop"] and during["object_prop"]
+    assert during["depsgraph"] == before["depsgraph"] + 1
+    assert during["load_post"] == before["load_post"] + 1
+    for name in ("HEADRECON_OT_add_head", "HEADRECON_OT_load_photo",
+                 "HEADRECON_OT_place_landmarks", "HEADRECON_OT_draw_contour",
+                 "HEADRECON_OT_import_landmarks", "HEADRECON_OT_export_landmarks",
+                 "HEADRECON_OT_fit", "HEADRECON_PT_head", "HEADRECON_PT_photos",
+                 "HEADRECON_PT_landmarks", "HEADRECON_PT_fit", "HEADRECON_PT_result",
+                 "HEADRECON_UL_residuals"):
+        assert name in during["types"], name
+    # every operator can undo
+    for cls in headrecon_addon.CLASSES:
+        if issubclass(cls, bpy.types.Operator) and cls.bl_idname != "headrecon.view_photo":
+            assert {"REGISTER", "UNDO"} <= cls.bl_options, cls.__name__
+
+    headrecon_addon.unregister()
+    after = _state()
+    assert after == before
+    assert not bpy.app.timers.is_registered(headrecon_addon.fit_ops.live_refit_step)
+
+    # and again: a second cycle works (no stale class or property left to clash with)
+    headrecon_addon.register()
+    headrecon_addon.unregister()
+    assert _state() == before
+
+
+def test_extension_root_imports_as_a_package(tmp_path):
+    # Inside Blender the repository root is the package bl_ext.<repo>.headrecon: its
+    # __init__.py re-exports the add-on's register/unregister, and solver_link must find
+    # the solver as a sibling subpackage (relative import), not as a top-level module.
+    (tmp_path / "headrecon").symlink_to(ROOT, target_is_directory=True)
+    code = ("import sys; sys.path.insert(0, sys.argv[1]); import headrecon; "
+            "from headrecon.headrecon_addon import solver_link; "
+            "headrecon.register(); import bpy; ok = hasattr(bpy.types.Scene, 'headrecon'); "
+            "headrecon.unregister(); "
+            "print(ok, solver_link.solver.__name__, 'solver' in sys.modules)")
+    proc = run_python(["-c", code, str(tmp_path)], cwd=tmp_path, env={"PYTHONPATH": ""})
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split()[-3:] == ["True", "headrecon.solver", "False"]

@@ -1,0 +1,232 @@
+"""Add-on scene building without a fit: reference head, photo planes, landmarks, contour,
+the place-landmarks logic, landmarks import/export (bpy module, background)."""
+
+import json
+
+import bpy
+import numpy as np
+import pytest
+from addon_support import addon, empty_scene, snapshot, synthetic_files, write_photo
+from mathutils import Vector
+
+
+@pytest.fixture(scope="module")
+def files(model, tmp_path_factory):
+    addon()
+    return synthetic_files(model, tmp_path_factory.mktemp("scene"), seed=3)
+
+
+@pytest.fixture
+def scene():
+    return empty_scene()
+
+
+def test_reference_head(model, scene):
+    assert bpy.ops.headrecon.add_head() == {"FINISHED"}
+    head = scene.headrecon.head
+    mesh = head.data
+    assert head.headrecon.role == "HEAD" and head.name in scene.objects
+    assert len(mesh.vertices) == model.n_vertices
+    assert len(mesh.polygons) == model.face_loop_start.size
+    co = np.empty(model.n_vertices * 3, np.float32)
+    mesh.vertices.foreach_get("co", co)
+    assert np.abs(co.reshape(-1, 3) - model.vertices).max() < 1e-6
+    lv = np.empty(len(mesh.loops), np.int32)
+    mesh.loops.foreach_get("vertex_index", lv)
+    assert np.array_equal(lv, model.loop_vertex)
+    uv = np.empty(len(mesh.loops) * 2, np.float32)
+    mesh.uv_layers["UVMap"].data.foreach_get("uv", uv)
+    assert np.abs(uv.reshape(-1, 2) - model.loop_uv).max() < 1e-6
+    # one material per part group, skin first; the eyes' faces use the eye material
+    names = [m.get("headrecon_group") for m in mesh.materials]
+    assert names[:2] == ["Face", "Head"] and "Eyes" in names and "Teeth" in names
+    mi = np.empty(len(mesh.polygons), np.int32)
+    mesh.polygons.foreach_get("material_index", mi)
+    eye = model.part_names.index("Eyeball left")
+    assert set(mi[model.face_part == eye]) == {names.index("Eyes")}
+    # one vertex group per region, weights = region weights (to 1/1024)
+    assert [g.name for g in head.vertex_groups] == list(model.region_names)
+    for r in (0, len(model.region_names) - 1):
+        g = head.vertex_groups[r]
+        idx = np.flatnonzero(model.region_weights[r] > 0.001)
+        sample = idx[:: max(1, idx.size // 500)]
+        got = np.array([g.weight(int(i)) for i in sample])
+        assert np.abs(got - model.region_weights[r, sample]).max() <= 0.5 / 1024 + 1e-6
+
+
+def test_photo_plane_lines_up_with_its_camera(files, scene):
+    from headrecon_addon import photos
+
+    path, case, _ = files
+    view = case.views["front"]
+    img = photos.load_image(case.image_path("front"))
+    plane = photos.new_photo_plane(img, "front", "orthographic-front")
+    scene.collection.objects.link(plane)
+    assert tuple(plane.headrecon.image_size) == view.size
+    # pixels <-> plane space round trip
+    uv = np.array([[0.0, 0.0], [view.size[0], view.size[1]], [123.25, 456.5]])
+    assert np.abs(photos.pixels_from_local(plane, photos.local_from_pixels(plane, uv))
+                  - uv).max() < 1e-9
+    # a plane-space point, in the world, projects through the camera onto its pixel
+    cam = photos.plane_camera(plane)
+    xy = photos.local_from_pixels(plane, uv)
+    world = np.array([plane.matrix_world @ Vector((x, y, 0.0)) for x, y in xy])
+    assert np.abs(cam.project(world) - uv).max() < 1e-4
+    # the photo stands behind the head (+Y for the front view), unlit
+    assert plane.matrix_world.translation.y > 0.2
+    mat = plane.data.materials[0]
+    assert any(n.type == "EMISSION" for n in mat.node_tree.nodes)
+    assert not any(n.type == "BSDF_PRINCIPLED" for n in mat.node_tree.nodes)
+
+
+def test_place_landmarks_session_and_swap(files, scene, tmp_path):
+    from headrecon_addon import landmarks, photos
+
+    path, case, _ = files
+    img = photos.load_image(case.image_path("right"))
+    plane = photos.new_photo_plane(img, "side", "orthographic-right")
+    scene.collection.objects.link(plane)
+    session = landmarks.PlacementSession(plane)
+    names = [d["name"] for d in session.definitions]
+    assert names == [d["name"] for d in landmarks.landmark_definitions("right")]
+    assert all("right" in d["views"] for d in session.definitions) and len(names) > 10
+    assert session.current["name"] == names[0] and names[0] in session.header()
+
+    def ray_to(uv):  # a view ray from in front of the photo through pixel uv
+        xy = photos.local_from_pixels(plane, [uv])[0]
+        target = plane.matrix_world @ Vector((xy[0], xy[1], 0.0))
+        normal = (plane.matrix_world.to_3x3() @ Vector((0, 0, 1))).normalized()
+        return target + normal * 2.0, -normal
+
+    assert session.click(*ray_to((100.0, 200.0)))
+    session.skip()  # names[1] stays unplaced
+    assert session.click(*ray_to((300.5, 400.25)))
+    assert not session.click(Vector((50, 0, 0)), Vector((0, 0, 1)))  # misses the photo
+    px = landmarks.landmark_pixels(plane)
+    assert list(px) == [names[0], names[2]]
+    assert np.allclose(px[names[0]], (100.0, 200.0), atol=1e-3)
+    assert np.allclose(px[names[2]], (300.5, 400.25), atol=1e-3)
+    session.back()
+    session.back()
+    assert session.current["name"] == names[1]
+    session.back()
+    session.unplace()
+    assert list(landmarks.landmark_pixels(plane)) == [names[2]]
+    # landmarks are children of the plane: moving the plane moves them, pixels stay
+    plane.location.x += 0.5
+    assert np.allclose(landmarks.landmark_pixels(plane)[names[2]], (300.5, 400.25), atol=1e-3)
+    # swapping the photo keeps the landmarks (same place relative to centre and height)
+    other = tmp_path / "other.png"
+    write_photo(other, (2 * img.size[0], 2 * img.size[1]), seed=9)
+    bpy.ops.headrecon.load_photo(filepath=str(other), view="side",
+                                 camera_view="orthographic-right")
+    assert photos.find_plane(scene, "side") == plane
+    assert plane.headrecon.image.filepath.endswith("other.png")
+    assert np.allclose(landmarks.landmark_pixels(plane)[names[2]], (601.0, 800.5), atol=2e-3)
+    assert len([o for o in scene.objects if photos.is_photo(o)]) == 1
+
+
+def test_contour(files, scene):
+    from headrecon_addon import landmarks, photos
+
+    _, case, _ = files
+    img = photos.load_image(case.image_path("right"))
+    plane = photos.new_photo_plane(img, "right", "orthographic-right")
+    scene.collection.objects.link(plane)
+    assert landmarks.contour_pixels(plane) is None
+    pts = np.array([[10.0, 20.0], [15.5, 30.25], [21.0, 45.0]])
+    landmarks.set_contour(plane, pts)
+    assert np.allclose(landmarks.contour_pixels(plane), pts, atol=1e-3)
+    session = landmarks.ContourSession(plane)
+    xy = photos.local_from_pixels(plane, [[30.0, 60.0]])[0]
+    target = plane.matrix_world @ Vector((xy[0], xy[1], 0.0))
+    normal = (plane.matrix_world.to_3x3() @ Vector((0, 0, 1))).normalized()
+    assert session.click(target + normal, -normal)
+    assert np.allclose(landmarks.contour_pixels(plane)[-1], (30.0, 60.0), atol=1e-3)
+    session.undo_point()
+    assert np.allclose(landmarks.contour_pixels(plane), pts, atol=1e-3)
+    landmarks.set_contour(plane, np.zeros((0, 2)))
+    assert landmarks.contour_object(plane) is None
+
+
+def test_import_export_round_trip(files, scene, tmp_path):
+    from solver import landmarks_file
+
+    path, case, _ = files
+    assert bpy.ops.headrecon.import_landmarks(filepath=str(path)) == {"FINISHED"}
+    planes = [o for o in scene.objects if o.headrecon.role == "PHOTO"]
+    assert sorted(p.headrecon.view for p in planes) == sorted(case.views)
+    n_lm = sum(1 for o in scene.objects if o.headrecon.role == "LANDMARK")
+    assert n_lm == case.n_points
+    out = tmp_path / "sub" / "exported.json"
+    out.parent.mkdir()
+    assert bpy.ops.headrecon.export_landmarks(filepath=str(out)) == {"FINISHED"}
+    again = landmarks_file.load_landmarks(out)
+    assert _same(again, case)
+    # image paths are rewritten relative to the new file and still find the photos
+    for v in case.views:
+        assert again.image_path(v).resolve() == case.image_path(v).resolve()
+    # importing the export again replaces the planes (no duplicates) and keeps the points
+    assert bpy.ops.headrecon.import_landmarks(filepath=str(out)) == {"FINISHED"}
+    assert sum(1 for o in scene.objects if o.headrecon.role == "PHOTO") == len(case.views)
+    assert sum(1 for o in scene.objects if o.headrecon.role == "LANDMARK") == n_lm
+
+
+def _same(a, b):
+    for v in b.views:
+        pa, pb = a.views[v].points, b.views[v].points
+        assert list(pa) == list(pb)
+        assert np.allclose([pa[k] for k in pa], [pb[k] for k in pb], atol=1e-3)
+        if b.views[v].contour is not None:
+            assert np.allclose(a.views[v].contour, b.views[v].contour, atol=1e-3)
+        assert a.views[v].camera.to_dict() == b.views[v].camera.to_dict()
+    return True
+
+
+def _bad_files(folder, good):
+    data = json.loads(good.read_text())
+    out = {}
+    (folder / "not_json.json").write_text("{ nope")
+    out["not_json"] = (folder / "not_json.json", "not valid JSON")
+    d = json.loads(json.dumps(data))
+    first = next(iter(d["views"]))
+    d["views"][first]["points"]["nose_tipp"] = [10, 10]
+    (folder / "unknown.json").write_text(json.dumps(d))
+    out["unknown"] = (folder / "unknown.json", "nose_tipp")
+    d = json.loads(json.dumps(data))
+    last = list(d["views"])[-1]
+    d["views"][last]["image"] = "missing_photo.png"
+    (folder / "missing.json").write_text(json.dumps(d))
+    out["missing"] = (folder / "missing.json", "missing_photo.png")
+    d = json.loads(json.dumps(data))
+    w, h = d["views"][last]["size"]
+    d["views"][last]["size"] = [w + 2, h + 2]
+    (folder / "size.json").write_text(json.dumps(d))
+    out["size"] = (folder / "size.json", "pixels")
+    out["absent"] = (folder / "absent.json", "no such file")
+    return out
+
+
+def test_bad_landmarks_file_leaves_scene_unchanged(files, scene, tmp_path):
+    from headrecon_addon import landmarks
+
+    path, _, _ = files
+    bpy.ops.headrecon.import_landmarks(filepath=str(path))  # a scene with work in it
+    before = snapshot()
+    for key, (bad, words) in _bad_files(tmp_path, path).items():
+        with pytest.raises((ValueError, OSError)) as err:
+            landmarks.import_landmarks(bpy.context, bad)
+        assert words in str(err.value), key
+        assert snapshot() == before, key
+        # the operator reports the error and cancels, also leaving everything as it was
+        with pytest.raises(RuntimeError, match="Error"):
+            bpy.ops.headrecon.import_landmarks(filepath=str(bad))
+        assert snapshot() == before, key
+
+
+def test_poll_messages(scene):
+    # Operators that cannot run say why (poll_message_set); background ops raise with it.
+    with pytest.raises(RuntimeError, match="Load a front and a profile photo"):
+        bpy.ops.headrecon.fit()
+    with pytest.raises(RuntimeError, match="no photos with landmarks"):
+        bpy.ops.headrecon.export_landmarks(filepath="/tmp/never.json")

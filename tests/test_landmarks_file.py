@@ -1,0 +1,692 @@
+"""The landmarks file: format, every kind of invalid input (messages naming file, view and
+key), ibug aliases, round trips, atomic saving, and our schema validator cross-checked
+against the reference ``jsonschema`` package."""
+
+import copy
+import json
+import os
+import random
+import re
+
+import jsonschema
+import numpy as np
+import pytest
+
+from solver.cameras import OrthographicCamera
+from solver.jsonschema_lite import (
+    KEYWORDS,
+    SchemaKeywordError,
+    Validator,
+    format_path,
+    validate,
+)
+from solver.landmarks_file import (
+    MIN_LANDMARKS_PER_VIEW,
+    MIN_LANDMARKS_TOTAL,
+    SCHEMA_PATH,
+    LandmarkCase,
+    LandmarksError,
+    LandmarkSet,
+    View,
+    check_case,
+    landmarks_to_dict,
+    load_landmark_set,
+    load_landmarks,
+    parse_landmarks,
+    save_landmarks,
+)
+
+W, H = 768, 1024
+
+
+@pytest.fixture(scope="module")
+def lms():
+    return load_landmark_set()
+
+
+@pytest.fixture(scope="module")
+def names(lms):
+    """Canonical names to place: landmarks with an ibug number first (for alias tests)."""
+    with_ibug = [lms.ibug[k] for k in sorted(lms.ibug)]
+    rest = [n for n in lms.names if n not in with_ibug]
+    return with_ibug + rest
+
+
+@pytest.fixture(scope="module")
+def schema():
+    with open(SCHEMA_PATH, encoding="utf-8") as f:
+        return json.load(f)
+
+
+def make_doc(names, n_front=8, n_side=6):
+    """A valid document with landmarks spread inside the image."""
+    rng = np.random.default_rng(0)
+    pts = rng.uniform([10, 10], [W - 10, H - 10], size=(len(names), 2)).round(2)
+    side = rng.uniform([10, 10], [W - 10, H - 10], size=(len(names), 2)).round(2)
+    return {
+        "format": "headrecon-landmarks",
+        "version": 1,
+        "views": {
+            "front": {"image": "front.jpg", "size": [W, H], "camera": "orthographic-front",
+                      "points": {n: pts[i].tolist() for i, n in enumerate(names[:n_front])}},
+            "side": {"image": "side.jpg", "size": [W, H], "camera": "orthographic-right",
+                     "points": {n: side[i].tolist() for i, n in enumerate(names[:n_side])},
+                     "contour": [[140.0, 120.0], [138.5, 131.0], [150.25, 160.0]]},
+        },
+    }
+
+
+@pytest.fixture
+def doc(names):
+    return make_doc(names)
+
+
+def parse_error(doc, source="case.json", **kw):
+    with pytest.raises(ValueError) as info:
+        parse_landmarks(doc, source, **kw)
+    return str(info.value)
+
+
+# --------------------------------------------------------------------------------------
+# The landmark set
+
+
+def test_landmark_set_has_names_and_ibug_aliases(lms):
+    assert len(lms.names) >= MIN_LANDMARKS_TOTAL
+    assert lms.ibug, "assets/landmarks.json gives no iBUG numbers"
+    for number, name in lms.ibug.items():
+        assert 1 <= number <= 68
+        assert lms.canonical(f"ibug{number:02d}") == name
+        assert lms.vertex(f"ibug{number:02d}") == lms.vertex(name) >= 0
+    assert lms.canonical("no_such_landmark") is None
+    with pytest.raises(ValueError, match="landmark 'no_such_landmark': unknown"):
+        lms.vertex("no_such_landmark")
+
+
+def test_landmark_set_rejects_bad_entries():
+    base = {"format": "headrecon-landmark-set", "version": 1,
+            "landmarks": [{"name": "a", "vertex": 1, "ibug": 3}]}
+    assert LandmarkSet.from_dict(base).vertex("ibug03") == 1
+    bad = copy.deepcopy(base)
+    bad["landmarks"].append({"name": "a", "vertex": 2, "ibug": None})
+    with pytest.raises(ValueError, match=r"set.json: landmarks\[1\].name: 'a' listed twice"):
+        LandmarkSet.from_dict(bad, "set.json")
+    bad = copy.deepcopy(base)
+    bad["landmarks"].append({"name": "b", "vertex": 2, "ibug": 3})
+    with pytest.raises(ValueError, match=r"landmarks\[1\].ibug"):
+        LandmarkSet.from_dict(bad, "set.json")
+    with pytest.raises(ValueError, match="not a landmark set"):
+        LandmarkSet.from_dict({"format": "headrecon-landmarks"}, "set.json")
+
+
+# --------------------------------------------------------------------------------------
+# Valid files
+
+
+def test_valid_document_parses(doc, names, lms):
+    case = parse_landmarks(doc, "case.json")
+    assert isinstance(case, LandmarkCase) and case.source == "case.json"
+    assert list(case.views) == ["front", "side"]
+    front, side = case.views["front"], case.views["side"]
+    assert front.size == (W, H) and front.image == "front.jpg"
+    assert front.points[names[0]] == tuple(doc["views"]["front"]["points"][names[0]])
+    assert side.contour.shape == (3, 2) and side.contour[1, 1] == 131.0
+    assert front.contour is None
+    # the camera strings map to the nominal cameras of solver/cameras.py
+    assert isinstance(side.camera, OrthographicCamera) and side.camera.view == "orthographic-right"
+    nominal = OrthographicCamera.nominal("orthographic-right", (W, H))
+    x = np.array([[0.01, -0.1, 0.05]])
+    np.testing.assert_allclose(side.camera.project(x), nominal.project(x))
+    assert case.n_points == 8 + 6
+    got_names, vertices, pixels = front.arrays(lms)
+    assert got_names == names[:8]
+    assert vertices.tolist() == [lms.vertex(n) for n in names[:8]]
+    np.testing.assert_array_equal(pixels[2], doc["views"]["front"]["points"][names[2]])
+
+
+def test_ibug_aliases_resolve_and_are_kept_as_written(doc, names, lms):
+    number = sorted(lms.ibug)[0]
+    canon = lms.ibug[number]
+    alias = f"ibug{number:02d}"
+    pts = doc["views"]["front"]["points"]
+    pts[alias] = pts.pop(canon)
+    case = parse_landmarks(doc, "case.json")
+    assert alias in case.views["front"].points and canon not in case.views["front"].points
+    got_names, vertices, _ = case.views["front"].arrays()
+    i = list(case.views["front"].points).index(alias)
+    assert got_names[i] == canon and vertices[i] == lms.vertex(canon)
+    assert landmarks_to_dict(case)["views"]["front"]["points"][alias] == pts[alias]
+
+
+def test_known_names_from_a_list_or_model_like_object(doc, names):
+    case = parse_landmarks(doc, "case.json", known_names=list(names))
+    assert case.views["side"].points
+    msg = parse_error(doc, known_names=names[1:])
+    assert re.search(rf"case.json: views.front.points.{names[0]}: unknown landmark", msg)
+
+    class ModelLike:
+        landmark_info = [{"name": n, "vertex": i} for i, n in enumerate(names)]
+
+    case = parse_landmarks(doc, "case.json", known_names=ModelLike())
+    assert case.views["front"].arrays(ModelLike())[1].tolist() == list(range(8))
+
+
+def test_camera_parameters_instead_of_a_string(doc):
+    cam = OrthographicCamera.nominal("orthographic-front", (W, H), scale=2500.0,
+                                     offset=(380.0, 500.0))
+    doc["views"]["front"]["camera"] = cam.to_dict()
+    case = parse_landmarks(doc, "case.json")
+    x = np.array([[0.02, -0.1, 0.05], [0.0, 0.0, 0.1]])
+    np.testing.assert_allclose(case.views["front"].camera.project(x), cam.project(x))
+    back = landmarks_to_dict(case)
+    assert back["views"]["front"]["camera"]["scale"] == 2500.0
+    assert back["views"]["side"]["camera"] == "orthographic-right"
+
+
+# --------------------------------------------------------------------------------------
+# Invalid files: one test per kind, each message naming the file, the view and the key
+
+
+@pytest.mark.parametrize("typo,name", [("nose_tpi", "nose_tip"), ("ibug1", "ibug01"),
+                                       ("Nose_Tip", "nose_tip")])
+def test_unknown_landmark_suggests_the_closest_name(doc, typo, name):
+    doc["views"]["side"]["points"][typo] = [100.0, 100.0]
+    msg = parse_error(doc)
+    assert re.match(rf"case\.json: views\.side\.points\.{typo}: unknown landmark; "
+                    rf"did you mean '{name}'\?", msg), msg
+
+
+def test_unknown_ibug_number(doc):
+    doc["views"]["front"]["points"]["ibug99"] = [10.0, 10.0]
+    with pytest.raises(ValueError, match=r"case.json: views.front.points.ibug99: unknown "):
+        parse_landmarks(doc, "case.json")
+
+
+@pytest.mark.parametrize("view,key,pattern", [
+    ("front", "size", r"case\.json: views\.front: missing required key 'size'"),
+    ("side", "camera", r"case\.json: views\.side: missing required key 'camera'"),
+    ("front", "points", r"case\.json: views\.front: missing required key 'points'"),
+])
+def test_missing_field(doc, view, key, pattern):
+    del doc["views"][view][key]
+    with pytest.raises(ValueError, match=pattern):
+        parse_landmarks(doc, "case.json")
+
+
+def test_missing_top_level_fields(doc):
+    for key in ("views", "format", "version"):
+        d = copy.deepcopy(doc)
+        del d[key]
+        with pytest.raises(ValueError, match=rf"case\.json: .*{key}"):
+            parse_landmarks(d, "case.json")
+
+
+def test_wrong_types(doc, names):
+    d = copy.deepcopy(doc)
+    d["views"]["front"]["points"][names[1]] = [12.0, "540"]
+    with pytest.raises(ValueError, match=rf"case\.json: views\.front\.points\.{names[1]}\[1\]: "
+                                         r"expected a number, got string"):
+        parse_landmarks(d, "case.json")
+    d = copy.deepcopy(doc)
+    d["views"]["side"]["size"] = [768.5, 1024]
+    with pytest.raises(ValueError, match=r"views\.side\.size\[0\]: expected an integer"):
+        parse_landmarks(d, "case.json")
+    d = copy.deepcopy(doc)
+    d["views"]["side"]["points"][names[0]] = [1.0, 2.0, 3.0]
+    with pytest.raises(ValueError, match=rf"views\.side\.points\.{names[0]}: expected at most "
+                                         "2 items"):
+        parse_landmarks(d, "case.json")
+    d = copy.deepcopy(doc)
+    d["views"]["front"]["points"] = [[1, 2]]
+    with pytest.raises(ValueError, match=r"views\.front\.points: expected an object, got array"):
+        parse_landmarks(d, "case.json")
+    d = copy.deepcopy(doc)
+    d["views"]["front"]["size"] = [True, 1024]  # JSON true is not a number
+    with pytest.raises(ValueError, match=r"views\.front\.size\[0\]: expected an integer, "
+                                         "got boolean"):
+        parse_landmarks(d, "case.json")
+
+
+def test_unexpected_key_suggests_the_right_one(doc):
+    doc["views"]["front"]["camrea"] = "orthographic-front"
+    with pytest.raises(ValueError, match=r"case\.json: views\.front\.camrea: unexpected key; "
+                                         r"did you mean 'camera'\?"):
+        parse_landmarks(doc, "case.json")
+
+
+def test_x_keys_are_free_and_kept(doc):
+    doc["x-tool"] = {"anything": [1, 2]}
+    doc["views"]["front"]["x-note"] = "checked by Ada"
+    case = parse_landmarks(doc, "case.json")
+    back = landmarks_to_dict(case)
+    assert back["x-tool"] == {"anything": [1, 2]}
+    assert back["views"]["front"]["x-note"] == "checked by Ada"
+
+
+@pytest.mark.parametrize("point,what", [([W + 0.5, 100.0], "u"), ([100.0, -0.01], "v")])
+def test_point_outside_the_image(doc, names, point, what):
+    doc["views"]["front"]["points"][names[2]] = point
+    with pytest.raises(ValueError, match=rf"case\.json: views\.front\.points\.{names[2]}: "
+                                         rf"\(.*\) lies outside the {W}x{H} image"):
+        parse_landmarks(doc, "case.json")
+
+
+def test_edges_of_the_image_are_inside(doc, names):
+    doc["views"]["front"]["points"][names[0]] = [0, 0]
+    doc["views"]["front"]["points"][names[1]] = [W, H]
+    parse_landmarks(doc, "case.json")
+
+
+def test_contour_point_outside_the_image(doc):
+    doc["views"]["side"]["contour"].append([10.0, H + 3.0])
+    with pytest.raises(ValueError, match=r"case\.json: views\.side\.contour\[3\]: .*outside"):
+        parse_landmarks(doc, "case.json")
+
+
+def test_nan_and_infinity_are_rejected(tmp_path, doc, names):
+    # Python's json reads NaN / Infinity although JSON has neither
+    text = json.dumps(doc).replace(json.dumps(doc["views"]["side"]["points"][names[3]]),
+                                   "[NaN, 12.0]")
+    path = tmp_path / "case.json"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(ValueError, match=rf"case\.json: views\.side\.points\.{names[3]}: "
+                                         "not a finite number"):
+        load_landmarks(path)
+    doc["views"]["side"]["contour"][0] = [float("inf"), 1.0]
+    with pytest.raises(ValueError, match=r"views\.side\.contour\[0\]: not a finite number"):
+        parse_landmarks(doc, "case.json")
+
+
+def test_duplicate_landmark_through_its_ibug_alias(doc, lms):
+    number = sorted(lms.ibug)[0]
+    canon = lms.ibug[number]
+    doc["views"]["front"]["points"][f"ibug{number:02d}"] = [50.0, 60.0]
+    with pytest.raises(ValueError, match=rf"case\.json: views\.front\.points\.ibug{number:02d}: "
+                                         rf"the same landmark as '{canon}'"):
+        parse_landmarks(doc, "case.json")
+
+
+def test_too_few_landmarks(doc, names):
+    keep = names[:MIN_LANDMARKS_PER_VIEW - 1]
+    doc["views"]["side"]["points"] = {n: doc["views"]["side"]["points"][n] for n in keep}
+    with pytest.raises(ValueError, match=rf"case\.json: views\.side\.points: {len(keep)} "
+                                         rf"landmarks; the fit needs at least "
+                                         rf"{MIN_LANDMARKS_PER_VIEW} per view"):
+        parse_landmarks(doc, "case.json")
+    # work in progress is fine when not fitting
+    assert parse_landmarks(doc, "case.json", for_fit=False).views["side"].points
+
+
+def test_too_few_landmarks_in_all(doc):
+    del doc["views"]["side"]
+    pts = doc["views"]["front"]["points"]
+    doc["views"]["front"]["points"] = dict(list(pts.items())[:MIN_LANDMARKS_TOTAL - 1])
+    with pytest.raises(ValueError, match=rf"case\.json: views: {MIN_LANDMARKS_TOTAL - 1} "
+                                         "landmarks in all; the fit needs at least"):
+        parse_landmarks(doc, "case.json")
+
+
+def test_bad_camera_string(doc):
+    doc["views"]["side"]["camera"] = "orthographic-rigth"
+    with pytest.raises(ValueError, match=r"case\.json: views\.side\.camera: \"orthographic-rigth\""
+                                         r" is not one of .*did you mean 'orthographic-right'\?"):
+        parse_landmarks(doc, "case.json")
+    doc["views"]["side"]["camera"] = 3
+    with pytest.raises(ValueError, match=r"views\.side\.camera: 3 matches none of the allowed "
+                                         r"forms \(expected a string or an object\)"):
+        parse_landmarks(doc, "case.json")
+
+
+def test_bad_camera_object(doc):
+    doc["views"]["front"]["camera"] = {"kind": "pinhole-from-mars"}
+    with pytest.raises(ValueError, match=r"case\.json: views\.front\.camera: unknown kind "
+                                         "'pinhole-from-mars'"):
+        parse_landmarks(doc, "case.json")
+    doc["views"]["front"]["camera"] = {"kind": "orthographic", "scale": 1.0}
+    with pytest.raises(ValueError, match=r"views\.front\.camera: .*missing field"):
+        parse_landmarks(doc, "case.json")
+    cam = OrthographicCamera.nominal("orthographic-front", (W + 2, H))
+    doc["views"]["front"]["camera"] = cam.to_dict()
+    with pytest.raises(ValueError, match=r"views\.front\.camera: camera size \[770, 1024\] "
+                                         "differs from the view size"):
+        parse_landmarks(doc, "case.json")
+
+
+def test_bad_version_and_format(doc):
+    for version in (2, 0, "1", True, None):
+        d = dict(doc, version=version)
+        with pytest.raises(ValueError, match=r"case\.json: version: unsupported version .*reads "
+                                             "version 1"):
+            parse_landmarks(d, "case.json")
+    d = dict(doc, format="headrecon-landmark-set")
+    with pytest.raises(ValueError, match=r"case\.json: format: expected 'headrecon-landmarks'"):
+        parse_landmarks(d, "case.json")
+    with pytest.raises(ValueError, match=r"case\.json: expected a JSON object"):
+        parse_landmarks([doc], "case.json")
+
+
+def test_all_problems_are_listed(doc, names):
+    doc["views"]["front"]["points"]["nope_one"] = [1.0, 1.0]
+    doc["views"]["side"]["points"][names[0]] = [-5.0, 1.0]
+    with pytest.raises(LandmarksError) as info:
+        parse_landmarks(doc, "case.json")
+    err = info.value
+    assert isinstance(err, ValueError)
+    assert len(err.problems) == 2 and "(and 1 more problem)" in str(err)
+    assert "\n" not in str(err)
+    lines = err.messages()
+    assert lines[0].startswith("case.json: views.front.points.nope_one: unknown landmark")
+    assert lines[1].startswith(f"case.json: views.side.points.{names[0]}: (-5, 1) lies outside")
+
+
+def test_view_names_with_spaces_are_quoted_in_paths(doc):
+    doc["views"]["left side"] = doc["views"].pop("side")
+    doc["views"]["left side"]["points"]["bogus"] = [1.0, 1.0]
+    with pytest.raises(ValueError, match=r'case\.json: views\["left side"\]\.points\.bogus: '):
+        parse_landmarks(doc, "case.json")
+
+
+# --------------------------------------------------------------------------------------
+# Reading files
+
+
+def test_not_json_not_utf8_missing(tmp_path):
+    p = tmp_path / "case.json"
+    p.write_text('{"format": "headrecon-landmarks", "version": 1,,}', encoding="utf-8")
+    with pytest.raises(ValueError, match=r"case\.json: not valid JSON: .*line 1, column"):
+        load_landmarks(p)
+    p.write_bytes(b'{"format": "\xff\xfe"}')
+    with pytest.raises(ValueError, match=r"case\.json: not UTF-8 text \(byte 0xff"):
+        load_landmarks(p)
+    with pytest.raises(FileNotFoundError, match=r"nothere\.json: no such file"):
+        load_landmarks(tmp_path / "nothere.json")
+    p.write_text('{"format": "a", "format": "b"}', encoding="utf-8")
+    with pytest.raises(ValueError, match=r"case\.json: key 'format' appears twice"):
+        load_landmarks(p)
+
+
+def test_utf8_bom_and_unicode_view_names(tmp_path, doc):
+    doc["views"]["Vorderansicht ä"] = doc["views"].pop("front")
+    p = tmp_path / "case.json"
+    p.write_bytes(b"\xef\xbb\xbf" + json.dumps(doc, ensure_ascii=False).encode("utf-8"))
+    case = load_landmarks(p)
+    assert "Vorderansicht ä" in case.views
+
+
+# --------------------------------------------------------------------------------------
+# Writing
+
+
+def test_round_trip(tmp_path, doc):
+    src = tmp_path / "case.json"
+    src.write_text(json.dumps(doc), encoding="utf-8")
+    a = load_landmarks(src)
+    out = tmp_path / "again.json"
+    save_landmarks(a, out)
+    b = load_landmarks(out)
+    assert a == b
+    assert landmarks_to_dict(b) == doc
+    assert json.loads(out.read_text(encoding="utf-8")) == doc
+    # one landmark per line: the file stays readable and diffs well
+    text = out.read_text(encoding="utf-8")
+    first = next(iter(doc["views"]["front"]["points"]))
+    assert re.search(rf'"{first}": \[[\d.]+, [\d.]+\],?\n', text)
+    assert sorted(os.listdir(tmp_path)) == ["again.json", "case.json"]  # no temp files
+    b.views["front"].points[first] = (1.0, 2.0)
+    assert a != b
+
+
+def test_saving_elsewhere_keeps_images_pointing_at_the_photos(tmp_path, doc):
+    (tmp_path / "shoot").mkdir()
+    src = tmp_path / "shoot" / "case.json"
+    src.write_text(json.dumps(doc), encoding="utf-8")
+    case = load_landmarks(src)
+    out = tmp_path / "work" / "copy.json"
+    out.parent.mkdir()
+    save_landmarks(case, out)
+    again = load_landmarks(out)
+    assert again.views["front"].image == "../shoot/front.jpg"
+    assert again.image_path("front").resolve() == (tmp_path / "shoot" / "front.jpg").resolve()
+
+
+def test_save_is_atomic_and_refuses_bad_cases(tmp_path, doc, monkeypatch):
+    path = tmp_path / "case.json"
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    case = load_landmarks(path)
+    before = path.read_bytes()
+    case.views["front"].points["not_a_landmark"] = (1.0, 1.0)
+    with pytest.raises(ValueError, match=r"case\.json: views\.front\.points\.not_a_landmark"):
+        save_landmarks(case, path)
+    assert path.read_bytes() == before
+    del case.views["front"].points["not_a_landmark"]
+
+    def failing_replace(a, b):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(os, "replace", failing_replace)
+    case.views["front"].points[next(iter(case.views["front"].points))] = (5.0, 5.0)
+    with pytest.raises(OSError, match="disk full"):
+        save_landmarks(case, path)
+    assert path.read_bytes() == before
+    assert os.listdir(tmp_path) == ["case.json"]
+
+
+def test_save_allows_work_in_progress(tmp_path, names):
+    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
+    case = LandmarkCase({"front": View("front", None, (W, H), cam,
+                                       {names[0]: np.array([10.0, 20.0])})})
+    path = tmp_path / "wip.json"
+    save_landmarks(case, path)
+    again = load_landmarks(path, for_fit=False)
+    assert again == case
+    assert again.views["front"].image is None
+    with pytest.raises(ValueError, match=r"views\.front\.points: 1 landmark;"):
+        load_landmarks(path)
+
+
+def test_check_case_on_a_built_case(names):
+    cam = OrthographicCamera.nominal("orthographic-left", (100, 100))
+    pts = {names[0]: (10.0, 10.0), names[1]: (float("nan"), 1.0), names[2]: (200.0, 1.0)}
+    case = LandmarkCase({"s": View("s", None, (100, 100), cam, pts)})
+    problems = dict(check_case(case, for_fit=False))
+    assert set(problems) == {f"views.s.points.{names[1]}", f"views.s.points.{names[2]}"}
+    assert "outside the 100x100 image" in problems[f"views.s.points.{names[2]}"]
+
+
+# --------------------------------------------------------------------------------------
+# The schema validator, cross-checked against jsonschema
+
+
+def test_schema_is_a_valid_2020_12_schema_using_supported_keywords(schema):
+    jsonschema.Draft202012Validator.check_schema(schema)
+    Validator(schema)  # raises SchemaKeywordError on a keyword we do not implement
+
+
+def _agree(schema, instance):
+    ref = jsonschema.Draft202012Validator(schema).is_valid(instance)
+    ours = Validator(schema).is_valid(instance)
+    assert ref == ours, f"jsonschema says {ref}, ours {ours} for {instance!r}"
+    return ours
+
+
+def test_schema_agrees_with_jsonschema_on_valid_documents(schema, doc):
+    assert _agree(schema, doc)
+    d = copy.deepcopy(doc)
+    d["version"] = 1.0
+    d["x-extra"] = None
+    d["views"]["side"]["camera"] = {"kind": "orthographic", "anything": [1]}
+    d["views"]["side"]["contour"] = []
+    d["views"]["front"]["points"] = {}
+    assert _agree(schema, d)
+
+
+INVALID_MUTATIONS = [
+    lambda d: d.pop("format"),
+    lambda d: d.update(format="headrecon-landmark"),
+    lambda d: d.update(version=2),
+    lambda d: d.update(version=True),
+    lambda d: d.update(views={}),
+    lambda d: d.update(views=[]),
+    lambda d: d.update(extra=1),
+    lambda d: d["views"].update(third=None),
+    lambda d: d["views"]["front"].pop("size"),
+    lambda d: d["views"]["front"].pop("points"),
+    lambda d: d["views"]["front"].pop("camera"),
+    lambda d: d["views"]["front"].update(size=[768]),
+    lambda d: d["views"]["front"].update(size=[768, 1024, 3]),
+    lambda d: d["views"]["front"].update(size=[0, 1024]),
+    lambda d: d["views"]["front"].update(size=[768, 200000]),
+    lambda d: d["views"]["front"].update(size=[768.5, 1024]),
+    lambda d: d["views"]["front"].update(size="768x1024"),
+    lambda d: d["views"]["front"].update(image=""),
+    lambda d: d["views"]["front"].update(image=5),
+    lambda d: d["views"]["front"].update(camera="perspective"),
+    lambda d: d["views"]["front"].update(camera={"view": "orthographic-front"}),
+    lambda d: d["views"]["front"].update(camera={"kind": ""}),
+    lambda d: d["views"]["front"].update(camera=None),
+    lambda d: d["views"]["front"].update(camrea="orthographic-front"),
+    lambda d: d["views"]["front"].update(points={"a": [1]}),
+    lambda d: d["views"]["front"].update(points={"a": [1, None]}),
+    lambda d: d["views"]["front"].update(points={"a": {"u": 1, "v": 2}}),
+    lambda d: d["views"]["front"].update(points={"a": [True, 2]}),
+    lambda d: d["views"]["side"].update(contour=[[1, 2], [3]]),
+    lambda d: d["views"]["side"].update(contour={"0": [1, 2]}),
+]
+
+
+@pytest.mark.parametrize("i", range(len(INVALID_MUTATIONS)))
+def test_schema_agrees_with_jsonschema_on_invalid_documents(schema, doc, i):
+    d = copy.deepcopy(doc)
+    INVALID_MUTATIONS[i](d)
+    assert not _agree(schema, d)
+    # our error sits at (or below) the place jsonschema's best match points to
+    best = jsonschema.exceptions.best_match(
+        jsonschema.Draft202012Validator(schema).iter_errors(d))
+    ours = [e.path for e in validate(d, schema)]
+    ref = tuple(best.absolute_path)
+    assert any(p[:len(ref)] == ref or ref[:len(p)] == p for p in ours), (ref, ours)
+
+
+def _random_value(rng, depth=0):
+    pool = [None, True, False, 0, 1, -1, 1.0, 1.5, 768, 100001, "", "x", "orthographic-left",
+            "headrecon-landmarks", float("nan")]
+    r = rng.random()
+    if depth < 2 and r < 0.2:
+        return [_random_value(rng, depth + 1) for _ in range(rng.randrange(4))]
+    if depth < 2 and r < 0.35:
+        keys = ["kind", "a", "x-a", "size", "points", "camera", "image", "contour"]
+        return {rng.choice(keys): _random_value(rng, depth + 1) for _ in range(rng.randrange(3))}
+    return rng.choice(pool)
+
+
+def _random_mutation(doc, rng):
+    d = copy.deepcopy(doc)
+    node, parent, key = d, None, None
+    for _ in range(rng.randrange(1, 6)):  # walk down a random path
+        if isinstance(node, dict) and node:
+            parent, key = node, rng.choice(list(node))
+        elif isinstance(node, list) and node:
+            parent, key = node, rng.randrange(len(node))
+        else:
+            break
+        node = parent[key]
+    if parent is None:
+        return d
+    op = rng.random()
+    if op < 0.6:
+        parent[key] = _random_value(rng)
+    elif op < 0.8 and isinstance(parent, dict):
+        del parent[key]
+    elif isinstance(parent, dict):
+        parent[rng.choice(["x-new", "new", "kind", "image"])] = _random_value(rng)
+    else:
+        parent.append(_random_value(rng))
+    return d
+
+
+def test_schema_agrees_with_jsonschema_on_random_mutations(schema, doc):
+    rng = random.Random(1234)
+    n_valid = 0
+    for _ in range(400):
+        n_valid += _agree(schema, _random_mutation(doc, rng))
+    assert 10 < n_valid < 390  # the fuzzing exercised both outcomes
+
+
+GENERIC_SCHEMA = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "type": "object",
+    "required": ["n"],
+    "minProperties": 2,
+    "properties": {
+        "n": {"type": "number", "exclusiveMinimum": 0, "exclusiveMaximum": 10},
+        "i": {"type": ["integer", "null"], "minimum": -2, "maximum": 2},
+        "e": {"enum": [1, "one", None, [1, 2], {"a": 1}]},
+        "c": {"const": False},
+        "s": {"type": "string", "minLength": 2, "pattern": "^[a-z]+$"},
+        "t": {"type": "array", "prefixItems": [{"type": "string"}, {"type": "boolean"}],
+              "items": False},
+        "r": {"$ref": "#/$defs/pair"},
+        "a": {"anyOf": [{"type": "string"}, {"$ref": "#/$defs/pair"}]},
+    },
+    "patternProperties": {"^p_": {"type": "integer"}},
+    "additionalProperties": {"type": "boolean"},
+    "$defs": {"pair": {"type": "array", "items": {"type": "number"}, "minItems": 2,
+                       "maxItems": 2}},
+}
+
+GENERIC_CASES = [
+    ({"n": 1, "i": 2}, True), ({"n": 1}, False), ({"n": 0, "i": 1}, False),
+    ({"n": 10, "i": 1}, False), ({"n": 9.9, "i": None}, True), ({"n": 1, "i": 3}, False),
+    ({"n": 1, "i": 1.0}, True), ({"n": 1, "i": 1.5}, False), ({"n": 1, "i": True}, False),
+    ({"n": 1, "e": 1.0}, True), ({"n": 1, "e": True}, False), ({"n": 1, "e": [1, 2]}, True),
+    ({"n": 1, "e": [2, 1]}, False), ({"n": 1, "e": {"a": 1.0}}, True),
+    ({"n": 1, "e": {"a": True}}, False), ({"n": 1, "c": False}, True), ({"n": 1, "c": 0}, False),
+    ({"n": 1, "s": "ab"}, True), ({"n": 1, "s": "a"}, False), ({"n": 1, "s": "aB"}, False),
+    ({"n": 1, "t": ["a", True]}, True), ({"n": 1, "t": ["a"]}, True),
+    ({"n": 1, "t": ["a", 1]}, False), ({"n": 1, "t": ["a", True, 3]}, False),
+    ({"n": 1, "r": [1, 2]}, True), ({"n": 1, "r": [1]}, False), ({"n": 1, "r": [1, "2"]}, False),
+    ({"n": 1, "a": "x"}, True), ({"n": 1, "a": [1, 2.5]}, True), ({"n": 1, "a": [1]}, False),
+    ({"n": 1, "a": 3}, False), ({"n": 1, "p_x": 3}, True), ({"n": 1, "p_x": "3"}, False),
+    ({"n": 1, "other": True}, True), ({"n": 1, "other": 1}, False), ({"n": "1", "i": 1}, False),
+    ({"n": float("nan"), "i": 1}, True), ([1], False), ("n", False),
+]
+
+
+@pytest.mark.parametrize("instance,valid", GENERIC_CASES)
+def test_every_keyword_agrees_with_jsonschema(instance, valid):
+    assert _agree(GENERIC_SCHEMA, instance) is valid
+
+
+def test_generic_schema_uses_every_implemented_keyword():
+    used = set()
+
+    def walk(s):
+        if isinstance(s, dict):
+            used.update(k for k in s if k in KEYWORDS)
+            for v in s.values():
+                walk(v)
+        elif isinstance(s, list):
+            for v in s:
+                walk(v)
+
+    walk(GENERIC_SCHEMA)
+    assert used == set(KEYWORDS)
+
+
+def test_unsupported_keywords_and_refs_are_refused():
+    with pytest.raises(SchemaKeywordError, match="oneOf"):
+        Validator({"properties": {"a": {"oneOf": [{"type": "string"}]}}})
+    with pytest.raises(SchemaKeywordError, match="does not resolve"):
+        Validator({"$ref": "#/$defs/missing"})
+    with pytest.raises(SchemaKeywordError, match="only local"):
+        Validator({"$ref": "https://example.com/s.json"})
+
+
+def test_error_paths_and_messages():
+    errs = validate({"views": {"front": {"points": {"nose_tip": [1, "x"]}}}},
+                    {"properties": {"views": {"additionalProperties": {"properties": {
+                        "points": {"additionalProperties": {"items": {"type": "number"}}}}}}}})
+    assert [str(e) for e in errs] == [
+        'views.front.points.nose_tip[1]: expected a number, got string "x"']
+    assert format_path(()) == ""
+    assert format_path(("a", 0, "b c", 'q"')) == 'a[0]["b c"]["q\\""]'

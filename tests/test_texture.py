@@ -1,0 +1,477 @@
+"""Texture: per-vertex UVs into a photo (thesis §5) and the multi-view bake, on small
+synthetic meshes with coded photos, plus one check on the real head model."""
+
+import numpy as np
+import pytest
+
+from solver.cameras import OrthographicCamera
+from solver.model import fan_triangles
+from solver.raster import depth_buffer, first_per_pixel, rasterize
+from solver.texture import (
+    BakeOptions,
+    bake_texture,
+    bake_tiles,
+    orthographic_uvs,
+    resolve_parts,
+    uv_raster,
+    uv_tiles,
+)
+
+W, H = 96, 128  # photo size of the synthetic tests
+
+
+class MeshModel:
+    """The parts of HeadModel the texture code reads, for a hand-built mesh."""
+
+    def __init__(self, vertices, faces, face_uvs, face_part, part_names):
+        self.vertices = np.asarray(vertices, dtype=np.float64)
+        self.face_loop_total = np.array([len(f) for f in faces])
+        self.face_loop_start = np.concatenate([[0], np.cumsum(self.face_loop_total)[:-1]])
+        self.loop_vertex = np.concatenate([np.asarray(f) for f in faces])
+        self.loop_uv = np.concatenate([np.asarray(u, dtype=np.float64) for u in face_uvs])
+        self.face_part = np.asarray(face_part)
+        self.part_names = tuple(part_names)
+        self.skin = np.arange(len(self.vertices))
+
+    def triangles(self):
+        tri_loop, tri_face = fan_triangles(self.face_loop_start, self.face_loop_total)
+        return self.loop_vertex[tri_loop], tri_loop, tri_face
+
+
+def uv_sphere(radius=0.1, n_lon=48, n_lat=24):
+    """Latitude-longitude sphere, outward winding, u = longitude / 2 pi, v = latitude."""
+    lat = np.linspace(-np.pi / 2, np.pi / 2, n_lat + 1)[1:-1]
+    lon = np.arange(n_lon) * 2 * np.pi / n_lon
+    la, lo = np.meshgrid(lat, lon, indexing="ij")
+    ring = np.stack([np.cos(la) * np.cos(lo), np.cos(la) * np.sin(lo), np.sin(la)], -1)
+    verts = np.vstack([ring.reshape(-1, 3), [[0, 0, -1], [0, 0, 1]]]) * radius
+    south, north = n_lon * (n_lat - 1), n_lon * (n_lat - 1) + 1
+
+    def vid(k, j):
+        return (k - 1) * n_lon + j % n_lon
+
+    faces, uvs = [], []
+    for k in range(n_lat):
+        for j in range(n_lon):
+            u0, u1, v0, v1 = j / n_lon, (j + 1) / n_lon, k / n_lat, (k + 1) / n_lat
+            if k == 0:
+                faces.append([south, vid(1, j + 1), vid(1, j)])
+                uvs.append([[(j + 0.5) / n_lon, 0], [u1, v1], [u0, v1]])
+            elif k == n_lat - 1:
+                faces.append([vid(k, j), vid(k, j + 1), north])
+                uvs.append([[u0, v0], [u1, v0], [(j + 0.5) / n_lon, 1]])
+            else:
+                faces.append([vid(k, j), vid(k, j + 1), vid(k + 1, j + 1), vid(k + 1, j)])
+                uvs.append([[u0, v0], [u1, v0], [u1, v1], [u0, v1]])
+    return MeshModel(verts, faces, uvs, [0] * len(faces), ["Face"])
+
+
+def grid_sheet(x0, x1, z0, z1, y, n, uv_box):
+    """An n x n quad sheet at depth y facing -Y (the front camera), UVs filling uv_box."""
+    s = np.linspace(0, 1, n + 1)
+    gx, gz = np.meshgrid(s, s, indexing="ij")
+    verts = np.stack([x0 + (x1 - x0) * gx, np.full_like(gx, y), z0 + (z1 - z0) * gz], -1)
+    uv = np.stack([uv_box[0] + (uv_box[2] - uv_box[0]) * gx,
+                   uv_box[1] + (uv_box[3] - uv_box[1]) * gz], -1)
+    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    faces, uvs = [], []
+    for i in range(n):
+        for k in range(n):
+            # (x, z) counter-clockwise seen from -Y: normal (x-step) x (z-step) = -Y
+            q = [idx[i, k], idx[i + 1, k], idx[i + 1, k + 1], idx[i, k + 1]]
+            faces.append(q)
+            uvs.append(uv.reshape(-1, 2)[q])
+    return verts.reshape(-1, 3), faces, uvs
+
+
+def two_sheets():
+    """A small sheet ("Face") 5 cm in front of a big one ("Head and Neck")."""
+    v1, f1, u1 = grid_sheet(-0.03, 0.03, -0.03, 0.03, -0.05, 6, (0.02, 0.02, 0.45, 0.45))
+    v2, f2, u2 = grid_sheet(-0.08, 0.08, -0.08, 0.08, 0.05, 16, (0.5, 0.02, 0.98, 0.98))
+    f2 = [[i + len(v1) for i in f] for f in f2]
+    return MeshModel(np.vstack([v1, v2]), f1 + f2, u1 + u2, [0] * len(f1) + [1] * len(f2),
+                     ["Face", "Head and Neck"])
+
+
+def coded_photo():
+    """Colour = (u / W, v / H, 0.5): a photo whose colour says where it was sampled."""
+    yy, xx = np.mgrid[0:H, 0:W] + 0.5
+    return np.stack([xx / W, yy / H, np.full_like(xx, 0.5)], -1).astype(np.float32)
+
+
+def texel_colours(model, tex, size, **kw):
+    r = uv_raster(model, size, **kw)
+    return r, tex.reshape(-1, 3)[r.texel]
+
+
+# ---------------------------------------------------------------------------------------
+# raster
+# ---------------------------------------------------------------------------------------
+
+def test_rasterize_square_covers_each_pixel_once_with_exact_barycentrics():
+    tri = np.array([[[0, 0], [10, 0], [10, 10]], [[0, 0], [10, 10], [0, 10]]], float) + 3.2
+    pixel, t, bary = rasterize(tri, 20, 20)
+    uniq, t1, b1 = first_per_pixel(pixel, t, bary)
+    # centres i + 0.5 in [3.2, 13.2]: columns/rows 3..12
+    assert len(uniq) == 100
+    assert set(uniq % 20) == set(range(3, 13)) and set(uniq // 20) == set(range(3, 13))
+    pos = np.einsum("nk,nkd->nd", b1, tri[t1])
+    np.testing.assert_allclose(pos, np.stack([uniq % 20 + 0.5, uniq // 20 + 0.5], 1),
+                               atol=1e-9)
+
+
+def test_depth_buffer_keeps_the_nearest_triangle():
+    tri = np.array([[[0, 0], [8, 0], [0, 8]], [[0, 0], [8, 0], [0, 8]]], float)
+    buf = depth_buffer(tri, np.array([[2.0, 2, 2], [1.0, 1, 1]]), 8, 8)
+    assert buf[0, 0] == 1.0 and np.isinf(buf[7, 7])
+
+
+# ---------------------------------------------------------------------------------------
+# orthographic UVs (thesis eq. 48-49)
+# ---------------------------------------------------------------------------------------
+
+def test_orthographic_uvs_match_thesis_formula():
+    w, h = 768, 1024
+    cam = OrthographicCamera.nominal("orthographic-front", (w, h))
+    pts = np.array([[0.0, 0.0, 0.0], [0.1, -0.05, 0.05], [-0.02, 0.3, -0.1]])
+    uv = orthographic_uvs(pts, cam)
+    np.testing.assert_allclose(uv[0], [0.5, 0.5])
+    # eq. 48-49 with the nose-tip origin at pixel (U_n, V_n) = (w/2, h/2) and model
+    # coordinates in image heights: Y = transverse (world x), X = up (world z).
+    un, vn = w / 2, h / 2
+    y_t = pts[:, 0] * cam.scale / h
+    x_t = pts[:, 2] * cam.scale / h
+    np.testing.assert_allclose(uv[:, 0], (un + y_t * h) / w)
+    np.testing.assert_allclose(uv[:, 1], 1 - vn / h + x_t)
+    # depth (world y) does not matter in a parallel projection
+    assert uv[2, 0] == pytest.approx(0.5 - 0.02 * cam.scale / w)
+
+
+def test_orthographic_uvs_rejects_bad_vertices():
+    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
+    with pytest.raises(ValueError, match="vertices"):
+        orthographic_uvs(np.array([[0.0, np.nan, 0.0]]), cam)
+    with pytest.raises(ValueError, match="vertices"):
+        orthographic_uvs(np.zeros((3, 2)), cam)
+
+
+# ---------------------------------------------------------------------------------------
+# the bake
+# ---------------------------------------------------------------------------------------
+
+def test_coded_photo_lands_on_the_right_texels():
+    m = uv_sphere()
+    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
+    tex = bake_texture(m, m.vertices, [(coded_photo(), cam)], 128, mirror=False)
+    assert tex.shape == (128, 128, 3) and tex.dtype == np.float32
+    r, got = texel_colours(m, tex, 128)
+    pts = r.interp @ m.vertices
+    normal = pts / np.linalg.norm(pts, axis=1, keepdims=True)
+    px = cam.project(pts)
+    front = -normal[:, 1] > 0.5
+    assert front.sum() > 1000
+    np.testing.assert_allclose(got[front, 0], px[front, 0] / W, atol=1e-4)
+    np.testing.assert_allclose(got[front, 1], px[front, 1] / H, atol=1e-4)
+
+
+def test_perspective_camera_bakes_within_a_fraction_of_a_pixel():
+    from solver.dlt import DLTCamera
+
+    w, h = 192, 256
+    k = np.array([[300.0, 0, w / 2], [0, 300.0, h / 2], [0, 0, 1]])
+    rot = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])  # front view, as orthographic-front
+    cam = DLTCamera.from_krc(k, rot, [0.0, -0.6, 0.0], (w, h))
+    yy, xx = np.mgrid[0:h, 0:w] + 0.5
+    img = np.stack([xx / w, yy / h, np.full_like(xx, 0.5)], -1).astype(np.float32)
+    m = uv_sphere()
+    tex = bake_texture(m, m.vertices, [(img, cam)], 256)
+    r, got = texel_colours(m, tex, 256)
+    pts = r.interp @ m.vertices
+    n = pts / np.linalg.norm(pts, axis=1, keepdims=True)
+    facing = np.einsum("ij,ij->i", n, cam.toward_camera(pts)) > 0.5
+    assert facing.sum() > 1000
+    err_px = np.abs(got[facing, :2] - cam.project(pts[facing]) / [w, h]) * [w, h]
+    assert err_px.max() < 0.1
+
+
+def test_red_left_blue_right_and_smooth_fill_of_the_unseen_back():
+    m = uv_sphere()
+    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
+    img = np.zeros((H, W, 3), np.float32)
+    img[:, : W // 2, 0] = 1.0  # image left = subject's right (-X): red
+    img[:, W // 2:, 2] = 1.0   # image right = subject's left (+X): blue
+    tex = bake_texture(m, m.vertices, [(img, cam)], 128, mirror=False)
+    r, got = texel_colours(m, tex, 128)
+    pts = r.interp @ m.vertices
+    n = pts / np.linalg.norm(pts, axis=1, keepdims=True)
+    front = -n[:, 1] > 0.5  # squarely seen: weight above BakeOptions.fill_weight
+    assert np.all(got[front & (n[:, 0] < -0.15)] @ [1, 0, -1] > 0.95)  # red
+    assert np.all(got[front & (n[:, 0] > 0.15)] @ [1, 0, -1] < -0.95)  # blue
+    # The back is seen by no photo: filled, within the seen range, and following the rim
+    # (red side stays reddish, blue side bluish).
+    back = n[:, 1] > 0.3
+    assert np.isfinite(got).all() and got.min() >= 0 and got.max() <= 1 + 1e-6
+    sides = back & (np.abs(n[:, 2]) < 0.5)  # away from the poles, where the rim flips
+    assert np.all(got[sides & (n[:, 0] < -0.7)] @ [1, 0, -1] > 0.2)
+    assert np.all(got[sides & (n[:, 0] > 0.7)] @ [1, 0, -1] < -0.2)
+    assert np.allclose(got.sum(axis=1), 1.0, atol=1e-4)  # every texel a red/blue blend
+    # smooth: neighbouring filled texels differ little (the photo edge itself is sharp)
+    grid = np.full((128, 128), np.nan)
+    grid.flat[r.texel[back]] = got[back, 0]
+    step = np.nanmax(np.abs(np.diff(grid, axis=1)))
+    assert step < 0.1
+
+
+def test_hole_fill_takes_the_value_between_its_rim():
+    m = two_sheets()
+    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
+    img = np.ones((H, W, 4), np.float32)
+    # left half dark, right half bright; the back sheet's middle is hidden by the front
+    # sheet, so its hole must bridge the two smoothly
+    img[:, : W // 2, :3] = 0.2
+    img[:, W // 2:, :3] = 0.8
+    tex = bake_texture(m, m.vertices, [(img, cam)], 128, parts=["Head and Neck"])
+    r, got = texel_colours(m, tex, 128, parts=["Head and Neck"])
+    pts = r.interp @ m.vertices
+    hidden = (np.abs(pts[:, 0]) < 0.025) & (np.abs(pts[:, 2]) < 0.025)
+    assert hidden.sum() > 50
+    g = got[hidden, 0]
+    assert g.min() > 0.2 + 1e-3 and g.max() < 0.8 - 1e-3  # strictly between the rims
+    # monotone across the hole from the dark to the bright side
+    order = np.argsort(pts[hidden, 0])
+    xs, gs = pts[hidden, 0][order], g[order]
+    assert np.corrcoef(xs, gs)[0, 1] > 0.9
+    # no texel inside the island is left at the background mean colour
+    assert np.all(np.isfinite(got))
+
+
+def test_occluded_texels_do_not_receive_the_front_colour():
+    m = two_sheets()
+    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
+    px = cam.project(np.array([[-0.03, 0, 0.03], [0.03, 0, -0.03]]))
+    img = np.zeros((H, W, 3), np.float32)
+    img[..., 2] = 1.0  # blue everywhere ...
+    u0, v0 = np.round(px[0]).astype(int)  # pixels whose centres the sheet covers
+    u1, v1 = np.round(px[1]).astype(int)
+    img[v0:v1, u0:u1] = [1.0, 0.0, 0.0]  # ... red where the front sheet is
+    tex = bake_texture(m, m.vertices, [(img, cam)], 128)
+    r, got = texel_colours(m, tex, 128)
+    pts = r.interp @ m.vertices
+    front = pts[:, 1] < 0
+    inner = (np.abs(pts[:, 0]) < 0.025) & (np.abs(pts[:, 2]) < 0.025)
+    assert np.all(got[front & inner, 0] > 0.99)          # the front sheet is red
+    behind = ~front & inner
+    assert behind.sum() > 50
+    assert np.all(got[behind, 2] > 0.9) and np.all(got[behind, 0] < 0.1)  # not red
+    # Without the front sheet in the depth buffer the same texels would be red.
+    only = bake_texture(m, m.vertices, [(img, cam)], 128, parts=["Head and Neck"],
+                        occluders=["Head and Neck"])
+    r2, got2 = texel_colours(m, only, 128, parts=["Head and Neck"])
+    p2 = r2.interp @ m.vertices
+    inner2 = (np.abs(p2[:, 0]) < 0.025) & (np.abs(p2[:, 2]) < 0.025)
+    assert np.all(got2[inner2, 0] > 0.99)
+
+
+def _stripes():
+    img = np.zeros((H, W, 3), np.float32)
+    red = (np.arange(W) // 6) % 2 == 0
+    img[:, red, 0] = 1.0
+    img[:, ~red, 2] = 1.0
+    return img
+
+
+def test_mirrored_profile_fills_the_far_side():
+    m = uv_sphere()
+    cam = OrthographicCamera.nominal("orthographic-right", (W, H))  # sees -X
+    img = _stripes()
+    r = uv_raster(m, 256)
+    pts = r.interp @ m.vertices
+    n = pts / np.linalg.norm(pts, axis=1, keepdims=True)
+    # the right camera ignores x: a far-side point and its mirror image share a pixel
+    px = cam.project(pts)
+    expect_red = (np.floor(px[:, 0]) // 6) % 2 == 0
+    edge = np.abs(px[:, 0] / 6 - np.round(px[:, 0] / 6)) < 0.15  # stripe borders blend
+    far = (n[:, 0] > 0.7) & ~edge
+    assert far.sum() > 500
+    near = (n[:, 0] < -0.7) & ~edge
+
+    def red_match(tex, sel):
+        got = tex.reshape(-1, 3)[r.texel][sel]
+        return np.mean((got[:, 0] > got[:, 2]) == expect_red[sel])
+
+    mirrored = bake_texture(m, m.vertices, [(img, cam)], 256)  # mirror=True: auto
+    assert red_match(mirrored, near) > 0.99
+    assert red_match(mirrored, far) > 0.99
+    plain = bake_texture(m, m.vertices, [(img, cam)], 256, mirror=False)
+    assert red_match(plain, near) > 0.99
+    assert red_match(plain, far) < 0.8  # the smooth fill cannot invent the stripes
+    # the front photo is never mirrored
+    front = OrthographicCamera.nominal("orthographic-front", (W, H))
+    a = bake_texture(m, m.vertices, [(coded_photo(), front)], 64, mirror=True)
+    b = bake_texture(m, m.vertices, [(coded_photo(), front)], 64, mirror=False)
+    np.testing.assert_array_equal(a, b)
+
+
+def test_mirror_uses_the_fitted_similarity():
+    m = uv_sphere()
+    ang = np.radians(25)
+    rot = np.array([[np.cos(ang), -np.sin(ang), 0], [np.sin(ang), np.cos(ang), 0], [0, 0, 1]])
+    scale, trans = 1.1, np.array([0.01, -0.02, 0.03])
+    world = scale * m.vertices @ rot.T + trans
+    cam = OrthographicCamera.nominal("orthographic-right", (W, H))
+    img = coded_photo()
+    tex = bake_texture(m, world, [(img, cam)], 128, similarity=(scale, rot, trans))
+    r, got = texel_colours(m, tex, 128)
+    local = r.interp @ m.vertices
+    n_local = local / np.linalg.norm(local, axis=1, keepdims=True)
+    toward = -cam.rotation[2]
+    direct = (n_local @ rot.T) @ toward
+    mirrored = (n_local * [-1, 1, 1]) @ rot.T @ toward
+    only_mirror = (direct < 0) & (mirrored > 0.6)
+    assert only_mirror.sum() > 200
+    p_mirror = scale * (local * [-1, 1, 1]) @ rot.T + trans
+    px = cam.project(p_mirror[only_mirror])
+    np.testing.assert_allclose(got[only_mirror, 0], px[:, 0] / W, atol=1e-3)
+    np.testing.assert_allclose(got[only_mirror, 1], px[:, 1] / H, atol=1e-3)
+
+
+def test_bleed_outside_islands_and_mean_elsewhere():
+    m = two_sheets()
+    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
+    tex = bake_texture(m, m.vertices, [(coded_photo(), cam)], 128,
+                       options=BakeOptions(bleed=3))
+    r = uv_raster(m, 128, bleed=3)
+    flat = tex.reshape(-1, 3)
+    np.testing.assert_array_equal(flat[r.bleed_to], flat[r.bleed_from])
+    assert r.mask.flat[r.bleed_from].all() and not r.mask.flat[r.bleed_to].any()
+    rest = np.ones(128 * 128, bool)
+    rest[r.texel] = False
+    rest[r.bleed_to] = False
+    assert rest.sum() > 100
+    np.testing.assert_allclose(flat[rest], flat[r.texel].mean(axis=0)[None].repeat(
+        rest.sum(), 0), atol=1e-5)
+
+
+def test_alpha_zero_pixels_are_ignored():
+    m = uv_sphere()
+    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
+    img = np.ones((H, W, 4), np.float32)
+    img[..., :3] = 0.3
+    img[:, : W // 2] = [1.0, 0.0, 0.0, 0.0]  # red but transparent: must not show
+    tex = bake_texture(m, m.vertices, [(img, cam)], 64, mirror=False)
+    got = tex.reshape(-1, 3)[uv_raster(m, 64).texel]
+    np.testing.assert_allclose(got, 0.3, atol=1e-5)
+
+
+def test_raster_is_cached_and_reusable():
+    m = uv_sphere()
+    r1 = uv_raster(m, 64)
+    assert uv_raster(m, 64) is r1
+    assert uv_raster(m, 32) is not r1
+    # the sphere's UVs cover the unit square except half of each pole band
+    assert abs(len(r1.texel) / 64**2 - (1 - 1 / 24)) < 0.02
+    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
+    a = bake_texture(m, m.vertices, [(coded_photo(), cam)], 64, raster=r1)
+    b = bake_texture(m, m.vertices, [(coded_photo(), cam)], 64)
+    np.testing.assert_array_equal(a, b)
+    with pytest.raises(ValueError, match="raster"):
+        bake_texture(m, m.vertices, [(coded_photo(), cam)], 32, raster=r1)
+
+
+def test_tiles_and_parts():
+    m = two_sheets()
+    m.loop_uv[m.face_loop_start[m.face_part == 1][0]:] += [1.0, 0.0]  # back sheet -> 1002
+    assert uv_tiles(m) == (1001, 1002)
+    assert resolve_parts(m, ["head and neck"]) == ((1,), ("Head and Neck",))
+    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
+    tiles = bake_tiles(m, m.vertices, [(coded_photo(), cam)], 64)
+    assert sorted(tiles) == [1001, 1002]
+    one = bake_texture(m, m.vertices, [(coded_photo(), cam)], 64, tile=1002)
+    np.testing.assert_allclose(one, tiles[1002], atol=1e-6)
+    with pytest.raises(ValueError, match="tile"):
+        bake_texture(m, m.vertices, [(coded_photo(), cam)], 64)
+    with pytest.raises(ValueError, match="parts"):
+        bake_tiles(m, m.vertices, [(coded_photo(), cam)], 64, parts=["Teeth"])
+
+
+def test_bad_input_names_the_culprit():
+    m = uv_sphere()
+    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
+    good = coded_photo()
+    with pytest.raises(ValueError, match=r"views\[0\].*shape"):
+        bake_texture(m, m.vertices, [(good[..., 0], cam)], 32)
+    with pytest.raises(ValueError, match=r"views\[1\].*96x128"):
+        bake_texture(m, m.vertices, [(good, cam), (good[:, :50], cam)], 32)
+    with pytest.raises(ValueError, match=r"views\[0\].*camera"):
+        bake_texture(m, m.vertices, [(good, "front")], 32)
+    bad = m.vertices.copy()
+    bad[5, 1] = np.nan
+    with pytest.raises(ValueError, match="world_vertices.*row 5"):
+        bake_texture(m, bad, [(good, cam)], 32)
+    with pytest.raises(ValueError, match="world_vertices.*expected"):
+        bake_texture(m, m.vertices[:-1], [(good, cam)], 32)
+    with pytest.raises(ValueError, match="size"):
+        bake_texture(m, m.vertices, [(good, cam)], 0)
+    with pytest.raises(ValueError, match="views"):
+        bake_texture(m, m.vertices, [], 32)
+    with pytest.raises(ValueError, match="similarity"):
+        bake_texture(m, m.vertices, [(good, cam)], 32, similarity=(1.0, np.eye(2), 0))
+    with pytest.raises(ValueError, match="BakeOptions.power"):
+        BakeOptions(power=0)
+
+
+# ---------------------------------------------------------------------------------------
+# the real head model
+# ---------------------------------------------------------------------------------------
+
+def test_real_head_photos_coloured_by_height(model):
+    world = model.vertices
+    w, h = 192, 256
+    views = []
+    for view in ("orthographic-front", "orthographic-right"):
+        cam = OrthographicCamera.nominal(view, (w, h))
+        # colour = world height: the photo's row v maps to z = (h/2 - v) / scale
+        z = (h / 2 - (np.arange(h) + 0.5)) / cam.scale
+        shade = np.clip((z + 0.15) / 0.3, 0, 1).astype(np.float32)
+        img = np.repeat(shade[:, None, None], w, axis=1).repeat(3, axis=2)
+        views.append((img, cam))
+    tiles = bake_tiles(model, world, views, 256)
+    assert sorted(tiles) == [1001, 1002]
+    for tile, tex in tiles.items():
+        r = uv_raster(model, 256, tile=tile)
+        pts = r.interp @ world
+        expect = np.clip((pts[:, 2] + 0.15) / 0.3, 0, 1)
+        got = tex.reshape(-1, 3)[r.texel, 0]
+        assert np.corrcoef(expect, got)[0, 1] > 0.95, tile
+        assert np.median(np.abs(expect - got)) < 0.02, tile
+
+
+def test_real_head_front_photo_lands_on_front_facing_skin(model):
+    """A fitted-like pose (rotated, scaled, moved): every skin texel that faces the front
+    camera squarely gets exactly the photo colour at its projection (ICT's winding gives
+    outward normals, and the occlusion test hides no visible skin beyond the ears' folds)."""
+    ang = np.radians(5)
+    rot = np.array([[np.cos(ang), -np.sin(ang), 0], [np.sin(ang), np.cos(ang), 0], [0, 0, 1]])
+    scale, trans = 1.05, np.array([0.01, 0.0, -0.02])
+    world = scale * model.vertices @ rot.T + trans
+    w, h = 192, 256
+    cam = OrthographicCamera.nominal("orthographic-front", (w, h), scale=0.6 * h / 0.3)
+    yy, xx = np.mgrid[0:h, 0:w] + 0.5
+    img = np.stack([xx / w, yy / h, np.full_like(xx, 0.5)], -1).astype(np.float32)
+    tiles = bake_tiles(model, world, [(img, cam)], 256, similarity=(scale, rot, trans))
+    # vertex normals, computed independently of the bake
+    tri_v, _, tri_f = model.triangles()
+    skin = tri_v[np.isin(model.face_part[tri_f], resolve_parts(model)[0])]
+    p = world[skin]
+    fn = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    vn = np.zeros_like(world)
+    for k in range(3):
+        np.add.at(vn, skin[:, k], fn)
+    for tile, tex in tiles.items():
+        r = uv_raster(model, 256, tile=tile)
+        pts = r.interp @ world
+        n = r.interp @ vn
+        facing = -n[:, 1] / np.linalg.norm(n, axis=1) > 0.6
+        assert facing.sum() > 1000, tile
+        err = np.abs(tex.reshape(-1, 3)[r.texel, :2] - cam.project(pts) / [w, h]).max(axis=1)
+        assert np.mean(err[facing] < 0.01) > 0.99, tile

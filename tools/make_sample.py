@@ -1,0 +1,903 @@
+"""Render the sample case: front and side photos of a head drawn from the model, with its
+landmarks file and the ground truth.
+
+    python -m tools.make_sample [--out generated/sample] [--seed N] [--size WxH]
+                                [--samples N] [--force]
+
+A head is sampled from the identity model (seeded), turned a few degrees like a person who
+does not sit perfectly straight, and rendered with Cycles (CPU) through orthographic
+cameras from the front and from the subject's right: ``front.png`` and ``side.png``.
+``sample.json`` is the landmarks file a user would make: every landmark visible in a view
+(``assets/landmarks.json`` "views") projected by the Blender camera plus ~1 px of
+placement noise, and the side photo's head outline traced from the render's alpha (the
+neck's cut edge left out). ``truth.npz`` holds what a test measures the fit against: the
+true vertices, coefficients, pose and cameras. ``overlay_*.png`` show the points on the
+photos for a visual check.
+
+Outputs are made once and reused: the run is skipped while the files exist and were made
+with the same parameters and model (``--force`` redoes them). Everything is written into a
+temporary folder that replaces the output folder at the end, so an interrupted run never
+leaves a half sample behind.
+"""
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, ImageDraw
+
+from solver.cameras import ORTHO_VIEWS, OrthographicCamera
+from solver.landmarks_file import LandmarkCase, View, load_landmarks, save_landmarks
+from solver.model import load_model
+
+# Bump when the output changes for the same parameters (forces a re-render).
+SAMPLE_VERSION = 1
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+DEFAULT_OUT = REPO_ROOT / "generated" / "sample"
+DEFAULT_SEED = 7
+DEFAULT_SIZE = (768, 1024)  # the thesis' photo size
+DEFAULT_SAMPLES = 24
+NOISE_PX = 1.0  # landmark placement noise (standard deviation, pixels at 1024 px height)
+CONTOUR_POINTS = 128
+MAX_TILT_DEG = 3.0
+TOP_MARGIN = (0.04, 0.07)  # space above the head, fraction of the image height
+SIDE_SCALE = 0.98  # the side photo is a second shot: slightly different scale
+# view name -> nominal camera (the fit handles orthographic front/right/left views)
+VIEWS = {"front": "orthographic-front", "side": "orthographic-right"}
+FILES = ("front.png", "side.png", "truth.npz", "sample.json")
+
+# ICT README, "Eyeball details" (vertex ranges, inclusive). The sclera is the outer shell
+# with the cornea bulge; the iris part is an inner sphere an opaque sclera would hide, so
+# the render paints iris and pupil onto the sclera's front and leaves the iris part out.
+SCLERA_RANGES = ((21451, 22220), (23021, 23790))
+IRIS_RANGES = ((22221, 23020), (23791, 24590))
+IRIS_RADIUS = 0.0058  # metres from the eye's axis
+PUPIL_RADIUS = 0.0021
+# Parts made for Unreal's digital-human eye shaders (wet film, soft shadow) and the
+# eyelashes' alpha-textured strips: drawn opaque they would be grey sheets over the eyes.
+HIDDEN_PART_WORDS = ("lacrimal", "blend", "occlusion", "eyelash")
+
+
+# --------------------------------------------------------------------------- head
+
+
+def rotation_from_euler(yaw, pitch, roll):
+    """Rotation matrix (3, 3) of a head turned by ``yaw`` (about Z), nodding by ``pitch``
+    (about X) and tilted by ``roll`` (about Y), degrees, applied roll, pitch, then yaw."""
+    y, p, r = np.radians([yaw, pitch, roll])
+    rz = np.array([[np.cos(y), -np.sin(y), 0], [np.sin(y), np.cos(y), 0], [0, 0, 1]])
+    rx = np.array([[1, 0, 0], [0, np.cos(p), -np.sin(p)], [0, np.sin(p), np.cos(p)]])
+    ry = np.array([[np.cos(r), 0, np.sin(r)], [0, 1, 0], [-np.sin(r), 0, np.cos(r)]])
+    return rz @ rx @ ry
+
+
+def sample_head(model, seed):
+    """A seeded identity and pose.
+
+    Returns
+    -------
+    coeffs : ndarray, shape (K,)
+        Identity coefficients (standard deviations), N(0, 1) clipped to +-2.5.
+    local : ndarray, shape (V, 3), metres
+    rotation : ndarray, shape (3, 3)
+    translation : ndarray, shape (3,), metres
+    """
+    rng = np.random.default_rng(seed)
+    coeffs = np.clip(rng.standard_normal(model.identity.n_coeffs), -2.5, 2.5)
+    local = model.identity.instance(coeffs)
+    yaw, pitch, roll = rng.uniform(-MAX_TILT_DEG, MAX_TILT_DEG, 3)
+    rotation = rotation_from_euler(yaw, pitch, roll)
+    translation = rng.uniform(-0.01, 0.01, 3)
+    return coeffs, local, rotation, translation
+
+
+def frame_cameras(world, collar_z, size, seed):
+    """Orthographic cameras that frame the head like a portrait photo: the top of the head
+    a little below the top edge, head and collar as large as the narrower side allows,
+    the shoulders below. The front and side photos differ slightly in scale and centring
+    (they are two shots).
+
+    Parameters
+    ----------
+    world : ndarray, shape (V, 3), metres
+        The posed head.
+    collar_z : float, metres
+        Height of the shirt's collar: what lies above it is framed.
+    size : (int, int)
+    seed : int
+
+    Returns
+    -------
+    dict of str -> OrthographicCamera
+        Keyed by view name (``VIEWS``).
+    """
+    w, h = size
+    rng = np.random.default_rng(seed + 1)
+    head = world[world[:, 2] > collar_z]
+    top_z = head[:, 2].max()
+    span_u = max(np.ptp(head @ ORTHO_VIEWS[kind][0]) for kind in VIEWS.values())
+    scale = min(0.88 * h / (top_z - collar_z + 0.03), 0.86 * w / span_u)
+    cams = {}
+    for view, kind in VIEWS.items():
+        s = scale * (SIDE_SCALE if view == "side" else 1.0)
+        u = head @ ORTHO_VIEWS[kind][0]
+        du = rng.uniform(-0.02, 0.02) * w
+        # v = s * (-z) + offset_v: the top of the head a few per cent below the top edge
+        offset = np.array([w / 2.0 + du - s * (u.min() + u.max()) / 2.0,
+                           rng.uniform(*TOP_MARGIN) * h + s * top_z])
+        cams[view] = OrthographicCamera(ORTHO_VIEWS[kind], s, offset, size, kind)
+    return cams
+
+
+def _polygon_signed_distance(points, polygon):
+    """Distance of 2-D points to a closed polygon's edges, positive inside: (n,) metres."""
+    a = polygon
+    b = np.roll(polygon, -1, axis=0)
+    ab = b - a  # (m, 2)
+    ap = points[:, None, :] - a[None]  # (n, m, 2)
+    t = np.clip((ap * ab).sum(-1) / (ab * ab).sum(-1), 0.0, 1.0)
+    d = np.linalg.norm(ap - t[..., None] * ab, axis=-1).min(axis=1)
+    # crossing number: edges straddling the point's horizontal line, crossing to its right
+    y0, y1 = a[:, 1][None], b[:, 1][None]
+    py, px = points[:, 1:2], points[:, 0:1]
+    straddle = (y0 > py) != (y1 > py)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xc = a[:, 0][None] + (py - y0) * (b[:, 0] - a[:, 0])[None] / (y1 - y0)
+    inside = ((straddle & (px < xc)).sum(axis=1) % 2) == 1
+    return np.where(inside, d, -d)
+
+
+def _smoothstep(e0, e1, x):
+    t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+def appearance_attributes(model):
+    """Per-vertex weights the skin and eye shaders read, from the mean shape.
+
+    Regions are found from landmarks on the mean head seen from the front (x, z), so they
+    follow the vertices through any identity.
+
+    Returns
+    -------
+    dict of str -> ndarray (V,)
+        ``lips``, ``brows``, ``blush`` in [0, 1]; ``eye_r``: distance from the eye's axis
+        in millimetres on the eyeballs' front (99 elsewhere).
+    """
+    v = model.vertices
+    n = len(v)
+    face_part = np.zeros(n, dtype=bool)
+    face_part[model.skin] = True
+    xz = v[:, [0, 2]]
+
+    def lm(i):
+        return v[model.landmark_vertex(f"ibug{i:02d}")]
+
+    out = {}
+    # Lips: inside the outer lip line (ibug 49-60), only on the front of the head.
+    outer = np.array([lm(i) for i in range(49, 61)])
+    front = face_part & (v[:, 1] < outer[:, 1].max() + 0.008)
+    sd = _polygon_signed_distance(xz, outer[:, [0, 2]])
+    out["lips"] = np.where(front, _smoothstep(-0.0004, 0.0012, sd), 0.0)
+
+    # Brows: a band under each brow line (ibug 18-22 right, 23-27 left), thick at the
+    # inner end and tapering outward.
+    brows = np.zeros(n)
+    for idx in (range(18, 23), range(23, 28)):
+        line = np.array([lm(i) for i in idx])
+        inner, outer_end = (line[-1], line[0]) if idx.start == 18 else (line[0], line[-1])
+        order = np.argsort(line[:, 0])
+        zl = np.interp(v[:, 0], line[order, 0], line[order, 2])
+        s = (v[:, 0] - inner[0]) / (outer_end[0] - inner[0])  # 0 inner .. 1 outer
+        half = 0.0042 * (1.0 - s) + 0.0022 * s
+        centre = zl - 0.0018
+        across = _smoothstep(half + 0.0012, half - 0.0008, np.abs(v[:, 2] - centre))
+        along = _smoothstep(-0.12, 0.05, s) * _smoothstep(1.12, 0.95, s)
+        near = face_part & (v[:, 1] < line[:, 1].max() + 0.012)
+        brows = np.maximum(brows, np.where(near, across * along, 0.0))
+    out["brows"] = brows
+
+    # Blush: warm cheeks and nose tip (soft Gaussian spots on the front).
+    spots = [(lm(31), 0.012, 0.5)]
+    for nose_side, jaw in ((32, 4), (36, 14)):
+        spots.append((0.55 * lm(nose_side) + 0.45 * lm(jaw), 0.02, 0.6))
+    blush = np.zeros(n)
+    for c, sigma, amp in spots:
+        d2 = ((xz - c[[0, 2]]) ** 2).sum(axis=1)
+        blush = np.maximum(blush, amp * np.exp(-d2 / (2 * sigma**2)))
+    out["blush"] = np.where(face_part & (v[:, 1] < lm(31)[1] + 0.06), blush, 0.0)
+
+    # Eyes: radius from each eye's axis (the eyeball's centre, looking along -Y).
+    eye_r = np.full(n, 99.0)
+    for (s0, s1), (i0, i1) in zip(SCLERA_RANGES, IRIS_RANGES, strict=True):
+        centre = v[i0:i1 + 1].mean(axis=0)
+        d = v[s0:s1 + 1] - centre
+        r = np.hypot(d[:, 0], d[:, 2]) * 1000.0
+        eye_r[s0:s1 + 1] = np.where(d[:, 1] < 0, r, 99.0)
+    out["eye_r"] = eye_r
+    return out
+
+
+# --------------------------------------------------------------------------- materials
+
+
+def _materials():
+    """Skin, eye, mouth, teeth, eye socket and shirt materials (procedural)."""
+    import bpy
+
+    def nodes_of(name):
+        mat = bpy.data.materials.new(name)
+        nt = mat.node_tree
+        return mat, nt, nt.nodes.get("Principled BSDF")
+
+    def sock(sockets, ident):
+        return next(s for s in sockets if s.identifier == ident)
+
+    def attr(nt, name):
+        n = nt.nodes.new("ShaderNodeAttribute")
+        n.attribute_name = name
+        return sock(n.outputs, "Fac")
+
+    def mix(nt, fac, a, b):
+        n = nt.nodes.new("ShaderNodeMix")
+        n.data_type = "RGBA"
+        for ident, val in (("Factor_Float", fac), ("A_Color", a), ("B_Color", b)):
+            s = sock(n.inputs, ident)
+            if isinstance(val, tuple):
+                s.default_value = val + (1.0,) if len(val) == 3 else val
+            elif isinstance(val, float):
+                s.default_value = val
+            else:
+                nt.links.new(val, s)
+        return sock(n.outputs, "Result_Color")
+
+    def noise(nt, coords, scale, detail=2.0):
+        n = nt.nodes.new("ShaderNodeTexNoise")
+        n.inputs["Scale"].default_value = scale
+        n.inputs["Detail"].default_value = detail
+        nt.links.new(coords, n.inputs["Vector"])
+        return n.outputs["Factor"]
+
+    def ramp(nt, fac, stops):
+        n = nt.nodes.new("ShaderNodeValToRGB")
+        els = n.color_ramp.elements
+        els[0].position, els[0].color = stops[0][0], stops[0][1] + (1.0,)
+        els[1].position, els[1].color = stops[1][0], stops[1][1] + (1.0,)
+        for pos, col in stops[2:]:
+            e = els.new(pos)
+            e.color = col + (1.0,)
+        nt.links.new(fac, n.inputs["Fac"])
+        return n.outputs["Color"]
+
+    def math(nt, op, a, b):
+        n = nt.nodes.new("ShaderNodeMath")
+        n.operation = op
+        for s, val in zip(n.inputs[:2], (a, b), strict=True):
+            if isinstance(val, float):
+                s.default_value = val
+            else:
+                nt.links.new(val, s)
+        return n.outputs["Value"]
+
+    # Skin: tone with blotchy variation, warm blush, darker lips, hairy brows, pores.
+    skin, nt, bsdf = nodes_of("Skin")
+    obj_co = nt.nodes.new("ShaderNodeTexCoord").outputs["Object"]
+    tone = ramp(nt, noise(nt, obj_co, 90.0, 4.0),
+                [(0.3, (0.56, 0.35, 0.26)), (0.7, (0.66, 0.43, 0.33))])
+    col = mix(nt, math(nt, "MULTIPLY", attr(nt, "blush"), 0.55), tone, (0.66, 0.30, 0.24))
+    lip_col = ramp(nt, noise(nt, obj_co, 600.0),
+                   [(0.3, (0.38, 0.13, 0.12)), (0.7, (0.46, 0.18, 0.16))])
+    col = mix(nt, attr(nt, "lips"), col, lip_col)
+    # brow hairs: streaks from noise stretched across the brow
+    stretch = nt.nodes.new("ShaderNodeMapping")
+    stretch.inputs["Scale"].default_value = (0.25, 1.0, 1.0)
+    nt.links.new(obj_co, stretch.inputs["Vector"])
+    hairs = noise(nt, stretch.outputs["Vector"], 1500.0, 1.0)
+    hair_fac = math(nt, "MULTIPLY", attr(nt, "brows"), math(nt, "GREATER_THAN", hairs, 0.42))
+    col = mix(nt, math(nt, "MULTIPLY", hair_fac, 0.9), col, (0.06, 0.035, 0.02))
+    nt.links.new(col, bsdf.inputs["Base Color"])
+    bsdf.inputs["Roughness"].default_value = 0.5
+    bsdf.inputs["Subsurface Weight"].default_value = 0.25
+    bsdf.inputs["Subsurface Radius"].default_value = (1.0, 0.35, 0.2)
+    bsdf.inputs["Subsurface Scale"].default_value = 0.004
+    bsdf.inputs["Specular IOR Level"].default_value = 0.35
+    bump = nt.nodes.new("ShaderNodeBump")
+    bump.inputs["Strength"].default_value = 0.08
+    bump.inputs["Distance"].default_value = 0.0003
+    nt.links.new(noise(nt, obj_co, 1200.0, 3.0), bump.inputs["Height"])
+    nt.links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
+
+    # Eyes: sclera, iris (with radial streaks and a dark limbal ring) and pupil by radius.
+    eye, nt, bsdf = nodes_of("Eye")
+    r = math(nt, "DIVIDE", attr(nt, "eye_r"), 8.0)  # 1.0 = 8 mm
+    streaks = noise(nt, nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], 900.0)
+    iris = ramp(nt, streaks, [(0.35, (0.10, 0.16, 0.22)), (0.65, (0.22, 0.32, 0.36))])
+    p, q = PUPIL_RADIUS * 1000 / 8.0, IRIS_RADIUS * 1000 / 8.0
+    ring = ramp(nt, r, [(p - 0.01, (0.0, 0.0, 0.0)), (p + 0.01, (1.0, 1.0, 1.0)),
+                        (q - 0.08, (1.0, 1.0, 1.0)), (q - 0.01, (0.35, 0.35, 0.35)),
+                        (q + 0.01, (0.0, 0.0, 0.0))])
+    sclera = ramp(nt, r, [(q, (0.45, 0.42, 0.40)), (1.5, (0.62, 0.55, 0.52))])
+    inside = math(nt, "LESS_THAN", r, q + 0.005)
+    col = mix(nt, inside, sclera, mix(nt, ring, (0.005,) * 3, iris))
+    nt.links.new(col, bsdf.inputs["Base Color"])
+    bsdf.inputs["Roughness"].default_value = 0.25
+    bsdf.inputs["Coat Weight"].default_value = 1.0
+    bsdf.inputs["Coat Roughness"].default_value = 0.03
+
+    def plain(name, colour, rough):
+        mat, nt, bsdf = nodes_of(name)
+        bsdf.inputs["Base Color"].default_value = colour + (1.0,)
+        bsdf.inputs["Roughness"].default_value = rough
+        return mat
+
+    mouth = plain("Mouth", (0.18, 0.04, 0.04), 0.4)
+    teeth = plain("Teeth", (0.75, 0.72, 0.62), 0.3)
+    socket = plain("Eye socket", (0.40, 0.16, 0.14), 0.3)
+    shirt, nt, bsdf = nodes_of("Shirt")
+    weave = noise(nt, nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], 400.0)
+    nt.links.new(ramp(nt, weave, [(0.3, (0.02, 0.03, 0.05)), (0.7, (0.03, 0.045, 0.07))]),
+                 bsdf.inputs["Base Color"])
+    bsdf.inputs["Roughness"].default_value = 0.9
+    return {"skin": skin, "eye": eye, "mouth": mouth, "teeth": teeth, "socket": socket,
+            "shirt": shirt}
+
+
+def _face_materials(model):
+    """Material slot per polygon (index into ``SLOTS``) and the polygons to draw."""
+    slot_of_part = []
+    for name in model.part_names:
+        low = name.lower()
+        if any(w in low for w in HIDDEN_PART_WORDS):
+            slot_of_part.append(-1)
+        elif low in ("face", "head and neck"):
+            slot_of_part.append(SLOTS.index("skin"))
+        elif "eyeball" in low:
+            slot_of_part.append(SLOTS.index("eye"))
+        elif "teeth" in low:
+            slot_of_part.append(SLOTS.index("teeth"))
+        elif "eye socket" in low:
+            slot_of_part.append(SLOTS.index("socket"))
+        else:  # mouth socket, gums and tongue
+            slot_of_part.append(SLOTS.index("mouth"))
+    slot = np.asarray(slot_of_part)[model.face_part]
+    # leave the eyeballs' inner iris spheres out (see IRIS_RANGES)
+    first = model.loop_vertex[model.face_loop_start]
+    for i0, i1 in IRIS_RANGES:
+        slot[(first >= i0) & (first <= i1)] = -1
+    return slot
+
+
+SLOTS = ("skin", "eye", "mouth", "teeth", "socket")
+
+
+# --------------------------------------------------------------------------- contour
+
+
+# 8-neighbourhood (row, col), clockwise on screen starting west.
+_NEIGHBOURS = ((0, -1), (-1, -1), (-1, 0), (-1, 1), (0, 1), (1, 1), (1, 0), (1, -1))
+_NEIGHBOUR_INDEX = {o: i for i, o in enumerate(_NEIGHBOURS)}
+
+
+def trace_outline(mask):
+    """Outer boundary of the mask's blob that holds its topmost pixel (Moore-neighbour
+    tracing, clockwise on screen; stops on re-entering the start the way it first left).
+
+    Parameters
+    ----------
+    mask : ndarray, shape (h, w), bool
+
+    Returns
+    -------
+    ndarray, shape (n, 2), int
+        (row, col) of the boundary pixels in walking order.
+    """
+    m = np.pad(np.asarray(mask, dtype=bool), 1)
+    rows, cols = np.nonzero(m)
+    if rows.size == 0:
+        raise ValueError("mask: empty, nothing to trace")
+    k = int(np.argmin(rows * m.shape[1] + cols))  # topmost, then leftmost
+    start = (int(rows[k]), int(cols[k]))
+    p, back = start, 0  # the start's west neighbour is background
+    path, first = [start], None
+    for _ in range(8 * rows.size + 8):
+        for j in range(1, 9):
+            d = (back + j) % 8
+            c = (p[0] + _NEIGHBOURS[d][0], p[1] + _NEIGHBOURS[d][1])
+            if m[c]:
+                break
+        else:  # a lone pixel
+            break
+        if first is None:
+            first = d
+        elif p == start and d == first:
+            path.pop()  # the start, reached again
+            break
+        # the last background pixel checked becomes the new backtrack position
+        q = (p[0] + _NEIGHBOURS[(d - 1) % 8][0], p[1] + _NEIGHBOURS[(d - 1) % 8][1])
+        back = _NEIGHBOUR_INDEX[(q[0] - c[0], q[1] - c[1])]
+        p = c
+        path.append(p)
+    return np.array(path) - 1
+
+
+def side_contour(alpha, cut_pixels, n_points=CONTOUR_POINTS, margin=None):
+    """The side photo's head outline in drawing order, from the front of the neck over the
+    face and skull to the back of the neck, without the stretch where the collar (or the
+    image's border) cuts the neck off.
+
+    Parameters
+    ----------
+    alpha : ndarray, shape (h, w), float in [0, 1]
+        Alpha of the head alone in the side view.
+    cut_pixels : ndarray, shape (m, 2)
+        The closed line that cuts the neck off (the collar's rim) projected into the side
+        view, pixels, in order around the neck.
+    n_points : int
+        Points returned, evenly spaced along the outline.
+    margin : float, optional
+        Outline pixels closer than this to the cut are dropped (default 1 % of the
+        image height: the collar's cloth is a few pixels thick).
+
+    Returns
+    -------
+    ndarray, shape (n_points, 2)
+        (u, v) pixels, pixel centres (a boundary pixel (r, c) is at (c + 0.5, r + 0.5)).
+    """
+    margin = 0.01 * alpha.shape[0] if margin is None else margin
+    rc = trace_outline(alpha >= 0.5)
+    pts = rc[:, ::-1].astype(np.float64) + 0.5
+    seg_a = cut_pixels
+    seg_b = np.roll(cut_pixels, -1, axis=0)
+    ab = seg_b - seg_a
+    ap = pts[:, None, :] - seg_a[None]
+    t = np.clip((ap * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-12), 0.0, 1.0)
+    dist = np.linalg.norm(ap - t[..., None] * ab, axis=-1).min(axis=1)
+    h, w = alpha.shape
+    on_border = (rc[:, 0] <= 0) | (rc[:, 0] >= h - 1) | (rc[:, 1] <= 0) | (rc[:, 1] >= w - 1)
+    keep = (dist > margin) & ~on_border
+    if keep.all() or not keep.any():
+        raise ValueError("side contour: the outline neither meets the image's edge nor the "
+                         "collar; cannot tell where the neck ends")
+    # longest cyclic run of kept pixels
+    shift = int(np.argmin(keep))  # a dropped pixel: start the scan there
+    k = np.roll(keep, -shift)
+    edges = np.diff(np.concatenate([[0], k.astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    best = int(np.argmax(ends - starts))
+    run = np.roll(pts, -shift, axis=0)[starts[best]:ends[best]]
+    # the face looks toward +u in the right-side view: start at the front of the neck
+    if run[0, 0] < run[-1, 0]:
+        run = run[::-1]
+    seg = np.linalg.norm(np.diff(run, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    at = np.linspace(0.0, s[-1], n_points)
+    return np.column_stack([np.interp(at, s, run[:, 0]), np.interp(at, s, run[:, 1])])
+
+
+def neck_cut_loop(model):
+    """Vertices of the skin's open boundary loop at the bottom of the neck, in loop order.
+
+    The skin (ICT face + head and neck) is open at the neck, the mouth and the eyes; the
+    loop holding the lowest skin vertex is the neck's cut.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    skin_face = np.isin(model.face_part, [model.part_names.index(p)
+                                          for p in ("Face", "Head and Neck")])
+    start = model.face_loop_start[skin_face]
+    total = model.face_loop_total[skin_face]
+    loops = np.concatenate([np.arange(s, s + t) for s, t in zip(start, total, strict=True)])
+    nxt = np.concatenate([np.r_[np.arange(s + 1, s + t), s]
+                          for s, t in zip(start, total, strict=True)])
+    a, b = model.loop_vertex[loops], model.loop_vertex[nxt]
+    e = np.sort(np.column_stack([a, b]), axis=1)
+    uniq, count = np.unique(e, axis=0, return_counts=True)
+    border = uniq[count == 1]
+    n = model.n_vertices
+    g = coo_matrix((np.ones(len(border)), (border[:, 0], border[:, 1])), shape=(n, n))
+    _, label = connected_components(g, directed=False)
+    on_border = np.unique(border)
+    lowest = on_border[np.argmin(model.vertices[on_border, 2])]
+    loop_edges = border[label[border[:, 0]] == label[lowest]]
+    # walk the loop
+    nbr = {}
+    for p, q in loop_edges:
+        nbr.setdefault(int(p), []).append(int(q))
+        nbr.setdefault(int(q), []).append(int(p))
+    order, prev, cur = [int(lowest)], None, int(lowest)
+    while True:
+        nxt_v = next((x for x in nbr[cur] if x != prev), None)
+        if nxt_v is None or nxt_v == order[0]:
+            break
+        order.append(nxt_v)
+        prev, cur = cur, nxt_v
+        if len(order) > len(loop_edges):
+            break
+    return np.asarray(order)
+
+
+# --------------------------------------------------------------------------- torso
+
+
+def _circular_smooth(values, window):
+    """Moving average of a periodic sequence (n,) over ``window`` (odd) samples."""
+    k = window // 2
+    padded = np.concatenate([values[-k:], values, values[:k]])
+    return np.convolve(padded, np.ones(window) / window, mode="valid")
+
+
+def _skin_radius(points_axis, centre, theta, z, half_angle=0.12, half_height=0.006):
+    """Largest distance from the neck's axis of the points in each angular sector and
+    height slab: (n,) metres, 0 where the sector is empty.
+
+    Parameters
+    ----------
+    points_axis : ndarray, shape (S, 3)
+        Skin points (local, metres).
+    centre : ndarray, shape (2,)
+        The neck's axis (x, y).
+    theta, z : ndarray, shape (n,)
+        Angle (radians, from +X toward +Y) and height of each query.
+    """
+    d = points_axis[:, :2] - centre
+    ang = np.arctan2(d[:, 1], d[:, 0])
+    rad = np.hypot(d[:, 0], d[:, 1])
+    dang = np.abs((ang[None, :] - theta[:, None] + np.pi) % (2 * np.pi) - np.pi)
+    near = (dang < half_angle) & (np.abs(points_axis[None, :, 2] - z[:, None]) < half_height)
+    return np.where(near, rad[None, :], 0.0).max(axis=1)
+
+
+def torso_mesh(local, skin, cut, n_around=72):
+    """A shirt over the shoulders whose collar hides the model's neck cut.
+
+    Real photos show shoulders and clothes, not the bust's cut edge. The collar follows
+    the cut 1.5 cm above it (a crew neck, lower in front) a few millimetres off the skin;
+    below, the cloth widens to the shoulders. Every ring stays outside the skin it
+    passes, whatever the identity.
+
+    Parameters
+    ----------
+    local : ndarray, shape (V, 3)
+        Head vertices (local, metres).
+    skin : ndarray, shape (S,)
+        Skin vertex indices.
+    cut : ndarray, shape (m,)
+        The neck cut loop (``neck_cut_loop``).
+    n_around : int
+        Vertices per ring.
+
+    Returns
+    -------
+    vertices : ndarray, shape (n_around * rows, 3)
+    loop_vertex, face_loop_start, face_loop_total : ndarray
+        Quads between consecutive rings (``add_mesh`` layout).
+    rim : ndarray, shape (n_around, 3)
+        The collar's top edge, in order around the neck.
+    """
+    cut_pts = local[cut]
+    centre = cut_pts[:, :2].mean(axis=0)
+    theta = np.linspace(-np.pi, np.pi, n_around, endpoint=False)
+    d = cut_pts[:, :2] - centre
+    cut_ang = np.arctan2(d[:, 1], d[:, 0])
+    order = np.argsort(cut_ang)
+    # height of the cut at each angle (periodic interpolation), smoothed around the neck;
+    # the collar runs 1.5 cm above it but dips at most 3 cm below its highest point
+    z_cut = _circular_smooth(np.interp(theta, cut_ang[order], cut_pts[order, 2],
+                                       period=2 * np.pi), 9)
+    z_rim = np.maximum(z_cut + 0.015, z_cut.max() - 0.03)
+    skin_pts = local[skin]
+    gap = 0.0025
+    r_rim = _circular_smooth(_skin_radius(skin_pts, centre, theta, z_rim), 5)
+    # rings: (drop below the rim, share of the way to the shoulder outline)
+    rings = ((0.0, 0.0), (0.004, 0.06), (0.008, 0.14), (0.013, 0.24), (0.02, 0.38),
+             (0.03, 0.55), (0.045, 0.75), (0.065, 0.92), (0.1, 1.0), (0.3, 1.04))
+    direction = np.column_stack([np.cos(theta), np.sin(theta)])
+    # shoulders: a superellipse, wide across, chest slightly forward (-Y)
+    a, b, e = 0.2, 0.105, 3.0
+    shoulder = (direction / (np.abs(direction[:, 0] / a) ** e
+                             + np.abs(direction[:, 1] / b) ** e)[:, None] ** (1.0 / e))
+    shoulder_r = np.linalg.norm(shoulder, axis=1)
+    rows = []
+    for drop, t in rings:
+        z = z_rim - drop
+        ease = t * t * (3.0 - 2.0 * t)
+        r = (1.0 - ease) * (r_rim + gap) + ease * shoulder_r
+        r = np.maximum(r, _skin_radius(skin_pts, centre, theta, z) + gap)
+        xy = centre + direction * r[:, None] + np.array([0.0, -0.01]) * ease
+        rows.append(np.column_stack([xy, z]))
+    vertices = np.concatenate(rows)
+    n_rows = len(rows)
+    i = np.arange(n_around)
+    quads = []
+    for k in range(n_rows - 1):
+        a0, a1 = k * n_around + i, k * n_around + (i + 1) % n_around
+        quads.append(np.column_stack([a0, a1, a1 + n_around, a0 + n_around]))
+    quads = np.concatenate(quads)
+    loop_vertex = quads.ravel()
+    start = np.arange(len(quads)) * 4
+    return vertices, loop_vertex, start, np.full(len(quads), 4), rows[0]
+
+
+# --------------------------------------------------------------------------- render
+
+
+def render_views(model, local, pose, cameras, size, samples, seed, log):
+    """Render each view with Cycles.
+
+    Parameters
+    ----------
+    model : HeadModel
+    local : ndarray, shape (V, 3)
+        Head vertices (local, metres).
+    pose : (ndarray (3, 3), ndarray (3,))
+        Rotation and translation, local -> world.
+    cameras : dict of str -> OrthographicCamera
+    size : (int, int)
+    samples : int
+    seed : int
+        Backdrop noise.
+    log : callable
+
+    Returns
+    -------
+    renders : dict of str -> dict
+        ``photo`` (h, w, 3) on the backdrop, ``alpha`` (h, w) of head and shirt,
+        ``head_alpha`` (h, w) of the head alone (the shirt held out), in [0, 1].
+    cam_objs : dict of str -> bpy camera object
+    rim_world : ndarray, shape (n, 3)
+        The collar's top edge in world space.
+    """
+    import bpy
+
+    from tools import render_util as ru
+
+    t0 = time.perf_counter()
+    rotation, translation = pose
+    ru.new_scene(size, samples)
+    mats = _materials()
+    slot = _face_materials(model)
+    drawn = slot >= 0
+    starts = model.face_loop_start[drawn]
+    totals = model.face_loop_total[drawn]
+    loops = np.concatenate([np.arange(s, s + t) for s, t in zip(starts, totals, strict=True)])
+    new_start = np.concatenate([[0], np.cumsum(totals)[:-1]])
+    head = ru.add_mesh("Head", local, model.loop_vertex[loops], new_start, totals,
+                       loop_uv=model.loop_uv[loops], face_material=slot[drawn],
+                       materials=[mats[s] for s in SLOTS],
+                       point_attributes=appearance_attributes(model))
+    tv, tl, ts, tt, rim = torso_mesh(local, model.skin, neck_cut_loop(model))
+    shirt = ru.add_mesh("Shirt", tv, tl, ts, tt, materials=[mats["shirt"]])
+    solid = shirt.modifiers.new("Cloth thickness", "SOLIDIFY")
+    solid.thickness = 0.002
+    solid.offset = 1.0
+    for obj in (head, shirt):
+        ru.set_pose(obj, 1.0, rotation, translation)
+    world = local @ rotation.T + translation
+    ru.studio_lighting(world[model.skin].mean(axis=0))
+    out, cam_objs = {}, {}
+    for view, cam in cameras.items():
+        cam_objs[view] = ru.add_ortho_camera(cam, name=f"Camera {view}")
+    scene = bpy.context.scene
+    for i, view in enumerate(cameras):
+        t = time.perf_counter()
+        rgba = ru.render_rgba(cam_objs[view])
+        photo = ru.composite(rgba, ru.backdrop(size, seed=seed + 10 + i))
+        # the head's own silhouette: the shirt held out, a few samples suffice for alpha
+        shirt.is_holdout = True
+        scene.cycles.samples, scene.cycles.use_denoising = 4, False
+        head_alpha = ru.render_rgba(cam_objs[view])[..., 3]
+        shirt.is_holdout = False
+        scene.cycles.samples, scene.cycles.use_denoising = samples, True
+        out[view] = {"photo": photo, "alpha": rgba[..., 3], "head_alpha": head_alpha}
+        log(f"  rendered {view} ({size[0]}x{size[1]}, {samples} samples) in "
+            f"{time.perf_counter() - t:.1f} s")
+    log(f"  Blender scene and renders: {time.perf_counter() - t0:.1f} s")
+    return out, cam_objs, rim @ rotation.T + translation
+
+
+def _visible_names(model, view_kind):
+    """Landmarks that assets/landmarks.json marks visible in a view of this kind."""
+    side = view_kind.split("-")[-1]  # "front", "right" or "left", as the file names views
+    names = []
+    for e in model.landmark_info:
+        views = e.get("views") or []
+        if side in views:
+            names.append(e["name"])
+    return names
+
+
+def draw_overlay(photo, points, contour=None):
+    """Photo with landmarks (green crosses) and the contour (cyan line): a PIL image."""
+    im = Image.fromarray(np.clip(photo * 255 + 0.5, 0, 255).astype(np.uint8))
+    d = ImageDraw.Draw(im)
+    if contour is not None and len(contour) > 1:
+        d.line([tuple(p) for p in contour], fill=(0, 200, 255), width=1)
+        for u, v in contour:
+            d.ellipse([u - 1.5, v - 1.5, u + 1.5, v + 1.5], outline=(0, 200, 255))
+    r = max(2.0, photo.shape[0] / 300)
+    for u, v in points.values():
+        d.line([(u - r, v), (u + r, v)], fill=(0, 255, 0))
+        d.line([(u, v - r), (u, v + r)], fill=(0, 255, 0))
+    return im
+
+
+# --------------------------------------------------------------------------- driver
+
+
+def _params(model, seed, size, samples):
+    return {"version": SAMPLE_VERSION, "seed": int(seed), "size": [int(size[0]), int(size[1])],
+            "samples": int(samples), "model": getattr(model, "build_hash", "")}
+
+
+def is_up_to_date(out, params):
+    """True when every output exists and truth.npz says it was made with ``params``."""
+    out = Path(out)
+    if not all((out / f).is_file() for f in FILES):
+        return False
+    try:
+        with np.load(out / "truth.npz", allow_pickle=False) as t:
+            return json.loads(str(t["params"])) == params
+    except (OSError, ValueError, KeyError):
+        return False
+
+
+def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=DEFAULT_SAMPLES,
+                force=False, model=None, log=print):
+    """Make the sample case in ``out`` unless it is up to date.
+
+    Parameters
+    ----------
+    out : str or Path
+        Output folder (replaced as a whole when remade).
+    seed : int
+        Identity, pose, framing and landmark noise.
+    size : (int, int)
+        Photo width and height in pixels.
+    samples : int
+        Cycles samples per pixel (denoised with OpenImageDenoise).
+    force : bool
+        Remake even when up to date.
+    model : HeadModel, optional
+        Default: ``load_model()``.
+    log : callable
+
+    Returns
+    -------
+    Path
+        The landmarks file ``out/sample.json``.
+    """
+    out = Path(out)
+    model = load_model() if model is None else model
+    size = (int(size[0]), int(size[1]))
+    params = _params(model, seed, size, samples)
+    if not force and is_up_to_date(out, params):
+        log(f"sample up to date: {out}")
+        return out / "sample.json"
+    t0 = time.perf_counter()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.parent / f".{out.name}.tmp-{os.getpid()}"
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir()
+    try:
+        _make_into(tmp, model, seed, size, samples, params, log)
+        old = out.parent / f".{out.name}.old-{os.getpid()}"
+        if out.exists():
+            out.rename(old)
+        tmp.rename(out)
+        shutil.rmtree(old, ignore_errors=True)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    log(f"sample written to {out} in {time.perf_counter() - t0:.1f} s")
+    return out / "sample.json"
+
+
+def _make_into(folder, model, seed, size, samples, params, log):
+    from tools import render_util as ru
+
+    coeffs, local, rotation, translation = sample_head(model, seed)
+    world = local @ rotation.T + translation
+    rim_local = torso_mesh(local, model.skin, neck_cut_loop(model))[4]
+    collar_z = float((rim_local @ rotation.T + translation)[:, 2].mean())
+    cameras = frame_cameras(world, collar_z, size, seed)
+    renders, cam_objs, rim = render_views(model, local, (rotation, translation), cameras,
+                                          size, samples, seed, log)
+
+    rng = np.random.default_rng(seed + 2)
+    noise_px = NOISE_PX * size[1] / 1024.0
+    views, exact = {}, {}
+    for view, cam in cameras.items():
+        r = renders[view]
+        names = _visible_names(model, cam.view)
+        idx = np.array([model.landmark_vertex(n) for n in names])
+        px_blender = ru.blender_project(cam_objs[view], world[idx], size)
+        px_solver = cam.project(world[idx])
+        gap = np.abs(px_blender - px_solver).max()
+        if gap > 0.05:  # the camera conversion must be exact, or the truth is wrong
+            raise RuntimeError(f"view {view}: Blender and solver projections differ by "
+                               f"{gap:.3f} px")
+        # a user cannot place what the shirt covers
+        col = np.clip(px_blender[:, 0].astype(int), 0, size[0] - 1)
+        row = np.clip(px_blender[:, 1].astype(int), 0, size[1] - 1)
+        hidden = (r["alpha"][row, col] >= 0.5) & (r["head_alpha"][row, col] < 0.5)
+        if hidden.any():
+            log(f"  {view}: covered by the shirt: {', '.join(np.array(names)[hidden])}")
+        names = [n for n, hid in zip(names, hidden, strict=True) if not hid]
+        px_blender = px_blender[~hidden]
+        noisy = px_blender + rng.normal(0.0, noise_px, px_blender.shape)
+        exact[view] = px_blender
+        contour = None
+        if view == "side":
+            contour = side_contour(r["head_alpha"], cam.project(rim))
+        ru.save_png(folder / f"{view}.png", r["photo"])
+        points = {n: (float(u), float(v)) for n, (u, v) in zip(names, noisy, strict=True)}
+        views[view] = View(name=view, image=f"{view}.png", size=size,
+                           camera=OrthographicCamera.nominal(cam.view, size), points=points,
+                           contour=contour)
+        draw_overlay(r["photo"], points, contour).save(folder / f"overlay_{view}.png")
+
+    truth = {
+        "params": np.array(json.dumps(params)),
+        "identity_coeffs": coeffs,
+        "local_vertices": local,
+        "world_vertices": world,
+        "scale": np.array(1.0),
+        "rotation": rotation,
+        "translation": translation,
+        "skin": np.asarray(model.skin),
+        "cameras": np.array(json.dumps({v: c.to_dict() for v, c in cameras.items()})),
+        "landmark_names": np.array(json.dumps({v: list(views[v].points) for v in views})),
+        "collar_rim": rim,
+    }
+    for view in cameras:
+        truth[f"alpha_{view}"] = np.round(renders[view]["alpha"] * 255).astype(np.uint8)
+        truth[f"head_alpha_{view}"] = np.round(renders[view]["head_alpha"] * 255) \
+            .astype(np.uint8)
+        truth[f"exact_{view}"] = exact[view]
+    np.savez_compressed(folder / "truth.npz", **truth)
+    path = folder / "sample.json"
+    save_landmarks(LandmarkCase(views=views, source=str(path)), path)
+    # read back what we wrote: the sample must be a valid landmarks file
+    load_landmarks(path, known_names=model)
+
+
+def parse_size(text):
+    """'768x1024' -> (768, 1024)."""
+    try:
+        w, h = (int(x) for x in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"--size: expected WxH like 768x1024, got {text!r}") from None
+    if w < 64 or h < 64:
+        raise argparse.ArgumentTypeError(f"--size: at least 64x64, got {text!r}")
+    return w, h
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m tools.make_sample",
+                                     description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", default=str(DEFAULT_OUT),
+                        help="output folder (default: generated/sample)")
+    parser.add_argument("--seed", type=int, default=DEFAULT_SEED)
+    parser.add_argument("--size", type=parse_size, default=DEFAULT_SIZE,
+                        help="photo size WxH (default 768x1024)")
+    parser.add_argument("--samples", type=int, default=DEFAULT_SAMPLES,
+                        help="Cycles samples per pixel (default %(default)s)")
+    parser.add_argument("--force", action="store_true", help="remake even when up to date")
+    args = parser.parse_args(argv)
+    try:
+        make_sample(args.out, args.seed, args.size, args.samples, args.force)
+    except FileNotFoundError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
