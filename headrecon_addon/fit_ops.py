@@ -29,6 +29,8 @@ from .solver_link import (
     landmarks_file,
     load_model,
     refit_landmarks,
+    uv_raster,
+    uv_tiles,
 )
 
 UNCERTAINTY_COLOR = "fit_uncertainty"
@@ -147,6 +149,26 @@ def prepare_job(scene):
                   texture_size=int(props.texture_size), bake=props.bake_texture)
 
 
+def warm_up(texture_size):
+    """Load the model and build the texture bake's UV rasters in a background thread, so
+    the artist's first Fit does not wait for them (they are cached per size). Only in the
+    interactive UI: background runs pay when they fit."""
+    if bpy.app.background:
+        return None
+
+    def work():
+        try:
+            model = load_model()
+            for tile in uv_tiles(model):
+                uv_raster(model, int(texture_size), tile=tile)
+        except Exception:
+            pass  # nothing lost: the fit builds what it needs and reports real problems
+
+    thread = threading.Thread(target=work, name="HeadRecon warm-up", daemon=True)
+    thread.start()
+    return thread
+
+
 # --------------------------------------------------------------------------------------
 # Writing a result
 
@@ -173,8 +195,8 @@ def skin_group_tiles(model):
 
 
 def write_textures(head, model, textures):
-    """Put baked tiles (dict tile -> (S, S, 3)) into the head's skin materials, packed into
-    the .blend so the file carries its texture."""
+    """Put baked tiles (dict tile -> (S, S, 3)) into the head's skin materials (packed
+    into the .blend when it is saved, so the file carries its texture)."""
     images = []
     for group, tile in skin_group_tiles(model).items():
         if tile not in textures:
@@ -185,9 +207,8 @@ def write_textures(head, model, textures):
         old = material.skin_texture(mat)
         reuse = old if old is not None and old.get(BAKED) and old.users <= 1 else None
         img = photos.array_to_image(textures[tile], f"{head.name} {group} Texture", reuse)
-        img[BAKED] = True
-        img.pack()
-        material.set_skin_texture(mat, img)
+        img[BAKED] = True  # packed when the file is saved (_on_save_pre): PNG-encoding
+        material.set_skin_texture(mat, img)  # it here would slow every fit down
         images.append(img)
     return images
 
@@ -326,14 +347,14 @@ def run_fit(scene):
 # Live refit
 
 
-_live = {"base": None, "model": None, "options": None, "head": "", "signature": None,
-         "busy": False, "ms": 0.0, "error": ""}
+_live = {"base": None, "result": None, "model": None, "options": None, "head": "",
+         "signature": None, "busy": False, "ms": 0.0, "error": ""}
 
 
 def remember_fit(scene, head, model, result, options):
     """Keep the last full fit in memory: live refits start from its cameras and
     correspondences (not saved in the .blend; after reopening, fit once again)."""
-    _live.update(base=result, model=model, head=head.name, error="",
+    _live.update(base=result, result=result, model=model, head=head.name, error="",
                  options=dataclasses.replace(options, progress=None),
                  signature=landmarks.landmark_signature(photos.photo_planes(scene)))
 
@@ -345,7 +366,12 @@ def reset_live_state():
 
 
 def forget_fit():
-    _live.update(base=None, model=None, options=None, head="", signature=None)
+    _live.update(base=None, result=None, model=None, options=None, head="", signature=None)
+
+
+def last_result():
+    """The FitResult on the head now (the last fit or live refit), or None."""
+    return _live["result"]
 
 
 def live_ready():
@@ -384,6 +410,7 @@ def live_refit_step(scene, force=False):
     head.matrix_world = similarity_matrix(result)
     head.headrecon.fit_rms_px = rms_residual(result)
     update_residuals(scene, result)
+    _live["result"] = result
     _live["ms"] = (time.perf_counter() - t) * 1000.0
     _live["error"] = ""
     return result
@@ -410,16 +437,33 @@ def _on_load(*_args):
     forget_fit()
 
 
+def pack_baked_textures():
+    """Pack baked textures that are not packed, or changed since (they exist only in
+    memory until then)."""
+    for img in bpy.data.images:
+        if img.get(BAKED) and img.has_data and (img.packed_file is None or img.is_dirty):
+            img.pack()
+
+
+@persistent
+def _on_save_pre(*_args):
+    pack_baked_textures()
+
+
+_HANDLERS = (("depsgraph_update_post", _on_depsgraph_update), ("load_post", _on_load),
+             ("save_pre", _on_save_pre))
+
+
 def register_handlers():
-    if _on_depsgraph_update not in bpy.app.handlers.depsgraph_update_post:
-        bpy.app.handlers.depsgraph_update_post.append(_on_depsgraph_update)
-    if _on_load not in bpy.app.handlers.load_post:
-        bpy.app.handlers.load_post.append(_on_load)
+    for kind, fn in _HANDLERS:
+        handlers = getattr(bpy.app.handlers, kind)
+        if fn not in handlers:
+            handlers.append(fn)
 
 
 def unregister_handlers():
-    for handlers, fn in ((bpy.app.handlers.depsgraph_update_post, _on_depsgraph_update),
-                         (bpy.app.handlers.load_post, _on_load)):
+    for kind, fn in _HANDLERS:
+        handlers = getattr(bpy.app.handlers, kind)
         while fn in handlers:
             handlers.remove(fn)
     forget_fit()

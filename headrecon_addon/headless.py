@@ -125,6 +125,7 @@ def save_blend(path):
     for img in bpy.data.images:
         if img.packed_file is None and img.source == "FILE" and img.has_data:
             img.pack()
+    fit_ops.pack_baked_textures()
     bpy.ops.wm.save_as_mainfile(filepath=str(path), check_existing=False, compress=True)
     return path
 

@@ -734,6 +734,9 @@ class HEADRECON_OT_import_landmarks(bpy.types.Operator, ImportHelper):
             return {"CANCELLED"}
         n = sum(len(landmark_objects(p)) for p in planes)
         self.report({"INFO"}, f"Imported {n} landmarks on {len(planes)} photos")
+        from .fit_ops import warm_up
+
+        warm_up(context.scene.headrecon.texture_size)
         return {"FINISHED"}
 
 

@@ -42,8 +42,16 @@ def part_group(part_name):
     return "Face"
 
 
+def ensure_nodes(mat):
+    """Give ``mat`` its node tree (always there from Blender 5.0, where ``use_nodes`` is
+    deprecated; 4.x needs it switched on)."""
+    if bpy.app.version < (5, 0, 0) and not mat.use_nodes:
+        mat.use_nodes = True
+    return mat.node_tree
+
+
 def _principled(mat):
-    mat.use_nodes = True
+    ensure_nodes(mat)
     nodes = mat.node_tree.nodes
     bsdf = next((n for n in nodes if n.type == "BSDF_PRINCIPLED"), None)
     if bsdf is None:
@@ -95,7 +103,7 @@ def set_skin_texture(mat, image):
 
 def skin_texture(mat):
     """The image of the skin's texture node, or None."""
-    if mat is None or not mat.use_nodes:
+    if mat is None or mat.node_tree is None:
         return None
     tex = mat.node_tree.nodes.get(TEXTURE_NODE)
     return tex.image if tex is not None else None
@@ -105,7 +113,7 @@ def photo_material(image, name):
     """Unlit material showing ``image`` as it is: emission of strength 1, no lighting, so the
     photo's colours stay true and nothing shades or shadows it."""
     mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
+    ensure_nodes(mat)
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     nodes.clear()
     out = nodes.new("ShaderNodeOutputMaterial")
@@ -126,7 +134,7 @@ def photo_material(image, name):
 
 def photo_image(mat):
     """The photo shown by a photo material, or None."""
-    if mat is None or not mat.use_nodes:
+    if mat is None or mat.node_tree is None:
         return None
     tex = mat.node_tree.nodes.get(PHOTO_NODE)
     return tex.image if tex is not None else None
@@ -145,7 +153,7 @@ def landmark_material(state):
         return mat
     colour = LANDMARK_COLOURS[state]
     mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
+    ensure_nodes(mat)
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     nodes.clear()
     out = nodes.new("ShaderNodeOutputMaterial")

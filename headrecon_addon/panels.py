@@ -27,6 +27,14 @@ class HEADRECON_PT_head(_Panel, bpy.types.Panel):
         layout.prop(context.scene.headrecon, "head")
 
 
+def _slot_plane(scene, front):
+    """The photo plane of the front slot (front camera) or the profile slot (side camera)."""
+    for plane in photos.photo_planes(scene):
+        if (plane.headrecon.camera_view == "orthographic-front") == front:
+            return plane
+    return None
+
+
 class HEADRECON_PT_photos(_Panel, bpy.types.Panel):
     bl_label = "2. Photos"
     bl_idname = "HEADRECON_PT_photos"
@@ -34,31 +42,35 @@ class HEADRECON_PT_photos(_Panel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         scene = context.scene
-        for view, cam, label in (("front", "orthographic-front", "Front"),
-                                 ("side", "orthographic-right", "Profile")):
-            plane = photos.find_plane(scene, view)
+        shown = []
+        for front, view, cam, label in ((True, "front", "orthographic-front", "Front"),
+                                        (False, "side", "orthographic-right", "Profile")):
+            plane = _slot_plane(scene, front)
             box = layout.box()
             row = box.row(align=True)
-            if plane is not None and plane.headrecon.image is not None:
+            if plane is not None:
+                shown.append(plane)
                 img = plane.headrecon.image
-                row.label(text=f"{label}: {img.name}", icon="IMAGE_DATA")
-                op = row.operator("headrecon.view_photo", text="", icon="HIDE_OFF")
-                op.view = view
+                row.label(text=f"{label}: {img.name if img else '(no photo)'}",
+                          icon="IMAGE_DATA")
+                row.operator("headrecon.view_photo", text="", icon="HIDE_OFF").view = \
+                    plane.headrecon.view
             else:
                 row.label(text=f"{label}: none", icon="IMAGE")
             op = box.operator("headrecon.load_photo",
                               text="Swap Photo..." if plane else f"Load {label} Photo...",
                               icon="FILEBROWSER")
-            op.view = view
+            op.view = plane.headrecon.view if plane else view
             op.camera_view = plane.headrecon.camera_view if plane else cam
-            if plane is not None and view == "side":
+            if plane is not None and not front:
                 box.prop(plane.headrecon, "camera_view", text="Side")
-        others = [p for p in photos.photo_planes(scene)
-                  if p.headrecon.view not in ("front", "side")]
-        for plane in others:
+        for plane in photos.photo_planes(scene):
+            if plane in shown:
+                continue
             row = layout.row(align=True)
-            row.label(text=f"{plane.headrecon.view}: {plane.headrecon.image.name}"
-                      if plane.headrecon.image else plane.headrecon.view, icon="IMAGE_DATA")
+            img = plane.headrecon.image
+            row.label(text=f"{plane.headrecon.view}: {img.name if img else '(no photo)'}",
+                      icon="IMAGE_DATA")
             row.operator("headrecon.view_photo", text="", icon="HIDE_OFF").view = \
                 plane.headrecon.view
 

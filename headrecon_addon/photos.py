@@ -386,6 +386,9 @@ class HEADRECON_OT_load_photo(bpy.types.Operator):
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
         self.report({"INFO"}, f"{self.view}: {image.name} ({image.size[0]}x{image.size[1]})")
+        from .fit_ops import warm_up
+
+        warm_up(scene.headrecon.texture_size)
         return {"FINISHED"}
 
 

@@ -50,12 +50,14 @@ load_model = model.load_model
 FitResult = result.FitResult
 bake_texture = texture.bake_texture
 bake_fit_texture = texture.bake_fit_texture
+uv_raster = texture.uv_raster
+uv_tiles = texture.uv_tiles
 orthographic_uvs = texture.orthographic_uvs
 
 __all__ = [
     "ORTHO_VIEWS", "FitOptions", "FitResult", "HeadModel", "LandmarkCase",
-    "OrthographicCamera", "View", "bake_fit_texture", "bake_texture", "camera_from_dict", "camera_from_json",
-    "camera_to_json", "fit_head", "landmarks_to_dict", "load_landmark_set", "load_landmarks",
-    "load_model", "orthographic_uvs", "parse_landmarks", "refit_landmarks", "save_landmarks",
-    "solver",
+    "OrthographicCamera", "View", "bake_fit_texture", "bake_texture", "camera_from_dict",
+    "camera_from_json", "camera_to_json", "fit_head", "landmarks_to_dict", "load_landmark_set",
+    "load_landmarks", "load_model", "orthographic_uvs", "parse_landmarks", "refit_landmarks",
+    "save_landmarks", "solver", "uv_raster", "uv_tiles",
 ]

@@ -243,26 +243,31 @@ class _Progress:
 
 
 def _profile_fit(eng, state, opts):
-    """Thesis §4.4.1 on the side views: cameras alone (similarity-only ICP), then shape."""
+    """Thesis §4.4.1 on the side views: the cameras alone (similarity-only ICP: a profile
+    camera's 2-D similarity is the head's scale, sagittal rotation and position), then the
+    shape with them (the head's rotation frozen: the profile cannot see the other two)."""
     side = [v for v in eng.views if v.side]
     info = {}
     if not side:
         return state, info
-    info["similarity_history"] = eng.camera_icp(state, side, max_steps=opts.max_iterations)
-    rows = eng.rows_for(side)
-    # Rotation frozen: in a profile photo the sagittal rotation is the side camera's own
-    # in-plane rotation, and the other two are not seen.
-    state, hist, _ = eng.alternate(state, rows, freeze=("rotation",),
-                                   max_outer=opts.max_iterations, tolerance=opts.tolerance)
+    joint = eng.joint(side)
+    hist = [joint.cost(state)]
+    for _ in range(opts.max_iterations):
+        joint.refit(state)
+        hist.append(joint.cost(state))
+        if hist[-2] - hist[-1] <= opts.tolerance * hist[-2]:
+            break
+    info["similarity_history"] = hist
+    state, hist = joint.run(state, freeze=("rotation",), max_outer=opts.max_iterations,
+                            tolerance=opts.tolerance)
     info["shape_history"] = hist
     return state, info
 
 
 def _approach1(eng, state, opts):
     """Thesis §4.4.2: every landmark as image rows (front ones weighted), plus contour."""
-    rows = eng.rows_for(eng.views, front_weight=opts.front_weight)
-    state, hist, _ = eng.alternate(state, rows, max_outer=opts.max_iterations,
-                                   tolerance=opts.tolerance)
+    joint = eng.joint(eng.views, front_weight=opts.front_weight)
+    state, hist = joint.run(state, max_outer=opts.max_iterations, tolerance=opts.tolerance)
     return state, {"history": hist}
 
 
@@ -313,29 +318,31 @@ def _dense_vertices(model, step=4):
 def _approach2(eng, model, state, opts):
     """Thesis §4.4.3: TPS-ICP, repeated while the reprojection error falls."""
     dense = _dense_vertices(model)
-    # Convert metres to the image rows' weighted pixels: one landmark's 3-D row weighs as
-    # its pixel rows would (camera scale squared); the dense rows share the weight of as
-    # many landmarks as there are.
+    lin = eng.linear_model()
+    # Metres to the image rows' weighted pixels: a landmark's 3-D row weighs as its pixel
+    # rows would (camera scale squared); the dense rows together weigh as all landmarks.
     s2 = _pixels_per_metre_sq(eng, state)
     n_lm = sum(int((v.weights > 0).sum()) for v in eng.views)
-    contour = [r for r in eng.rows_for(eng.views, landmarks=False)]
-    best = (eng.reprojection_rms(state), state.copy())
+    w_lm = s2 * eng.inv_var * opts.landmark_weight
+    joint = eng.joint(eng.views)
+    best = (reprojection_rms(eng, joint, state), state.copy())
     history = [best[0]]
     for _ in range(opts.tps_iterations):
         verts, cur, tgt = landmark_targets(eng, state)
         tps = ThinPlateSpline.fit(cur, tgt, regularization=0.0)
         warped = tps.apply(eng.world(state, dense))
-        w_lm = s2 * eng.inv_var * opts.landmark_weight
         rows = [PointRows(dense, warped, weights=w_lm * n_lm / len(dense), name="tps mesh"),
-                PointRows(verts, tgt, weights=w_lm, name="tps landmarks")] + contour
-        problem = eng.problem(rows)
+                PointRows(verts, tgt, weights=w_lm, name="tps landmarks")]
+        problem = eng.problem(lin, rows)
         fit = problem.solve(scale=state.scale, rotation=state.rotation,
                             translation=state.translation, coeffs=state.coeffs,
                             max_iterations=3, tolerance=opts.tolerance, sigma=1.0)
+        state = state.copy()
         state.rotation, state.coeffs = fit.rotation, fit.coeffs
         state.scale, state.translation = fit.scale, fit.translation
-        eng.refit_cameras(state)
-        err = eng.reprojection_rms(state)
+        joint.cost(state)  # contour correspondences at the new head
+        joint.refit(state)
+        err = reprojection_rms(eng, joint, state)
         history.append(err)
         if err < best[0]:
             improved = best[0] - err > 1e-3 * best[0]
@@ -346,6 +353,14 @@ def _approach2(eng, model, state, opts):
             break
     eng.use(best[1])
     return best[1], {"history": history}
+
+
+def reprojection_rms(eng, joint, state):
+    """RMS of every landmark and contour-correspondence pixel residual at ``state``."""
+    parts = list(eng.reprojection(state).values())
+    parts += list(joint.contour_residuals(state).values())
+    allr = np.concatenate(parts)
+    return float(np.sqrt((allr**2).mean())) if allr.size else 0.0
 
 
 def _pixels_per_metre_sq(eng, state):

@@ -1,12 +1,12 @@
-"""The machinery the fit's approaches share: the views of a case as arrays, the rows they
-give the shape-ICP, and the alternation "head given cameras / cameras given head".
+"""The machinery the fit's stages share: the views of a case as arrays, the rows they give
+the shape-ICP, and the joint solve of head and cameras.
 
-Why alternate: each photo has its own camera (an orthographic photo: scale, in-plane
-rotation, offset), and a camera's free parameters are its own business (``Camera.refit``),
-so a perspective or DLT camera plugs in without the fit knowing its parametrisation. The
-head's pose and shape are solved by the shape-ICP (``solver/shape_icp.py``) with the
-cameras fixed; then every camera is refitted to the head; repeat. Both halves lower the
-same weighted least-squares cost, so the cost never rises.
+Each photo has its own camera (an orthographic photo: scale, in-plane rotation, offset);
+its free parameters are its own business (``Camera.refit``), so a perspective or DLT
+camera plugs in without the fit knowing its parametrisation. The head's pose and shape are
+solved by the shape-ICP (``solver/shape_icp.py``) together with a linearised image-plane
+similarity of every camera (:class:`Joint`), and the cameras are refitted exactly after
+every step.
 
 Gauge: orthographic photos cannot tell how large or where the head is, only how it looks;
 when every camera is refitted the head's scale stays 1 and its translation 0 and the
@@ -18,11 +18,16 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .cameras import Camera
-from .shape_icp import ClosestPixelRows, ImageRows, ShapeProblem
+from .linear_model import LinearModel
+from .shape_icp import ClosestPixelRows, ImageRows, ShapeProblem, _General
 
 #: The fit refuses a view with fewer landmarks than this (its camera needs 2 for a 2-D
 #: similarity, one more to say anything about the head).
 MIN_VIEW_LANDMARKS = 3
+
+# Pixels one unit of a camera mode's coefficient moves the photo (see Joint): large, so
+# the shape prior the shape-ICP puts on every coefficient is negligible for these.
+_MODE_PIXELS = 1.0e4
 
 
 @dataclass
@@ -40,8 +45,8 @@ class ViewData:
         Model vertex of each landmark.
     pixels : ndarray, shape (n, 2)
     weights : ndarray, shape (n,)
-        Per-landmark weight (options' landmark weights times the view's weight), before
-        the 1 / noise^2 factor.
+        Per-landmark weight (landmark weights of the options), before the view's weight
+        and the 1 / noise^2 factor.
     side : bool
         The camera looks along the head's left-right axis (a profile photo).
     contour : ndarray, shape (m, 2) or None
@@ -76,6 +81,23 @@ class State:
                        cameras=dict(self.cameras), translation=self.translation.copy())
 
 
+def rotation_vector(r):
+    """Axis * angle (radians) of a rotation matrix, shape (3,)."""
+    r = np.asarray(r, dtype=np.float64)
+    cos = np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0)
+    angle = float(np.arccos(cos))
+    w = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+    if angle < 1e-6:
+        return 0.5 * w
+    if angle > np.pi - 1e-6:
+        # Near a half turn the antisymmetric part vanishes; the axis is the dominant
+        # column of R + I.
+        m = r + np.eye(3)
+        axis = m[:, int(np.argmax(np.linalg.norm(m, axis=0)))]
+        return angle * axis / np.linalg.norm(axis)
+    return angle * w / (2.0 * np.sin(angle))
+
+
 def is_side_camera(camera):
     """True when the camera looks along the world x axis (the head's left-right axis)."""
     d = np.asarray(camera.toward_camera(np.zeros((1, 3))), dtype=np.float64).reshape(3)
@@ -94,18 +116,41 @@ def densify(polyline, step=1.0):
     return np.vstack([p[i] + t[:, None] * seg[i], p[-1:]])
 
 
+def _set_camera(rows, camera):
+    """Point image rows at a (refitted) camera. The version bump tells the shape-ICP that a
+    system it cached for these rows is stale."""
+    if rows.camera is not camera:
+        rows.camera = camera
+        rows._version = getattr(rows, "_version", 0) + 1
+
+
 class ContourRows(ClosestPixelRows):
     """Profile-line rows (thesis §4.4.1): model vertices whose projection is pulled to the
-    nearest point of the traced outline. Besides the distance threshold, a vertex whose
-    nearest outline point is one of the outline's ends is dropped: it lies beyond what was
-    traced (e.g. the neck below where the tracing stopped), not on it."""
+    nearest point of the traced outline.
+
+    The cost is point-to-line, ``w (n . (q - P(x)))^2`` with the outline's normal n at the
+    nearest point q, plus ``tangential`` times the point-to-point distance: the distance
+    across the outline is what a nearest point measures; along it the vertex may slide, so
+    ICP settles in a few steps instead of crawling. Besides the distance threshold, a vertex
+    whose nearest outline point is one of the outline's ends is dropped: it lies beyond what
+    was traced (e.g. the neck below where the tracing stopped), not on it.
+    """
 
     def __init__(self, vertices, pixels, camera, weights=1.0, max_distance=np.inf,
-                 reject_factor=None, end_margin=3.0, name="contour"):
+                 reject_factor=None, keep_distance=5.0, end_margin=3.0, tangential=0.05,
+                 name="contour"):
         super().__init__(vertices, pixels, camera, weights, max_distance, reject_factor, name)
-        d0 = np.linalg.norm(self.pixels - self.pixels[0], axis=1)
-        d1 = np.linalg.norm(self.pixels - self.pixels[-1], axis=1)
+        p = self.pixels
+        d0 = np.linalg.norm(p - p[0], axis=1)
+        d1 = np.linalg.norm(p - p[-1], axis=1)
         self._at_end = (d0 <= end_margin) | (d1 <= end_margin)
+        tangent = np.gradient(p, axis=0) if len(p) > 1 else np.array([[1.0, 0.0]])
+        normal = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
+        self.normals = normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True),
+                                           1e-12)
+        self.keep_distance = float(keep_distance)
+        self.tangential = float(tangential)
+        self._normal = None
 
     def update(self, world):
         proj = self.camera.project(world)
@@ -114,19 +159,52 @@ class ContourRows(ClosestPixelRows):
         idx = np.where(ok, idx, 0)
         ok &= ~self._at_end[idx]
         if self.reject_factor is not None and ok.any():
-            ok &= dist <= self.reject_factor * max(float(np.median(dist[ok])), 1.0)
+            limit = max(self.reject_factor * float(np.median(dist[ok])), self.keep_distance)
+            ok &= dist <= limit
         self.inliers = ok
         self.targets = self.pixels[idx]
+        self._normal = self.normals[idx]
+
+    def block(self, world, jacobian=True):
+        if self.targets is None:
+            self.update(world)
+        w = np.where(self.inliers, self.weights, 0.0)
+        d = self.targets - self.camera.project(world)  # (n, 2)
+        n = self._normal
+        rn = np.einsum("ij,ij->i", d, n)
+        wt = self.tangential * w
+        sq_n = float(w @ rn**2)
+        sq_t = float(wt @ np.einsum("ij,ij->i", d, d))
+        used = int((w > 0).sum())
+        if not jacobian:
+            return [_General(None, None, None, None, sq_n, float(w.sum()), used),
+                    _General(None, None, None, None, sq_t, 0.0, 2 * used)]
+        m = len(w)
+        jac = np.asarray(self.camera.jacobian(world), dtype=np.float64).reshape(m, 2, 3)
+        g = np.einsum("ij,ijk->ik", n, jac)  # d(n . P(x)) / dx
+        return [_General(None, g, rn, w, sq_n, float(w.sum()), used),
+                _General(np.repeat(np.arange(m), 2), jac.reshape(2 * m, 3), d.reshape(-1),
+                         np.repeat(wt, 2), sq_t, 0.0, 2 * used)]
 
     def pairs(self):
-        """(vertices, target pixels) of the current inlier correspondences."""
+        """(vertices, pixels) of the inlier correspondences, each pixel the foot of the
+        projection on the outline's tangent line (the point the point-to-line cost pulls
+        toward), for a camera refit consistent with this cost."""
         if self.inliers is None:
             return self.vertices[:0], np.zeros((0, 2))
-        return self.vertices[self.inliers], self.targets[self.inliers]
+        inl = self.inliers
+        return self.vertices[inl], self._foot[inl]
+
+    def refresh_feet(self, world):
+        """Feet of the current projections on the tangent lines (see :meth:`pairs`)."""
+        proj = self.camera.project(world)
+        d = self.targets - proj
+        rn = np.einsum("ij,ij->i", d, self._normal)
+        self._foot = proj + rn[:, None] * self._normal
 
 
 class Engine:
-    """Rows, camera refits and the alternation for one fit.
+    """What the stages of one fit share: the model being fitted, the views, the weights.
 
     Parameters
     ----------
@@ -167,8 +245,15 @@ class Engine:
         self.contour_threshold = contour_threshold
         self.fix_gauge = fix_gauge
         self.freeze_sim = ("scale", "translation") if fix_gauge else ()
-        self._lm_rows = {}
-        self._contour_rows = {}
+        self._slices = {}
+        # Gamma enters the cost only as Gamma^T Gamma: a factor with one row per
+        # coefficient gives the same cost for far fewer rows than three per border vertex.
+        self.gamma = None
+        if lin.gamma is not None and lambda1 > 0:
+            g = np.asarray(lin.gamma, dtype=np.float64)
+            evals, evecs = np.linalg.eigh(g.T @ g)
+            keep = evals > 1e-12 * max(float(evals[-1]), 1e-300)
+            self.gamma = np.sqrt(evals[keep])[:, None] * evecs[:, keep].T
 
     # ------------------------------------------------------------------ geometry
 
@@ -177,183 +262,90 @@ class Engine:
         lin = self.lin
         if vertices is None:
             return lin.mean + np.tensordot(state.coeffs, lin.basis, axes=1)
-        return lin.mean[vertices] + np.tensordot(state.coeffs, lin.basis[:, vertices], axes=1)
+        mean, basis = self.slice(vertices)
+        return mean + np.tensordot(state.coeffs, basis, axes=1)
+
+    def slice(self, vertices):
+        """(mean (n, 3), basis (K, n, 3)) of a vertex subset, cached: gathering a few
+        hundred vertices from the (K, V, 3) basis costs more than the rest of a step."""
+        v = np.ascontiguousarray(vertices, dtype=np.int64)
+        key = v.tobytes()
+        hit = self._slices.get(key)
+        if hit is None:
+            if len(self._slices) > 64:
+                self._slices.clear()
+            hit = (self.lin.mean[v], np.ascontiguousarray(self.lin.basis[:, v]))
+            self._slices[key] = hit
+        return hit
 
     def world(self, state, vertices=None):
         return state.scale * self.local(state, vertices) @ state.rotation.T + state.translation
 
-    # ------------------------------------------------------------------ rows
+    def linear_model(self, lin=None):
+        """``lin`` (default: the fitted model) with the compressed Gamma."""
+        lin = self.lin if lin is None else lin
+        return LinearModel(lin.mean, lin.basis, lin.stddev, lin.names, self.gamma)
 
-    def landmark_rows(self, view, weight=1.0):
-        """ImageRows of a view's landmarks (cached per view and weight)."""
-        key = (view.name, float(weight))
-        rows = self._lm_rows.get(key)
-        if rows is None:
-            rows = ImageRows(view.vertices, view.pixels, view.camera,
-                             weights=weight * self.inv_var * view.weights,
-                             name=f"landmarks {view.name}")
-            self._lm_rows[key] = (view, rows)
-        else:
-            rows = rows[1]
-        rows.camera = view.camera
-        return rows
-
-    def contour_rows(self, view):
-        """ContourRows of a side view's outline against the profile chain (cached)."""
-        rows = self._contour_rows.get(view.name)
-        if rows is None:
-            w = self.contour_weight * self.inv_var
-            rows = ContourRows(self.chain, view.contour, view.camera, weights=w,
-                               max_distance=self.contour_threshold, reject_factor=4.0,
-                               name=f"contour {view.name}")
-            self._contour_rows[view.name] = rows
-        rows.camera = view.camera
-        return rows
-
-    def rows_for(self, views, front_weight=1.0, contour=True, landmarks=True):
-        """Landmark rows of ``views`` (front views weighted ``front_weight``) and the
-        contour rows of those with an outline."""
-        rows = []
-        for v in views:
-            if landmarks and len(v.vertices):
-                rows.append(self.landmark_rows(v, 1.0 if v.side else front_weight))
-            if contour and v.contour is not None:
-                rows.append(self.contour_rows(v))
-        return rows
-
-    def problem(self, rows, freeze=()):
-        return ShapeProblem(self.lin, rows, lambda1=self.lambda1, lambda2=self.lambda2,
+    def problem(self, lin, rows, freeze=()):
+        return ShapeProblem(lin, rows, lambda1=self.lambda1, lambda2=self.lambda2,
                             prior=self.prior, freeze=tuple(freeze) + self.freeze_sim)
+
+    def prior_cost(self, coeffs):
+        """lambda2^2 |Lambda c|^2 + lambda1^2 |Gamma c|^2 as the shape-ICP counts it."""
+        c = np.asarray(coeffs, dtype=np.float64)
+        if self.prior == "identity":
+            cost = self.lambda2**2 * float(((self.lin.stddev * c) ** 2).sum())
+        else:
+            cost = self.lambda2**2 * float(c @ c)
+        if self.gamma is not None:
+            gc = self.gamma @ c
+            cost += self.lambda1**2 * float(gc @ gc)
+        return cost
 
     # ------------------------------------------------------------------ cameras
 
     def use(self, state):
-        """Make ``state``'s cameras the views' current cameras (e.g. when another approach
-        starts from a saved state)."""
+        """Make ``state``'s cameras the views' current cameras."""
         for v in self.views:
             v.camera = state.cameras[v.name]
-        for view, rows in self._lm_rows.values():
-            rows.camera = view.camera
-        for name, rows in self._contour_rows.items():
-            rows.camera = state.cameras[name]
 
-    def refit_cameras(self, state, views=None, use_contour=True):
-        """Every refittable camera refitted to the current head (landmarks and, for side
-        views, the contour's current correspondences). Updates ``state.cameras`` and the
-        views."""
-        for v in self.views if views is None else views:
+    def refit_cameras(self, state, extra=None):
+        """Every refittable camera refitted to the head of ``state``: its landmarks plus
+        ``extra[view name]`` = list of (model vertices, pixels, weights) (e.g. contour
+        correspondences). Updates ``state.cameras`` and the views."""
+        extra = extra or {}
+        for v in self.views:
             if not v.refit:
                 continue
             verts, px, w = [v.vertices], [v.pixels], [v.weights]
-            rows = self._contour_rows.get(v.name)
-            if use_contour and rows is not None:
-                cv, cp = rows.pairs()
-                if len(cv):
-                    verts.append(cv)
-                    px.append(cp)
-                    w.append(np.full(len(cv), self.contour_weight))
+            for ev, ep, ew in extra.get(v.name, ()):
+                verts.append(ev)
+                px.append(ep)
+                w.append(ew)
             verts = np.concatenate(verts)
-            cam = v.camera.refit(self.world(state, verts), np.vstack(px), np.concatenate(w))
-            v.camera = cam
-            state.cameras[v.name] = cam
-        for view, rows in self._lm_rows.values():
-            rows.camera = view.camera
-        for name, rows in self._contour_rows.items():
-            rows.camera = state.cameras[name]
+            state.cameras[v.name] = v.camera.refit(self.world(state, verts), np.vstack(px),
+                                                   np.concatenate(w))
+        self.use(state)
 
     def init_cameras(self, state, robust_steps=4):
-        """Start each refittable camera from the mean head: Procrustes of the landmark
-        vertices' projections to the placed points, reweighted robustly (Cauchy) so one
-        misplaced landmark does not tilt the start."""
+        """Start each refittable camera from the head of ``state`` (the mean head):
+        Procrustes of the landmark vertices' projections to the placed points, reweighted
+        robustly (Cauchy) so one misplaced landmark does not tilt the start."""
         for v in self.views:
             if not v.refit:
                 continue
             x = self.world(state, v.vertices)
-            w = v.weights.copy()
-            cam = v.camera.refit(x, v.pixels, w)
+            cam = v.camera.refit(x, v.pixels, v.weights)
             for _ in range(robust_steps):
                 r = np.linalg.norm(cam.project(x) - v.pixels, axis=1)
                 c = max(2.0 * float(np.median(r)), 1e-6)
-                cam = v.camera.refit(x, v.pixels, w / (1.0 + (r / c) ** 2))
-            v.camera = cam
+                cam = v.camera.refit(x, v.pixels, v.weights / (1.0 + (r / c) ** 2))
             state.cameras[v.name] = cam
+        self.use(state)
 
-    def camera_icp(self, state, views, max_steps=20, tolerance=1e-3):
-        """ICP of the cameras alone (the head fixed): refresh the contour correspondences,
-        refit, repeat until the contour/landmark cost stops falling. For a profile photo
-        this is the similarity-only step of thesis §4.4.1: the side camera's 2-D similarity
-        is exactly the head's scale, rotation in the sagittal plane and translation there.
-
-        Returns the cost history (weighted squared pixels)."""
-        history = []
-        for _ in range(max_steps):
-            cost = 0.0
-            for v in views:
-                x = self.world(state, v.vertices)
-                r = v.camera.project(x) - v.pixels
-                cost += float(v.weights @ (r * r).sum(1))
-                if v.contour is not None:
-                    rows = self.contour_rows(v)
-                    xc = self.world(state, rows.vertices)
-                    rows.update(xc)
-                    d = rows.targets - v.camera.project(xc)
-                    cost += self.contour_weight * float((d[rows.inliers] ** 2).sum())
-            history.append(cost)
-            self.refit_cameras(state, views)
-            if len(history) >= 2 and history[-2] - history[-1] <= tolerance * history[-2]:
-                break
-        return history
-
-    # ------------------------------------------------------------------ solving
-
-    def alternate(self, state, rows, freeze=(), max_outer=30, inner=2, tolerance=1e-4,
-                  refit=True):
-        """Alternate shape-ICP steps (cameras fixed) and camera refits until the cost
-        changes by less than ``tolerance`` (relative).
-
-        Returns
-        -------
-        state : State
-        history : list of float
-            Cost after each round.
-        fit : ShapeFit
-            The last shape-ICP result (its covariance is at the final head, cameras fixed).
-        """
-        problem = self.problem(rows, freeze)
-        history = []
-        fit = None
-        for _ in range(max(int(max_outer), 1)):
-            fit = problem.solve(scale=state.scale, rotation=state.rotation,
-                                translation=state.translation, coeffs=state.coeffs,
-                                max_iterations=inner, tolerance=tolerance * 0.1, sigma=1.0)
-            state.rotation, state.coeffs = fit.rotation, fit.coeffs
-            state.scale, state.translation = fit.scale, fit.translation
-            if refit:
-                self.refit_cameras(state)
-                cost = self.cost(problem, state)
-            else:
-                cost = fit.info["cost"]
-            history.append(cost)
-            if len(history) >= 2 and history[-2] - history[-1] <= tolerance * history[-2]:
-                break
-        return state, history, fit
-
-    def cost(self, problem, state):
-        """Weighted data cost plus prior of ``problem``'s rows at ``state`` (correspondences
-        refreshed)."""
-        fit = problem.solve(scale=state.scale, rotation=state.rotation,
-                            translation=state.translation, coeffs=state.coeffs,
-                            max_iterations=0, sigma=1.0)
-        return fit.info["cost"]
-
-    def covariance(self, state, rows):
-        """Posterior covariance of the coefficients (K, K) given ``rows`` at ``state``
-        (pose free, cameras fixed; rows weighted 1 / noise^2 so sigma = 1)."""
-        problem = self.problem(rows)
-        fit = problem.solve(scale=state.scale, rotation=state.rotation,
-                            translation=state.translation, coeffs=state.coeffs,
-                            max_iterations=0, sigma=1.0)
-        return fit.coeff_covariance
+    def joint(self, views, front_weight=1.0, contour=True, landmarks=True):
+        """A :class:`Joint` problem over the landmarks and contours of ``views``."""
+        return Joint(self, views, front_weight, contour, landmarks)
 
     # ------------------------------------------------------------------ errors
 
@@ -365,28 +357,196 @@ class Engine:
             out[v.name] = np.linalg.norm(px - v.pixels, axis=1)
         return out
 
-    def contour_error(self, state):
-        """RMS pixel distance of the inlier contour correspondences over all side views
-        (refreshed at ``state``), and how many there are."""
-        sq, n = 0.0, 0
-        for v in self.views:
-            if v.contour is None:
-                continue
-            rows = self.contour_rows(v)
-            rows.camera = state.cameras[v.name]
-            x = self.world(state, rows.vertices)
-            rows.update(x)
-            if rows.inliers.any():
-                d = rows.targets[rows.inliers] - rows.camera.project(x[rows.inliers])
-                sq += float((d * d).sum())
-                n += int(rows.inliers.sum())
-        return (np.sqrt(sq / n) if n else 0.0), n
 
-    def reprojection_rms(self, state):
-        """RMS of all landmark and contour pixel residuals (the criterion between
-        approaches)."""
-        res = self.reprojection(state)
-        sq = sum(float((r**2).sum()) for r in res.values())
-        n = sum(len(r) for r in res.values())
-        c_rms, c_n = self.contour_error(state)
-        return float(np.sqrt((sq + c_rms**2 * c_n) / max(n + c_n, 1)))
+class Joint:
+    """Image rows of some views solved jointly for the head and the cameras.
+
+    The shape-ICP knows one similarity and linear modes. To let it move the cameras in the
+    same Gauss-Newton step as the head, every group of rows gets its own copies of the
+    model vertices it uses, and each refittable camera gets four extra modes that move only
+    its copies, within its image plane: the pixel fields of a shift in u, a shift in v, an
+    in-plane rotation and a scaling of the photo, lifted to 3-D through the camera's
+    Jacobian (pseudo-inverse). For an orthographic camera those span exactly its free
+    parameters; the step is then a joint Gauss-Newton step, so the fit converges in a few
+    rounds where alternating "head, then cameras" crawls along every motion that a camera
+    and the head share. After each step the cameras are refitted exactly
+    (``Camera.refit``) and the extra modes reset: they are re-linearised every round.
+    """
+
+    def __init__(self, eng, views, front_weight=1.0, contour=True, landmarks=True):
+        self.eng = eng
+        self.groups = []  # (view, kind, rows)
+        orig = []
+        off = 0
+        for v in views:
+            if landmarks and len(v.vertices):
+                n = len(v.vertices)
+                w = (1.0 if v.side else front_weight) * eng.inv_var * v.weights
+                rows = ImageRows(np.arange(off, off + n), v.pixels, v.camera, weights=w,
+                                 name=f"landmarks {v.name}")
+                self.groups.append((v, "landmarks", rows))
+                orig.append(v.vertices)
+                off += n
+            if contour and v.contour is not None:
+                n = len(eng.chain)
+                rows = ContourRows(np.arange(off, off + n), v.contour, v.camera,
+                                   weights=eng.contour_weight * eng.inv_var,
+                                   max_distance=eng.contour_threshold, reject_factor=4.0,
+                                   name=f"contour {v.name}")
+                self.groups.append((v, "contour", rows))
+                orig.append(eng.chain)
+                off += n
+        if not self.groups:
+            raise ValueError("views: no landmarks or contour to fit")
+        self.orig = np.concatenate(orig)
+        self.rows = [g[2] for g in self.groups]
+        self.mean, self.basis = eng.slice(self.orig)
+        self.mode_views = []
+        for v in views:
+            if v.refit and v.camera.min_refit_points > 0:
+                idx = np.concatenate([r.vertices for gv, _, r in self.groups if gv is v])
+                lm = [r.vertices for gv, k, r in self.groups if gv is v and k == "landmarks"]
+                self.mode_views.append((v, idx, lm[0] if lm else idx))
+
+    def sync(self, state):
+        self.eng.use(state)
+        for v, _, rows in self.groups:
+            _set_camera(rows, state.cameras[v.name])
+
+    def world(self, state):
+        """World positions of the copies, (n, 3)."""
+        local = self.mean + np.tensordot(state.coeffs, self.basis, axes=1)
+        return state.scale * local @ state.rotation.T + state.translation
+
+    def cost(self, state):
+        """Weighted squared pixel residuals (correspondences refreshed) plus priors."""
+        self.sync(state)
+        x = self.world(state)
+        total = 0.0
+        for _, _, rows in self.groups:
+            xs = x[rows.vertices]
+            rows.update(xs)
+            blocks = rows.block(xs, jacobian=False)
+            blocks = blocks if isinstance(blocks, list | tuple) else [blocks]
+            total += sum(float(b.sq) for b in blocks)
+        return total + self.eng.prior_cost(state.coeffs)
+
+    def contour_pairs(self, state):
+        """view name -> [(model vertices, target pixels, weights)] of the inlier contour
+        correspondences (for the camera refit)."""
+        out = {}
+        x = None
+        for v, kind, rows in self.groups:
+            if kind != "contour" or rows.inliers is None or not rows.inliers.any():
+                continue
+            if x is None:
+                x = self.world(state)
+            rows.refresh_feet(x[rows.vertices])
+            verts, px = rows.pairs()
+            out.setdefault(v.name, []).append(
+                (self.orig[verts], px, np.full(len(verts), self.eng.contour_weight)))
+        return out
+
+    def refit(self, state):
+        """Refit every refittable camera to the head (landmarks + contour pairs)."""
+        self.sync(state)
+        self.eng.refit_cameras(state, self.contour_pairs(state))
+        self.sync(state)
+
+    def contour_residuals(self, state):
+        """view name -> pixel distances across the outline of the inlier contour
+        correspondences at ``state``."""
+        self.sync(state)
+        x = self.world(state)
+        out = {}
+        for v, kind, rows in self.groups:
+            if kind != "contour":
+                continue
+            xs = x[rows.vertices]
+            rows.update(xs)
+            d = rows.targets - rows.camera.project(xs)
+            rn = np.einsum("ij,ij->i", d, rows._normal)
+            out[v.name] = np.abs(rn[rows.inliers])
+        return out
+
+    def model(self, state):
+        """The copies' linear model at ``state``: the fitted modes, then 4 camera modes per
+        refittable view (see the class docstring)."""
+        eng = self.eng
+        x = self.world(state)
+        modes = []
+        for v, idx, lm in self.mode_views:
+            cam = state.cameras[v.name]
+            xv = x[idx]
+            p = cam.project(xv)
+            jac = np.asarray(cam.jacobian(xv), dtype=np.float64).reshape(len(idx), 2, 3)
+            d = p - cam.project(x[lm]).mean(axis=0)
+            radius = max(float(np.sqrt((d * d).sum(1).mean())), 1e-9)
+            fields = np.zeros((4, len(idx), 2))
+            fields[0, :, 0] = 1.0
+            fields[1, :, 1] = 1.0
+            fields[2] = np.stack([-d[:, 1], d[:, 0]], axis=1) / radius
+            fields[3] = d / radius
+            jjt = np.einsum("nij,nkj->nik", jac, jac)
+            pinv = np.einsum("nji,njk->nik", jac, np.linalg.inv(jjt))  # (n, 3, 2)
+            lift = np.einsum("nij,fnj->fni", pinv, fields)  # world displacement per unit
+            m = np.zeros((4, len(x), 3))
+            # model frame (x = s R m + t), one unit of coefficient = _MODE_PIXELS pixels so
+            # the shape prior on these coefficients is negligible.
+            m[:, idx] = _MODE_PIXELS * (lift @ state.rotation) / state.scale
+            modes.append(m)
+        lin = eng.lin
+        if not modes:
+            return LinearModel(self.mean, self.basis, lin.stddev, lin.names, eng.gamma)
+        extra = np.concatenate(modes)
+        n_extra = extra.shape[0]
+        gamma = None
+        if eng.gamma is not None:
+            gamma = np.hstack([eng.gamma, np.zeros((eng.gamma.shape[0], n_extra))])
+        names = tuple(lin.names) + tuple(f"camera {i}" for i in range(n_extra))
+        return LinearModel(self.mean, np.concatenate([self.basis, extra]),
+                           np.concatenate([lin.stddev, np.full(n_extra, 1e-9)]), names, gamma)
+
+    def _solve(self, state, freeze, iterations):
+        model = self.model(state)
+        k = len(state.coeffs)
+        start = np.zeros(model.n_coeffs)
+        start[:k] = state.coeffs
+        self.sync(state)
+        problem = self.eng.problem(model, self.rows, freeze)
+        fit = problem.solve(scale=state.scale, rotation=state.rotation,
+                            translation=state.translation, coeffs=start,
+                            max_iterations=iterations, tolerance=0.0, sigma=1.0)
+        return fit, k
+
+    def step(self, state, freeze=(), inner=2):
+        """One joint Gauss-Newton round (``inner`` shape-ICP steps) and the camera refits."""
+        fit, k = self._solve(state, freeze, inner)
+        new = state.copy()
+        new.rotation, new.coeffs = fit.rotation, fit.coeffs[:k].copy()
+        new.scale, new.translation = fit.scale, fit.translation
+        self.refit(new)
+        return new
+
+    def run(self, state, freeze=(), max_outer=20, inner=2, tolerance=1e-4):
+        """Rounds of :meth:`step` until the cost falls by less than ``tolerance``
+        (relative). Returns (state, cost history)."""
+        history = [self.cost(state)]
+        for _ in range(max(int(max_outer), 1)):
+            state = self.step(state, freeze, inner)
+            history.append(self.cost(state))
+            # Contour inliers may change between rounds, so the cost need not fall
+            # monotonically; stop once it no longer changes.
+            if abs(history[-2] - history[-1]) <= tolerance * history[-2]:
+                break
+        self.sync(state)
+        self.cost(state)  # leave the correspondences at the returned state
+        return state, history
+
+    def covariance(self, state):
+        """Posterior covariance (K, K) of the fitted coefficients at ``state``: the inverse
+        of the normal matrix with pose and camera modes free (marginalised), rows weighted
+        1 / noise^2 so sigma = 1."""
+        fit, k = self._solve(state, (), 0)
+        cov = fit.coeff_covariance
+        return cov[:k, :k]

@@ -79,46 +79,55 @@ def rasterize(tri_xy, width, height):
     coef = np.stack([ey2[idx] * inv, -ex2[idx] * inv, -ey1[idx] * inv, ex1[idx] * inv,
                      x[idx, 0], y[idx, 0]], axis=1)
 
-    gi = np.searchsorted(_LADDER, bw[idx])
-    gj = np.searchsorted(_LADDER, bh[idx])
-    key = gi * len(_LADDER) + gj
+    ladder = _LADDER
+    biggest = max(int(bw[idx].max()), int(bh[idx].max()))
+    if biggest > ladder[-1]:  # grids wider than the ladder: one more rung
+        ladder = np.append(ladder, biggest)
+    gi = np.searchsorted(ladder, bw[idx])
+    gj = np.searchsorted(ladder, bh[idx])
+    key = gi * len(ladder) + gj
     order = np.argsort(key, kind="stable")
     keys, starts = np.unique(key[order], return_index=True)
     ends = np.append(starts[1:], len(order))
 
     out_p, out_t, out_b = [], [], []
     for k, s, e in zip(keys, starts, ends, strict=True):
-        gw, gh = int(_LADDER[k // len(_LADDER)]), int(_LADDER[k % len(_LADDER)])
+        gw, gh = int(ladder[k // len(ladder)]), int(ladder[k % len(ladder)])
         members = idx[order[s:e]]
         mc = coef[order[s:e]]
-        step = max(1, _CHUNK // (gw * gh))
+        band = min(gh, max(1, _CHUNK // gw))  # rows per pass: huge boxes go in bands
+        step = max(1, _CHUNK // (gw * band))
         ox = np.arange(gw)
-        oy = np.arange(gh)
         for c in range(0, len(members), step):
             m = members[c:c + step]
             cf = mc[c:c + step]
-            # candidate centres (n, gh, gw)
-            px = x0[m, None, None] + ox[None, None, :]
-            py = y0[m, None, None] + oy[None, :, None]
-            inbox = ((ox[None, None, :] < bw[m, None, None])
-                     & (oy[None, :, None] < bh[m, None, None]))
-            dx = px + 0.5 - cf[:, 4, None, None]
-            dy = py + 0.5 - cf[:, 5, None, None]
-            l1 = cf[:, 0, None, None] * dx + cf[:, 1, None, None] * dy
-            l2 = cf[:, 2, None, None] * dx + cf[:, 3, None, None] * dy
-            l0 = 1.0 - l1 - l2
-            hit = inbox & (l0 >= -_EPS) & (l1 >= -_EPS) & (l2 >= -_EPS)
-            n_i, r_i, c_i = np.nonzero(hit)
-            if len(n_i) == 0:
-                continue
-            out_p.append(py[n_i, r_i, 0] * width + px[n_i, 0, c_i])
-            out_t.append(m[n_i])
-            out_b.append(np.stack([l0[hit], l1[hit], l2[hit]], axis=1))
+            for r0 in range(0, gh, band):
+                oy = np.arange(r0, min(gh, r0 + band))
+                _cover(m, cf, ox, oy, x0, y0, bw, bh, width, out_p, out_t, out_b)
     if not out_p:
         return empty
     bary = np.clip(np.concatenate(out_b), 0.0, 1.0)
     bary /= bary.sum(axis=1, keepdims=True)
     return np.concatenate(out_p), np.concatenate(out_t), bary
+
+
+def _cover(m, cf, ox, oy, x0, y0, bw, bh, width, out_p, out_t, out_b):
+    """Test the candidate centres (column offsets ox, row offsets oy in each box) of
+    triangles ``m`` with barycentric coefficients ``cf``; append the hits."""
+    px = x0[m, None, None] + ox[None, None, :]  # (n, 1, gw)
+    py = y0[m, None, None] + oy[None, :, None]  # (n, rows, 1)
+    inbox = (ox[None, None, :] < bw[m, None, None]) & (oy[None, :, None] < bh[m, None, None])
+    dx = px + 0.5 - cf[:, 4, None, None]
+    dy = py + 0.5 - cf[:, 5, None, None]
+    l1 = cf[:, 0, None, None] * dx + cf[:, 1, None, None] * dy
+    l2 = cf[:, 2, None, None] * dx + cf[:, 3, None, None] * dy
+    l0 = 1.0 - l1 - l2
+    hit = inbox & (l0 >= -_EPS) & (l1 >= -_EPS) & (l2 >= -_EPS)
+    n_i, r_i, c_i = np.nonzero(hit)
+    if len(n_i):
+        out_p.append(py[n_i, r_i, 0] * width + px[n_i, 0, c_i])
+        out_t.append(m[n_i])
+        out_b.append(np.stack([l0[hit], l1[hit], l2[hit]], axis=1))
 
 
 def first_per_pixel(pixel, *arrays):

@@ -467,14 +467,14 @@ class ShapeFit:
         relative change, rotation in radians, translation in metres, coefficients).
     sigma : float
         Residual noise level used for the covariance (given, or estimated from the fit).
-    covariance : ndarray, shape (P, P)
-        ``sigma^2 * inverse(normal_matrix)``.
-    coeff_covariance : ndarray, shape (Ka, Ka), or None
-        The block of ``covariance`` for the active coefficients (None when shape frozen).
     active : ndarray of int, shape (Ka,)
-        Indices of the coefficients the fit could change.
+        Indices of the coefficients the fit could change (empty when shape was frozen).
     info : dict
         Per group: name, rows used, error; cost; solve details.
+
+    The posterior covariances are computed on access: ``covariance`` (P, P) is
+    ``sigma^2 * inverse(normal_matrix)`` and ``coeff_covariance`` (Ka, Ka) its block for
+    the active coefficients (None when the shape was frozen).
     """
 
     scale: float
@@ -487,10 +487,24 @@ class ShapeFit:
     free: tuple
     normal_matrix: np.ndarray
     sigma: float
-    covariance: np.ndarray
-    coeff_covariance: np.ndarray | None
     active: np.ndarray
     info: dict = field(default_factory=dict)
+
+    @property
+    def covariance(self):
+        """Posterior covariance of the free parameters, shape (P, P)."""
+        n = self.normal_matrix
+        d = np.sqrt(np.diag(n))
+        inv = np.linalg.inv(n / d[:, None] / d[None, :]) / d[:, None] / d[None, :]
+        return self.sigma**2 * 0.5 * (inv + inv.T)
+
+    @property
+    def coeff_covariance(self):
+        """Posterior covariance of the active coefficients, shape (Ka, Ka), or None."""
+        ka = len(self.active)
+        if ka == 0:
+            return None
+        return self.covariance[-ka:, -ka:]
 
     @property
     def error(self):
@@ -584,39 +598,41 @@ class _Prepared:
 
     def __init__(self, rows, model, active, full_active):
         self.rows = rows
+        self.model = model
         v = rows.vertices
         n_model = model.mean.shape[0]
         if v.min() < 0 or v.max() >= n_model:
             bad = int(v[(v < 0) | (v >= n_model)][0])
             raise ValueError(f"{rows.name}: vertex index {bad} out of range 0..{n_model - 1}")
-        whole = len(v) == n_model and np.array_equal(v, np.arange(n_model))
-        if whole:  # no copy of a large basis when a group covers the whole model
-            self.mean = model.mean
+        self.whole = len(v) == n_model and np.array_equal(v, np.arange(n_model))
+        self.mean = model.mean if self.whole else model.mean[v]
+        if len(active) == 0:  # shape frozen: positions need no basis slice per iteration
+            b = np.zeros((0, len(v), 3))
+        elif self.whole:  # no fancy-index copy when a group covers the whole model
             b = model.basis if full_active else model.basis[active]
         else:
-            self.mean = model.mean[v]
-            b = model.basis[active][:, v] if not full_active else model.basis[:, v]
+            b = model.basis[:, v] if full_active else model.basis[active][:, v]
         self.basis = np.ascontiguousarray(b, dtype=np.float64)  # (Ka, n, 3)
-        self.b2 = self.basis.reshape(self.basis.shape[0], -1)  # (Ka, 3n), a view
-        self.inactive_basis = None
-        if not full_active:
-            mask = np.ones(model.n_coeffs, bool)
-            mask[active] = False
-            self.inactive_idx = np.flatnonzero(mask)
-            ib = model.basis[self.inactive_idx]
-            self.inactive_basis = ib if whole else ib[:, v]
+        self.b2 = self.basis.reshape(self.basis.shape[0], 3 * len(v))  # (Ka, 3n), a view
+        inactive = np.ones(model.basis.shape[0], bool)
+        inactive[active] = False
+        self.inactive_idx = np.flatnonzero(inactive)
         self.base = self.mean
         self._gram_alpha = None
         self._gram = None
         self._gram_updates = 0
 
     def set_inactive(self, coeffs):
-        if self.inactive_basis is None:
+        """Fold the fixed (inactive) coefficients into the base shape, slicing only the
+        basis rows of the non-zero ones."""
+        idx = self.inactive_idx[coeffs[self.inactive_idx] != 0]
+        if len(idx) == 0:
             self.base = self.mean
             return
-        ci = coeffs[self.inactive_idx]
-        self.base = self.mean + np.tensordot(ci, self.inactive_basis, axes=1) if ci.any() \
-            else self.mean
+        b = self.model.basis[idx]
+        if not self.whole:
+            b = b[:, self.rows.vertices]
+        self.base = self.mean + np.tensordot(coeffs[idx], b, axes=1)
 
     def gram(self, alpha):
         """``sum_i alpha_i B_i^T B_i`` (Ka, Ka), updated from the last one when few weights
@@ -634,7 +650,8 @@ class _Prepared:
                 self._gram_alpha = alpha.copy()
                 self._gram_updates += 1
                 return self._gram
-        self._gram = (self.b2 * np.repeat(alpha, 3)) @ self.b2.T
+        root = self.b2 * np.repeat(np.sqrt(alpha), 3)
+        self._gram = root @ root.T  # symmetric product: BLAS syrk, half the work of a gemm
         self._gram_alpha = alpha.copy()
         self._gram_updates = 0
         return self._gram
@@ -731,6 +748,8 @@ class ShapeProblem:
                     len(np.unique(active)) != len(active):
                 raise ValueError(f"active: expected unique coefficient indices in 0..{k - 1}")
         self.active = np.asarray(active, dtype=np.intp)
+        if "shape" in freeze:
+            self.active = np.zeros(0, dtype=np.intp)
         if len(self.active) == 0:
             freeze = freeze | {"shape"}
         self.freeze = freeze
@@ -755,6 +774,7 @@ class ShapeProblem:
         self._sd = sd
         self.anneal = 0.0
         self._cache = None
+        self._pos = None
         self.set_priors()
 
     def set_priors(self, lambda1=None, lambda2=None, anneal=None):
@@ -811,9 +831,15 @@ class ShapeProblem:
         nrows = 0
         info = []
         shape = self.shape_free and jacobian
-        for pg in self.groups:
-            m = pg.base + np.tensordot(ca, pg.basis, axes=1) if ka else pg.base
-            pt = s * m @ rot.T  # p~ of eq. 38 (no translation)
+        if self._pos is not None and self._pos[0] is state:
+            pts = self._pos[1]  # the accepted trial of the last step computed them already
+        else:
+            pts = []
+            for pg in self.groups:
+                m = pg.base + (pg.b2.T @ ca).reshape(-1, 3) if ka else pg.base
+                pts.append(s * m @ rot.T)  # p~ of eq. 38 (no translation)
+            self._pos = (state, pts)
+        for pg, pt in zip(self.groups, pts, strict=True):
             x = pt + t
             if update:
                 pg.rows.update(x)
@@ -879,9 +905,16 @@ class ShapeProblem:
         n_mat[:7, :7] += sw2.T @ sj.reshape(-1, 7)
         b[:7] += sw2.T @ blk.resid.reshape(-1)
         if shape:
-            q = np.matmul(rot.T, sw)  # model-frame rows: (s R B)^T y = s B^T R^T y
-            n_mat[7:, :7] += s * (pg.b2 @ q.reshape(-1, 7))
-            b[7:] += s * (pg.b2 @ ((blk.resid * a[:, None]) @ rot).reshape(-1))
+            # Model-frame rows: (s R B)^T y = s B^T R^T y. One pass over the basis for the
+            # cross terms and the right-hand side together: columns 0-6 are R^T (a S_v),
+            # column 7 is R^T (a r_v).
+            nv = len(a)
+            q = np.empty((nv, 3, 8))
+            q[:, :, :7] = np.tensordot(sw, rot, axes=([1], [0])).transpose(0, 2, 1)
+            q[:, :, 7] = (blk.resid * a[:, None]) @ rot
+            prod = pg.b2 @ q.reshape(-1, 8)
+            n_mat[7:, :7] += s * prod[:, :7]
+            b[7:] += s * prod[:, 7]
             n_mat[7:, 7:] += (s * s) * pg.gram(a)
 
     @staticmethod
@@ -904,11 +937,12 @@ class ShapeProblem:
         if shape:
             h = s * g @ rot  # row of s R B_i seen from the model frame
             bas = pg.basis if dense else pg.basis[:, idx, :]
-            a_c = np.einsum("kmi,mi->mk", bas, h)  # (m, Ka)
-            a_cw = a_c * w[:, None]
-            n_mat[7:, :7] += a_cw.T @ a_s
-            n_mat[7:, 7:] += a_cw.T @ a_c
-            b[7:] += a_cw.T @ r
+            a_c = np.einsum("kmi,mi->km", bas, h)  # (Ka, m): shape columns of the rows
+            sr = a_c * np.sqrt(w)
+            n_mat[7:, 7:] += sr @ sr.T  # A^T W A as one symmetric product (BLAS syrk)
+            prod = (a_c * w) @ np.column_stack([a_s, r])
+            n_mat[7:, :7] += prod[:, :7]
+            b[7:] += prod[:, 7]
 
     def _factor(self, sys):
         """Cholesky factor of the Jacobi-scaled normal matrix of the free parameters, or a
@@ -1048,17 +1082,11 @@ class ShapeProblem:
             sig = float(sigma)
             if not np.isfinite(sig) or sig < 0:
                 raise ValueError(f"sigma: must be finite and >= 0, got {sigma!r}")
-        inv = self._chol_solve(low, np.eye(n_free)) / d[:, None] / d[None, :]
-        cov = sig**2 * inv
-        ccov = None
-        if self.shape_free:
-            n_sim = n_free - len(self.active)
-            ccov = cov[n_sim:, n_sim:]
         return ShapeFit(
             scale=s, rotation=rot, translation=t, coeffs=c, error_history=history,
             iterations=steps, converged=converged,
             free=tuple(self.param_names[i] for i in self.free), normal_matrix=nf,
-            sigma=sig, covariance=cov, coeff_covariance=ccov, active=self.active.copy(),
+            sigma=sig, active=self.active.copy(),
             info={"groups": sys.groups, "cost": sys.sq + sys.prior, "data_cost": sys.sq,
                   "prior_cost": sys.prior, "rows": sys.nrows},
         )

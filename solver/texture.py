@@ -30,7 +30,14 @@ in the photos' own encoding (sRGB values in, sRGB values out).
 
 Parts: by default the skin ("Face", "Head and Neck"). Eyes, teeth, mouth interior and the
 eye overlay meshes are not baked: they are hidden or transparent on the photos, and the
-add-on gives them their own materials.
+add-on gives them their own materials (``parts=["Eyeball left"]`` bakes one if wanted; the
+skin still occludes it).
+
+Typical use (the UV rasters are cached per model and size, so repeated bakes, e.g. in the
+live add-on, skip the rasterisation)::
+
+    tiles = bake_fit_texture(model, result, {"front": front_rgb, "right": side_rgb})
+    atlas, uv_scale = tile_atlas(tiles)  # one image for OBJ / glTF: UVs * uv_scale
 """
 
 import threading
@@ -76,7 +83,8 @@ def orthographic_uvs(vertices, camera, image_size=None):
     -------
     ndarray, shape (V, 2)
         UVs with (0, 0) at the photo's bottom-left and (1, 1) at its top-right (Blender's
-        convention); points outside the photo get UVs outside [0, 1].
+        convention); points outside the photo get UVs outside [0, 1]. Per face corner:
+        ``uv[model.loop_vertex]``.
     """
     x = as_points(vertices, "vertices")
     w, h = _image_size(camera, image_size, "camera")
@@ -120,11 +128,13 @@ class BakeOptions:
     depth_resolution : int
         Longer side, in pixels, of each photo's depth buffer (at most the photo's size).
     depth_tolerance : float
-        Slack of the occlusion test as a fraction of the head's size (its bounding-box
-        diagonal); a buffer pixel's own depth slope is added on top.
+        Slack of the occlusion test as a fraction of the head's size (the baked and
+        occluding parts' bounding-box diagonal, 0.48 m for the ICT skin: 0.01 is about
+        5 mm, less than an ear stands off the head); the depth a surface spans across a
+        buffer pixel at its slope is added on top.
     feather : float
-        Width, in depth-buffer pixels, over which a photo's weight fades in from its
-        silhouettes and occlusion edges (0: no fading).
+        Width over which a photo's weight fades in from the head's outline in it, as a
+        fraction of the head's size (0.02: about 1 cm; 0: no fading).
     bleed : int
         Texels outside the UV islands that copy their nearest island texel, so filtering
         and mipmaps never sample the background colour at a seam.
@@ -135,8 +145,8 @@ class BakeOptions:
     mirror_min_lateral: float = 0.5
     fill_weight: float = 0.05
     depth_resolution: int = 512
-    depth_tolerance: float = 0.015
-    feather: float = 3.0
+    depth_tolerance: float = 0.01
+    feather: float = 0.02
     bleed: int = 4
 
     def __post_init__(self):
@@ -204,9 +214,10 @@ class UVRaster:
         return m.reshape(self.size, self.size)
 
 
-_raster_cache = {}  # (id(model), size, parts, tile, bleed) -> (weakref to model, UVRaster)
+# (id(model), what, ...) -> (weakref to the model, value): UV rasters and triangle tables
+_raster_cache = {}
 _raster_lock = threading.Lock()
-_RASTER_CACHE_MAX = 8
+_RASTER_CACHE_MAX = 12
 
 
 def resolve_parts(model, parts=None):
@@ -247,16 +258,41 @@ def resolve_parts(model, parts=None):
     return idx, tuple(names[i] for i in idx)
 
 
-def _selected_triangles(model, part_idx):
-    """Triangles (vertex, loop) of the chosen parts and the UDIM tile of each."""
+def _model_cached(model, key, build):
+    """``build()`` once per live model object and key (topology and UVs never change)."""
+    full = (id(model), *key)
+    with _raster_lock:
+        hit = _raster_cache.get(full)
+        if hit is not None and hit[0]() is model:
+            return hit[1]
+    value = build()
+    with _raster_lock:
+        try:
+            ref = weakref.ref(model)
+        except TypeError:  # a model class without weakref support: keep it alive instead
+            ref = (lambda m: (lambda: m))(model)
+        _raster_cache[full] = (ref, value)
+        while len(_raster_cache) > _RASTER_CACHE_MAX:
+            _raster_cache.pop(next(iter(_raster_cache)))
+    return value
+
+
+def _triangle_table(model):
+    """Every triangle's vertices (T, 3), corner UVs (T, 3, 2), part (T,) and UDIM tile."""
     tri_vertex, tri_loop, tri_face = model.triangles()
-    keep = np.isin(np.asarray(model.face_part)[tri_face], part_idx)
-    tri_vertex = np.asarray(tri_vertex)[keep]
-    tri_loop = np.asarray(tri_loop)[keep]
-    uv = np.asarray(model.loop_uv, dtype=np.float64)[tri_loop]  # (T, 3, 2)
+    uv = np.asarray(model.loop_uv, dtype=np.float64)[np.asarray(tri_loop)]
     corner = np.floor(uv.mean(axis=1)).astype(np.int64)
     tile = 1001 + corner[:, 0] + 10 * corner[:, 1]
-    return tri_vertex, uv, tile
+    part = np.asarray(model.face_part)[np.asarray(tri_face)]
+    return np.asarray(tri_vertex), uv, part, tile
+
+
+def _selected_triangles(model, part_idx):
+    """Triangles (vertex indices, corner UVs) of the chosen parts and the UDIM tile of each."""
+    tri_vertex, uv, part, tile = _model_cached(model, ("triangles",),
+                                               lambda: _triangle_table(model))
+    keep = np.isin(part, part_idx)
+    return tri_vertex[keep], uv[keep], tile[keep]
 
 
 def uv_tiles(model, parts=None):
@@ -288,21 +324,11 @@ def uv_raster(model, size=1024, *, parts=None, tile=None, bleed=BakeOptions.blee
     size = _check_size(size)
     idx, names = resolve_parts(model, parts)
     tile = _pick_tile(model, idx, names, tile)
-    key = (id(model), size, idx, tile, int(bleed))
-    with _raster_lock:
-        hit = _raster_cache.get(key)
-        if hit is not None and hit[0]() is model:
-            return hit[1]
-    raster = _build_raster(model, size, idx, names, tile, int(bleed))
-    with _raster_lock:
-        try:
-            ref = weakref.ref(model)
-        except TypeError:  # a model class without weakref support: keep it alive instead
-            ref = (lambda m: (lambda: m))(model)
-        _raster_cache[key] = (ref, raster)
-        while len(_raster_cache) > _RASTER_CACHE_MAX:
-            _raster_cache.pop(next(iter(_raster_cache)))
-    return raster
+    bleed = int(bleed)
+    if bleed < 0:
+        raise ValueError(f"bleed: must be >= 0, got {bleed}")
+    return _model_cached(model, ("raster", size, idx, tile, bleed),
+                         lambda: _build_raster(model, size, idx, names, tile, bleed))
 
 
 def clear_raster_cache():
@@ -438,13 +464,13 @@ def bake_texture(model, world_vertices, views, size=1024, *, parts=None, tile=No
     ndarray, shape (size, size, 3), float32
         Row 0 is the top of the texture (v = 1).
     """
+    opts = _options(options)
     if raster is None:
-        raster = uv_raster(model, size, parts=parts, tile=tile,
-                           bleed=(options or BakeOptions()).bleed)
+        raster = uv_raster(model, size, parts=parts, tile=tile, bleed=opts.bleed)
     else:
         _check_raster(raster, model, size, parts, tile)
     return _bake(model, world_vertices, views, [raster], parts, occluders, similarity,
-                 mirror, options)[raster.tile]
+                 mirror, opts)[raster.tile]
 
 
 def bake_tiles(model, world_vertices, views, size=1024, *, parts=None, similarity=None,
@@ -459,7 +485,7 @@ def bake_tiles(model, world_vertices, views, size=1024, *, parts=None, similarit
     dict of int -> ndarray (size, size, 3) float32
         UDIM tile number -> texture.
     """
-    opts = options or BakeOptions()
+    opts = _options(options)
     tiles = uv_tiles(model, parts)
     rs = []
     for t in tiles:
@@ -473,7 +499,7 @@ def bake_tiles(model, world_vertices, views, size=1024, *, parts=None, similarit
 
 
 def bake_fit_texture(model, result, images, size=1024, *, parts=None, mirror=True,
-                     options=None):
+                     occluders=None, options=None):
     """Bake from a FitResult: its world vertices, cameras and similarity.
 
     Parameters
@@ -482,7 +508,7 @@ def bake_fit_texture(model, result, images, size=1024, *, parts=None, mirror=Tru
     result : FitResult
     images : dict of str -> ndarray (H, W, 3 or 4)
         Photo of each view to use, keyed like ``result.cameras``.
-    size, parts, mirror, options
+    size, parts, mirror, occluders, options
         As in :func:`bake_tiles`.
 
     Returns
@@ -497,7 +523,50 @@ def bake_fit_texture(model, result, images, size=1024, *, parts=None, mirror=Tru
         views.append((image, result.cameras[name]))
     return bake_tiles(model, result.world_vertices, views, size, parts=parts,
                       similarity=(result.scale, result.rotation, result.translation),
-                      mirror=mirror, options=options)
+                      mirror=mirror, occluders=occluders, options=options)
+
+
+def tile_atlas(tiles):
+    """Put UDIM tiles side by side in one image, for formats without UDIM (OBJ, glTF).
+
+    Parameters
+    ----------
+    tiles : dict of int -> ndarray (S, S, C)
+        From :func:`bake_tiles`; tiles of the first row only (1001 ... 1010).
+
+    Returns
+    -------
+    image : ndarray, shape (S, k * S, C)
+        Tile 1001 + j in columns [j S, (j + 1) S); a tile the dict lacks is its mean.
+    uv_scale : ndarray, shape (2,)
+        Multiply ``model.loop_uv`` by this to address the atlas: (1 / k, 1).
+    """
+    if not tiles:
+        raise ValueError("tiles: empty")
+    numbers = sorted(int(t) for t in tiles)
+    if numbers[0] < 1001 or numbers[-1] > 1010:
+        raise ValueError(f"tiles: only UDIM tiles 1001..1010 (one row) fit an atlas, got "
+                         f"{numbers}")
+    first = np.asarray(tiles[numbers[0]])
+    k = numbers[-1] - 1000
+    shapes = {np.asarray(t).shape for t in tiles.values()}
+    if len(shapes) != 1 or first.ndim != 3 or first.shape[0] != first.shape[1]:
+        raise ValueError(f"tiles: expected square tiles of one shape, got {sorted(shapes)}")
+    size = first.shape[0]
+    mean = np.mean([np.asarray(t).reshape(-1, first.shape[2]).mean(0) for t in tiles.values()],
+                   axis=0)
+    image = np.empty((size, k * size, first.shape[2]), first.dtype)
+    for j in range(k):  # a handful of tiles, not pixels
+        image[:, j * size:(j + 1) * size] = tiles.get(1001 + j, mean)
+    return image, np.array([1.0 / k, 1.0])
+
+
+def _options(options):
+    if options is None:
+        return BakeOptions()
+    if not isinstance(options, BakeOptions):
+        raise ValueError(f"options: expected BakeOptions, got {type(options).__name__}")
+    return options
 
 
 def _check_raster(raster, model, size, parts, tile):
@@ -530,6 +599,8 @@ def _check_views(views):
         elif not np.issubdtype(img.dtype, np.floating):
             raise ValueError(f"views[{i}]: image dtype {img.dtype} is not numeric")
         img = np.array(img, dtype=np.float32)
+        if not np.isfinite(img).all():
+            raise ValueError(f"views[{i}]: image has NaN or infinite values")
         if img.shape[2] == 4:  # premultiply, so bilinear samples never mix in hidden colour
             img[..., 3] = np.clip(img[..., 3], 0.0, 1.0)
             img[..., :3] *= img[..., 3:]
@@ -622,24 +693,25 @@ class _ViewSampler:
         ppm = np.sqrt((jac ** 2).sum() / 2.0)
         self.footprint = np.float32(1.0 / (ppm * min(self.fx, self.fy)))
         self.tol = np.float32(opts.depth_tolerance * head_size)
-        self.feather = self._feather(depth, near, opts.feather)
+        self.feather = self._feather(depth, opts.feather * head_size / self.footprint)
         self.mirrored = None
 
-    def _feather(self, depth, near, feather):
-        """Weight factor (bh * bw,) rising from 0 at depth discontinuities (silhouettes
-        against the background or a nearer part) to 1 ``feather`` buffer pixels away, so
-        the blend fades out where the photo's colour switches objects and a small fit
-        error would show the wrong one; None when feathering is off."""
+    def _feather(self, depth, feather):
+        """Weight factor (bh * bw,) rising from 0 at the head's outline in this photo to 1
+        ``feather`` buffer pixels inside, so the blend fades out where a small fit error
+        would sample the photo's background; None when feathering is off.
+
+        Only the outline against the background fades: inner occlusion edges (nose over
+        cheek) are handled by the depth test, and a steep but continuous surface is no
+        edge at all.
+        """
         if feather <= 0:
             return None
-        far = ndi.maximum_filter(np.where(np.isfinite(depth), depth, np.inf), size=3,
-                                 mode="nearest")
-        with np.errstate(invalid="ignore"):
-            jump = ~(far - near <= 2.0 * self.tol)  # inf - finite and inf - inf count too
-        if not jump.any():
+        outline = np.isinf(ndi.maximum_filter(depth, size=3, mode="nearest"))
+        if not outline.any():
             return None
-        dist = ndi.distance_transform_edt(~jump)
-        return np.clip((dist - 0.5) / feather, 0.0, 1.0).astype(np.float32).ravel()
+        dist = ndi.distance_transform_edt(~outline)
+        return np.clip(dist / feather, 0.0, 1.0).astype(np.float32).ravel()
 
     def _vertex_terms(self, world):
         """Per vertex: (pixel u, pixel v, depth) (V, 3) and toward-camera (V, 3) or (3,)."""
@@ -720,9 +792,7 @@ def _bilinear(texels, w, u, v):
 
 def _bake(model, world_vertices, views, rasters, parts, occluders, similarity, mirror,
           options):
-    opts = options or BakeOptions()
-    if not isinstance(opts, BakeOptions):
-        raise ValueError(f"options: expected BakeOptions, got {type(opts).__name__}")
+    opts = options
     n_vertices = int(np.asarray(model.vertices).shape[0])
     world = as_points(world_vertices, "world_vertices")
     if len(world) != n_vertices:

@@ -12,6 +12,7 @@ def _state():
         "object_prop": hasattr(bpy.types.Object, "headrecon"),
         "depsgraph": len(bpy.app.handlers.depsgraph_update_post),
         "load_post": len(bpy.app.handlers.load_post),
+        "save_pre": len(bpy.app.handlers.save_pre),
         "operators": sorted(n for n in dir(bpy.ops.headrecon)),
     }
 
@@ -29,6 +30,7 @@ def test_register_unregister_leaves_nothing_behind():
     assert during["scene_prop"] and during["object_prop"]
     assert during["depsgraph"] == before["depsgraph"] + 1
     assert during["load_post"] == before["load_post"] + 1
+    assert during["save_pre"] == before["save_pre"] + 1
     for name in ("HEADRECON_OT_add_head", "HEADRECON_OT_load_photo",
                  "HEADRECON_OT_place_landmarks", "HEADRECON_OT_draw_contour",
                  "HEADRECON_OT_import_landmarks", "HEADRECON_OT_export_landmarks",

@@ -186,34 +186,35 @@ def _same(a, b):
 def _bad_files(folder, good):
     data = json.loads(good.read_text())
     out = {}
-    (folder / "not_json.json").write_text("{ nope")
-    out["not_json"] = (folder / "not_json.json", "not valid JSON")
+    (folder / "bad_json.json").write_text("{ nope")
+    out["not_json"] = (folder / "bad_json.json", "not valid JSON")
     d = json.loads(json.dumps(data))
     first = next(iter(d["views"]))
     d["views"][first]["points"]["nose_tipp"] = [10, 10]
-    (folder / "unknown.json").write_text(json.dumps(d))
-    out["unknown"] = (folder / "unknown.json", "nose_tipp")
+    (folder / "bad_unknown.json").write_text(json.dumps(d))
+    out["unknown"] = (folder / "bad_unknown.json", "nose_tipp")
     d = json.loads(json.dumps(data))
     last = list(d["views"])[-1]
     d["views"][last]["image"] = "missing_photo.png"
-    (folder / "missing.json").write_text(json.dumps(d))
-    out["missing"] = (folder / "missing.json", "missing_photo.png")
+    (folder / "bad_missing.json").write_text(json.dumps(d))
+    out["missing"] = (folder / "bad_missing.json", "missing_photo.png")
     d = json.loads(json.dumps(data))
     w, h = d["views"][last]["size"]
     d["views"][last]["size"] = [w + 2, h + 2]
-    (folder / "size.json").write_text(json.dumps(d))
-    out["size"] = (folder / "size.json", "pixels")
-    out["absent"] = (folder / "absent.json", "no such file")
+    (folder / "bad_size.json").write_text(json.dumps(d))
+    out["size"] = (folder / "bad_size.json", "pixels")
+    out["absent"] = (folder / "bad_absent.json", "no such file")
     return out
 
 
-def test_bad_landmarks_file_leaves_scene_unchanged(files, scene, tmp_path):
+def test_bad_landmarks_file_leaves_scene_unchanged(files, scene):
     from headrecon_addon import landmarks
 
     path, _, _ = files
     bpy.ops.headrecon.import_landmarks(filepath=str(path))  # a scene with work in it
     before = snapshot()
-    for key, (bad, words) in _bad_files(tmp_path, path).items():
+    # next to the good file, so its photos' relative paths resolve
+    for key, (bad, words) in _bad_files(path.parent, path).items():
         with pytest.raises((ValueError, OSError)) as err:
             landmarks.import_landmarks(bpy.context, bad)
         assert words in str(err.value), key

@@ -7,12 +7,15 @@ import pytest
 from solver.cameras import OrthographicCamera
 from solver.model import fan_triangles
 from solver.raster import depth_buffer, first_per_pixel, rasterize
+from solver.result import FitResult
 from solver.texture import (
     BakeOptions,
+    bake_fit_texture,
     bake_texture,
     bake_tiles,
     orthographic_uvs,
     resolve_parts,
+    tile_atlas,
     uv_raster,
     uv_tiles,
 )
@@ -118,6 +121,23 @@ def test_rasterize_square_covers_each_pixel_once_with_exact_barycentrics():
     pos = np.einsum("nk,nkd->nd", b1, tri[t1])
     np.testing.assert_allclose(pos, np.stack([uniq % 20 + 0.5, uniq // 20 + 0.5], 1),
                                atol=1e-9)
+
+
+def test_rasterize_batches_and_bands_do_not_change_the_result(monkeypatch):
+    import solver.raster as raster_mod
+
+    tri = np.array([[[0, 0], [300, 0], [0, 300]], [[5, 5], [50, 5], [5, 80]],
+                    [[10.3, 20.7], [11.1, 20.9], [10.6, 21.8]]], float)
+    p1, t1, b1 = rasterize(tri, 400, 400)
+    monkeypatch.setattr(raster_mod, "_CHUNK", 1000)  # forces row bands and small batches
+    p2, t2, b2 = rasterize(tri, 400, 400)
+    o1, o2 = np.lexsort((t1, p1)), np.lexsort((t2, p2))
+    np.testing.assert_array_equal(p1[o1], p2[o2])
+    np.testing.assert_array_equal(t1[o1], t2[o2])
+    np.testing.assert_allclose(b1[o1], b2[o2])
+    # each triangle covers about its area in pixel centres
+    counts = np.bincount(t1, minlength=3)
+    assert abs(counts[0] - 300 * 300 / 2) < 310 and abs(counts[1] - 45 * 75 / 2) < 80
 
 
 def test_depth_buffer_keeps_the_nearest_triangle():
@@ -305,6 +325,11 @@ def test_mirrored_profile_fills_the_far_side():
     plain = bake_texture(m, m.vertices, [(img, cam)], 256, mirror=False)
     assert red_match(plain, near) > 0.99
     assert red_match(plain, far) < 0.8  # the smooth fill cannot invent the stripes
+    # per-view flags say the same
+    np.testing.assert_array_equal(
+        bake_texture(m, m.vertices, [(img, cam)], 256, mirror=[True]), mirrored)
+    np.testing.assert_array_equal(
+        bake_texture(m, m.vertices, [(img, cam)], 256, mirror=[False]), plain)
     # the front photo is never mirrored
     front = OrthographicCamera.nominal("orthographic-front", (W, H))
     a = bake_texture(m, m.vertices, [(coded_photo(), front)], 64, mirror=True)
@@ -333,6 +358,50 @@ def test_mirror_uses_the_fitted_similarity():
     px = cam.project(p_mirror[only_mirror])
     np.testing.assert_allclose(got[only_mirror, 0], px[:, 0] / W, atol=1e-3)
     np.testing.assert_allclose(got[only_mirror, 1], px[:, 1] / H, atol=1e-3)
+
+
+def test_feathering_keeps_the_photo_background_off_the_outline():
+    """The fitted sphere is 5 % larger than the disc in the photo: near its outline the
+    photo shows background (red). The outline feather fades the photo there, so the rim
+    leans on the head's colour (blue) from further in instead."""
+    m = uv_sphere()
+    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
+    yy, xx = np.mgrid[0:H, 0:W] + 0.5
+    rho = np.hypot(xx - W / 2, yy - H / 2) / cam.scale  # metres from the centre
+    img = np.zeros((H, W, 3), np.float32)
+    img[rho < 0.095] = [0, 0, 1]
+    img[rho >= 0.095] = [1, 0, 0]
+    r = uv_raster(m, 128)
+    pts = r.interp @ m.vertices
+    rim = (pts[:, 1] < 0) & (np.hypot(pts[:, 0], pts[:, 2]) > 0.093)
+    assert rim.sum() > 100
+    red = {}
+    for feather in (0.0, BakeOptions().feather):
+        tex = bake_texture(m, m.vertices, [(img, cam)], 128, mirror=False,
+                           options=BakeOptions(feather=feather))
+        red[feather] = tex.reshape(-1, 3)[r.texel][rim, 0].mean()
+    assert red[0.0] > 0.15  # without fading the background shows on the rim
+    assert red[BakeOptions().feather] < 0.5 * red[0.0]
+
+
+def test_bake_from_a_fit_result_uses_its_pose_and_cameras():
+    m = uv_sphere()
+    ang = np.radians(-30)
+    rot = np.array([[np.cos(ang), -np.sin(ang), 0], [np.sin(ang), np.cos(ang), 0], [0, 0, 1]])
+    cams = {"front": OrthographicCamera.nominal("orthographic-front", (W, H)),
+            "right": OrthographicCamera.nominal("orthographic-right", (W, H))}
+    n = len(m.vertices)
+    result = FitResult("combined", 0.9, rot, np.array([0.0, 0.01, 0.0]), np.zeros(0),
+                       np.zeros(0), (), np.zeros((n, 3)), m.vertices, cams, {}, np.zeros(n))
+    images = {"front": coded_photo(), "right": _stripes()}
+    got = bake_fit_texture(m, result, images, 64)
+    want = bake_tiles(m, result.world_vertices, [(images["front"], cams["front"]),
+                                                 (images["right"], cams["right"])], 64,
+                      similarity=(0.9, rot, result.translation))
+    assert sorted(got) == [1001]
+    np.testing.assert_array_equal(got[1001], want[1001])
+    with pytest.raises(ValueError, match="'left'"):
+        bake_fit_texture(m, result, {"left": coded_photo()}, 64)
 
 
 def test_bleed_outside_islands_and_mean_elsewhere():
@@ -388,6 +457,11 @@ def test_tiles_and_parts():
     assert sorted(tiles) == [1001, 1002]
     one = bake_texture(m, m.vertices, [(coded_photo(), cam)], 64, tile=1002)
     np.testing.assert_allclose(one, tiles[1002], atol=1e-6)
+    atlas, uv_scale = tile_atlas(tiles)
+    assert atlas.shape == (64, 128, 3)
+    np.testing.assert_array_equal(atlas[:, :64], tiles[1001])
+    np.testing.assert_array_equal(atlas[:, 64:], tiles[1002])
+    np.testing.assert_array_equal(uv_scale, [0.5, 1.0])
     with pytest.raises(ValueError, match="tile"):
         bake_texture(m, m.vertices, [(coded_photo(), cam)], 64)
     with pytest.raises(ValueError, match="parts"):
@@ -402,6 +476,10 @@ def test_bad_input_names_the_culprit():
         bake_texture(m, m.vertices, [(good[..., 0], cam)], 32)
     with pytest.raises(ValueError, match=r"views\[1\].*96x128"):
         bake_texture(m, m.vertices, [(good, cam), (good[:, :50], cam)], 32)
+    nan = good.copy()
+    nan[3, 4, 1] = np.nan
+    with pytest.raises(ValueError, match=r"views\[0\].*NaN"):
+        bake_texture(m, m.vertices, [(nan, cam)], 32)
     with pytest.raises(ValueError, match=r"views\[0\].*camera"):
         bake_texture(m, m.vertices, [(good, "front")], 32)
     bad = m.vertices.copy()
@@ -449,7 +527,7 @@ def test_real_head_photos_coloured_by_height(model):
 def test_real_head_front_photo_lands_on_front_facing_skin(model):
     """A fitted-like pose (rotated, scaled, moved): every skin texel that faces the front
     camera squarely gets exactly the photo colour at its projection (ICT's winding gives
-    outward normals, and the occlusion test hides no visible skin beyond the ears' folds)."""
+    outward normals, and the occlusion test hides no visible skin but the ears' folds)."""
     ang = np.radians(5)
     rot = np.array([[np.cos(ang), -np.sin(ang), 0], [np.sin(ang), np.cos(ang), 0], [0, 0, 1]])
     scale, trans = 1.05, np.array([0.01, 0.0, -0.02])
@@ -472,6 +550,9 @@ def test_real_head_front_photo_lands_on_front_facing_skin(model):
         pts = r.interp @ world
         n = r.interp @ vn
         facing = -n[:, 1] / np.linalg.norm(n, axis=1) > 0.6
-        assert facing.sum() > 1000, tile
+        # leave out the cut at the neck's bottom: an outline in the photo, where the
+        # weight rightly fades (BakeOptions.feather)
+        facing &= pts[:, 2] > world[:, 2].min() + 0.04
+        assert facing.sum() > 500, tile
         err = np.abs(tex.reshape(-1, 3)[r.texel, :2] - cam.project(pts) / [w, h]).max(axis=1)
         assert np.mean(err[facing] < 0.01) > 0.99, tile

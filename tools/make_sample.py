@@ -42,7 +42,7 @@ REPO_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_OUT = REPO_ROOT / "generated" / "sample"
 DEFAULT_SEED = 7
 DEFAULT_SIZE = (768, 1024)  # the thesis' photo size
-DEFAULT_SAMPLES = 24
+DEFAULT_SAMPLES = 16
 NOISE_PX = 1.0  # landmark placement noise (standard deviation, pixels at 1024 px height)
 CONTOUR_POINTS = 128
 MAX_TILT_DEG = 3.0
@@ -167,7 +167,7 @@ def appearance_attributes(model):
     Returns
     -------
     dict of str -> ndarray (V,)
-        ``lips``, ``brows``, ``blush`` in [0, 1]; ``eye_r``: distance from the eye's axis
+        ``lips``, ``brows``, ``blush``, ``lash`` in [0, 1]; ``eye_r``: distance from the eye's axis
         in millimetres on the eyeballs' front (99 elsewhere).
     """
     v = model.vertices
@@ -212,6 +212,24 @@ def appearance_attributes(model):
         d2 = ((xz - c[[0, 2]]) ** 2).sum(axis=1)
         blush = np.maximum(blush, amp * np.exp(-d2 / (2 * sigma**2)))
     out["blush"] = np.where(face_part & (v[:, 1] < lm(31)[1] + 0.06), blush, 0.0)
+
+    # Lash line: dark upper lid margin (the lashes themselves are left out), faint lower.
+    edges, label = skin_border(model)
+    on_border = np.unique(edges)
+    lash = np.zeros(n)
+    for side in ("right", "left"):
+        corners = v[[model.landmark_vertex(f"eye_inner_{side}"),
+                     model.landmark_vertex(f"eye_outer_{side}")]]
+        centre = corners.mean(axis=0)
+        nearest = on_border[np.argmin(np.linalg.norm(v[on_border] - centre, axis=1))]
+        rim = v[on_border[label[on_border] == label[nearest]]]
+        near = np.flatnonzero(face_part & (np.linalg.norm(v - centre, axis=1) < 0.03))
+        d = np.linalg.norm(v[near, None, :] - rim[None], axis=2)
+        upper = rim[:, 2] >= centre[2]
+        w_up = _smoothstep(0.0024, 0.0008, d[:, upper].min(axis=1))
+        w_low = 0.4 * _smoothstep(0.0012, 0.0004, d[:, ~upper].min(axis=1))
+        lash[near] = np.maximum(w_up, w_low)
+    out["lash"] = lash
 
     # Eyes: radius from each eye's axis (the eyeball's centre, looking along -Y).
     eye_r = np.full(n, 99.0)
@@ -299,8 +317,10 @@ def _materials():
     stretch.inputs["Scale"].default_value = (0.25, 1.0, 1.0)
     nt.links.new(obj_co, stretch.inputs["Vector"])
     hairs = noise(nt, stretch.outputs["Vector"], 1500.0, 1.0)
-    hair_fac = math(nt, "MULTIPLY", attr(nt, "brows"), math(nt, "GREATER_THAN", hairs, 0.42))
-    col = mix(nt, math(nt, "MULTIPLY", hair_fac, 0.9), col, (0.06, 0.035, 0.02))
+    strands = math(nt, "ADD", math(nt, "MULTIPLY", hairs, 0.7), 0.45)  # 0.45 .. 1.15
+    hair_fac = math(nt, "MINIMUM", math(nt, "MULTIPLY", attr(nt, "brows"), strands), 1.0)
+    col = mix(nt, math(nt, "MULTIPLY", hair_fac, 0.95), col, (0.035, 0.02, 0.012))
+    col = mix(nt, math(nt, "MULTIPLY", attr(nt, "lash"), 0.9), col, (0.02, 0.012, 0.01))
     nt.links.new(col, bsdf.inputs["Base Color"])
     bsdf.inputs["Roughness"].default_value = 0.5
     bsdf.inputs["Subsurface Weight"].default_value = 0.25
@@ -346,6 +366,22 @@ def _materials():
     bsdf.inputs["Roughness"].default_value = 0.9
     return {"skin": skin, "eye": eye, "mouth": mouth, "teeth": teeth, "socket": socket,
             "shirt": shirt}
+
+
+def face_subset(model, keep):
+    """The polygons where ``keep`` (F,) is True as a mesh of their own.
+
+    Returns
+    -------
+    loops : ndarray, shape (L',)
+        The kept polygons' corners (indices into ``model.loop_vertex``/``loop_uv``).
+    face_loop_start, face_loop_total : ndarray, shape (F',)
+        Their layout in ``loops``.
+    """
+    start, total = model.face_loop_start[keep], model.face_loop_total[keep]
+    new_start = np.concatenate([[0], np.cumsum(total)[:-1]]).astype(np.int64)
+    loops = np.repeat(start - new_start, total) + np.arange(total.sum())
+    return loops, new_start, total
 
 
 def _face_materials(model):
@@ -480,47 +516,42 @@ def side_contour(alpha, cut_pixels, n_points=CONTOUR_POINTS, margin=None):
     return np.column_stack([np.interp(at, s, run[:, 0]), np.interp(at, s, run[:, 1])])
 
 
-def neck_cut_loop(model):
-    """Vertices of the skin's open boundary loop at the bottom of the neck, in loop order.
+def skin_border(model):
+    """The skin's open boundary (ICT face + head and neck are open at the neck, the mouth
+    and the eyes).
 
-    The skin (ICT face + head and neck) is open at the neck, the mouth and the eyes; the
-    loop holding the lowest skin vertex is the neck's cut.
+    Returns
+    -------
+    edges : ndarray, shape (E, 2)
+        Edges used by one skin polygon only.
+    label : ndarray, shape (V,)
+        Connected component of each vertex over those edges (one per opening).
     """
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    skin_face = np.isin(model.face_part, [model.part_names.index(p)
-                                          for p in ("Face", "Head and Neck")])
-    start = model.face_loop_start[skin_face]
-    total = model.face_loop_total[skin_face]
-    loops = np.concatenate([np.arange(s, s + t) for s, t in zip(start, total, strict=True)])
-    nxt = np.concatenate([np.r_[np.arange(s + 1, s + t), s]
-                          for s, t in zip(start, total, strict=True)])
-    a, b = model.loop_vertex[loops], model.loop_vertex[nxt]
-    e = np.sort(np.column_stack([a, b]), axis=1)
-    uniq, count = np.unique(e, axis=0, return_counts=True)
-    border = uniq[count == 1]
+    skin_parts = [model.part_names.index(p) for p in ("Face", "Head and Neck")]
+    start, total = model.face_loop_start, model.face_loop_total
+    face_of_loop = np.repeat(np.arange(start.size), total)
+    nxt = np.arange(model.loop_vertex.size) + 1
+    nxt[start + total - 1] = start  # close each polygon
+    on_skin = np.isin(model.face_part[face_of_loop], skin_parts)
+    a, b = model.loop_vertex[on_skin], model.loop_vertex[nxt[on_skin]]
+    uniq, count = np.unique(np.sort(np.column_stack([a, b]), axis=1), axis=0,
+                            return_counts=True)
+    edges = uniq[count == 1]
     n = model.n_vertices
-    g = coo_matrix((np.ones(len(border)), (border[:, 0], border[:, 1])), shape=(n, n))
-    _, label = connected_components(g, directed=False)
-    on_border = np.unique(border)
+    g = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
+    return edges, connected_components(g, directed=False)[1]
+
+
+def neck_cut_vertices(model):
+    """Vertices of the skin's opening at the bottom of the neck (the one holding the
+    lowest border vertex), shape (m,)."""
+    edges, label = skin_border(model)
+    on_border = np.unique(edges)
     lowest = on_border[np.argmin(model.vertices[on_border, 2])]
-    loop_edges = border[label[border[:, 0]] == label[lowest]]
-    # walk the loop
-    nbr = {}
-    for p, q in loop_edges:
-        nbr.setdefault(int(p), []).append(int(q))
-        nbr.setdefault(int(q), []).append(int(p))
-    order, prev, cur = [int(lowest)], None, int(lowest)
-    while True:
-        nxt_v = next((x for x in nbr[cur] if x != prev), None)
-        if nxt_v is None or nxt_v == order[0]:
-            break
-        order.append(nxt_v)
-        prev, cur = cur, nxt_v
-        if len(order) > len(loop_edges):
-            break
-    return np.asarray(order)
+    return on_border[label[on_border] == label[lowest]]
 
 
 # --------------------------------------------------------------------------- torso
@@ -569,7 +600,7 @@ def torso_mesh(local, skin, cut, n_around=72):
     skin : ndarray, shape (S,)
         Skin vertex indices.
     cut : ndarray, shape (m,)
-        The neck cut loop (``neck_cut_loop``).
+        The neck cut's vertices (``neck_cut_vertices``).
     n_around : int
         Vertices per ring.
 
@@ -592,6 +623,7 @@ def torso_mesh(local, skin, cut, n_around=72):
     z_cut = _circular_smooth(np.interp(theta, cut_ang[order], cut_pts[order, 2],
                                        period=2 * np.pi), 9)
     z_rim = np.maximum(z_cut + 0.015, z_cut.max() - 0.03)
+    z_rim = np.maximum(_circular_smooth(z_rim, 11), z_cut + 0.008)  # round the corners
     skin_pts = local[skin]
     gap = 0.0025
     r_rim = _circular_smooth(_skin_radius(skin_pts, centre, theta, z_rim), 5)
@@ -654,8 +686,6 @@ def render_views(model, local, pose, cameras, size, samples, seed, log):
     rim_world : ndarray, shape (n, 3)
         The collar's top edge in world space.
     """
-    import bpy
-
     from tools import render_util as ru
 
     t0 = time.perf_counter()
@@ -664,15 +694,12 @@ def render_views(model, local, pose, cameras, size, samples, seed, log):
     mats = _materials()
     slot = _face_materials(model)
     drawn = slot >= 0
-    starts = model.face_loop_start[drawn]
-    totals = model.face_loop_total[drawn]
-    loops = np.concatenate([np.arange(s, s + t) for s, t in zip(starts, totals, strict=True)])
-    new_start = np.concatenate([[0], np.cumsum(totals)[:-1]])
+    loops, new_start, totals = face_subset(model, drawn)
     head = ru.add_mesh("Head", local, model.loop_vertex[loops], new_start, totals,
                        loop_uv=model.loop_uv[loops], face_material=slot[drawn],
                        materials=[mats[s] for s in SLOTS],
                        point_attributes=appearance_attributes(model))
-    tv, tl, ts, tt, rim = torso_mesh(local, model.skin, neck_cut_loop(model))
+    tv, tl, ts, tt, rim = torso_mesh(local, model.skin, neck_cut_vertices(model))
     shirt = ru.add_mesh("Shirt", tv, tl, ts, tt, materials=[mats["shirt"]])
     solid = shirt.modifiers.new("Cloth thickness", "SOLIDIFY")
     solid.thickness = 0.002
@@ -684,17 +711,11 @@ def render_views(model, local, pose, cameras, size, samples, seed, log):
     out, cam_objs = {}, {}
     for view, cam in cameras.items():
         cam_objs[view] = ru.add_ortho_camera(cam, name=f"Camera {view}")
-    scene = bpy.context.scene
     for i, view in enumerate(cameras):
         t = time.perf_counter()
         rgba = ru.render_rgba(cam_objs[view])
         photo = ru.composite(rgba, ru.backdrop(size, seed=seed + 10 + i))
-        # the head's own silhouette: the shirt held out, a few samples suffice for alpha
-        shirt.is_holdout = True
-        scene.cycles.samples, scene.cycles.use_denoising = 4, False
-        head_alpha = ru.render_rgba(cam_objs[view])[..., 3]
-        shirt.is_holdout = False
-        scene.cycles.samples, scene.cycles.use_denoising = samples, True
+        head_alpha = ru.render_alpha(cam_objs[view], holdout=[shirt])  # the head alone
         out[view] = {"photo": photo, "alpha": rgba[..., 3], "head_alpha": head_alpha}
         log(f"  rendered {view} ({size[0]}x{size[1]}, {samples} samples) in "
             f"{time.perf_counter() - t:.1f} s")
@@ -803,7 +824,7 @@ def _make_into(folder, model, seed, size, samples, params, log):
 
     coeffs, local, rotation, translation = sample_head(model, seed)
     world = local @ rotation.T + translation
-    rim_local = torso_mesh(local, model.skin, neck_cut_loop(model))[4]
+    rim_local = torso_mesh(local, model.skin, neck_cut_vertices(model))[4]
     collar_z = float((rim_local @ rotation.T + translation)[:, 2].mean())
     cameras = frame_cameras(world, collar_z, size, seed)
     renders, cam_objs, rim = render_views(model, local, (rotation, translation), cameras,

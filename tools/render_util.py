@@ -24,7 +24,12 @@ def new_scene(size, samples, denoise=True):
     so one render never inherits another's objects, materials or settings.
     """
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
+    return configure_cycles(bpy.context.scene, size, samples, denoise)
+
+
+def configure_cycles(scene, size, samples, denoise=True):
+    """Cycles on the CPU, ``samples`` per pixel (OpenImageDenoise unless ``denoise`` is
+    False), a transparent film and 8-bit RGBA PNG output of ``size`` (w, h)."""
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"
     scene.cycles.samples = int(samples)
@@ -185,12 +190,12 @@ def add_light(kind, location, target, energy, size=1.0, color=(1.0, 1.0, 1.0), n
     return obj
 
 
-def studio_lighting(center, world_strength=0.25):
+def studio_lighting(center, world_strength=0.2):
     """Soft portrait lighting around ``center``: a large key from the subject's front right
     (it lights both the front and the right-side photo), a fill from the front left, a
     rim from behind, and a dim grey world for ambient light."""
     c = np.asarray(center, dtype=np.float64)
-    add_light("AREA", c + (-1.0, -1.4, 0.7), c, 90.0, size=1.2, color=(1.0, 0.96, 0.9),
+    add_light("AREA", c + (-1.0, -1.4, 0.7), c, 75.0, size=1.2, color=(1.0, 0.96, 0.9),
               name="Key")
     add_light("AREA", c + (1.4, -1.0, 0.1), c, 30.0, size=1.5, color=(0.92, 0.96, 1.0),
               name="Fill")
@@ -201,6 +206,41 @@ def studio_lighting(center, world_strength=0.25):
     bg.inputs["Color"].default_value = (0.55, 0.56, 0.58, 1.0)
     bg.inputs["Strength"].default_value = world_strength
     bpy.context.scene.world = world
+
+
+def vertex_color_material(name, attribute):
+    """A matte material coloured by a per-vertex colour attribute (e.g. an error map)."""
+    mat = bpy.data.materials.new(name)
+    nt = mat.node_tree
+    bsdf = nt.nodes.get("Principled BSDF")
+    node = nt.nodes.new("ShaderNodeAttribute")
+    node.attribute_name = attribute
+    nt.links.new(node.outputs["Color"], bsdf.inputs["Base Color"])
+    bsdf.inputs["Roughness"].default_value = 0.7
+    return mat
+
+
+def render_alpha(cam_obj, holdout=()):
+    """Coverage only, (h, w) float32: what ``render_rgba`` would give as alpha, with the
+    objects in ``holdout`` cut out. Shading is replaced by one plain material and two
+    samples without bounces, so it costs a fraction of a real render."""
+    scene = bpy.context.scene
+    layer = bpy.context.view_layer
+    saved = (scene.cycles.samples, scene.cycles.use_denoising, scene.cycles.max_bounces,
+             layer.material_override)
+    plain = bpy.data.materials.new("Alpha only")
+    try:
+        scene.cycles.samples, scene.cycles.use_denoising, scene.cycles.max_bounces = 2, False, 0
+        layer.material_override = plain
+        for obj in holdout:
+            obj.is_holdout = True
+        return render_rgba(cam_obj)[..., 3]
+    finally:
+        for obj in holdout:
+            obj.is_holdout = False
+        (scene.cycles.samples, scene.cycles.use_denoising, scene.cycles.max_bounces,
+         layer.material_override) = saved
+        bpy.data.materials.remove(plain)
 
 
 def render_rgba(cam_obj):

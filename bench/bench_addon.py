@@ -1,0 +1,142 @@
+"""Benchmark of the add-on: the Fit operator end to end (landmarks from the scene, fit,
+texture bake, all shape keys written on the whole head) and one live-refit update.
+
+    python -m bench.bench_addon [--case generated/sample/sample.json] [--repeat 3]
+
+Targets: Fit <= 1.5 s on the sample case, a live refit update <= 50 ms. Uses the sample
+case when it exists (``./run sample``), else a synthetic case with generated photos.
+"""
+
+import argparse
+import os
+import platform
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+import bpy  # noqa: E402
+import numpy as np  # noqa: E402
+
+SAMPLE = ROOT / "generated" / "sample" / "sample.json"
+
+
+def cpu_model():
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def _synthetic_case(folder):
+    from PIL import Image
+
+    from solver import landmarks_file, synthetic
+    from solver.model import load_model
+
+    case, _ = synthetic.make_case(load_model(), 0)
+    for name, view in case.views.items():
+        w, h = view.size
+        u = np.linspace(0, 1, w)[None, :, None]
+        v = np.linspace(0, 1, h)[:, None, None]
+        rgb = np.concatenate([0.3 + 0.4 * u + 0 * v, 0.3 + 0.4 * v + 0 * u,
+                              0.5 + 0 * u + 0 * v], axis=2)
+        Image.fromarray((rgb * 255).astype(np.uint8)).save(Path(folder) / f"{name}.png")
+        view.image = f"{name}.png"
+    path = Path(folder) / "synthetic.json"
+    case.source = str(path)
+    landmarks_file.save_landmarks(case, path)
+    return path
+
+
+def _scene(case_path):
+    import headrecon_addon
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    if not headrecon_addon.is_registered():
+        headrecon_addon.register()
+    assert bpy.ops.headrecon.import_landmarks(filepath=str(case_path)) == {"FINISHED"}
+    return bpy.context.scene
+
+
+def bench_fit(case_path, repeat):
+    """Seconds of the Fit operator: the first fit (makes the head) and re-fits."""
+    from headrecon_addon import fit_ops
+
+    first, again, parts = [], [], []
+    for _ in range(repeat):
+        scene = _scene(case_path)
+        t = time.perf_counter()
+        assert bpy.ops.headrecon.fit() == {"FINISHED"}
+        first.append(time.perf_counter() - t)
+        t = time.perf_counter()
+        head, job = fit_ops.run_fit(scene)
+        again.append(time.perf_counter() - t)
+        parts.append(job.timings)
+    return first, again, parts, scene
+
+
+def bench_live(scene, moves):
+    """Milliseconds of one live refit: a landmark moves, the depsgraph handler refits and
+    updates the key values, the detail key and the transform."""
+    from headrecon_addon import fit_ops, landmarks, photos
+
+    scene.headrecon.live_refit = True
+    bpy.context.view_layer.update()
+    plane = photos.photo_planes(scene)[0]
+    obj = next(iter(landmarks.landmark_objects(plane).values()))
+    times, solver_ms = [], []
+    for i in range(moves):
+        obj.location.x += 0.0005 * (1 if i % 2 == 0 else -1)
+        t = time.perf_counter()
+        bpy.context.view_layer.update()  # runs the handler (and the depsgraph)
+        times.append((time.perf_counter() - t) * 1000.0)
+        solver_ms.append(fit_ops.live_stats()["ms"])
+        if fit_ops.live_stats()["error"]:
+            raise RuntimeError(fit_ops.live_stats()["error"])
+    scene.headrecon.live_refit = False
+    return times, solver_ms
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(prog="python -m bench.bench_addon")
+    p.add_argument("--case", default=None, help="landmarks file (default: the sample case)")
+    p.add_argument("--repeat", type=int, default=3)
+    p.add_argument("--moves", type=int, default=20)
+    args = p.parse_args(argv)
+    print(f"machine: {cpu_model()}, {os.cpu_count()} cores; Blender {bpy.app.version_string}")
+    with tempfile.TemporaryDirectory() as tmp:
+        if args.case:
+            case = Path(args.case)
+        elif SAMPLE.is_file():
+            case = SAMPLE
+        else:
+            case = _synthetic_case(tmp)
+            print("sample case missing (./run sample): using a synthetic case")
+        print(f"case: {case}")
+        first, again, parts, scene = bench_fit(case, args.repeat)
+        head = scene.headrecon.head
+        n_keys = len(head.data.shape_keys.key_blocks)
+        print(f"fit operator, first fit (makes the head): median {statistics.median(first):.3f} s"
+              f"  (runs: {', '.join(f'{t:.3f}' for t in first)})")
+        print(f"fit operator, re-fit: median {statistics.median(again):.3f} s  "
+              f"(target <= 1.5 s; {n_keys} shape keys on {len(head.data.vertices)} vertices)")
+        last = parts[-1]
+        print("  of which: " + ", ".join(f"{k} {v:.3f} s" for k, v in last.items()))
+        times, solver_ms = bench_live(scene, args.moves)
+        print(f"live refit update: median {statistics.median(times):.1f} ms, max "
+              f"{max(times):.1f} ms (target <= 50 ms; refit + key update inside the handler: "
+              f"median {statistics.median(solver_ms):.1f} ms)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,105 @@
+"""The sidebar panels draw in every state of the flow (empty scene, photos with landmarks,
+fitted head) with real properties, operators and icons. Background Blender draws no UI,
+so each panel's draw() runs against a layout double that checks every name it is given
+against Blender's RNA."""
+
+import types
+
+import bpy
+import pytest
+from addon_support import addon, empty_scene, synthetic_files
+
+ICONS = set(bpy.types.UILayout.bl_rna.functions["label"].parameters["icon"].enum_items.keys())
+
+
+class _OpProps:
+    def __init__(self, idname):
+        cat, name = idname.split(".")
+        self.__dict__["_rna"] = getattr(getattr(bpy.ops, cat), name).get_rna_type()
+
+    def __setattr__(self, key, value):
+        assert key in self._rna.properties, f"{self._rna.identifier} has no property {key!r}"
+
+
+class Layout:
+    """Records what a panel draws; asserts names exist."""
+
+    def __init__(self, log):
+        self.__dict__["log"] = log
+
+    def __setattr__(self, key, value):  # use_property_split, enabled, ...
+        assert hasattr(bpy.types.UILayout, key) or key in bpy.types.UILayout.bl_rna.properties
+
+    def _icon(self, kw):
+        icon = kw.get("icon", "NONE")
+        assert icon in ICONS, f"unknown icon {icon!r}"
+
+    def row(self, **kw):
+        return Layout(self.log)
+
+    column = box = split = row
+
+    def label(self, text="", **kw):
+        self._icon(kw)
+        self.log.append(("label", text))
+
+    def prop(self, data, name, **kw):
+        self._icon(kw)
+        assert name in data.bl_rna.properties, f"{data!r} has no property {name!r}"
+        self.log.append(("prop", name))
+
+    def operator(self, idname, **kw):
+        self._icon(kw)
+        cat, name = idname.split(".")
+        assert hasattr(bpy.types, f"{cat.upper()}_OT_{name}"), f"no operator {idname}"
+        self.log.append(("operator", idname))
+        return _OpProps(idname)
+
+    def template_list(self, listtype, list_id, data, propname, active_data, active_propname,
+                      **kw):
+        assert hasattr(bpy.types, listtype)
+        assert propname in data.bl_rna.properties
+        assert active_propname in active_data.bl_rna.properties
+        self.log.append(("list", propname))
+
+
+def _draw_all():
+    import headrecon_addon
+
+    log = []
+    for cls in headrecon_addon.panels.CLASSES:
+        if issubclass(cls, bpy.types.Panel):
+            cls.draw(types.SimpleNamespace(layout=Layout(log)), bpy.context)
+    return log
+
+
+@pytest.fixture(scope="module")
+def files(model, tmp_path_factory):
+    addon()
+    return synthetic_files(model, tmp_path_factory.mktemp("ui"), seed=21)
+
+
+def test_panels_draw_through_the_flow(files):
+    path, case, _ = files
+    empty_scene()
+    log = _draw_all()
+    assert ("operator", "headrecon.add_head") in log
+    assert ("operator", "headrecon.load_photo") in log
+    assert ("label", "Load the photos first") in log
+
+    assert bpy.ops.headrecon.import_landmarks(filepath=str(path)) == {"FINISHED"}
+    log = _draw_all()
+    assert ("operator", "headrecon.place_landmarks") in log
+    assert ("operator", "headrecon.draw_contour") in log
+    assert any(k == "label" and t.startswith("front: ") and "placed" in t for k, t in log)
+    assert ("prop", "n_identity") in log and ("prop", "lambda2") in log
+
+    scene = bpy.context.scene
+    scene.headrecon.bake_texture = False
+    scene.headrecon.n_identity = 10
+    assert bpy.ops.headrecon.fit() == {"FINISHED"}
+    scene.headrecon.live_refit = True
+    log = _draw_all()
+    assert ("list", "residuals") in log
+    assert any(k == "label" and t.startswith("RMS residual: ") for k, t in log)
+    scene.headrecon.live_refit = False

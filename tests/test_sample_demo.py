@@ -1,0 +1,187 @@
+"""The sample case (tools/make_sample.py) and the demo (tools/demo.py).
+
+Both run once per session at a reduced size (384x512 photos, 4 samples per pixel) in
+subprocesses, so Blender's global state never mixes with other tests.
+"""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+from scipy import ndimage
+
+from solver.cameras import camera_from_dict
+from solver.landmarks_file import load_landmarks
+from tools.make_sample import make_sample, trace_outline
+
+ROOT = Path(__file__).resolve().parent.parent
+SIZE = (384, 512)
+ARGS = ["--size", f"{SIZE[0]}x{SIZE[1]}", "--samples", "4"]
+# The fitted head's RMS distance to the true one over the skin (after similarity
+# alignment) must stay under this, and well under the mean head's distance.
+MAX_RMS_MM = 2.0
+MAX_SHARE_OF_MEAN_HEAD = 0.6
+
+
+def _run(module, *args):
+    proc = subprocess.run([sys.executable, "-m", module, *args], cwd=ROOT,
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, f"{module} failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
+    return proc.stdout
+
+
+@pytest.fixture(scope="module")
+def sample(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("sample") / "sample"
+    _run("tools.make_sample", "--out", str(folder), *ARGS)
+    with np.load(folder / "truth.npz", allow_pickle=False) as t:
+        truth = {k: t[k] for k in t.files}
+    return folder, truth
+
+
+@pytest.fixture(scope="module")
+def demo(sample, tmp_path_factory):
+    folder, _ = sample
+    out = tmp_path_factory.mktemp("demo") / "demo"
+    stdout = _run("tools.demo", "--out", str(out), "--sample", str(folder), *ARGS,
+                  "--panel-height", "256")
+    return out, json.loads((out / "report.json").read_text()), stdout
+
+
+def _views(case):
+    return {name: v for name, v in case.views.items()}
+
+
+def test_sample_is_a_valid_landmarks_file(sample, model):
+    folder, truth = sample
+    case = load_landmarks(folder / "sample.json", known_names=model)
+    views = _views(case)
+    assert set(views) == {"front", "side"}
+    assert views["front"].camera.view == "orthographic-front"
+    assert views["side"].camera.view == "orthographic-right"
+    for name, v in views.items():
+        assert v.size == SIZE
+        with Image.open(case.image_path(name)) as im:
+            assert im.size == SIZE and im.mode == "RGB"
+        assert len(v.points) >= 30, name
+        assert set(v.points) == set(json.loads(str(truth["landmark_names"]))[name])
+    assert views["front"].contour is None
+    assert 100 <= len(views["side"].contour) <= 150
+    # side landmarks are the subject's right side and the midline, never the left side
+    assert not [n for n in views["side"].points if n.endswith("_left")]
+
+
+def test_truth_is_consistent(sample, model):
+    _, t = sample
+    local = model.identity.instance(t["identity_coeffs"])
+    np.testing.assert_allclose(t["local_vertices"], local, atol=1e-9)
+    r = t["rotation"]
+    np.testing.assert_allclose(r @ r.T, np.eye(3), atol=1e-12)
+    assert np.linalg.det(r) == pytest.approx(1.0)
+    assert np.degrees(np.arccos((np.trace(r) - 1) / 2)) < 6.0  # a few degrees of tilt
+    np.testing.assert_allclose(t["world_vertices"], local @ r.T + t["translation"], atol=1e-12)
+    assert not np.allclose(t["identity_coeffs"], 0.0)
+
+
+def test_points_are_the_projected_landmarks(sample, model):
+    folder, t = sample
+    case = load_landmarks(folder / "sample.json", known_names=model)
+    cams = {k: camera_from_dict(d) for k, d in json.loads(str(t["cameras"])).items()}
+    for name, v in case.views.items():
+        names, vertices, placed = v.arrays(model)
+        exact = t[f"exact_{name}"]
+        # the stored camera reproduces Blender's projection (checked at render time too)
+        np.testing.assert_allclose(cams[name].project(t["world_vertices"][vertices]), exact,
+                                   atol=0.05)
+        noise = placed - exact
+        assert 0.2 < noise.std() < 1.0  # ~1 px at 1024 px height, scaled to 512
+        assert np.abs(noise).max() < 3.0
+        # landmarks sit on the head in the render (within 2 px of its silhouette)
+        mask = t[f"head_alpha_{name}"] >= 128
+        grown = ndimage.binary_dilation(mask, iterations=2)
+        col = np.clip(exact[:, 0].astype(int), 0, SIZE[0] - 1)
+        row = np.clip(exact[:, 1].astype(int), 0, SIZE[1] - 1)
+        assert grown[row, col].all(), [n for n, ok in zip(names, grown[row, col],
+                                                          strict=True) if not ok]
+    # the nose tip is well inside the front view's head (in the side view it is on the
+    # outline: see the contour test)
+    names, _, _ = case.views["front"].arrays(model)
+    u, v = t["exact_front"][names.index("nose_tip")].astype(int)
+    assert ndimage.binary_erosion(t["head_alpha_front"] >= 128, iterations=10)[v, u]
+
+
+def test_side_contour_traces_the_head_outline(sample, model):
+    folder, t = sample
+    case = load_landmarks(folder / "sample.json", known_names=model)
+    contour = case.views["side"].contour
+    mask = t["head_alpha_side"] >= 128
+    outline = mask & ~ndimage.binary_erosion(mask)
+    dist = ndimage.distance_transform_edt(~outline)
+    col = np.clip(contour[:, 0].astype(int), 0, SIZE[0] - 1)
+    row = np.clip(contour[:, 1].astype(int), 0, SIZE[1] - 1)
+    assert dist[row, col].max() <= 2.0
+    # drawing order: from the front of the neck over the face and skull to the back
+    assert contour[0, 0] > contour[-1, 0]
+    step = np.linalg.norm(np.diff(contour, axis=0), axis=1)
+    assert step.max() < 1.5 * np.median(step)
+    top = contour[:, 1].argmin()
+    assert 0 < top < len(contour) - 1  # the skull top lies between the two neck ends
+    # the nose tip is on the profile outline
+    names, _, _ = case.views["side"].arrays(model)
+    nose = t["exact_side"][names.index("nose_tip")]
+    assert np.linalg.norm(contour - nose, axis=1).min() < 4.0
+
+
+def test_sample_is_reused_when_up_to_date(sample, model):
+    folder, _ = sample
+    before = {p.name: p.stat().st_mtime_ns for p in folder.iterdir()}
+    messages = []
+    make_sample(folder, size=SIZE, samples=4, model=model, log=messages.append)
+    assert messages == [f"sample up to date: {folder}"]
+    assert {p.name: p.stat().st_mtime_ns for p in folder.iterdir()} == before
+
+
+def test_trace_outline_walks_the_boundary_in_order():
+    y, x = np.mgrid[0:40, 0:50]
+    mask = (x - 25) ** 2 + (y - 20) ** 2 < 15**2
+    mask[18:23, 30:] = False  # a notch: not star-shaped seen from the right
+    path = trace_outline(mask)
+    outline = mask & ~ndimage.binary_erosion(mask)
+    assert mask[path[:, 0], path[:, 1]].all()
+    assert {tuple(p) for p in path} == {tuple(p) for p in np.argwhere(outline)}
+    step = np.abs(np.diff(np.vstack([path, path[:1]]), axis=0)).max(axis=1)
+    assert (step == 1).all()  # 8-connected, closed
+
+
+def test_demo_writes_everything_and_fits_the_truth(demo, model):
+    out, report, stdout = demo
+    for name in ("head.blend", "head.obj", "head.mtl", "head_texture.png", "preview.png",
+                 "report.json"):
+        assert (out / name).is_file() and (out / name).stat().st_size > 0, name
+    assert report["requested_method"] == "combined"
+    err = report["vertex_error"]
+    assert err["rms_mm"] < MAX_RMS_MM
+    assert err["rms_mm"] < MAX_SHARE_OF_MEAN_HEAD * report["mean_head_error_mm"]
+    assert report["residual_rms_px"] < 3.0
+    assert "vertex error" in stdout and "landmark residual" in stdout
+    with Image.open(out / "preview.png") as im:
+        assert im.width == 3 * 192 and im.height > 2 * 256  # 3 columns, 2 rows + caption
+    with Image.open(out / "head_texture.png") as im:
+        assert im.size == (2048, 1024)  # two UDIM tiles side by side
+    from tools.obj_io import read_obj
+
+    obj = read_obj(out / "head.obj")
+    assert obj.positions.shape == (model.n_vertices, 3)
+    assert "map_Kd head_texture.png" in (out / "head.mtl").read_text()
+
+
+def test_demo_refuses_without_a_fit(monkeypatch):
+    import tools.demo as demo_mod
+
+    monkeypatch.setitem(sys.modules, "solver.fit", None)  # import fails like a missing fit
+    with pytest.raises(demo_mod.DemoError, match="fit is not available"):
+        demo_mod._fit_api()
