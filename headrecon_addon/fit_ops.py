@@ -107,21 +107,33 @@ class FitJob:
         self.fraction = float(fraction)
         self.message = str(message)
 
-    def run(self):
-        """Fit (and bake). Errors are kept in ``error``, never raised."""
+    def run_fit(self):
+        """The fit. Errors are kept in ``error``, never raised."""
         try:
             t = time.perf_counter()
             self.options = dataclasses.replace(self.options, progress=self.progress)
             self.result = fit_head(self.model, self.case, self.options)
             self.timings["fit"] = time.perf_counter() - t
-            if self.bake and self.photos:
-                self.progress(1.0, "baking the texture")
-                t = time.perf_counter()
-                self.textures = bake_fit_texture(self.model, self.result, self.photos,
-                                                 size=self.texture_size)
-                self.timings["bake"] = time.perf_counter() - t
         except BaseException as e:  # noqa: B036  (kept for the main thread to report)
             self.error = e
+
+    def run_bake(self):
+        """The texture bake (after ``run_fit``). Errors are kept in ``error``."""
+        if self.error is not None or not (self.bake and self.photos):
+            return
+        try:
+            self.progress(1.0, "baking the texture")
+            t = time.perf_counter()
+            self.textures = bake_fit_texture(self.model, self.result, self.photos,
+                                             size=self.texture_size)
+            self.timings["bake"] = time.perf_counter() - t
+        except BaseException as e:  # noqa: B036
+            self.error = e
+
+    def run(self):
+        """Fit, then bake (the interactive operator's thread)."""
+        self.run_fit()
+        self.run_bake()
 
 
 def prepare_job(scene):
@@ -239,7 +251,9 @@ def rms_residual(result):
 
 
 def update_residuals(scene, result):
-    """Fill the residual list (flagged first, then worst first) and colour the landmarks."""
+    """Fill the residual list (flagged first, then worst first) and colour the landmarks.
+    Cheap enough for every live refit: rows are rewritten in place, a landmark's material
+    only changes when its flag does."""
     rows = []
     for view, r in result.residuals.items():
         flagged = set(r.flagged)
@@ -247,11 +261,14 @@ def update_residuals(scene, result):
             rows.append((name in flagged, float(px), view, name))
     rows.sort(key=lambda t: (not t[0], -t[1]))
     props = scene.headrecon
-    props.residuals.clear()
-    for flagged, px, view, name in rows:
-        item = props.residuals.add()
+    items = props.residuals
+    if len(items) != len(rows):
+        items.clear()
+        for _ in rows:
+            items.add()
+        props.residual_index = -1
+    for item, (flagged, px, view, name) in zip(items, rows, strict=True):
         item.view, item.landmark, item.pixels, item.flagged = view, name, px, flagged
-    props.residual_index = -1
     by_view = {}
     for flagged, px, view, name in rows:
         by_view.setdefault(view, {})[name] = (flagged, px)
@@ -259,8 +276,10 @@ def update_residuals(scene, result):
         res = by_view.get(plane.headrecon.view, {})
         for name, obj in landmarks.landmark_objects(plane).items():
             flagged, px = res.get(name, (False, -1.0))
-            if obj.headrecon.flagged != flagged or obj.headrecon.residual_px != px:
+            if obj.headrecon.flagged != flagged:
                 landmarks.set_landmark_state(obj, flagged, px)
+            else:
+                obj.headrecon.residual_px = px
 
 
 def apply_result(scene, model, result, textures=None, head=None, name=None):
@@ -304,7 +323,7 @@ def apply_result(scene, model, result, textures=None, head=None, name=None):
             scene.collection.objects.link(head)
     scene.headrecon.head = head
     head.matrix_world = similarity_matrix(result)
-    head.headrecon.fit_method = str(result.info.get("chosen", result.method))
+    head.headrecon.fit_method = str(result.info.get("approach", result.method))
     head.headrecon.fit_rms_px = rms_residual(result)
     update_residuals(scene, result)
     centre = result.world_vertices[model.skin].mean(axis=0)
@@ -315,32 +334,57 @@ def apply_result(scene, model, result, textures=None, head=None, name=None):
     return head
 
 
-def apply_job(scene, job):
-    """Main-thread half of a fit: write the job's result; remember it for live refit."""
+def apply_job(scene, job, textures=True):
+    """Main-thread half of a fit: write the job's result (and its baked texture unless
+    ``textures`` is False); remember the result for live refits."""
     t = time.perf_counter()
-    head = apply_result(scene, job.model, job.result, job.textures)
+    head = apply_result(scene, job.model, job.result, job.textures if textures else None)
     job.timings["write"] = time.perf_counter() - t
     remember_fit(scene, head, job.model, job.result, job.options)
-    flagged = job.result.flagged()
-    scene.headrecon.status = (f"{head.headrecon.fit_method}: RMS "
-                              f"{head.headrecon.fit_rms_px:.2f} px, {len(flagged)} flagged, "
-                              f"{sum(job.timings.values()):.2f} s")
+    _status(scene, head, job)
     return head
 
 
+def _status(scene, head, job):
+    flagged = job.result.flagged()
+    total = job.timings.get("total", sum(job.timings.values()))
+    scene.headrecon.status = (f"{head.headrecon.fit_method}: RMS "
+                              f"{head.headrecon.fit_rms_px:.2f} px, {len(flagged)} flagged, "
+                              f"{total:.2f} s")
+
+
 def run_fit(scene):
-    """Synchronous fit of the scene (background mode, scripts, tests).
+    """Synchronous fit of the scene (background mode, scripts, tests, redo).
+
+    The texture bake runs in a thread while the shape keys are written (it needs the fit,
+    not the keys). A failed bake leaves the fitted shape and raises nothing: its error is
+    in ``job.error`` and the status line.
 
     Returns
     -------
     head : bpy.types.Object
     job : FitJob
     """
+    t0 = time.perf_counter()
     job = prepare_job(scene)
-    job.run()
+    job.run_fit()
     if job.error is not None:
         raise job.error
-    return apply_job(scene, job), job
+    baker = threading.Thread(target=job.run_bake, name="HeadRecon bake", daemon=True)
+    baker.start()
+    try:
+        head = apply_job(scene, job, textures=False)
+    finally:
+        baker.join()
+    if job.error is None and job.textures:
+        t = time.perf_counter()
+        write_textures(head, job.model, job.textures)
+        job.timings["write"] += time.perf_counter() - t
+    job.timings["total"] = time.perf_counter() - t0
+    _status(scene, head, job)
+    if job.error is not None:
+        scene.headrecon.status += f"; texture not baked: {job.error}"
+    return head, job
 
 
 # --------------------------------------------------------------------------------------
@@ -348,7 +392,7 @@ def run_fit(scene):
 
 
 _live = {"base": None, "result": None, "model": None, "options": None, "head": "",
-         "signature": None, "busy": False, "ms": 0.0, "error": ""}
+         "signature": None, "busy": False, "ms": 0.0, "error": "", "moved_at": 0.0}
 
 
 def remember_fit(scene, head, model, result, options):
@@ -383,8 +427,20 @@ def live_stats():
     return {"ms": _live["ms"], "error": _live["error"], "ready": live_ready()}
 
 
-def live_refit_step(scene, force=False):
+DRAG_SETTLE = 0.3  # seconds without a landmark move that end a drag
+
+
+def live_refit_step(scene, force=False, drag=True):
     """Refit if a landmark moved since the last step (or ``force``).
+
+    Parameters
+    ----------
+    force : bool
+        Refit even if nothing moved.
+    drag : bool
+        Show the refit in drag mode (``shape_keys.show_live_shape``: one key to evaluate
+        per frame); a timer settles the keys once the landmarks rest for DRAG_SETTLE
+        seconds (``finish_live_drag``). False writes the settled form at once.
 
     Returns
     -------
@@ -404,7 +460,8 @@ def live_refit_step(scene, force=False):
     case = landmarks.case_from_scene(scene)
     model = _live["model"]
     result = refit_landmarks(model, case, _live["base"], _live["options"])
-    if not shape_keys.update_fit_values(head, model, result):
+    write = shape_keys.show_live_shape if drag else shape_keys.update_fit_values
+    if not write(head, model, result):
         _live["error"] = "the head's shape keys changed: run Fit again"
         return None
     head.matrix_world = similarity_matrix(result)
@@ -413,7 +470,30 @@ def live_refit_step(scene, force=False):
     _live["result"] = result
     _live["ms"] = (time.perf_counter() - t) * 1000.0
     _live["error"] = ""
+    _live["moved_at"] = time.monotonic()
+    if drag and not bpy.app.timers.is_registered(_settle_timer):
+        bpy.app.timers.register(_settle_timer, first_interval=DRAG_SETTLE)
     return result
+
+
+def finish_live_drag():
+    """Settle the head's keys after a drag (coefficients + detail again). Returns True if
+    there was a drag to settle."""
+    head = bpy.data.objects.get(_live["head"]) if _live["head"] else None
+    if head is None or head.type != "MESH" or not shape_keys.in_live_shape(head):
+        return False
+    return shape_keys.settle_live_shape(head)
+
+
+def _settle_timer():
+    rest = time.monotonic() - _live.get("moved_at", 0.0)
+    if rest < DRAG_SETTLE:
+        return DRAG_SETTLE - rest
+    try:
+        finish_live_drag()
+    except Exception as e:  # a timer must not raise
+        _live["error"] = str(e)
+    return None
 
 
 @persistent
@@ -435,6 +515,9 @@ def _on_depsgraph_update(scene, depsgraph):
 @persistent
 def _on_load(*_args):
     forget_fit()
+    for obj in bpy.data.objects:  # a file saved mid-drag by another path than Save
+        if obj.type == "MESH" and shape_keys.in_live_shape(obj):
+            shape_keys.settle_live_shape(obj)
 
 
 def pack_baked_textures():
@@ -447,6 +530,7 @@ def pack_baked_textures():
 
 @persistent
 def _on_save_pre(*_args):
+    finish_live_drag()
     pack_baked_textures()
 
 
@@ -466,6 +550,8 @@ def unregister_handlers():
         handlers = getattr(bpy.app.handlers, kind)
         while fn in handlers:
             handlers.remove(fn)
+    if bpy.app.timers.is_registered(_settle_timer):
+        bpy.app.timers.unregister(_settle_timer)
     forget_fit()
 
 
@@ -506,7 +592,8 @@ class HEADRECON_OT_fit(bpy.types.Operator):
             self.report({"ERROR"}, f"The fit failed: {type(e).__name__}: {e}")
 
     def _done(self, context, head, job):
-        self.report({"INFO"}, f"Fitted {head.name}: {context.scene.headrecon.status}")
+        level = "WARNING" if job.error is not None else "INFO"
+        self.report({level}, f"Fitted {head.name}: {context.scene.headrecon.status}")
 
     def execute(self, context):
         try:
@@ -526,6 +613,7 @@ class HEADRECON_OT_fit(bpy.types.Operator):
             self._report_error(e)
             return {"CANCELLED"}
         self.job = job
+        self.t0 = time.perf_counter()
         _running["job"] = job
         self.thread = threading.Thread(target=job.run, name="HeadRecon fit", daemon=True)
         self.thread.start()
@@ -567,6 +655,7 @@ class HEADRECON_OT_fit(bpy.types.Operator):
             self._report_error(self.job.error)
             return {"CANCELLED"}
         try:
+            self.job.timings["total"] = time.perf_counter() - self.t0
             head = apply_job(context.scene, self.job)
         except Exception as e:
             self._report_error(e)
@@ -591,7 +680,7 @@ class HEADRECON_OT_live_refit_now(bpy.types.Operator):
 
     def execute(self, context):
         try:
-            live_refit_step(context.scene, force=True)
+            live_refit_step(context.scene, force=True, drag=False)
         except Exception as e:
             self.report({"ERROR"}, f"Quick refit failed: {e}")
             return {"CANCELLED"}

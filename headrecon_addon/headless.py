@@ -161,7 +161,7 @@ def fit_file(path, out, model, options=None, texture_size=1024, bake=True, glb=F
     written = [save_blend(out)]
     if glb:
         written.append(export_glb(Path(out).with_suffix(".glb"), head))
-    return {"name": Path(path).stem, "method": str(result.info.get("chosen", result.method)),
+    return {"name": Path(path).stem, "method": str(result.info.get("approach", result.method)),
             "rms_px": rms_px(result), "flagged": len(result.flagged()),
             "seconds": time.perf_counter() - t0, "outputs": [str(p) for p in written]}
 
@@ -242,9 +242,24 @@ def main(argv):
     return 1 if failed else 0
 
 
+def exit_process(code):
+    """Exit with ``code``. The bpy module before 4.4 crashes while Python shuts down
+    (Blender issue #125376, exit status -11 whatever the script returned), so there the
+    process ends at once, after flushing its output."""
+    import bpy as _bpy
+
+    sys.stdout.flush()
+    sys.stderr.flush()
+    if not _bpy.app.binary_path and _bpy.app.version < (4, 4, 0):
+        import os
+
+        os._exit(code)
+    sys.exit(code)
+
+
 if __name__ == "__main__":
     if not __package__:  # run as a file by `blender -b -P`: import as the package module
         sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
         _self = importlib.import_module("headrecon_addon.headless")
-        sys.exit(_self.main(script_args(sys.argv)))
-    sys.exit(main(script_args(sys.argv)))
+        _self.exit_process(_self.main(script_args(sys.argv)))
+    exit_process(main(script_args(sys.argv)))

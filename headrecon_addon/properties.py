@@ -112,7 +112,8 @@ PRIORS = (
     ("eigen", "Eigenvalues", "Shape prior scaled by each component's variance (eq. 42)"),
     ("identity", "Identity", "Equal prior on every coefficient"),
 )
-TEXTURE_SIZES = (("512", "512", ""), ("1024", "1024", ""), ("2048", "2048", ""))
+TEXTURE_SIZES = (("256", "256", "Preview"), ("512", "512", ""), ("1024", "1024", ""),
+                 ("2048", "2048", "Slow to bake"))
 
 
 class HEADRECON_PG_scene(bpy.types.PropertyGroup):

@@ -17,6 +17,7 @@ import numpy as np
 
 FIT_KEYS = "headrecon_fit_keys"  # ID property on the Key: names of the keys a fit wrote
 DETAIL = "fit_detail"
+LIVE_MUTED = "headrecon_live_muted"  # ID property on the Key: keys muted while dragging
 SLIDER = 3.0
 SLIDER_LIMIT = 10.0  # Blender's own bound on slider_min / slider_max
 
@@ -98,6 +99,8 @@ def write_fit_keys(obj, model, result):
                          f"head model {n}; use a head made by HeadRecon")
     mean = model.vertices
     remove_fit_keys(obj)
+    if obj.data.shape_keys is not None and LIVE_MUTED in obj.data.shape_keys:
+        del obj.data.shape_keys[LIVE_MUTED]
     if obj.data.shape_keys is None:
         basis = obj.shape_key_add(name="Basis", from_mix=False)
     else:
@@ -145,12 +148,11 @@ def update_fit_values(obj, model, result):
 
     Returns False when the head's keys do not match the result (a full fit is needed).
     """
+    settle_live_shape(obj)
     blocks = obj.data.shape_keys.key_blocks if obj.data.shape_keys is not None else None
     if blocks is None:
         return False
-    k = len(result.identity_coeffs)
-    pairs = list(zip(model.identity.names[:k], result.identity_coeffs, strict=True))
-    pairs += list(zip(result.regional_names, result.regional_coeffs, strict=True))
+    pairs = _coefficient_pairs(model, result)
     kbs = [blocks.get(name) for name, _ in pairs]
     detail = blocks.get(DETAIL)
     if detail is None or any(kb is None for kb in kbs):
@@ -162,6 +164,76 @@ def update_fit_values(obj, model, result):
             kb.value = float(c)
     set_key_co(detail, model.vertices + np.asarray(result.detail, dtype=np.float64))
     detail.value = 1.0
+    obj.data.update()
+    return True
+
+
+def _coefficient_pairs(model, result):
+    k = len(result.identity_coeffs)
+    pairs = list(zip(model.identity.names[:k], result.identity_coeffs, strict=True))
+    return pairs + list(zip(result.regional_names, result.regional_coeffs, strict=True))
+
+
+def show_live_shape(obj, model, result):
+    """Drag mode of the live refit: the whole refitted shape goes into the detail key and
+    the coefficient keys are muted (their values still follow, so the sliders show them).
+
+    Blender re-evaluates every active shape key whenever one changes: ~100 keys over the
+    whole head cost ~30 ms per frame, one key well under 1 ms. ``settle_live_shape``
+    turns this back into the normal form (coefficients + detail) once the drag ends.
+
+    Returns False when the head's keys do not match the result (a full fit is needed).
+    """
+    key = obj.data.shape_keys
+    blocks = key.key_blocks if key is not None else None
+    if blocks is None:
+        return False
+    pairs = _coefficient_pairs(model, result)
+    kbs = [blocks.get(name) for name, _ in pairs]
+    detail = blocks.get(DETAIL)
+    if detail is None or any(kb is None for kb in kbs):
+        return False
+    muted = set(str(n) for n in key.get(LIVE_MUTED, ()))
+    for kb, (name, c) in zip(kbs, pairs, strict=True):
+        if not kb.slider_min <= c <= kb.slider_max:
+            _slider(kb, c)
+        else:
+            kb.value = float(c)
+        if not kb.mute:
+            kb.mute = True
+            muted.add(name)
+    key[LIVE_MUTED] = sorted(muted)
+    set_key_co(detail, result.local_vertices)
+    detail.value = 1.0
+    obj.data.update()
+    return True
+
+
+def in_live_shape(obj):
+    key = obj.data.shape_keys
+    return key is not None and LIVE_MUTED in key
+
+
+def settle_live_shape(obj):
+    """Leave drag mode: detail = (live shape) minus the coefficient keys' part, and the
+    keys muted for the drag unmuted. Works from the keys alone (also after a reload)."""
+    key = obj.data.shape_keys
+    if key is None or LIVE_MUTED not in key:
+        return False
+    blocks = key.key_blocks
+    names = [str(n) for n in key[LIVE_MUTED] if str(n) in blocks]
+    basis = get_key_co(key.reference_key).astype(np.float64)
+    detail_kb = blocks.get(DETAIL)
+    if detail_kb is not None:
+        co = get_key_co(detail_kb).astype(np.float64)
+        for name in names:
+            kb = blocks[name]
+            if kb.value != 0.0:
+                co -= kb.value * (get_key_co(kb).astype(np.float64) - basis)
+        set_key_co(detail_kb, co)
+    for name in names:
+        blocks[name].mute = False
+    del key[LIVE_MUTED]
     obj.data.update()
     return True
 

@@ -17,7 +17,7 @@ from .errors import as_points
 # kind -> class; filled by @register. Modules listed in _PLUGINS register further kinds
 # (e.g. "dlt") and are imported on first lookup, so this module needs no import of them.
 _KINDS = {}
-_PLUGINS = ("dlt",)
+_PLUGINS = ("dlt", "pinhole")
 
 
 def register(kind):

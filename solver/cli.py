@@ -21,6 +21,7 @@ from .landmarks_file import (
     MIN_LANDMARKS_PER_VIEW,
     MIN_LANDMARKS_TOTAL,
     LandmarksError,
+    camera_to_json,
     load_landmark_set,
     load_landmarks,
     write_file_atomic,
@@ -194,7 +195,8 @@ def _fit_report(args, case, model, result, outputs, timings):
     for name, vertex in getattr(model, "landmarks", {}).items():
         if 0 <= vertex < unc.size:
             landmark_unc[name] = float(unc[vertex])
-    info = dict(result.info)
+    # refit_state is the add-on's live-drag cache (large arrays), not a result
+    info = {k: v for k, v in result.info.items() if k != "refit_state"}
     return _jsonable({
         "format": REPORT_FORMAT,
         "version": 1,
@@ -220,7 +222,7 @@ def _fit_report(args, case, model, result, outputs, timings):
             "landmarks": landmark_unc,
         },
         "timings_s": timings,
-        "outputs": {k: str(v) for k, v in outputs.items()},
+        "outputs": {k: str(Path(v).resolve()) for k, v in outputs.items()},
         "info": info,
     })
 
@@ -245,7 +247,6 @@ def _cmd_fit(args):
     texture_path = _prepare_output(args.texture, "--texture") if args.texture else None
     report_path = _prepare_output(args.report, "--report") if args.report else None
 
-    progress(0.0, "loading the head model")
     t = time.perf_counter()
     # Imported here, after the input checks: a bad file fails fast, before numpy-heavy
     # modules load.
@@ -255,6 +256,8 @@ def _cmd_fit(args):
 
     model = load_model(args.model)
     timings["model"] = time.perf_counter() - t
+    progress(0.0, f"read {case.source} ({case.n_points} landmarks in {len(case.views)} views) "
+                  f"and the head model")
 
     kw = {"progress": progress}
     for key, value in (("method", args.method), ("n_identity", args.components),
@@ -337,13 +340,37 @@ def _cmd_validate(args):
             text = f"{name} {len(view.points)} landmarks"
             if view.contour is not None:
                 text += f" + contour of {len(view.contour)} points"
+            if case.version >= 2:
+                text += _view_v2_summary(view)
             parts.append(text)
             photo = case.image_path(name)
             if photo is not None and not photo.is_file():
                 print(f"{path}: views.{name}.image: warning: photo {view.image!r} not found "
                       f"({photo}); a fit works, --texture would not", file=sys.stderr)
-        print(f"{path}: OK ({'; '.join(parts)})")
+        # A version-1 file reads as it always did; version 2 says what its cameras are.
+        head = "" if case.version == 1 else f"version {case.version}; "
+        tail = f"; {len(case.passpoints)} passpoints defined" if case.passpoints else ""
+        print(f"{path}: OK ({head}{'; '.join(parts)}{tail})")
     return status
+
+
+def _view_v2_summary(view):
+    """What version 2 says about a view: its camera (kind, given or to compute, fixed or
+    refined), the photo it is the mirror image in, its passpoints."""
+    text = ""
+    if view.passpoints:
+        text += f" + {len(view.passpoints)} passpoints"
+    if view.camera is None:
+        source = "passpoints" if view.passpoints else "self-calibration"
+        text += f", {view.camera_kind} camera from {source}"
+    elif not isinstance(camera_to_json(view.camera, view.size), str):
+        text += f", {view.camera_kind} camera given"
+    else:
+        text += f", {view.camera_kind} camera (nominal)"
+    text += ", kept fixed" if view.camera_fixed else ", refined"
+    if view.mirror_of is not None:
+        text += f", mirror image in {view.mirror_of!r}"
+    return text
 
 
 def _cmd_landmarks(args):
@@ -373,6 +400,13 @@ def _positive_int(text):
     return value
 
 
+def _texture_size(text):
+    value = _positive_int(text)
+    if not 8 <= value <= 16384:
+        raise argparse.ArgumentTypeError(f"expected 8 to 16384 pixels, got {value}")
+    return value
+
+
 def _non_negative_float(text):
     try:
         value = float(text)
@@ -397,8 +431,9 @@ def build_parser():
     fit.add_argument("--out", required=True, metavar="HEAD.obj", help="OBJ file to write")
     fit.add_argument("--texture", metavar="HEAD.png",
                      help="bake the photos into this PNG (and write HEAD.mtl using it)")
-    fit.add_argument("--texture-size", type=_positive_int, default=1024, metavar="PX",
-                     help="texture width and height in pixels (default 1024)")
+    fit.add_argument("--texture-size", type=_texture_size, default=1024, metavar="PX",
+                     help="texture height in pixels, and width per UV tile (default 1024; "
+                          "the skin's two tiles make a 2048x1024 image)")
     fit.add_argument("--report", metavar="REPORT.json",
                      help="write residuals, coefficients, uncertainty and timings as JSON")
     fit.add_argument("--method", choices=("combined", "approach1", "approach2"),
@@ -430,10 +465,11 @@ def build_parser():
 
     val = sub.add_parser(
         "validate", help="check landmarks files without fitting",
-        description="Check landmarks files: schema, landmark names, points inside the "
-                    f"images, at least {MIN_LANDMARKS_PER_VIEW} landmarks per view and "
-                    f"{MIN_LANDMARKS_TOTAL} in all. Lists every problem; exit code 1 if "
-                    "any file has one.")
+        description="Check landmarks files (format versions 1 and 2): schema, landmark "
+                    "names, points inside the images, cameras, mirror views and passpoints, "
+                    f"at least {MIN_LANDMARKS_PER_VIEW} landmarks per view (views without "
+                    f"passpoints) and {MIN_LANDMARKS_TOTAL} in all. Lists every problem; "
+                    "exit code 1 if any file has one.")
     val.add_argument("files", nargs="+", metavar="LANDMARKS.json")
     val.add_argument("--draft", action="store_true",
                      help="work in progress: do not require enough landmarks for a fit")

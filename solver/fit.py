@@ -28,12 +28,20 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .cameras import Camera
-from .fit_engine import (MIN_VIEW_LANDMARKS, Engine, State, ViewData, densify,
-                         is_side_camera)
+from .fit_engine import (
+    MIN_VIEW_LANDMARKS,
+    ContourRows,
+    Engine,
+    State,
+    ViewData,
+    densify,
+    is_side_camera,
+    set_camera,
+)
 from .landmarks_file import LandmarkCase, LandmarkSet
-from .linear_model import concat
+from .linear_model import LinearModel, concat
 from .result import FitResult, ViewResidual
-from .shape_icp import PointRows
+from .shape_icp import ImageRows, PointRows
 from .tps import ThinPlateSpline
 
 METHODS = ("combined", "approach1", "approach2")
@@ -153,13 +161,26 @@ def _check_options(options, model):
     return o
 
 
+_LIN_CACHE = {}
+
+
 def _linear_model(model, opts):
+    """The fitted model: the first ``n_identity`` global modes, then the regional ones.
+    Cached per model and sizes, so repeated fits reuse it and the vertex slices their
+    engines cache on it."""
+    key = (id(model), int(opts.n_identity), int(opts.n_regional))
+    hit = _LIN_CACHE.get(key)
+    if hit is not None and hit[0] is model:
+        return hit[1]
     parts = []
     if opts.n_identity > 0:
         parts.append(model.identity.first(int(opts.n_identity)))
     if opts.n_regional > 0:
         parts.append(model.regional(int(opts.n_regional)))
     lin = parts[0] if len(parts) == 1 else concat(parts[0], parts[1])
+    if len(_LIN_CACHE) >= 4:
+        _LIN_CACHE.clear()
+    _LIN_CACHE[key] = (model, lin)
     return lin
 
 
@@ -251,12 +272,8 @@ def _profile_fit(eng, state, opts):
     if not side:
         return state, info
     joint = eng.joint(side)
-    hist = [joint.cost(state)]
-    for _ in range(opts.max_iterations):
-        joint.refit(state)
-        hist.append(joint.cost(state))
-        if hist[-2] - hist[-1] <= opts.tolerance * hist[-2]:
-            break
+    state, hist = joint.run(state, max_outer=opts.max_iterations, tolerance=opts.tolerance,
+                            cameras_only=True)
     info["similarity_history"] = hist
     state, hist = joint.run(state, freeze=("rotation",), max_outer=opts.max_iterations,
                             tolerance=opts.tolerance)
@@ -309,6 +326,10 @@ def landmark_targets(eng, state, extra_views=None):
     return uniq, x, x + delta
 
 
+# Share of the TPS-warped skin in approach 2's cost, relative to all landmarks.
+_DENSE_SHARE = 0.3
+
+
 def _dense_vertices(model, step=4):
     """Every ``step``-th skin vertex: the dense 3-D rows of approach 2 (the skin is
     regularly meshed, so a stride is an even subsample)."""
@@ -316,24 +337,43 @@ def _dense_vertices(model, step=4):
 
 
 def _approach2(eng, model, state, opts):
-    """Thesis §4.4.3: TPS-ICP, repeated while the reprojection error falls."""
+    """Thesis §4.4.3: TPS-ICP, repeated while the reprojection error falls.
+
+    Each round warps the head with a thin-plate spline that takes its landmark vertices
+    to their 3-D targets (:func:`landmark_targets`), then fits the model to the warped
+    skin (every 4th skin vertex) and to the targets themselves (weighted like the
+    landmarks' pixels), with the profile contour as in approach 1; the cameras follow.
+    """
     dense = _dense_vertices(model)
-    lin = eng.linear_model()
-    # Metres to the image rows' weighted pixels: a landmark's 3-D row weighs as its pixel
-    # rows would (camera scale squared); the dense rows together weigh as all landmarks.
+    # Metres to the image rows' weighted pixels: a landmark's 3-D row weighs what its
+    # pixel rows would (camera scale squared / noise^2); all dense rows together weigh
+    # DENSE_SHARE times all landmarks (the warp between landmarks is a guess: it should
+    # steer, not dominate).
     s2 = _pixels_per_metre_sq(eng, state)
     n_lm = sum(int((v.weights > 0).sum()) for v in eng.views)
     w_lm = s2 * eng.inv_var * opts.landmark_weight
     joint = eng.joint(eng.views)
+    verts, _, tgt = landmark_targets(eng, state)
+    mesh_rows = PointRows(dense, eng.world(state, dense),
+                          weights=_DENSE_SHARE * w_lm * n_lm / len(dense), name="tps mesh")
+    lm_rows = PointRows(verts, tgt, weights=w_lm, name="tps landmarks")
+    contour = [ContourRows(eng.chain, v.contour, v.camera,
+                           weights=eng.contour_weight * eng.inv_var,
+                           max_distance=eng.contour_threshold, reject_factor=4.0,
+                           name=v.name)
+               for v in eng.views if v.contour is not None]
+    # One problem for all rounds: only targets change, so the dense rows' Gram matrix
+    # is computed once.
+    problem = eng.problem(eng.linear_model(), [mesh_rows, lm_rows] + contour)
     best = (reprojection_rms(eng, joint, state), state.copy())
     history = [best[0]]
     for _ in range(opts.tps_iterations):
         verts, cur, tgt = landmark_targets(eng, state)
         tps = ThinPlateSpline.fit(cur, tgt, regularization=0.0)
-        warped = tps.apply(eng.world(state, dense))
-        rows = [PointRows(dense, warped, weights=w_lm * n_lm / len(dense), name="tps mesh"),
-                PointRows(verts, tgt, weights=w_lm, name="tps landmarks")]
-        problem = eng.problem(lin, rows)
+        mesh_rows.set_targets(tps.apply(eng.world(state, dense)))
+        lm_rows.set_targets(tgt)
+        for rows in contour:
+            set_camera(rows, state.cameras[rows.name])
         fit = problem.solve(scale=state.scale, rotation=state.rotation,
                             translation=state.translation, coeffs=state.coeffs,
                             max_iterations=3, tolerance=opts.tolerance, sigma=1.0)
@@ -371,3 +411,385 @@ def _pixels_per_metre_sq(eng, state):
         jac = np.asarray(state.cameras[v.name].jacobian(centre)).reshape(2, 3)
         vals.append(0.5 * float((jac * jac).sum()))
     return float(np.mean(vals))
+
+
+# ----------------------------------------------------------------------------- choosing
+
+
+def _choose(eng, joint, candidates, tie=0.05):
+    """The candidate whose landmarks and contour reproject best; within ``tie`` (relative)
+    of the best, the one with the smallest shape prior (the more typical head)."""
+    scores = {}
+    for name, (state, _) in candidates.items():
+        scores[name] = (reprojection_rms(eng, joint, state), eng.prior_cost(state.coeffs))
+    best_rms = min(r for r, _ in scores.values())
+    close = [n for n, (r, _) in scores.items() if r <= best_rms * (1.0 + tie) + 1e-9]
+    chosen = min(close, key=lambda n: scores[n][1])
+    return chosen, scores
+
+
+# ----------------------------------------------------------------------------- result
+
+
+def flag_residuals(residuals, sigmas=3.0, min_px=5.0):
+    """Landmarks whose residual stands out (seed 000 §5: a residual far above the others
+    means a data error).
+
+    Each residual is compared with the mean and standard deviation of all the *other*
+    residuals (leave-one-out, so an outlier does not hide itself by inflating the spread):
+    flagged when above ``mean + sigmas * std`` and above ``min_px``.
+
+    Parameters
+    ----------
+    residuals : dict of str -> ndarray (n,)
+        Pixel residuals per view.
+    sigmas, min_px : float
+
+    Returns
+    -------
+    dict of str -> ndarray of bool
+    """
+    names = list(residuals)
+    allr = np.concatenate([np.asarray(residuals[n], dtype=np.float64) for n in names]) \
+        if names else np.zeros(0)
+    m = len(allr)
+    if m < 3:
+        return {n: np.zeros(len(residuals[n]), bool) for n in names}
+    s1, s2 = allr.sum(), (allr**2).sum()
+    mean_o = (s1 - allr) / (m - 1)
+    var_o = np.maximum((s2 - allr**2) / (m - 1) - mean_o**2, 0.0)
+    flag = (allr > mean_o + sigmas * np.sqrt(var_o)) & (allr > min_px)
+    out, i = {}, 0
+    for n in names:
+        k = len(residuals[n])
+        out[n] = flag[i:i + k]
+        i += k
+    return out
+
+
+def _residuals(eng, state, opts, local):
+    """Landmark residuals of the final head (``local`` includes any detail), flagged."""
+    world = state.scale * local @ state.rotation.T + state.translation
+    res = {v.name: np.linalg.norm(state.cameras[v.name].project(world[v.vertices])
+                                  - v.pixels, axis=1) for v in eng.views}
+    flags = flag_residuals(res, opts.flag_sigmas, opts.flag_min_px)
+    out = {}
+    for v in eng.views:
+        r = res[v.name]
+        out[v.name] = ViewResidual(list(v.names), r.copy(),
+                                   [n for n, f in zip(v.names, flags[v.name], strict=True)
+                                    if f])
+    return out
+
+
+_SKIN_CACHE = {}
+
+
+def _skin_maps(model):
+    """Per model (cached): non-skin vertices, the nearest skin vertex of each (to give
+    them the skin's uncertainty) and the skin vertices that steer them (TPS controls)."""
+    key = id(model)
+    hit = _SKIN_CACHE.get(key)
+    if hit is not None and hit[0] is model:
+        return hit[1]
+    n = model.n_vertices
+    skin = np.asarray(model.skin, dtype=np.int64)
+    is_skin = np.zeros(n, bool)
+    is_skin[skin] = True
+    other = np.flatnonzero(~is_skin)
+    rest = model.vertices
+    tree = cKDTree(rest[skin])
+    nearest = skin[tree.query(rest[other])[1]] if len(other) else other
+    # TPS controls: skin within 2 cm of a non-skin vertex (the eyelids, lips, mouth
+    # corners that hold the eyes and teeth), thinned to about 300 by a stride.
+    ctrl = np.zeros(0, np.int64)
+    if len(other):
+        d, _ = cKDTree(rest[other]).query(rest[skin], distance_upper_bound=0.02)
+        near = skin[np.isfinite(d)]
+        ctrl = near[::max(1, len(near) // 300)]
+    maps = {"other": other, "nearest": nearest, "controls": ctrl}
+    _SKIN_CACHE.clear()
+    _SKIN_CACHE[key] = (model, maps)
+    return maps
+
+
+def _follow_skin(model, skin_disp):
+    """Displacement of the non-skin parts (eyes, teeth, ...) that carries a skin-only
+    displacement (regional modes are zero off the skin) smoothly onto them: a thin-plate
+    spline through the skin around them, (V, 3), zero on the skin."""
+    maps = _skin_maps(model)
+    out = np.zeros_like(skin_disp)
+    ctrl, other = maps["controls"], maps["other"]
+    if len(other) == 0 or len(ctrl) < 4 or not skin_disp[ctrl].any():
+        return out
+    rest = model.vertices
+    tps = ThinPlateSpline.fit(rest[ctrl], rest[ctrl] + skin_disp[ctrl], regularization=1e-4)
+    out[other] = tps.apply(rest[other]) - rest[other]
+    return out
+
+
+def _uncertainty(model, eng, cov, n_identity):
+    """Posterior standard deviation of each vertex, millimetres: sqrt of the trace of
+    B_v Sigma B_v^T over the skin (float32: display precision), the nearest skin vertex's
+    value elsewhere."""
+    maps = _skin_maps(model)
+    skin = np.asarray(model.skin, dtype=np.int64)
+    b32 = eng.skin_basis32(skin)
+    evals, evecs = np.linalg.eigh(0.5 * (cov + cov.T))
+    f = (np.sqrt(np.clip(evals, 0.0, None))[:, None] * evecs.T).astype(np.float32)
+    y = f @ b32
+    var = (y.astype(np.float64) ** 2).sum(axis=0).reshape(-1, 3).sum(axis=1)
+    out = np.zeros(model.n_vertices)
+    out[skin] = 1000.0 * np.sqrt(var)
+    out[maps["other"]] = out[maps["nearest"]]
+    return out
+
+
+def _local_terms(model, eng, state, opts):
+    """(identity coeffs, regional coeffs, identity+regional displacement (V, 3), the
+    regional part (V, 3))."""
+    k_id = int(opts.n_identity)
+    c = state.coeffs
+    disp = np.tensordot(c, eng.lin.basis, axes=1)
+    reg = np.zeros_like(disp)
+    if opts.n_regional > 0:
+        reg = np.tensordot(c[k_id:], eng.lin.basis[k_id:], axes=1)
+    return c[:k_id].copy(), c[k_id:].copy(), disp, reg
+
+
+def _exact_detail(eng, state, local):
+    """TPS in the model frame that moves every landmark vertex onto its target (the pixels
+    it was placed at, in every photo that shows it), applied to all vertices: (V, 3)."""
+    verts, _, tgt = landmark_targets(eng, state)
+    if len(verts) < 4:
+        return np.zeros_like(local)
+    tgt_local = ((tgt - state.translation) @ state.rotation) / state.scale
+    try:
+        tps = ThinPlateSpline.fit(local[verts], tgt_local, regularization=0.0)
+    except ValueError:
+        return np.zeros_like(local)
+    return tps.apply(local) - local
+
+
+def _make_result(model, eng, state, opts, method, info, uncertainty=None, detail=None):
+    ident, regc, disp, reg = _local_terms(model, eng, state, opts)
+    if detail is None:
+        detail = np.zeros_like(disp)
+        if opts.n_regional > 0:
+            detail += _follow_skin(model, reg)
+        if opts.exact_landmarks:
+            detail += _exact_detail(eng, state, model.vertices + disp + detail)
+    local = model.vertices + disp + detail
+    names = tuple(eng.lin.names[int(opts.n_identity):]) if opts.n_regional > 0 else ()
+    return FitResult(
+        method=method, scale=float(state.scale), rotation=state.rotation.copy(),
+        translation=state.translation.copy(), identity_coeffs=ident,
+        regional_coeffs=regc, regional_names=names, detail=detail, local_vertices=local,
+        cameras=dict(state.cameras), residuals=_residuals(eng, state, opts, local),
+        uncertainty=uncertainty, info=info)
+
+
+# ----------------------------------------------------------------------------- API
+
+
+def _engine(model, views, opts):
+    lin = _linear_model(model, opts)
+    fix_gauge = all(v.refit and v.camera.min_refit_points > 0 for v in views)
+    return Engine(lin, views, model.profile_chain, opts.noise_px, opts.lambda1, opts.lambda2,
+                  opts.prior, opts.contour_weight, opts.contour_threshold_px, fix_gauge)
+
+
+def _rms(values):
+    v = np.asarray(values, dtype=np.float64)
+    return float(np.sqrt((v**2).mean())) if v.size else 0.0
+
+
+def _saved_state(previous, eng, views, where):
+    """The State a previous FitResult ended in (cameras of the views it had)."""
+    saved = getattr(previous, "info", {}).get("refit_state") if previous is not None else None
+    if saved is None:
+        raise ValueError(f"{where}: expected a FitResult from fit_head (its info has no "
+                         "'refit_state')")
+    coeffs = np.asarray(saved["coeffs"], dtype=np.float64)
+    if coeffs.shape != (eng.lin.n_coeffs,):
+        raise ValueError(f"{where}: {coeffs.size} coefficients, but the model with these "
+                         f"options has {eng.lin.n_coeffs} (n_identity and n_regional must "
+                         "match)")
+    missing = [v.name for v in views if v.name not in previous.cameras]
+    if missing:
+        raise ValueError(f"{where}: view {missing[0]!r} was not in that fit (views: "
+                         f"{', '.join(previous.cameras)})")
+    return State(np.asarray(previous.rotation, dtype=np.float64).copy(), coeffs.copy(),
+                 {v.name: previous.cameras[v.name] for v in views}, float(previous.scale),
+                 np.asarray(previous.translation, dtype=np.float64).copy()), saved
+
+
+def fit_head(model, case, options=None, initial=None):
+    """Fit the head model to the landmarks (and profile contour) of a case.
+
+    Parameters
+    ----------
+    model : HeadModel
+    case : LandmarkCase
+        Views with landmarks in pixels; profile views may carry a traced contour.
+    options : FitOptions, optional
+    initial : FitResult, optional
+        Start from this fit's cameras, pose and coefficients (same views and model sizes)
+        instead of the mean head; the profile stage is then skipped.
+
+    Returns
+    -------
+    FitResult
+        ``info`` holds: "approach" (the one used), "candidates" (each approach's RMS
+        reprojection error in pixels and prior), "iterations" and "errors" per stage,
+        "timings" (seconds), "rms_px" per view and "contour_rms_px", and "refit_state"
+        (what :func:`refit_landmarks` continues from).
+
+    Raises
+    ------
+    ValueError
+        Bad options, a view with an unknown camera kind or too few landmarks (naming the
+        view and how many more it needs), unknown landmark names, an unusable ``initial``.
+    """
+    t0 = time.perf_counter()
+    opts = _check_options(options, model)
+    progress = _Progress(opts.progress)
+    views = _prepare_views(model, case, opts)
+    eng = _engine(model, views, opts)
+    timings = {}
+    info_p = {}
+    if initial is None:
+        state = State(np.eye(3), np.zeros(eng.lin.n_coeffs), {v.name: v.camera for v in views})
+        progress(0.0, "placing the cameras")
+        eng.init_cameras(state)
+        progress(0.05, "fitting the profile")
+        t = time.perf_counter()
+        state_p, info_p = _profile_fit(eng, state, opts)
+        timings["profile"] = time.perf_counter() - t
+    else:
+        state_p, _ = _saved_state(initial, eng, views, "initial")
+        eng.use(state_p)
+    candidates = {}
+    if opts.method in ("approach1", "combined"):
+        progress(0.35, "approach 1: landmark ICP")
+        t = time.perf_counter()
+        eng.use(state_p)
+        candidates["approach1"] = _approach1(eng, state_p.copy(), opts)
+        timings["approach1"] = time.perf_counter() - t
+    if opts.method in ("approach2", "combined"):
+        progress(0.6, "approach 2: TPS-ICP")
+        t = time.perf_counter()
+        eng.use(state_p)
+        candidates["approach2"] = _approach2(eng, model, state_p.copy(), opts)
+        timings["approach2"] = time.perf_counter() - t
+    joint = eng.joint(eng.views)
+    chosen, scores = _choose(eng, joint, candidates)
+    state = candidates[chosen][0]
+    eng.use(state)
+    progress(0.85, "uncertainty and result")
+    t = time.perf_counter()
+    joint.cost(state)
+    cov = joint.covariance(state)
+    unc = _uncertainty(model, eng, cov, opts.n_identity)
+    contour = joint.contour_residuals(state)
+    pairs = joint.contour_pairs(state)
+    info = {
+        "approach": chosen,
+        "candidates": {n: {"rms_px": r, "prior": p} for n, (r, p) in scores.items()},
+        "iterations": {"profile_similarity": len(info_p.get("similarity_history", [0])) - 1,
+                       "profile_shape": len(info_p.get("shape_history", [0])) - 1,
+                       **{n: len(c[1]["history"]) - 1 for n, c in candidates.items()}},
+        "errors": {"profile_similarity": info_p.get("similarity_history", []),
+                   "profile_shape": info_p.get("shape_history", []),
+                   **{n: c[1]["history"] for n, c in candidates.items()}},
+        "contour_rms_px": {n: _rms(d) for n, d in contour.items()},
+        "refit_state": {
+            "coeffs": state.coeffs.copy(), "n_identity": int(opts.n_identity),
+            "n_regional": int(opts.n_regional),
+            "contour": {n: {"vertices": np.concatenate([p[0] for p in lst]),
+                            "pixels": np.vstack([p[1] for p in lst])}
+                        for n, lst in pairs.items()}},
+    }
+    result = _make_result(model, eng, state, opts, opts.method, info, uncertainty=unc)
+    info["rms_px"] = {n: _rms(r.pixels) for n, r in result.residuals.items()}
+    timings["result"] = time.perf_counter() - t
+    timings["total"] = time.perf_counter() - t0
+    info["timings"] = timings
+    progress(1.0, f"done ({chosen})")
+    return result
+
+
+def refit_landmarks(model, case, previous, options=None):
+    """The fast path while a landmark is dragged: one linear solve of the shape on the
+    landmark rows, keeping ``previous``'s cameras, head pose and contour correspondences.
+
+    Parameters
+    ----------
+    model : HeadModel
+    case : LandmarkCase
+        The same views as the fit that produced ``previous`` (landmarks moved, added or
+        removed).
+    previous : FitResult
+        From :func:`fit_head` (or this function) on this model.
+    options : FitOptions, optional
+        Weights, priors and flagging (``n_identity``/``n_regional`` are taken from
+        ``previous``).
+
+    Returns
+    -------
+    FitResult
+        Uncertainty and ``detail`` are carried over from ``previous`` (no TPS here); the
+        residuals are recomputed.
+
+    Raises
+    ------
+    ValueError
+        ``previous`` is not a fit of this kind, a view is missing from it, or the case is
+        invalid (as in :func:`fit_head`).
+    """
+    t0 = time.perf_counter()
+    saved = getattr(previous, "info", {}).get("refit_state") if previous is not None else None
+    if saved is None:
+        raise ValueError("previous: expected a FitResult from fit_head (its info has no "
+                         "'refit_state')")
+    opts = _check_options(options, model)
+    opts = FitOptions(**{**opts.__dict__, "n_identity": int(saved["n_identity"]),
+                         "n_regional": int(saved["n_regional"]), "method": previous.method})
+    views = _prepare_views(model, case, opts)
+    eng = _engine(model, views, opts)
+    state, saved = _saved_state(previous, eng, views, "previous")
+    eng.use(state)
+    rows, verts = [], []
+    off = 0
+    for v in views:
+        n = len(v.vertices)
+        if n:
+            w = (1.0 if v.side else opts.front_weight) * eng.inv_var * v.weights
+            rows.append(ImageRows(np.arange(off, off + n), v.pixels, v.camera, weights=w,
+                                  name=f"landmarks {v.name}"))
+            verts.append(v.vertices)
+            off += n
+        pairs = saved.get("contour", {}).get(v.name)
+        if pairs is not None and len(pairs["vertices"]):
+            cv = np.asarray(pairs["vertices"], dtype=np.int64)
+            rows.append(ImageRows(np.arange(off, off + len(cv)), pairs["pixels"], v.camera,
+                                  weights=opts.contour_weight * eng.inv_var,
+                                  name=f"contour {v.name}"))
+            verts.append(cv)
+            off += len(cv)
+    orig = np.concatenate(verts)
+    mean, basis = eng.slice(orig)
+    lin = LinearModel(mean, basis, eng.lin.stddev, eng.lin.names, eng.gamma)
+    problem = eng.problem(lin, rows, freeze=("rotation",))
+    fit = problem.solve(scale=state.scale, rotation=state.rotation,
+                        translation=state.translation, coeffs=state.coeffs,
+                        max_iterations=1, tolerance=0.0, sigma=1.0)
+    state.coeffs = fit.coeffs.copy()
+    info = {"approach": previous.info.get("approach", previous.method), "refit": True,
+            "refit_state": {**saved, "coeffs": state.coeffs.copy()}}
+    result = _make_result(model, eng, state, opts, previous.method, info,
+                          uncertainty=np.asarray(previous.uncertainty).copy(),
+                          detail=np.asarray(previous.detail).copy())
+    info["rms_px"] = {n: _rms(r.pixels) for n, r in result.residuals.items()}
+    info["timings"] = {"total": time.perf_counter() - t0}
+    return result

@@ -26,8 +26,10 @@ from .shape_icp import ClosestPixelRows, ImageRows, ShapeProblem, _General
 MIN_VIEW_LANDMARKS = 3
 
 # Pixels one unit of a camera mode's coefficient moves the photo (see Joint): large, so
-# the shape prior the shape-ICP puts on every coefficient is negligible for these.
-_MODE_PIXELS = 1.0e4
+# the shape prior the shape-ICP puts on every coefficient hardly restrains the cameras
+# (a 10 px correction costs 0.01), yet it settles the split where a calibrated camera
+# leaves the head's position and a refitted camera's offset equally free.
+_MODE_PIXELS = 100.0
 
 
 @dataclass
@@ -116,7 +118,21 @@ def densify(polyline, step=1.0):
     return np.vstack([p[i] + t[:, None] * seg[i], p[-1:]])
 
 
-def _set_camera(rows, camera):
+_SLICES = {}
+
+
+def _slice_cache(lin):
+    """Per linear model (kept alive with it): vertex-subset slices of its basis."""
+    hit = _SLICES.get(id(lin))
+    if hit is None or hit[0] is not lin:
+        if len(_SLICES) >= 4:
+            _SLICES.clear()
+        hit = (lin, {})
+        _SLICES[id(lin)] = hit
+    return hit[1]
+
+
+def set_camera(rows, camera):
     """Point image rows at a (refitted) camera. The version bump tells the shape-ICP that a
     system it cached for these rows is stale."""
     if rows.camera is not camera:
@@ -244,8 +260,7 @@ class Engine:
         self.contour_weight = contour_weight
         self.contour_threshold = contour_threshold
         self.fix_gauge = fix_gauge
-        self.freeze_sim = ("scale", "translation") if fix_gauge else ()
-        self._slices = {}
+        self._slices = _slice_cache(lin)
         # Gamma enters the cost only as Gamma^T Gamma: a factor with one row per
         # coefficient gives the same cost for far fewer rows than three per border vertex.
         self.gamma = None
@@ -266,8 +281,9 @@ class Engine:
         return mean + np.tensordot(state.coeffs, basis, axes=1)
 
     def slice(self, vertices):
-        """(mean (n, 3), basis (K, n, 3)) of a vertex subset, cached: gathering a few
-        hundred vertices from the (K, V, 3) basis costs more than the rest of a step."""
+        """(mean (n, 3), basis (K, n, 3)) of a vertex subset, cached with the model:
+        gathering a few hundred vertices from the (K, V, 3) basis costs more than the rest
+        of a Gauss-Newton step."""
         v = np.ascontiguousarray(vertices, dtype=np.int64)
         key = v.tobytes()
         hit = self._slices.get(key)
@@ -275,6 +291,17 @@ class Engine:
             if len(self._slices) > 64:
                 self._slices.clear()
             hit = (self.lin.mean[v], np.ascontiguousarray(self.lin.basis[:, v]))
+            self._slices[key] = hit
+        return hit
+
+    def skin_basis32(self, skin):
+        """The basis over the skin as float32 (K, 3 S), cached with the model (for the
+        per-vertex uncertainty, where display precision is enough)."""
+        key = ("f32",) + (np.asarray(skin, dtype=np.int64).tobytes(),)
+        hit = self._slices.get(key)
+        if hit is None:
+            b = self.lin.basis[:, skin]
+            hit = b.reshape(b.shape[0], -1).astype(np.float32)
             self._slices[key] = hit
         return hit
 
@@ -286,9 +313,13 @@ class Engine:
         lin = self.lin if lin is None else lin
         return LinearModel(lin.mean, lin.basis, lin.stddev, lin.names, self.gamma)
 
-    def problem(self, lin, rows, freeze=()):
+    def problem(self, lin, rows, freeze=(), gauge=None):
+        """A ShapeProblem with the fit's priors; ``gauge`` (default: the engine's) says
+        whether the head's scale and translation are frozen."""
+        fix = self.fix_gauge if gauge is None else gauge
+        sim = ("scale", "translation") if fix else ()
         return ShapeProblem(lin, rows, lambda1=self.lambda1, lambda2=self.lambda2,
-                            prior=self.prior, freeze=tuple(freeze) + self.freeze_sim)
+                            prior=self.prior, freeze=tuple(freeze) + sim)
 
     def prior_cost(self, coeffs):
         """lambda2^2 |Lambda c|^2 + lambda1^2 |Gamma c|^2 as the shape-ICP counts it."""
@@ -309,12 +340,13 @@ class Engine:
         for v in self.views:
             v.camera = state.cameras[v.name]
 
-    def refit_cameras(self, state, extra=None):
-        """Every refittable camera refitted to the head of ``state``: its landmarks plus
-        ``extra[view name]`` = list of (model vertices, pixels, weights) (e.g. contour
-        correspondences). Updates ``state.cameras`` and the views."""
+    def refit_cameras(self, state, extra=None, views=None):
+        """Every refittable camera (of ``views``, default all) refitted to the head of
+        ``state``: its landmarks plus ``extra[view name]`` = list of (model vertices,
+        pixels, weights) (e.g. contour correspondences). Updates ``state.cameras`` and the
+        views."""
         extra = extra or {}
-        for v in self.views:
+        for v in self.views if views is None else views:
             if not v.refit:
                 continue
             verts, px, w = [v.vertices], [v.pixels], [v.weights]
@@ -401,6 +433,9 @@ class Joint:
         self.orig = np.concatenate(orig)
         self.rows = [g[2] for g in self.groups]
         self.mean, self.basis = eng.slice(self.orig)
+        # Gauge: when every camera here is refitted they absorb the head's scale and
+        # position; a calibrated camera fixes them instead.
+        self.gauge = all(v.refit and v.camera.min_refit_points > 0 for v in views)
         self.mode_views = []
         for v in views:
             if v.refit and v.camera.min_refit_points > 0:
@@ -411,7 +446,7 @@ class Joint:
     def sync(self, state):
         self.eng.use(state)
         for v, _, rows in self.groups:
-            _set_camera(rows, state.cameras[v.name])
+            set_camera(rows, state.cameras[v.name])
 
     def world(self, state):
         """World positions of the copies, (n, 3)."""
@@ -507,33 +542,61 @@ class Joint:
         return LinearModel(self.mean, np.concatenate([self.basis, extra]),
                            np.concatenate([lin.stddev, np.full(n_extra, 1e-9)]), names, gamma)
 
-    def _solve(self, state, freeze, iterations):
+    def _solve(self, state, freeze, iterations, cameras_only=False):
         model = self.model(state)
         k = len(state.coeffs)
         start = np.zeros(model.n_coeffs)
         start[:k] = state.coeffs
         self.sync(state)
-        problem = self.eng.problem(model, self.rows, freeze)
+        active = np.arange(k, model.n_coeffs) if cameras_only else None
+        if cameras_only:
+            freeze = tuple(freeze) + ("rotation",)
+        problem = ShapeProblem(model, self.rows, lambda1=self.eng.lambda1,
+                               lambda2=self.eng.lambda2, prior=self.eng.prior,
+                               freeze=tuple(freeze) + (("scale", "translation")
+                                                       if self.gauge else ()),
+                               active=active)
         fit = problem.solve(scale=state.scale, rotation=state.rotation,
                             translation=state.translation, coeffs=start,
                             max_iterations=iterations, tolerance=0.0, sigma=1.0)
-        return fit, k
+        return fit, k, model
 
-    def step(self, state, freeze=(), inner=2):
-        """One joint Gauss-Newton round (``inner`` shape-ICP steps) and the camera refits."""
-        fit, k = self._solve(state, freeze, inner)
+    def step(self, state, freeze=(), inner=2, cameras_only=False):
+        """One joint Gauss-Newton round (``inner`` shape-ICP steps), then the cameras.
+
+        The step moves each refittable camera through its modes; the camera is then
+        refitted to what the step predicted: the new head's copies seen where the
+        old camera saw them displaced by the modes. For an orthographic camera that is
+        exactly the similarity the step chose (any camera kind gets its closest match),
+        so camera and head stay one consistent Gauss-Newton step. Refittable cameras of
+        views outside this problem are refitted to their landmarks.
+        """
+        fit, k, model = self._solve(state, freeze, inner, cameras_only)
         new = state.copy()
         new.rotation, new.coeffs = fit.rotation, fit.coeffs[:k].copy()
         new.scale, new.translation = fit.scale, fit.translation
-        self.refit(new)
+        if self.mode_views:
+            full = model.mean + np.tensordot(fit.coeffs, model.basis, axes=1)
+            head = self.mean + np.tensordot(new.coeffs, self.basis, axes=1)
+            full = new.scale * full @ new.rotation.T + new.translation
+            head = new.scale * head @ new.rotation.T + new.translation
+            for v, idx, _ in self.mode_views:
+                old = state.cameras[v.name]
+                new.cameras[v.name] = old.refit(head[idx], old.project(full[idx]))
+        inside = {v.name for v, _, _ in self.groups}
+        outside = [v for v in self.eng.views if v.name not in inside]
+        if outside:
+            self.eng.refit_cameras(new, views=outside)
+        self.sync(new)
         return new
 
-    def run(self, state, freeze=(), max_outer=20, inner=2, tolerance=1e-4):
-        """Rounds of :meth:`step` until the cost falls by less than ``tolerance``
+    def run(self, state, freeze=(), max_outer=20, inner=2, tolerance=1e-4,
+            cameras_only=False):
+        """Rounds of :meth:`step` until the cost changes by less than ``tolerance``
         (relative). Returns (state, cost history)."""
         history = [self.cost(state)]
         for _ in range(max(int(max_outer), 1)):
-            state = self.step(state, freeze, inner)
+            state = self.step(state, freeze, inner, cameras_only)
             history.append(self.cost(state))
             # Contour inliers may change between rounds, so the cost need not fall
             # monotonically; stop once it no longer changes.
@@ -547,6 +610,6 @@ class Joint:
         """Posterior covariance (K, K) of the fitted coefficients at ``state``: the inverse
         of the normal matrix with pose and camera modes free (marginalised), rows weighted
         1 / noise^2 so sigma = 1."""
-        fit, k = self._solve(state, (), 0)
+        fit, k, _ = self._solve(state, (), 0)
         cov = fit.coeff_covariance
         return cov[:k, :k]

@@ -22,7 +22,7 @@ KEYWORDS = frozenset({
     "type", "required", "properties", "additionalProperties", "patternProperties",
     "items", "prefixItems", "minItems", "maxItems", "enum", "const", "minimum", "maximum",
     "exclusiveMinimum", "exclusiveMaximum", "minProperties", "minLength", "pattern",
-    "anyOf", "$ref",
+    "anyOf", "allOf", "if", "then", "else", "$ref",
 })
 # Keywords that only annotate; accepted and ignored (as the reference implementation does).
 ANNOTATIONS = frozenset({
@@ -166,10 +166,10 @@ class Validator:
         for key in ("properties", "patternProperties", "$defs"):
             for name, sub in schema.get(key, {}).items():
                 self._check_keywords(sub, f"{where}/{key}/{name}")
-        for key in ("additionalProperties", "items"):
+        for key in ("additionalProperties", "items", "if", "then", "else"):
             if key in schema:
                 self._check_keywords(schema[key], f"{where}/{key}")
-        for key in ("prefixItems", "anyOf"):
+        for key in ("prefixItems", "anyOf", "allOf"):
             for i, sub in enumerate(schema.get(key, [])):
                 self._check_keywords(sub, f"{where}/{key}/{i}")
         if "$ref" in schema:
@@ -225,6 +225,14 @@ class Validator:
             err("const", f"expected {_show(schema['const'])}, got {_show(inst)}")
         if "anyOf" in schema:
             self._any_of(inst, schema["anyOf"], path, out)
+        for sub in schema.get("allOf", []):
+            self._validate(inst, sub, path, out)
+        if "if" in schema:
+            # A discriminated union ("if kind is dlt then the DLT fields"): the condition's
+            # own errors are never reported, only those of the branch it selects.
+            branch = "then" if self._passes(inst, schema["if"], path) else "else"
+            if branch in schema:
+                self._validate(inst, schema[branch], path, out)
 
         if isinstance(inst, int | float) and not isinstance(inst, bool):
             if "minimum" in schema and inst < schema["minimum"]:
@@ -247,6 +255,11 @@ class Validator:
             self._array(inst, schema, path, out, err)
         elif isinstance(inst, dict):
             self._object(inst, schema, path, out, err)
+
+    def _passes(self, inst, schema, path):
+        errs = []
+        self._validate(inst, schema, path, errs)
+        return not errs
 
     def _array(self, inst, schema, path, out, err):
         if "minItems" in schema and len(inst) < schema["minItems"]:
@@ -302,16 +315,21 @@ class Validator:
         if len(fitting) == 1:
             out.extend(fitting[0])
             return
-        types = []
+        types, titles = [], []
         for sub in branches:
             sub = self._resolve(sub["$ref"]) if isinstance(sub, dict) and "$ref" in sub else sub
             t = sub.get("type", []) if isinstance(sub, dict) else []
             types += [x for x in (t if isinstance(t, list) else [t]) if x not in types]
+            titles.append(sub.get("title") if isinstance(sub, dict) else None)
         detail = ""
-        if not fitting and types:
+        if all(titles):  # the schema names its forms: list them ("11 numbers; 16 numbers")
+            detail = ": " + "; ".join(titles)
+        elif not fitting and types:
             detail = " (expected " + " or ".join(
                 "an " + t if t[0] in "aeiou" else "a " + t for t in types) + ")"
-        out.append(ValidationError(path, f"{_show(inst)} matches none of the allowed forms"
+        what = (f"an array of {len(inst)} item{'s' * (len(inst) != 1)}"
+                if isinstance(inst, list) else _show(inst))
+        out.append(ValidationError(path, f"{what} matches none of the allowed forms"
                                    + detail, "anyOf"))
 
 

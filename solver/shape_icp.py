@@ -25,12 +25,20 @@ Data come in groups of rows ("Rows") that a caller composes freely in one solve:
   symmetric correspondences; thesis §4.3.3);
 - ``ClosestPixelRows``: ICP in an image against a contour, e.g. the profile line (§4.4.1).
 
-Why the assembly looks the way it does: a dense Jacobian of a 3-D registration is 33k rows
-by 7+K columns and its normal matrix would dominate the run time. Rows whose weight is the
-same for the three coordinates of a vertex ("isotropic", i.e. full 3-D targets) contribute
-``s^2 sum_i w_i B_i^T B_i`` to the shape block, independent of R and of the targets, so that
-Gram matrix is cached and only corrected for the vertices whose weight changed (outliers).
-Everything else costs O(n K).
+The solver forms the normal equations ``(J^T W J + priors) d = J^T W r`` of the 7 + K
+parameters directly (never the Jacobian of a 3-D registration, 33k rows by 7 + K columns),
+Jacobi-scales them and solves by Cholesky; a near-singular system is reported with the
+parameters it cannot determine. Why the assembly looks the way it does:
+
+- rows whose weight is the same for the three coordinates of a vertex ("isotropic", full
+  3-D targets) contribute ``s^2 sum_i w_i B_i^T B_i`` to the shape block, independent of R
+  and of the targets, so that Gram matrix is cached and only corrected for the vertices
+  whose weight changed (ICP outliers); their other terms need one pass over the basis;
+- other rows (masked, image, point-to-plane) are contracted with the basis seen from the
+  model frame (``s R B_i`` row = ``(s R^T g)^T B_i``) and multiplied as one symmetric
+  product;
+- a group only slices the basis of its own vertices, so a landmark solve on a few hundred
+  vertices costs a few milliseconds whatever the size of the model.
 """
 
 from abc import ABC, abstractmethod
@@ -224,7 +232,7 @@ class ImageRows(Rows):
         self._version += 1
 
     def block(self, world, jacobian=True):
-        r = self.pixels - self.camera.project(world)  # (n, 2)
+        r = self.pixels - _projected(self.camera, world, self.name, self.vertices)
         w = self.weights
         sq = float(w @ np.einsum("ij,ij->i", r, r))
         n = len(w)
@@ -233,6 +241,18 @@ class ImageRows(Rows):
         jac = np.asarray(self.camera.jacobian(world), dtype=np.float64).reshape(n, 2, 3)
         return _General(np.repeat(np.arange(n), 2), jac.reshape(2 * n, 3), r.reshape(-1),
                         np.repeat(w, 2), sq, float(w.sum()), 2 * int((w > 0).sum()))
+
+
+def _projected(camera, world, name, vertices):
+    """``camera.project(world)``, or a ValueError naming the first vertex that does not
+    project to a finite pixel (e.g. behind a perspective camera)."""
+    px = np.asarray(camera.project(world), dtype=np.float64)
+    bad = ~np.isfinite(px).all(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"{name}: vertex {int(vertices[i])} does not project to a finite "
+                         "pixel (behind the camera?)")
+    return px
 
 
 def _reject(dist, ok, max_distance, reject_factor, keep_distance=0.0):
@@ -268,12 +288,17 @@ class ClosestPointRows(Rows):
         ... unless they are closer than this (metres): early in a fit, true shape
         differences of several millimetres must not be mistaken for outliers.
     symmetric : bool
-        Also pull, for every cloud point, its nearest vertex toward it (helps where the
-        cloud is thinner than the model). Per vertex these pulls average into one target.
+        Also pull, for every cloud point, its nearest vertex toward it (reaches parts of
+        the cloud no vertex is nearest to; costs a tree on the vertices per iteration). Per
+        vertex these pulls average into one target.
     normals : array_like, shape (m, 3), optional
         Unit normals of the cloud (sign irrelevant) for the point-to-plane cost.
     tangential : float
         Weight of the point-to-point term when ``normals`` are given.
+    exclude : array_like of bool, shape (m,), optional
+        Cloud points that may not serve as targets (e.g. the cloud's boundary: a vertex
+        beyond the edge of a partial scan would otherwise be pulled onto the edge); a
+        vertex whose nearest point is excluded gets no row.
     tree : scipy.spatial.cKDTree, optional
         A tree already built on ``cloud`` (reused across solves).
     workers : int
@@ -282,8 +307,8 @@ class ClosestPointRows(Rows):
     """
 
     def __init__(self, vertices, cloud, weights=1.0, max_distance=np.inf, reject_factor=None,
-                 keep_distance=0.0, symmetric=False, normals=None, tangential=0.1, tree=None,
-                 workers=1, name="cloud"):
+                 keep_distance=0.0, symmetric=False, normals=None, tangential=0.1,
+                 exclude=None, tree=None, workers=1, name="cloud"):
         self.name = name
         self.vertices = _vertex_array(vertices, name)
         self.weights = _weight_array(weights, len(self.vertices), name)
@@ -309,6 +334,13 @@ class ClosestPointRows(Rows):
         if not np.isfinite(tangential) or tangential < 0:
             raise ValueError(f"{name}: tangential must be finite and >= 0, got {tangential!r}")
         self.tangential = float(tangential)
+        self.exclude = None
+        if exclude is not None:
+            ex = np.asarray(exclude)
+            if ex.shape != (len(self.cloud),) or ex.dtype != bool:
+                raise ValueError(f"{name}: exclude must be a bool array of shape "
+                                 f"({len(self.cloud)},), got {ex.dtype} {ex.shape}")
+            self.exclude = ex if ex.any() else None
         self.max_distance = md
         self.reject_factor = reject_factor
         self.keep_distance = float(keep_distance)
@@ -321,8 +353,10 @@ class ClosestPointRows(Rows):
     def update(self, world):
         dist, idx = self.tree.query(world, distance_upper_bound=self.max_distance,
                                     workers=self.workers)
-        ok = _reject(dist, np.isfinite(dist), self.max_distance, self.reject_factor,
-                     self.keep_distance)
+        ok = np.isfinite(dist)
+        if self.exclude is not None:
+            ok &= ~self.exclude[np.where(ok, idx, 0)]
+        ok = _reject(dist, ok, self.max_distance, self.reject_factor, self.keep_distance)
         idx = np.where(ok, idx, 0)
         self.distances = dist
         self.inliers = ok
@@ -407,6 +441,8 @@ class ClosestPixelRows(Rows):
         md = float(max_distance)
         if not md > 0:
             raise ValueError(f"{name}: max_distance must be > 0, got {max_distance!r}")
+        if reject_factor is not None and not float(reject_factor) > 0:
+            raise ValueError(f"{name}: reject_factor must be > 0, got {reject_factor!r}")
         self.max_distance = md
         self.reject_factor = reject_factor
         self.tree = cKDTree(self.pixels)
@@ -414,7 +450,7 @@ class ClosestPixelRows(Rows):
         self.inliers = None
 
     def update(self, world):
-        proj = self.camera.project(world)
+        proj = _projected(self.camera, world, self.name, self.vertices)
         dist, idx = self.tree.query(proj, distance_upper_bound=self.max_distance)
         ok = _reject(dist, np.isfinite(dist), self.max_distance, self.reject_factor)
         self.inliers = ok
@@ -424,7 +460,7 @@ class ClosestPixelRows(Rows):
         if self.targets is None:
             self.update(world)
         w = np.where(self.inliers, self.weights, 0.0)
-        r = self.targets - self.camera.project(world)
+        r = self.targets - _projected(self.camera, world, self.name, self.vertices)
         sq = float(w @ np.einsum("ij,ij->i", r, r))
         n = len(w)
         nrows = 2 * int((w > 0).sum())
@@ -618,9 +654,16 @@ class _Prepared:
         inactive[active] = False
         self.inactive_idx = np.flatnonzero(inactive)
         self.base = self.mean
+        self._basis_vm = None
         self._gram_alpha = None
         self._gram = None
         self._gram_updates = 0
+
+    def basis_vm(self):
+        """The basis vertex-major, shape (n, 3, Ka), made on first use (row gathers)."""
+        if self._basis_vm is None:
+            self._basis_vm = np.ascontiguousarray(self.basis.transpose(1, 2, 0))
+        return self._basis_vm
 
     def set_inactive(self, coeffs):
         """Fold the fixed (inactive) coefficients into the base shape, slicing only the
@@ -801,9 +844,12 @@ class ShapeProblem:
             if gamma.ndim != 2 or gamma.shape[1] != k:
                 raise ValueError(f"model: gamma must have shape (G, {k}), got {gamma.shape}")
             self.gamma = gamma
-            ga = gamma[:, self.active]
-            self._gtg = self.lambda1**2 * (ga.T @ ga)
-            self._ga = ga
+            # Gamma enters only through Gamma^T Gamma (K x K): precomputed once, so a
+            # solve never touches Gamma's thousands of rows again.
+            gtg_full = gamma.T @ gamma
+            self._gtg_full = self.lambda1**2 * gtg_full
+            self._gtg_rows = self._gtg_full[self.active]  # (Ka, K)
+            self._gtg = self._gtg_rows[:, self.active]
         weight = self._sd**2 if self.prior == "identity" else np.ones(k)
         self._lam_all = self.lambda2**2 * weight + self.anneal**2
         self._lam = self._lam_all[self.active]
@@ -816,8 +862,7 @@ class ShapeProblem:
     def _prior_cost(self, c):
         cost = float(self._lam_all @ c**2)
         if self.gamma is not None:
-            gc = self.gamma @ c
-            cost += self.lambda1**2 * float(gc @ gc)
+            cost += float(c @ self._gtg_full @ c)
         return cost
 
     def _build(self, state, update, jacobian=True):
@@ -878,7 +923,7 @@ class ShapeProblem:
             b[7:] -= self._lam * c[self.active]
             if self.gamma is not None:
                 n_mat[7:, 7:] += self._gtg
-                b[7:] -= self.lambda1**2 * (self._ga.T @ (self.gamma @ c))
+                b[7:] -= self._gtg_rows @ c
         return _System(n_mat, b, sys.sq, self._prior_cost(c), sys.wsum, sys.nrows, sys.groups)
 
     def _key(self, state):
@@ -936,11 +981,16 @@ class ShapeProblem:
         b[:7] += a_sw.T @ r
         if shape:
             h = s * g @ rot  # row of s R B_i seen from the model frame
-            bas = pg.basis if dense else pg.basis[:, idx, :]
-            a_c = np.einsum("kmi,mi->km", bas, h)  # (Ka, m): shape columns of the rows
-            sr = a_c * np.sqrt(w)
-            n_mat[7:, 7:] += sr @ sr.T  # A^T W A as one symmetric product (BLAS syrk)
-            prod = (a_c * w) @ np.column_stack([a_s, r])
+            if dense:  # all vertices: contract the (Ka, n, 3) basis in place, no gather
+                a_c = np.einsum("kmi,mi->km", pg.basis, h)  # (Ka, m)
+                sr = a_c * np.sqrt(w)
+                n_mat[7:, 7:] += sr @ sr.T  # A^T W A as one symmetric product (syrk)
+                prod = (a_c * w) @ np.column_stack([a_s, r])
+            else:  # few rows: gather contiguous (3, Ka) blocks per row
+                a_c = np.einsum("mi,mik->mk", h, pg.basis_vm()[idx])  # (m, Ka)
+                sr = a_c * np.sqrt(w)[:, None]
+                n_mat[7:, 7:] += sr.T @ sr
+                prod = (a_c * w[:, None]).T @ np.column_stack([a_s, r])
             n_mat[7:, :7] += prod[:, :7]
             b[7:] += prod[:, 7]
 
@@ -960,7 +1010,7 @@ class ShapeProblem:
         try:
             low = np.linalg.cholesky(ns)
             diag = np.diag(low)
-            ok = (diag.min() / diag.max()) ** 2 > _RCOND
+            ok = (diag.min() / diag.max()) ** 2 > 1e4 * _RCOND  # else check by eigenvalues
         except np.linalg.LinAlgError:
             ok = False
         if not ok:
@@ -1031,6 +1081,8 @@ class ShapeProblem:
             raise ValueError(f"max_iterations: must be >= 0, got {max_iterations}")
         if not tolerance >= 0:
             raise ValueError(f"tolerance: must be >= 0, got {tolerance!r}")
+        if sigma is not None and not (np.isfinite(sigma) and sigma >= 0):
+            raise ValueError(f"sigma: must be finite and >= 0, got {sigma!r}")
         for pg in self.groups:
             pg.set_inactive(c)
         state = (s, rot, t, c)
@@ -1064,7 +1116,11 @@ class ShapeProblem:
             frac = 1.0
             for _ in range(8):
                 cand = self._apply(state, full, frac)
-                trial = self._build(cand, update=False, jacobian=False)
+                try:
+                    trial = self._build(cand, update=False, jacobian=False)
+                except ValueError:  # e.g. a vertex stepped behind a perspective camera
+                    frac *= 0.5
+                    continue
                 if trial.sq + trial.prior <= cost0 * (1 + 1e-12) + 1e-300:
                     accepted = cand
                     break
@@ -1076,12 +1132,7 @@ class ShapeProblem:
             steps += 1
         s, rot, t, c = state
         dof = sys.nrows + (self._prior_rows if self.shape_free else 0) - n_free
-        if sigma is None:
-            sig = float(np.sqrt(sys.sq / max(dof, 1)))
-        else:
-            sig = float(sigma)
-            if not np.isfinite(sig) or sig < 0:
-                raise ValueError(f"sigma: must be finite and >= 0, got {sigma!r}")
+        sig = float(np.sqrt(sys.sq / max(dof, 1))) if sigma is None else float(sigma)
         return ShapeFit(
             scale=s, rotation=rot, translation=t, coeffs=c, error_history=history,
             iterations=steps, converged=converged,

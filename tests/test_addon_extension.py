@@ -33,6 +33,10 @@ print("RESULT " + json.dumps({
     "top_level_solver": "solver" in sys.modules,
     "status": scene.headrecon.status,
 }))
+sys.stdout.flush()
+if bpy.app.version < (4, 4, 0):  # bpy < 4.4 crashes at interpreter exit (Blender #125376)
+    import os
+    os._exit(0)
 """
 
 

@@ -181,10 +181,25 @@ def test_live_refit_follows_a_moved_landmark(model, files):
     assert not np.allclose(result.identity_coeffs, base.identity_coeffs)
     assert _keys(head)["identity_000"].value == pytest.approx(result.identity_coeffs[0],
                                                                abs=1e-6)
+    # while dragging, the coefficient keys are muted and the detail key shows the shape
+    assert _keys(head)["identity_000"].mute and shape_keys.in_live_shape(head)
     local = shape_keys.evaluated_vertices(head, bpy.context.evaluated_depsgraph_get())
     assert np.abs(local - result.local_vertices).max() < 1e-5
     # nothing moved: no refit
     assert fit_ops.live_refit_step(scene) is None
+    # the drag ends (the timer does this in the UI): keys back to coefficients + detail
+    assert fit_ops.finish_live_drag()
+    assert not _keys(head)["identity_000"].mute and not shape_keys.in_live_shape(head)
+    local = shape_keys.evaluated_vertices(head, bpy.context.evaluated_depsgraph_get())
+    assert np.abs(local - result.local_vertices).max() < 1e-5
+    detail = shape_keys.get_key_co(_keys(head)["fit_detail"])
+    assert np.abs(detail - (model.vertices + result.detail)).max() < 1e-5
+    # Quick Refit writes the settled form directly
+    obj.location.x -= 0.004
+    assert bpy.ops.headrecon.refit_landmarks() == {"FINISHED"}
+    assert not shape_keys.in_live_shape(head)
+    local = shape_keys.evaluated_vertices(head, bpy.context.evaluated_depsgraph_get())
+    assert np.abs(local - fit_ops.last_result().local_vertices).max() < 1e-5
     scene.headrecon.live_refit = False
 
 

@@ -46,7 +46,7 @@ def test_register_unregister_leaves_nothing_behind():
     headrecon_addon.unregister()
     after = _state()
     assert after == before
-    assert not bpy.app.timers.is_registered(headrecon_addon.fit_ops.live_refit_step)
+    assert not bpy.app.timers.is_registered(headrecon_addon.fit_ops._settle_timer)
 
     # and again: a second cycle works (no stale class or property left to clash with)
     headrecon_addon.register()
@@ -63,7 +63,8 @@ def test_extension_root_imports_as_a_package(tmp_path):
             "from headrecon.headrecon_addon import solver_link; "
             "headrecon.register(); import bpy; ok = hasattr(bpy.types.Scene, 'headrecon'); "
             "headrecon.unregister(); "
-            "print(ok, solver_link.solver.__name__, 'solver' in sys.modules)")
+            "print(ok, solver_link.solver.__name__, 'solver' in sys.modules); "
+            "from headrecon.headrecon_addon.headless import exit_process; exit_process(0)")
     proc = run_python(["-c", code, str(tmp_path)], cwd=tmp_path, env={"PYTHONPATH": ""})
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split()[-3:] == ["True", "headrecon.solver", "False"]

@@ -142,8 +142,8 @@ def test_obj_of_the_head_model(tmp_path, model):
 # Command line
 
 
-def run_cli(*args, cwd=None):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
+def run_cli(*args, cwd=None, **env_vars):
+    env = dict(os.environ, PYTHONPATH=str(ROOT), **env_vars)
     return subprocess.run([sys.executable, "-m", "solver", *map(str, args)], cwd=cwd or ROOT,
                           capture_output=True, text=True, env=env, timeout=600)
 
@@ -235,6 +235,19 @@ def test_fit_texture_needs_the_photos(tmp_path, case_doc):
     assert not (tmp_path / "h.obj").exists() and not (tmp_path / "h.png").exists()
 
 
+def test_fit_without_a_model_or_photos(tmp_path, case_doc):
+    case = write_case(tmp_path, case_doc)
+    proc = run_cli("fit", case, "--out", tmp_path / "h.obj",
+                   HEADRECON_MODEL=str(tmp_path / "none.npz"))
+    assert_one_line_error(proc, "head model not found", "none.npz", "./run model")
+    doc = json.loads(json.dumps(case_doc))
+    for view in doc["views"].values():
+        del view["image"]
+    case = write_case(tmp_path, doc)
+    proc = run_cli("fit", case, "--out", tmp_path / "h.obj", "--texture", tmp_path / "t.png")
+    assert_one_line_error(proc, "--texture: ", "no view names a photo")
+
+
 def test_validate(tmp_path, case_doc):
     good = write_case(tmp_path, case_doc)
     proc = run_cli("validate", good)
@@ -255,6 +268,13 @@ def test_validate(tmp_path, case_doc):
     proc = run_cli("validate", bad)
     assert "bad.json: views.side.points.nose_tpi: unknown landmark; did you mean 'nose_tip'?" \
         in proc.stderr
+    # work in progress: too few landmarks is fine with --draft, not without
+    doc = json.loads(json.dumps(case_doc))
+    doc["views"]["side"]["points"] = dict(list(doc["views"]["side"]["points"].items())[:1])
+    wip = write_case(tmp_path, doc, "wip.json")
+    assert run_cli("validate", "--draft", wip).returncode == 0
+    proc = run_cli("validate", wip)
+    assert proc.returncode == 1 and "wip.json: views.side.points: 1 landmark;" in proc.stderr
 
 
 def test_landmarks_listing():

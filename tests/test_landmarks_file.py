@@ -353,10 +353,10 @@ def test_bad_camera_object(doc):
 
 
 def test_bad_version_and_format(doc):
-    for version in (2, 0, "1", True, None):
+    for version in (3, 0, "1", True, None):
         d = dict(doc, version=version)
         with pytest.raises(ValueError, match=r"case\.json: version: unsupported version .*reads "
-                                             "version 1"):
+                                             "versions 1 and 2"):
             parse_landmarks(d, "case.json")
     d = dict(doc, format="headrecon-landmark-set")
     with pytest.raises(ValueError, match=r"case\.json: format: expected 'headrecon-landmarks'"):
@@ -523,7 +523,7 @@ def test_schema_agrees_with_jsonschema_on_valid_documents(schema, doc):
 INVALID_MUTATIONS = [
     lambda d: d.pop("format"),
     lambda d: d.update(format="headrecon-landmark"),
-    lambda d: d.update(version=2),
+    lambda d: d.update(version=3),
     lambda d: d.update(version=True),
     lambda d: d.update(views={}),
     lambda d: d.update(views=[]),
@@ -627,6 +627,10 @@ GENERIC_SCHEMA = {
               "items": False},
         "r": {"$ref": "#/$defs/pair"},
         "a": {"anyOf": [{"type": "string"}, {"$ref": "#/$defs/pair"}]},
+        "k": {"type": "object", "allOf": [{"required": ["kind"]}, {"minProperties": 1}],
+              "if": {"required": ["kind"], "properties": {"kind": {"const": "a"}}},
+              "then": {"required": ["x"]},
+              "else": {"properties": {"x": {"type": "string"}}}},
     },
     "patternProperties": {"^p_": {"type": "integer"}},
     "additionalProperties": {"type": "boolean"},
@@ -649,6 +653,10 @@ GENERIC_CASES = [
     ({"n": 1, "a": 3}, False), ({"n": 1, "p_x": 3}, True), ({"n": 1, "p_x": "3"}, False),
     ({"n": 1, "other": True}, True), ({"n": 1, "other": 1}, False), ({"n": "1", "i": 1}, False),
     ({"n": float("nan"), "i": 1}, True), ([1], False), ("n", False),
+    ({"n": 1, "k": {"kind": "a", "x": 1}}, True), ({"n": 1, "k": {"kind": "a"}}, False),
+    ({"n": 1, "k": {"kind": "b", "x": "s"}}, True), ({"n": 1, "k": {"kind": "b", "x": 1}}, False),
+    ({"n": 1, "k": {"kind": "b"}}, True), ({"n": 1, "k": {"x": "s"}}, False),
+    ({"n": 1, "k": {}}, False),
 ]
 
 

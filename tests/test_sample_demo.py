@@ -16,7 +16,7 @@ from scipy import ndimage
 
 from solver.cameras import camera_from_dict
 from solver.landmarks_file import load_landmarks
-from tools.make_sample import make_sample, trace_outline
+from tools.make_sample import make_sample
 
 ROOT = Path(__file__).resolve().parent.parent
 SIZE = (384, 512)
@@ -143,18 +143,6 @@ def test_sample_is_reused_when_up_to_date(sample, model):
     make_sample(folder, size=SIZE, samples=4, model=model, log=messages.append)
     assert messages == [f"sample up to date: {folder}"]
     assert {p.name: p.stat().st_mtime_ns for p in folder.iterdir()} == before
-
-
-def test_trace_outline_walks_the_boundary_in_order():
-    y, x = np.mgrid[0:40, 0:50]
-    mask = (x - 25) ** 2 + (y - 20) ** 2 < 15**2
-    mask[18:23, 30:] = False  # a notch: not star-shaped seen from the right
-    path = trace_outline(mask)
-    outline = mask & ~ndimage.binary_erosion(mask)
-    assert mask[path[:, 0], path[:, 1]].all()
-    assert {tuple(p) for p in path} == {tuple(p) for p in np.argwhere(outline)}
-    step = np.abs(np.diff(np.vstack([path, path[:1]]), axis=0)).max(axis=1)
-    assert (step == 1).all()  # 8-connected, closed
 
 
 def test_demo_writes_everything_and_fits_the_truth(demo, model):

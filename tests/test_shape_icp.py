@@ -464,3 +464,40 @@ def test_singular_system_names_the_parameter():
     far = ClosestPointRows(v, model.mean[v] + 1.0, max_distance=0.01, name="scan")
     with pytest.raises(ValueError, match="too few observations.*scan: 0"):
         shape_icp(model, far)
+
+
+def test_set_priors_reuses_cached_system_correctly():
+    # Changing priors between solves (as register's annealing does) must give exactly what
+    # a fresh problem gives from the same start.
+    model, _ = two_region_model()
+    rng = np.random.default_rng(19)
+    v = np.arange(0, model.n_vertices, 2)
+    y = model.mean[v] + 0.003 * rng.standard_normal((len(v), 3))
+    problem = ShapeProblem(model, PointRows(v, y))
+    first = problem.solve(max_iterations=3)
+    start = dict(scale=first.scale, rotation=first.rotation, translation=first.translation,
+                 coeffs=first.coeffs)
+    problem.set_priors(lambda1=0.5, lambda2=0.05, anneal=0.02)
+    again = problem.solve(**start, max_iterations=3)
+    fresh = ShapeProblem(model, PointRows(v, y), lambda1=0.5, lambda2=0.05)
+    fresh.set_priors(anneal=0.02)
+    ref = fresh.solve(**start, max_iterations=3)
+    np.testing.assert_allclose(again.coeffs, ref.coeffs, atol=1e-12)
+    np.testing.assert_allclose(again.normal_matrix, ref.normal_matrix, atol=1e-9)
+    with pytest.raises(ValueError, match="anneal: must be finite"):
+        problem.set_priors(anneal=-1.0)
+
+
+def test_unprojectable_vertex_is_named():
+    class Behind(OrthographicCamera):
+        def project(self, points):
+            px = super().project(points)
+            px[points[:, 1] > 0.05] = np.nan  # "behind the camera"
+            return px
+
+    model = synthetic_model()
+    cam = Behind(np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]]), 2000.0, (500, 500), (1000, 1000))
+    v = np.arange(model.n_vertices)
+    first_bad = int(v[model.mean[:, 1] > 0.05][0])
+    with pytest.raises(ValueError, match=f"front: vertex {first_bad} does not project"):
+        shape_icp(model, ImageRows(v, np.zeros((len(v), 2)), cam, name="front"))

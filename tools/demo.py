@@ -44,7 +44,7 @@ REPO_ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_OUT = REPO_ROOT / "out" / "demo"
 PANEL_HEIGHT = 512  # preview panel height in pixels (photo aspect kept)
 TEXTURE_SIZE = 1024
-ERROR_MAX_MM = 5.0  # the error map's red end
+ERROR_MAX_MM = 3.0  # the error map's red end
 # Overlay meshes made for Unreal's eye shaders: left out of the OBJ (grey sheets otherwise).
 OBJ_SKIP_PART_WORDS = ("lacrimal", "blend", "occlusion")
 
@@ -149,6 +149,7 @@ def write_blend(model, case, result, photo_paths, out):
     head = headless.build_scene_from_fit(model, case, result, images=photo_paths,
                                          texture_size=TEXTURE_SIZE, name="Demo head")
     headless.save_blend(out / "head.blend")
+    (out / "head.blend1").unlink(missing_ok=True)  # Blender's backup of an earlier run
     return head
 
 
@@ -208,7 +209,7 @@ def render_previews(model, result, head, errors_mm, panel_size, samples, log):
     for obj in scene.objects:  # photo planes, landmark markers: only the head is rendered
         obj.hide_render = obj != head and obj.parent != head
     world = result.world_vertices
-    ru.studio_lighting(world[model.skin].mean(axis=0))
+    ru.studio_lighting(world[model.skin].mean(axis=0), **ru.PREVIEW_LIGHTING)
     cams = {v: _scaled(c, panel_size[1] / c.size[1]) for v, c in result.cameras.items()}
     front = next((c for c in cams.values() if getattr(c, "view", "") == "orthographic-front"),
                  next(iter(cams.values())))
@@ -255,6 +256,20 @@ def _marks(im, points, colour, r):
         d.ellipse([u - r, v - r, u + r, v + r], outline=colour, width=1)
 
 
+def _colour_bar(im, font):
+    """The error map's legend: a vertical bar from 0 to ERROR_MAX_MM at the panel's right."""
+    h = im.height // 3
+    x0, y0, bw = im.width - 28, im.height - h - 12, 12
+    t = np.linspace(1.0, 0.0, h)[:, None]
+    bar = error_colors(t[:, 0] * ERROR_MAX_MM)[:, :3]
+    im.paste(Image.fromarray(np.repeat((bar[:, None] * 255).astype(np.uint8), bw, axis=1)),
+             (x0, y0))
+    d = ImageDraw.Draw(im)
+    for label, y in ((f"{ERROR_MAX_MM:g} mm", y0), ("0", y0 + h - font.size)):
+        d.text((x0 - 4 - d.textlength(label, font=font), y), label, fill=(20, 20, 20),
+               font=font)
+
+
 def compose_preview(case, result, model, photos, renders, cams, summary, path):
     """The preview image: photos with landmarks on top, renders below (see module doc)."""
     from tools.render_util import backdrop, composite, save_png
@@ -289,14 +304,16 @@ def compose_preview(case, result, model, photos, renders, cams, summary, path):
         _marks(bottom, fitted, (255, 40, 40), r)
         sheet.paste(bottom, (j * pw, ph))
     err = summary["vertex_error"]
-    sheet.paste(_panel(composite(renders["error"], backdrop((pw, ph))),
-                       f"error vs truth: RMS {err['rms_mm']:.2f} mm (red >= {ERROR_MAX_MM:g})",
-                       font), (len(views) * pw, 0))
+    error_panel = _panel(composite(renders["error"], backdrop((pw, ph))),
+                         f"distance to the true head: RMS {err['rms_mm']:.2f} mm", font)
+    _colour_bar(error_panel, font)
+    sheet.paste(error_panel, (len(views) * pw, 0))
     sheet.paste(_panel(composite(renders["three-quarter"], backdrop((pw, ph))),
                        "fit, three-quarter view", font), (len(views) * pw, ph))
     d = ImageDraw.Draw(sheet)
     d.text((6, 2 * ph + 5),
-           f"method {summary['method']} | landmarks: green placed, red fitted | "
+           f"{summary['requested_method']} fit ({summary['method']} won) | landmarks: green "
+           "placed, red fitted | "
            f"vertex error {err['rms_mm']:.2f} mm RMS over the skin "
            f"(mean head {summary['mean_head_error_mm']:.2f} mm)",
            fill=(230, 230, 230), font=font)
@@ -337,7 +354,7 @@ def run_demo(out=DEFAULT_OUT, sample=DEFAULT_SAMPLE, size=DEFAULT_SIZE,
         raise DemoError(f"the fit failed on {sample_json}: {type(exc).__name__}: {exc}") \
             from exc
     timings["fit_s"] = time.perf_counter() - t
-    chosen = str(result.info.get("chosen", result.method))
+    chosen = str(result.info.get("approach", result.method))
     rms_all, rms_views = residual_summary(result)
     err = vertex_errors(result.local_vertices, truth["local_vertices"], model.skin)
     mean_err = vertex_errors(model.vertices, truth["local_vertices"], model.skin)
@@ -364,7 +381,9 @@ def run_demo(out=DEFAULT_OUT, sample=DEFAULT_SAMPLE, size=DEFAULT_SIZE,
         "flagged": [f"{v}:{n}" for v, n in result.flagged()],
         "vertex_error": {k: v for k, v in err.items() if k != "per_vertex_mm"},
         "mean_head_error_mm": mean_err["rms_mm"],
-        "identity_coeffs_used": int(np.count_nonzero(result.identity_coeffs)),
+        "contour_rms_px": result.info.get("contour_rms_px", {}),
+        "candidates": result.info.get("candidates", {}),
+        "fit_timings_s": result.info.get("timings", {}),
     }
     t = time.perf_counter()
     first = case.views[next(iter(case.views))]
@@ -375,7 +394,8 @@ def run_demo(out=DEFAULT_OUT, sample=DEFAULT_SAMPLE, size=DEFAULT_SIZE,
     timings["preview_s"] = time.perf_counter() - t
     timings["total_s"] = time.perf_counter() - t_all
     summary["timings"] = timings
-    summary["outputs"] = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
+    summary["outputs"] = sorted({p.name for p in out.iterdir() if not p.name.startswith(".")}
+                                | {"report.json"})
     write_file_atomic(out / "report.json", json.dumps(summary, indent=2) + "\n")
     return summary
 
@@ -383,7 +403,7 @@ def run_demo(out=DEFAULT_OUT, sample=DEFAULT_SAMPLE, size=DEFAULT_SIZE,
 def print_summary(s, out):
     e = s["vertex_error"]
     t = s["timings"]
-    print(f"method:             {s['method']}")
+    print(f"method:             {s['requested_method']} ({s['method']} won)")
     print(f"landmark residual:  {s['residual_rms_px']:.2f} px RMS ("
           + ", ".join(f"{v} {px:.2f}" for v, px in s["residual_px"].items()) + ")")
     print(f"vertex error:       {e['rms_mm']:.2f} mm RMS over the skin after similarity "

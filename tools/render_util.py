@@ -190,22 +190,30 @@ def add_light(kind, location, target, energy, size=1.0, color=(1.0, 1.0, 1.0), n
     return obj
 
 
-def studio_lighting(center, world_strength=0.2):
+def studio_lighting(center, world_strength=0.2, light_scale=1.0,
+                    world_color=(0.55, 0.56, 0.58)):
     """Soft portrait lighting around ``center``: a large key from the subject's front right
     (it lights both the front and the right-side photo), a fill from the front left, a
-    rim from behind, and a dim grey world for ambient light."""
+    rim from behind, and a world for ambient light.
+
+    The sample photos use the defaults. A texture baked from photos already holds their
+    light, so previews of it use a bright white world and dimmed lights
+    (``PREVIEW_LIGHTING``): the texture then shows about as it was photographed.
+    """
     c = np.asarray(center, dtype=np.float64)
-    add_light("AREA", c + (-1.0, -1.4, 0.7), c, 75.0, size=1.2, color=(1.0, 0.96, 0.9),
-              name="Key")
-    add_light("AREA", c + (1.4, -1.0, 0.1), c, 30.0, size=1.5, color=(0.92, 0.96, 1.0),
-              name="Fill")
-    add_light("AREA", c + (0.3, 1.3, 1.0), c, 40.0, size=0.8, name="Rim")
+    add_light("AREA", c + (-1.0, -1.4, 0.7), c, 75.0 * light_scale, size=1.2,
+              color=(1.0, 0.96, 0.9), name="Key")
+    add_light("AREA", c + (1.4, -1.0, 0.1), c, 30.0 * light_scale, size=1.5,
+              color=(0.92, 0.96, 1.0), name="Fill")
+    add_light("AREA", c + (0.3, 1.3, 1.0), c, 40.0 * light_scale, size=0.8, name="Rim")
     world = bpy.data.worlds.new("World")
-    world.color = (0.5, 0.5, 0.5)
     bg = world.node_tree.nodes.get("Background")
-    bg.inputs["Color"].default_value = (0.55, 0.56, 0.58, 1.0)
+    bg.inputs["Color"].default_value = tuple(world_color) + (1.0,)
     bg.inputs["Strength"].default_value = world_strength
     bpy.context.scene.world = world
+
+
+PREVIEW_LIGHTING = {"world_strength": 0.7, "light_scale": 0.25, "world_color": (1.0, 1.0, 1.0)}
 
 
 def vertex_color_material(name, attribute):

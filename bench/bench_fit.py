@@ -1,0 +1,148 @@
+"""Benchmark of the fit: accuracy on synthetic heads, speed, memory.
+
+    python -m bench.bench_fit [--cases 20] [--noise 0 1 2] [--blas-threads 1]
+
+Accuracy: seeded synthetic cases (solver/synthetic.py): a head drawn from the model's 100
+identity modes, rotated up to 5 degrees, photographed by orthographic cameras into
+1024-pixel-high front and right photos (each with its own scale and offset), landmarks
+with Gaussian noise sigma, and the traced profile contour with the same noise. For each
+method the error is the RMS distance over the skin vertices between the fitted and the
+true head after a similarity alignment (Procrustes: photos cannot tell size), in mm.
+"mean head" is the model's mean aligned the same way (the error before any fit).
+Targets: <= 2.0 mm at sigma = 1 px.
+
+Speed: wall time of ``fit_head`` (default options: combined) per case, median; of
+``refit_landmarks`` after moving one landmark by 5 px (the drag path), median. Targets:
+<= 0.5 s and <= 30 ms. Memory: peak resident set size of this process (model loaded, all
+fits run; ``ru_maxrss``) and the peak of Python/numpy allocations during one full fit
+(``tracemalloc``). Target: <= 500 MB.
+"""
+
+import argparse
+import os
+import platform
+import sys
+from pathlib import Path
+
+
+def _parse():
+    p = argparse.ArgumentParser(prog="python -m bench.bench_fit", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--cases", type=int, default=20, help="synthetic heads per noise level")
+    p.add_argument("--noise", type=float, nargs="+", default=[0.0, 1.0, 2.0],
+                   help="landmark noise levels, pixels")
+    p.add_argument("--methods", nargs="+", default=["approach1", "approach2", "combined"])
+    p.add_argument("--blas-threads", default="1",
+                   help="BLAS threads (OPENBLAS/OMP/MKL_NUM_THREADS) unless already set in "
+                        "the environment; the fit's matrices are small, so one thread is "
+                        "fastest and steadiest ('default' leaves the library's choice)")
+    return p.parse_args()
+
+
+ARGS = _parse() if __name__ == "__main__" else None
+if ARGS is not None and ARGS.blas_threads != "default":
+    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, ARGS.blas_threads)
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+import copy  # noqa: E402
+import resource  # noqa: E402
+import statistics  # noqa: E402
+import time  # noqa: E402
+import tracemalloc  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from solver.fit import FitOptions, fit_head, refit_landmarks  # noqa: E402
+from solver.model import load_model  # noqa: E402
+from solver.procrustes import similarity_procrustes  # noqa: E402
+from solver.synthetic import make_case  # noqa: E402
+
+
+def cpu_model():
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def skin_error_mm(model, local, truth_local):
+    """RMS vertex distance over the skin after similarity alignment, millimetres."""
+    a, b = local[model.skin], truth_local[model.skin]
+    sim = similarity_procrustes(a, b)
+    return 1000.0 * float(np.sqrt(((sim.apply(a) - b) ** 2).sum(axis=1).mean()))
+
+
+def main(args):
+    model = load_model()
+    print(f"machine: {cpu_model()}, {os.cpu_count()} logical cores, Python "
+          f"{platform.python_version()}, numpy {np.__version__}, BLAS threads "
+          f"{os.environ.get('OPENBLAS_NUM_THREADS', 'library default')}")
+    print(f"cases: {args.cases} per noise level, rotation <= 5 deg, 1024-px photos, "
+          "front + right with contour\n")
+    methods = list(args.methods)
+    table = {}
+    fit_times, refit_times = [], []
+    chosen = {}
+    for sigma in args.noise:
+        errs = {m: [] for m in ["mean head"] + methods}
+        for seed in range(args.cases):
+            case, truth = make_case(model, 1000 + seed, noise_px=sigma, rotation_deg=5.0)
+            errs["mean head"].append(skin_error_mm(model, model.vertices, truth.local_vertices))
+            for m in methods:
+                t = time.perf_counter()
+                res = fit_head(model, case, FitOptions(method=m))
+                dt = time.perf_counter() - t
+                errs[m].append(skin_error_mm(model, res.local_vertices, truth.local_vertices))
+                if m == "combined":
+                    fit_times.append(dt)
+                    chosen[res.info["approach"]] = chosen.get(res.info["approach"], 0) + 1
+                    if sigma == 1.0 and seed < 10:
+                        moved = copy.deepcopy(case)
+                        u, v = moved.views["front"].points["nose_tip"]
+                        moved.views["front"].points["nose_tip"] = (u + 5.0, v)
+                        for _ in range(3):
+                            t = time.perf_counter()
+                            refit_landmarks(model, moved, res)
+                            refit_times.append(time.perf_counter() - t)
+        table[sigma] = errs
+        print(f"sigma = {sigma:g} px: RMS skin error after similarity alignment, mm")
+        print(f"  {'method':<12}{'median':>9}{'mean':>9}{'max':>9}")
+        for m, e in errs.items():
+            print(f"  {m:<12}{np.median(e):9.2f}{np.mean(e):9.2f}{np.max(e):9.2f}")
+        print()
+    if chosen:
+        print("combined chose: " + ", ".join(f"{k} {v}x" for k, v in sorted(chosen.items())))
+
+    # Memory of one full fit (numpy reports its buffers to tracemalloc).
+    case, _ = make_case(model, 999, noise_px=1.0)
+    tracemalloc.start()
+    fit_head(model, case, FitOptions())
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # KiB on Linux
+    print("\nspeed and memory")
+    if fit_times:
+        print(f"  full fit (combined): median {statistics.median(fit_times):.3f} s, "
+              f"max {max(fit_times):.3f} s over {len(fit_times)} fits (target <= 0.5 s)")
+    if refit_times:
+        print(f"  landmark refit: median {1000 * statistics.median(refit_times):.1f} ms, "
+              f"max {1000 * max(refit_times):.1f} ms over {len(refit_times)} (target <= 30 ms)")
+    print(f"  peak allocations during one fit (tracemalloc): {peak / 2**20:.0f} MB")
+    print(f"  peak resident memory of this process (ru_maxrss, model loaded): {rss:.0f} MB "
+          "(target <= 500 MB)")
+    target = table.get(1.0, {}).get("combined")
+    if target:
+        ok = np.median(target) <= 2.0
+        print(f"\naccuracy target (combined, sigma 1 px, median <= 2.0 mm): "
+              f"{'met' if ok else 'NOT met'} ({np.median(target):.2f} mm)")
+
+
+if __name__ == "__main__":
+    main(ARGS)
