@@ -126,7 +126,13 @@ def save_blend(path):
         if img.packed_file is None and img.source == "FILE" and img.has_data:
             img.pack()
     fit_ops.pack_baked_textures()
-    bpy.ops.wm.save_as_mainfile(filepath=str(path), check_existing=False, compress=True)
+    prefs = bpy.context.preferences.filepaths
+    versions = prefs.save_version
+    prefs.save_version = 0  # no head.blend1 backups next to batch output
+    try:
+        bpy.ops.wm.save_as_mainfile(filepath=str(path), check_existing=False, compress=True)
+    finally:
+        prefs.save_version = versions
     return path
 
 

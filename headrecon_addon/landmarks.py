@@ -538,11 +538,30 @@ def _target_plane(context, view):
     return photos.plane_of(context.active_object)
 
 
+def viewport_region_at(area, x, y):
+    """The 3D viewport region (type WINDOW, one of four in quad view) of ``area`` under
+    the window coordinates (x, y), with the mouse position inside it; or (None, None).
+
+    A tool started from a sidebar button gets the sidebar as ``context.region``, so the
+    region to cast rays from is looked up from the mouse position, not taken from there.
+    """
+    for region in area.regions:
+        if region.type == "WINDOW" and region.data is not None \
+                and region.x <= x < region.x + region.width \
+                and region.y <= y < region.y + region.height:
+            return region, (x - region.x, y - region.y)
+    return None, None
+
+
 def _ray(context, event):
+    """World ray (origin, direction) under the mouse, or None when the mouse is not over
+    the 3D viewport itself (sidebar, header, toolbar)."""
     from bpy_extras import view3d_utils
 
-    region, rv3d = context.region, context.region_data
-    co = (event.mouse_region_x, event.mouse_region_y)
+    region, co = viewport_region_at(context.area, event.mouse_x, event.mouse_y)
+    if region is None:
+        return None
+    rv3d = region.data
     return (view3d_utils.region_2d_to_origin_3d(region, rv3d, co),
             view3d_utils.region_2d_to_vector_3d(region, rv3d, co))
 
@@ -622,7 +641,10 @@ class HEADRECON_OT_place_landmarks(_PlaneToolMixin, bpy.types.Operator):
             self._finish(context)
             return {"FINISHED"} if self.session.placed else {"CANCELLED"}
         if event.type == "LEFTMOUSE":
-            if not self.session.done and not self.session.click(*_ray(context, event)):
+            ray = _ray(context, event)
+            if ray is None:
+                return {"PASS_THROUGH"}  # a click on the sidebar or header: theirs
+            if not self.session.done and not self.session.click(*ray):
                 self.report({"WARNING"}, "Click on the photo")
         elif event.type in {"S", "RIGHT_ARROW", "SPACE"}:
             self.session.skip()
@@ -669,7 +691,10 @@ class HEADRECON_OT_draw_contour(_PlaneToolMixin, bpy.types.Operator):
             self._finish(context)
             return {"FINISHED"} if self.session.added else {"CANCELLED"}
         if event.type == "LEFTMOUSE":
-            if not self.session.click(*_ray(context, event)):
+            ray = _ray(context, event)
+            if ray is None:
+                return {"PASS_THROUGH"}
+            if not self.session.click(*ray):
                 self.report({"WARNING"}, "Click on the photo")
         elif event.type in {"BACK_SPACE", "DEL"}:
             self.session.undo_point()

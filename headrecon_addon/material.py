@@ -11,7 +11,9 @@ import numpy as np
 # First match wins.
 PART_GROUPS = (
     ("Eye Wetness", ("lacrimal", "blend", "occlusion"), (1.0, 1.0, 1.0, 0.0)),
-    ("Eyelashes", ("eyelash",), (0.02, 0.015, 0.01, 1.0)),
+    # ICT's eyelashes are flat strips made for an alpha-mapped texture: opaque, they read
+    # as grey slabs over the eyes, so they start invisible (still deformed by the keys).
+    ("Eyelashes", ("eyelash",), (0.02, 0.015, 0.01, 0.0)),
     ("Eyes", ("eyeball",), (0.85, 0.85, 0.82, 1.0)),
     ("Teeth", ("teeth", "tooth"), (0.9, 0.87, 0.78, 1.0)),
     ("Mouth", ("mouth", "gum", "tongue"), (0.45, 0.12, 0.12, 1.0)),

@@ -423,7 +423,7 @@ class HEADRECON_OT_view_photo(bpy.types.Operator):
         if plane is None:
             self.report({"ERROR"}, f"No photo for view {self.view!r}")
             return {"CANCELLED"}
-        rv3d = context.region_data
+        rv3d = context.space_data.region_3d  # the viewport's, also from a sidebar button
         loc, rot, _ = plane.matrix_world.decompose()
         rv3d.view_perspective = "ORTHO"
         rv3d.view_rotation = rot

@@ -219,12 +219,72 @@ class ContourRows(ClosestPixelRows):
         self._foot = proj + rn[:, None] * self._normal
 
 
+class StackedModel:
+    """Linear models over the same vertices, one after the other (the global modes, then
+    the regional ones), without copying their bases into one (K, V, 3) array: the fit
+    only ever needs a few hundred vertices at once, or the displacement of all.
+
+    Attributes
+    ----------
+    parts : list of LinearModel
+    mean : ndarray, shape (V, 3)
+    stddev : ndarray, shape (K,)
+    names : tuple of str
+    gamma : ndarray, shape (G, K) or None
+        The parts' Gamma rows side by side (zeros under the other parts' coefficients).
+    """
+
+    def __init__(self, parts):
+        if not parts:
+            raise ValueError("parts: at least one linear model is needed")
+        self.parts = list(parts)
+        self.mean = self.parts[0].mean
+        self.stddev = np.concatenate([p.stddev for p in self.parts])
+        self.names = tuple(n for p in self.parts for n in p.names)
+        self.sizes = [p.n_coeffs for p in self.parts]
+        k = sum(self.sizes)
+        rows = []
+        start = 0
+        for p in self.parts:
+            if p.gamma is not None:
+                g = np.zeros((p.gamma.shape[0], k))
+                g[:, start:start + p.n_coeffs] = p.gamma
+                rows.append(g)
+            start += p.n_coeffs
+        self.gamma = np.vstack(rows) if rows else None
+
+    @property
+    def n_coeffs(self):
+        return int(self.stddev.shape[0])
+
+    def split(self, coeffs):
+        """The coefficients of each part."""
+        out, start = [], 0
+        for k in self.sizes:
+            out.append(coeffs[start:start + k])
+            start += k
+        return out
+
+    def displacements(self, coeffs):
+        """Displacement of every vertex by each part, list of (V, 3)."""
+        return [np.tensordot(c, p.basis, axes=1) for c, p in zip(self.split(coeffs),
+                                                                  self.parts, strict=True)]
+
+    def slice(self, vertices):
+        """(mean (n, 3), basis (K, n, 3)) of a vertex subset."""
+        v = np.asarray(vertices, dtype=np.int64)
+        basis = np.concatenate([p.basis[:, v] for p in self.parts])
+        # C order: fancy indexing along axis 1 leaves another layout, and every product
+        # with the slice would pay for it.
+        return self.mean[v], np.ascontiguousarray(basis)
+
+
 class Engine:
     """What the stages of one fit share: the model being fitted, the views, the weights.
 
     Parameters
     ----------
-    lin : LinearModel
+    lin : StackedModel
         The model the fit changes (global modes, possibly with regional ones after them).
     views : list of ViewData
     chain : ndarray, shape (P,)
@@ -265,18 +325,20 @@ class Engine:
         # coefficient gives the same cost for far fewer rows than three per border vertex.
         self.gamma = None
         if lin.gamma is not None and lambda1 > 0:
-            g = np.asarray(lin.gamma, dtype=np.float64)
-            evals, evecs = np.linalg.eigh(g.T @ g)
-            keep = evals > 1e-12 * max(float(evals[-1]), 1e-300)
-            self.gamma = np.sqrt(evals[keep])[:, None] * evecs[:, keep].T
+            self.gamma = self._slices.get("gamma")
+            if self.gamma is None:
+                g = np.asarray(lin.gamma, dtype=np.float64)
+                evals, evecs = np.linalg.eigh(g.T @ g)
+                keep = evals > 1e-12 * max(float(evals[-1]), 1e-300)
+                self.gamma = np.sqrt(evals[keep])[:, None] * evecs[:, keep].T
+                self._slices["gamma"] = self.gamma
 
     # ------------------------------------------------------------------ geometry
 
     def local(self, state, vertices=None):
         """Model-space positions mean + B c, (n, 3) (all vertices if ``vertices`` is None)."""
-        lin = self.lin
         if vertices is None:
-            return lin.mean + np.tensordot(state.coeffs, lin.basis, axes=1)
+            return self.lin.mean + sum(self.lin.displacements(state.coeffs))
         mean, basis = self.slice(vertices)
         return mean + np.tensordot(state.coeffs, basis, axes=1)
 
@@ -290,7 +352,7 @@ class Engine:
         if hit is None:
             if len(self._slices) > 64:
                 self._slices.clear()
-            hit = (self.lin.mean[v], np.ascontiguousarray(self.lin.basis[:, v]))
+            hit = self.lin.slice(v)
             self._slices[key] = hit
         return hit
 
@@ -300,18 +362,19 @@ class Engine:
         key = ("f32",) + (np.asarray(skin, dtype=np.int64).tobytes(),)
         hit = self._slices.get(key)
         if hit is None:
-            b = self.lin.basis[:, skin]
-            hit = b.reshape(b.shape[0], -1).astype(np.float32)
+            hit = np.concatenate([p.basis[:, skin].reshape(p.n_coeffs, -1).astype(np.float32)
+                                  for p in self.lin.parts])
             self._slices[key] = hit
         return hit
 
     def world(self, state, vertices=None):
         return state.scale * self.local(state, vertices) @ state.rotation.T + state.translation
 
-    def linear_model(self, lin=None):
-        """``lin`` (default: the fitted model) with the compressed Gamma."""
-        lin = self.lin if lin is None else lin
-        return LinearModel(lin.mean, lin.basis, lin.stddev, lin.names, self.gamma)
+    def copies_model(self, vertices):
+        """A LinearModel over copies of ``vertices`` (row i = vertex ``vertices[i]``), with
+        the compressed Gamma: what a shape-ICP over those vertices needs."""
+        mean, basis = self.slice(vertices)
+        return LinearModel(mean, basis, self.lin.stddev, self.lin.names, self.gamma)
 
     def problem(self, lin, rows, freeze=(), gauge=None):
         """A ShapeProblem with the fit's priors; ``gauge`` (default: the engine's) says

@@ -651,8 +651,12 @@ def _read_v1(data, problems, bad_cameras):
     for vname, vd in data["views"].items():
         where = ("views", vname)
         size = tuple(vd["size"])
+        value = vd["camera"]
         try:
-            camera = camera_from_json(vd["camera"], size)
+            if isinstance(value, dict) and not _has_parameters(value):
+                raise ValueError(f"a {value['kind']} camera without its parameters needs "
+                                 "version 2 of the file (set \"version\": 2)")
+            camera = camera_from_json(value, size)
         except ValueError as e:
             problems.append((format_path(where + ("camera",)), _strip_camera_prefix(str(e))))
             camera = OrthographicCamera.nominal("orthographic-front", size)
@@ -903,6 +907,11 @@ def _passpoint_problems(case, view, where, for_fit):
     problems = []
     w, h = view.size
     usable = []
+    if not case.passpoints:  # one message, not one per passpoint
+        n = len(view.passpoints)
+        return [(format_path(where + ("passpoints",)),
+                 f"{n} passpoint{'s' * (n != 1)}, but the file defines none: the top-level "
+                 "'passpoints' gives each one's [x, y, z] metres")]
     for key, uv in view.passpoints.items():
         at = format_path(where + ("passpoints", key))
         found = _point_problems(at, uv, w, h)
@@ -919,8 +928,9 @@ def _passpoint_problems(case, view, where, for_fit):
         problems.append((format_path(where + ("passpoints",)),
                          "passpoints compute a perspective (DLT) camera, and this view's "
                          "camera is orthographic: give \"camera\": {\"kind\": \"dlt\"}"))
-    elif for_fit and view.camera is None and not problems:
-        # The camera is to be computed from them: make sure it can be.
+    elif for_fit and view.camera is None and len(usable) == len(view.passpoints):
+        # The camera is to be computed from them: make sure it can be (when every passpoint
+        # is fine; a bad one is reported at the top level or above).
         from .dlt import fit_dlt
 
         n = len(usable)
@@ -929,7 +939,7 @@ def _passpoint_problems(case, view, where, for_fit):
             problems.append((at, f"{n} passpoint{'s' * (n != 1)}; computing the camera needs "
                                  f"at least {MIN_PASSPOINTS}, not all in one plane"))
         else:
-            names, xyz, uv = case.passpoint_arrays(view.name)
+            _, xyz, uv = case.passpoint_arrays(view.name)
             try:
                 fit_dlt(xyz, uv, view.size)
             except ValueError as e:
@@ -1015,7 +1025,7 @@ def _version_hint(error, version):
     v2_key = (len(path) == 3 and path[0] == "views" and path[2] in _V2_VIEW_KEYS) \
         or path == ("passpoints",)
     if version == 1 and v2_key and error.keyword in ("additionalProperties", "false"):
-        return error.where, error.message + "; it needs version 2 of the file (\"version\": 2)"
+        return error.where, "a version-2 key in a version-1 file; set \"version\": 2"
     return error.where, error.message
 
 

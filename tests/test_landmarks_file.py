@@ -12,7 +12,8 @@ import jsonschema
 import numpy as np
 import pytest
 
-from solver.cameras import OrthographicCamera
+from solver.cameras import OrthographicCamera, camera_kinds
+from solver.dlt import DLTCamera, fit_dlt
 from solver.jsonschema_lite import (
     KEYWORDS,
     SchemaKeywordError,
@@ -35,6 +36,8 @@ from solver.landmarks_file import (
     parse_landmarks,
     save_landmarks,
 )
+from solver.mirror import MirrorPlane, reflected_camera
+from solver.pinhole import PinholeCamera
 
 W, H = 768, 1024
 
@@ -698,3 +701,563 @@ def test_error_paths_and_messages():
         'views.front.points.nose_tip[1]: expected a number, got string "x"']
     assert format_path(()) == ""
     assert format_path(("a", 0, "b c", 'q"')) == 'a[0]["b c"]["q\\""]'
+
+
+# --------------------------------------------------------------------------------------
+# Version 2: cameras of any kind at any angle, mirror views, passpoints
+
+# A calibration object (seed 004 style): corners of a box around the head and two more, not
+# in one plane. Names are free; they are never mapped in a mirror view.
+CUBE = np.array([[x, y, z] for x in (-0.2, 0.2) for y in (-0.25, 0.15) for z in (-0.25, 0.15)]
+                + [[0.0, -0.25, 0.2], [0.2, 0.0, -0.3]])
+CUBE_NAMES = [f"cube_{i}" for i in range(len(CUBE))]
+SRC2 = "case2.json"
+
+
+def v2_cameras():
+    """The cameras of the version-2 case: an orthographic front photo, a three-quarter view
+    through a DLT-16 camera (50 mm lens with distortion), a pinhole at the subject's left
+    and that photo's mirror image (one camera and a flat mirror behind the subject)."""
+    pin = PinholeCamera.look_at([1.1, -1.1, 0.05], [0, 0, 0], (W, H), lens_mm=50)
+    three_quarter = DLTCamera.from_krc(pin.intrinsics, pin.rotation, pin.centre, (W, H),
+                                       distortion=[2e-8, 0, 0, 1e-6, -1e-6])
+    left = PinholeCamera.look_at([1.6, 0, 0], [0, 0, 0], (W, H), lens_mm=35,
+                                 focal_prior=(35.0, 0.05))
+    plane = MirrorPlane.from_point_normal([-0.5, 0, 0], [1.0, 0.5, 0])
+    return {"front": OrthographicCamera.nominal("orthographic-front", (W, H)),
+            "three_quarter": three_quarter, "left": left,
+            "left_mirror": reflected_camera(left.to_dlt(), plane)}
+
+
+HEAD = np.random.default_rng(3).uniform([-0.07, -0.1, -0.1], [0.07, 0.0, 0.1], size=(8, 3))
+
+
+def make_doc2(names):
+    """A valid version-2 document: landmarks of a head-sized point set projected through
+    ``v2_cameras``; the mirror view's camera is to be computed from its passpoints."""
+    cams = v2_cameras()
+
+    def px(cam, x):
+        return np.round(cam.project(x), 3).tolist()
+
+    def pts(view, k=None):
+        k = len(HEAD) if k is None else k
+        return dict(zip(names[:k], px(cams[view], HEAD[:k]), strict=True))
+
+    def seen(view):
+        return dict(zip(CUBE_NAMES, px(cams[view], CUBE), strict=True))
+
+    doc = {
+        "format": "headrecon-landmarks",
+        "version": 2,
+        "views": {
+            "front": {"image": "front.jpg", "size": [W, H], "camera": "orthographic-front",
+                      "points": pts("front")},
+            "three_quarter": {"image": "three_quarter.jpg", "size": [W, H],
+                              "camera": cams["three_quarter"].to_dict(), "calibrated": True,
+                              "points": pts("three_quarter", 2),
+                              "passpoints": seen("three_quarter")},
+            "left": {"image": "left.jpg", "size": [W, H], "camera": cams["left"].to_dict(),
+                     "calibrated": False, "points": pts("left")},
+            "left_mirror": {"image": "left.jpg", "size": [W, H], "camera": {"kind": "dlt"},
+                            "mirror_of": "left", "points": pts("left_mirror"),
+                            "passpoints": seen("left_mirror")},
+        },
+        "passpoints": dict(zip(CUBE_NAMES, CUBE.tolist(), strict=True)),
+    }
+    return json.loads(json.dumps(doc))  # plain JSON types, as a file gives them
+
+
+@pytest.fixture
+def doc2(names):
+    return make_doc2(names)
+
+
+def problems_of(doc, source=SRC2, **kw):
+    """Every problem line of an invalid document (each must name the file)."""
+    with pytest.raises(LandmarksError) as info:
+        parse_landmarks(doc, source, **kw)
+    lines = info.value.messages()
+    assert all(line.startswith(f"{source}: ") for line in lines), lines
+    return lines
+
+
+def test_version2_document_parses(doc2, names, lms):
+    case = parse_landmarks(doc2, SRC2)
+    assert case.version == 2
+    assert list(case.views) == ["front", "three_quarter", "left", "left_mirror"]
+    front, tq, left, mirror = case.views.values()
+    cams = v2_cameras()
+    # the three-quarter view: a DLT-16 camera, given and kept fixed
+    assert isinstance(tq.camera, DLTCamera) and tq.camera.n_params == 16
+    assert tq.calibrated is True and tq.camera_fixed and tq.camera_kind == "dlt"
+    np.testing.assert_allclose(tq.camera.project(CUBE), cams["three_quarter"].project(CUBE),
+                               atol=1e-6)
+    assert len(tq.points) == 2  # below the per-view floor: fine, the view has passpoints
+    # the left view: a pinhole camera to refine, its options kept
+    assert isinstance(left.camera, PinholeCamera) and left.calibrated is False
+    assert not left.camera_fixed and left.camera.focal_prior == (35.0, 0.05)
+    np.testing.assert_allclose(left.camera.project(HEAD), cams["left"].project(HEAD),
+                               atol=1e-9)
+    # the mirror view: camera unknown, to be computed from its passpoints
+    assert mirror.camera is None and mirror.camera_kind == "dlt"
+    assert mirror.camera_hints == {"kind": "dlt"} and mirror.mirror_of == "left"
+    assert mirror.calibrated is None and not mirror.camera_fixed
+    # the mirror view's landmarks carry the subject's true names: same vertices as direct
+    assert mirror.arrays(lms)[1].tolist() == left.arrays(lms)[1].tolist()
+    # the orthographic view as in version 1
+    assert front.camera.view == "orthographic-front" and front.calibrated is None
+    assert front.passpoints == {} and front.mirror_of is None
+    assert set(case.passpoints) == set(CUBE_NAMES)
+    np.testing.assert_array_equal(case.passpoints["cube_3"], CUBE[3])
+    # what the fit (or a calibrate step) does with the passpoints: the DLT of the mirror
+    # view is the mirrored camera of the photo
+    pnames, xyz, uv = case.passpoint_arrays("left_mirror")
+    assert pnames == CUBE_NAMES and xyz.shape == (10, 3) and uv.shape == (10, 2)
+    np.testing.assert_array_equal(xyz, CUBE)
+    fit = fit_dlt(xyz, uv, mirror.size)
+    assert fit.camera.is_mirrored
+    np.testing.assert_allclose(fit.camera.project(HEAD), cams["left_mirror"].project(HEAD),
+                               atol=0.01)
+
+
+def test_version2_round_trip(tmp_path, doc2):
+    src = tmp_path / "case2.json"
+    src.write_text(json.dumps(doc2), encoding="utf-8")
+    a = load_landmarks(src)
+    out = tmp_path / "again.json"
+    save_landmarks(a, out)
+    b = load_landmarks(out)
+    assert a == b and b.version == 2
+    # the file comes back as written: camera numbers are not recomputed (a DLT's b-form
+    # would move by a rounding error), passpoints and v2 keys are kept
+    assert json.loads(out.read_text(encoding="utf-8")) == doc2
+    again = tmp_path / "again2.json"
+    save_landmarks(b, again)
+    assert again.read_bytes() == out.read_bytes()
+    # a camera the fit computed replaces the unknown one and is written from its parameters
+    uv = b.passpoint_arrays("left_mirror")
+    b.views["left_mirror"].camera = fit_dlt(uv[1], uv[2], (W, H)).camera
+    b.views["left_mirror"].calibrated = True
+    save_landmarks(b, out)
+    c = load_landmarks(out)
+    cam = c.views["left_mirror"].camera
+    assert isinstance(cam, DLTCamera) and cam.is_mirrored and c.views["left_mirror"].camera_fixed
+    np.testing.assert_allclose(cam.project(HEAD), b.views["left_mirror"].camera.project(HEAD),
+                               atol=1e-6)
+    assert json.loads(out.read_text(encoding="utf-8"))["views"]["left_mirror"]["camera"][
+        "parameters"] == pytest.approx(cam.parameters.tolist(), rel=1e-9)
+    assert c != a
+
+
+def test_version1_files_load_and_save_unchanged(tmp_path, doc):
+    src = tmp_path / "case.json"
+    src.write_text(json.dumps(doc), encoding="utf-8")
+    case = load_landmarks(src)
+    assert case.version == 1 and case.passpoints == {}
+    for view in case.views.values():  # the version-2 fields keep their defaults
+        assert view.calibrated is None and view.mirror_of is None and view.passpoints == {}
+        assert view.camera_hints == {} and view.camera_kind == "orthographic"
+        assert not view.camera_fixed and view.version2_features() == []
+    out, out2 = tmp_path / "a.json", tmp_path / "b.json"
+    save_landmarks(case, out)
+    save_landmarks(load_landmarks(out), out2)
+    assert json.loads(out.read_text(encoding="utf-8")) == doc
+    assert out2.read_bytes() == out.read_bytes()
+    assert '"version": 1,' in out.read_text(encoding="utf-8")
+    # camera objects were allowed in version 1 and keep the file at version 1
+    doc["views"]["side"]["camera"] = v2_cameras()["three_quarter"].to_dict()
+    src.write_text(json.dumps(doc), encoding="utf-8")
+    case = load_landmarks(src)
+    save_landmarks(case, out)
+    assert json.loads(out.read_text(encoding="utf-8")) == doc
+
+
+def test_version_written_is_the_lowest_that_holds_the_case(doc, names):
+    case = parse_landmarks(doc, "case.json")
+    assert landmarks_to_dict(case)["version"] == 1
+    forced = landmarks_to_dict(case, version=2)
+    assert forced["version"] == 2 and parse_landmarks(forced, "case.json") == case
+    for feature, value in (("calibrated", False), ("mirror_of", "front"),
+                           ("passpoints", {"p": (1.0, 2.0)})):
+        c = parse_landmarks(doc, "case.json")
+        setattr(c.views["side"], feature, value)
+        assert c.version == 2 and landmarks_to_dict(c)["version"] == 2
+        with pytest.raises(ValueError, match=rf"case\.json: views\.side\.{feature}: needs "
+                                             "version 2 of the file"):
+            landmarks_to_dict(c, version=1)
+    c = parse_landmarks(doc, "case.json")
+    c.views["side"].camera = None
+    c.views["side"].camera_hints = {"kind": "pinhole"}
+    assert c.version == 2
+    c = LandmarkCase(case.views, "case.json", passpoints={"p": [0.0, 0.1, 0.2]})
+    assert c.version == 2 and landmarks_to_dict(c)["passpoints"] == {"p": [0.0, 0.1, 0.2]}
+    with pytest.raises(ValueError, match=r"case\.json: passpoints: needs version 2"):
+        landmarks_to_dict(c, version=1)
+    with pytest.raises(ValueError, match=r"version: expected one of \[1, 2\], got 3"):
+        landmarks_to_dict(case, version=3)
+
+
+def _drop_passpoints(d, view, keep):
+    pp = d["views"][view]["passpoints"]
+    d["views"][view]["passpoints"] = dict(list(pp.items())[:keep])
+
+
+def _set(view, key, value):
+    return lambda d: d["views"][view].__setitem__(key, value)
+
+
+def _camera_field(view, key, value):
+    return lambda d: d["views"][view]["camera"].__setitem__(key, value)
+
+
+def _extra_mirror_view(d):
+    d["views"]["mirror2"] = copy.deepcopy(d["views"]["left_mirror"])
+    d["views"]["mirror2"]["mirror_of"] = "left_mirror"
+
+
+def _flat_passpoints(d):
+    for xyz in d["passpoints"].values():
+        xyz[2] = 0.0
+
+
+def _scaled_rotation(view):
+    def mutate(d):
+        d["views"][view]["camera"]["rotation"][0] = [2.0 * c for c in
+                                                     d["views"][view]["camera"]["rotation"][0]]
+    return mutate
+
+
+V2_INVALID = {
+    # mirror views
+    "mirror_of a missing view": (
+        _set("left_mirror", "mirror_of", "lfet"),
+        r"views\.left_mirror\.mirror_of: no view named 'lfet' \(views: front, three_quarter, "
+        r"left, left_mirror\); did you mean 'left'\?"),
+    "mirror_of itself": (_set("left_mirror", "mirror_of", "left_mirror"),
+                         r"views\.left_mirror\.mirror_of: names this view itself"),
+    "mirror_of a mirror view": (_extra_mirror_view,
+                                r"views\.mirror2\.mirror_of: 'left_mirror' is itself a mirror "
+                                "view; name the view seen directly"),
+    "mirror view of another size": (
+        _set("left_mirror", "size", [W, H + 1]),
+        r"views\.left_mirror\.size: \[768, 1025\] differs from the size \[768, 1024\] of "
+        "'left'"),
+    "mirror view in another photo": (
+        _set("left_mirror", "image", "other.jpg"),
+        r"views\.left_mirror\.image: 'other\.jpg' is not the photo of 'left'"),
+    "mirror view with a nominal camera": (
+        _set("left_mirror", "camera", "orthographic-left"),
+        r"views\.left_mirror\.camera: 'orthographic-left' cannot see a mirror image"),
+    "mirror view with a camera that is not mirrored": (
+        lambda d: d["views"]["left_mirror"].update(camera=v2_cameras()["left"].to_dict()),
+        r"views\.left_mirror\.camera: not mirrored \(rotation determinant \+1\)"),
+    # passpoints
+    "view passpoint not defined": (
+        lambda d: d["views"]["three_quarter"]["passpoints"].update(cube_99=[10.0, 10.0]),
+        r"views\.three_quarter\.passpoints\.cube_99: not defined in the top-level "
+        r"'passpoints' \(\[x, y, z\] metres\); did you mean 'cube_9'\?"),
+    "no top-level passpoints": (
+        lambda d: d.pop("passpoints"),
+        r"views\.three_quarter\.passpoints: 10 passpoints, but the file defines none: the "
+        r"top-level 'passpoints' gives each one's \[x, y, z\] metres"),
+    "passpoint outside the image": (
+        lambda d: d["views"]["left_mirror"]["passpoints"].update(cube_3=[W + 1.0, 10.0]),
+        r"views\.left_mirror\.passpoints\.cube_3: \(769, 10\) lies outside the 768x1024 "
+        "image"),
+    "passpoint pixel NaN": (
+        lambda d: d["views"]["left_mirror"]["passpoints"].update(cube_3=[float("nan"), 1.0]),
+        r"views\.left_mirror\.passpoints\.cube_3: not a finite number"),
+    "passpoint position NaN": (
+        lambda d: d["passpoints"].update(cube_2=[0.0, float("nan"), 0.0]),
+        r": passpoints\.cube_2: not a finite number"),
+    "passpoint position of 2 numbers": (
+        lambda d: d["passpoints"].update(cube_2=[0.0, 0.1]),
+        r": passpoints\.cube_2: expected at least 3 items, got 2"),
+    "passpoints on an orthographic view": (
+        _set("front", "passpoints", {"cube_0": [1.0, 1.0]}),
+        r"views\.front\.passpoints: passpoints compute a perspective \(DLT\) camera, and this "
+        "view's camera is orthographic"),
+    "too few passpoints to compute the camera": (
+        lambda d: _drop_passpoints(d, "left_mirror", 5),
+        r"views\.left_mirror\.passpoints: 5 passpoints; computing the camera needs at least "
+        "6, not all in one plane"),
+    "passpoints in one plane": (
+        _flat_passpoints,
+        r"views\.left_mirror\.passpoints: cannot compute the camera: the 10 passpoints lie in "
+        "one plane"),
+    # cameras
+    "DLT with 12 parameters": (
+        lambda d: d["views"]["three_quarter"]["camera"].update(
+            parameters=d["views"]["three_quarter"]["camera"]["parameters"][:12]),
+        r"views\.three_quarter\.camera\.parameters: an array of 12 items matches none of the "
+        r"allowed forms: 11 numbers b1\.\.b11 \(DLT\); 16 numbers b1\.\.b16"),
+    "DLT with 10 parameters": (
+        lambda d: d["views"]["three_quarter"]["camera"].update(parameters=[1.0] * 10),
+        r"views\.three_quarter\.camera\.parameters: an array of 10 items matches none"),
+    "DLT parameter NaN": (
+        lambda d: d["views"]["three_quarter"]["camera"]["parameters"].__setitem__(
+            3, float("nan")),
+        r"views\.three_quarter\.camera\.parameters\[3\]: not a finite number"),
+    "DLT parameters and matrix": (
+        _camera_field("three_quarter", "matrix", np.eye(3, 4).tolist()),
+        r"views\.three_quarter\.camera: give 'parameters' \(b1\.\.b11 or b1\.\.b16\) or "
+        "'matrix', not both"),
+    "DLT depth_sign 2": (_camera_field("three_quarter", "depth_sign", 2),
+                         r"views\.three_quarter\.camera\.depth_sign: 2 is not one of 1, -1"),
+    "DLT distortion_centre without lens terms": (
+        lambda d: d["views"]["three_quarter"]["camera"].update(
+            parameters=d["views"]["three_quarter"]["camera"]["parameters"][:11]),
+        r"views\.three_quarter\.camera\.distortion_centre: given without lens distortion"),
+    "DLT singular": (
+        _set("three_quarter", "camera", {"kind": "dlt", "parameters": [0.0] * 11}),
+        r"views\.three_quarter\.camera: camera \(dlt\): the matrix's left 3x3 block is "
+        "singular"),
+    "unknown DLT with depth_sign": (
+        _camera_field("left_mirror", "depth_sign", 1),
+        r"views\.left_mirror\.camera\.depth_sign: given without the camera's 'parameters'"),
+    "unknown kind": (
+        _set("left_mirror", "camera", {"kind": "dlp"}),
+        r'views\.left_mirror\.camera\.kind: "dlp" is not one of "orthographic", "dlt", '
+        r"\"pinhole\"; did you mean 'dlt'\?"),
+    "misspelt camera field": (
+        lambda d: d["views"]["three_quarter"]["camera"].update(
+            paramters=d["views"]["three_quarter"]["camera"].pop("parameters")),
+        r"views\.three_quarter\.camera\.paramters: unexpected key; did you mean "
+        r"'parameters'\?"),
+    "pinhole rotation without centre": (
+        lambda d: d["views"]["left"]["camera"].pop("centre"),
+        r"views\.left\.camera: camera \(pinhole\): missing field 'centre'"),
+    "pinhole rotation not a rotation": (
+        _scaled_rotation("left"),
+        r"views\.left\.camera: camera \(pinhole\): rotation: not orthonormal"),
+    "pinhole focal_px negative": (
+        _camera_field("left", "focal_px", -5),
+        r"views\.left\.camera\.focal_px: -5 must be greater than 0"),
+    "unknown pinhole with a bad focal range": (
+        _set("left", "camera", {"kind": "pinhole", "lens_mm": 35, "focal_range_mm": [50, 20]}),
+        r"views\.left\.camera: camera \(pinhole\): focal_range_mm must be \(min, max\)"),
+    "unknown pinhole of another size": (
+        _set("left", "camera", {"kind": "pinhole", "size": [W, H + 2]}),
+        r"views\.left\.camera\.size: camera size \[768, 1026\] differs from the view size"),
+    "orthographic object without parameters": (
+        _set("front", "camera", {"kind": "orthographic"}),
+        r"views\.front\.camera: missing required key 'rotation'"),
+    "orthographic rotation not a rotation": (
+        lambda d: (d["views"]["front"].update(camera=OrthographicCamera.nominal(
+            "orthographic-front", (W, H), scale=2000.0).to_dict()), _scaled_rotation("front")(d)),
+        r"views\.front\.camera\.rotation: not a rotation \(its rows must be orthonormal\)"),
+    "camera size differs": (
+        _camera_field("three_quarter", "size", [W + 2, H]),
+        r"views\.three_quarter\.camera: camera size \[770, 1024\] differs from the view size"),
+    # calibrated
+    "calibrated nominal camera": (
+        _set("front", "calibrated", True),
+        r"views\.front\.calibrated: true, but 'orthographic-front' is a nominal camera"),
+    "calibrated without parameters": (
+        lambda d: d["views"]["left"].update(camera={"kind": "pinhole"}, calibrated=True),
+        r"views\.left\.calibrated: true, but the camera's parameters are not given"),
+    "calibrated not a boolean": (
+        _set("front", "calibrated", "yes"),
+        r'views\.front\.calibrated: expected a boolean, got string "yes"'),
+    # landmark counts
+    "too few landmarks in a view without passpoints": (
+        lambda d: d["views"]["left"].update(points=dict(list(
+            d["views"]["left"]["points"].items())[:2])),
+        r"views\.left\.points: 2 landmarks; the fit needs at least 3 per view"),
+    "too few landmarks to self-calibrate a DLT": (
+        lambda d: d["views"]["left"].update(camera={"kind": "dlt"}, points=dict(list(
+            d["views"]["left"]["points"].items())[:5])),
+        r"views\.left\.points: 5 landmarks; self-calibrating a dlt camera needs at least 6 "
+        "per view"),
+    # version-2 keys in a version-1 file
+    "mirror_of in version 1": (
+        lambda d: d.update(version=1),
+        r"views\.left_mirror\.mirror_of: a version-2 key in a version-1 file; set "
+        r"\"version\": 2"),
+    "camera without parameters in version 1": (
+        lambda d: (d.update(version=1), [d["views"][v].pop(k, None) for v in d["views"]
+                                         for k in ("calibrated", "mirror_of", "passpoints")],
+                   d.pop("passpoints")),
+        r"views\.left_mirror\.camera: a dlt camera without its parameters needs version 2 "
+        r"of the file \(set \"version\": 2\)"),
+    "passpoints in version 1": (
+        lambda d: d.update(version=1),
+        r"case2\.json: passpoints: a version-2 key in a version-1 file"),
+}
+
+
+@pytest.mark.parametrize("what", list(V2_INVALID))
+def test_version2_invalid(doc2, what):
+    mutate, pattern = V2_INVALID[what]
+    mutate(doc2)
+    lines = problems_of(doc2)
+    assert any(re.search(pattern, line) for line in lines), lines
+
+
+def test_passpoint_problems_are_not_repeated(doc2):
+    doc2["passpoints"]["cube_2"] = [0.0, float("nan"), 0.0]
+    assert problems_of(doc2) == [f"{SRC2}: passpoints.cube_2: not a finite number; NaN and "
+                                 "infinity are not allowed"]
+
+
+def test_calibrated_camera_from_passpoints(doc2):
+    # computed from the passpoints, then kept fixed: no parameters needed in the file
+    doc2["views"]["left_mirror"]["calibrated"] = True
+    case = parse_landmarks(doc2, SRC2)
+    assert case.views["left_mirror"].camera is None and case.views["left_mirror"].camera_fixed
+
+
+def test_version2_draft_needs_no_passpoint_or_landmark_floor(doc2):
+    _drop_passpoints(doc2, "left_mirror", 2)
+    doc2["views"]["left"]["points"] = {}
+    parse_landmarks(doc2, SRC2, for_fit=False)
+    assert problems_of(doc2) == [
+        f"{SRC2}: views.left.points: 0 landmarks; the fit needs at least 3 per view",
+        f"{SRC2}: views.left_mirror.passpoints: 2 passpoints; computing the camera needs at "
+        "least 6, not all in one plane"]
+
+
+def test_check_case_on_built_version2_views(names):
+    pts = {n: (10.0 + i, 20.0) for i, n in enumerate(names[:4])}
+    rot = OrthographicCamera.nominal("orthographic-front", (W, H)).rotation
+    views = {
+        "a": View("a", None, (W, H), OrthographicCamera(rot, float("nan"), (0, 0), (W, H)), pts),
+        "b": View("b", None, (W, H), None, pts),
+        "c": View("c", None, (W, H), None, pts, camera_hints={"kind": "orthographic"}),
+        "d": View("d", None, (W, H), OrthographicCamera.nominal("orthographic-front", (W, H)),
+                  pts, calibrated="yes"),
+        "e": View("e", None, (W, H), None, pts, camera_hints={"kind": "fisheye"}),
+        "f": View("f", None, (W, H), None, pts, camera_hints={"kind": "dlt"},
+                  passpoints={"p": (1.0, 2.0)}),
+    }
+    case = LandmarkCase(views, passpoints={"p": [0.0, 0.0, float("inf")]})
+    problems = dict(check_case(case, for_fit=False))
+    assert problems["views.a.camera.scale"].startswith("not a finite number")
+    assert problems["views.b.camera"].startswith("no camera")
+    assert problems["views.c.camera"].startswith("an orthographic camera without parameters")
+    assert problems["views.d.calibrated"] == "expected true or false, got 'yes'"
+    assert problems["views.e.camera.kind"] == ("unknown kind 'fisheye'; known: "
+                                               "dlt, orthographic, pinhole")
+    assert problems["passpoints.p"].startswith("not a finite number")
+    assert "views.f.passpoints.p" not in problems  # its pixels are fine
+    with pytest.raises(ValueError, match=r"<dict>: views\.a\.passpoints\.q: not defined"):
+        LandmarkCase({"a": View("a", None, (W, H), None, {}, passpoints={"q": (1, 1)})}
+                     ).passpoint_arrays("a")
+
+
+def test_every_camera_kind_round_trips_through_the_schema(schema, doc2):
+    """The schema describes exactly what each camera class's to_dict writes."""
+    kinds = schema["$defs"]["camera_object"]["properties"]["kind"]["enum"]
+    assert sorted(kinds) == camera_kinds()
+    look = PinholeCamera.look_at([0.0, -1.5, 0.0], [1.0, -1.5, 0.0], (W, H), lens_mm=50)
+    on_plane = DLTCamera.from_krc(look.intrinsics, look.rotation, look.centre, (W, H),
+                                  distortion=[1e-8, 0, 0, 0, 0])
+    cams = [OrthographicCamera.nominal("orthographic-left", (W, H), scale=2500.0),
+            v2_cameras()["left_mirror"],  # DLT-11, mirrored
+            v2_cameras()["three_quarter"],  # DLT-16
+            on_plane,  # world origin on its principal plane: stored as a matrix
+            PinholeCamera.look_at([0.3, -2.0, 0.1], [0, 0, 0], (W, H), lens_mm=85, k1=-0.05,
+                                  free_k1=True, free_principal_point=True,
+                                  focal_range_mm=None, free_focal=False)]
+    assert "matrix" in on_plane.to_dict() and "distortion" in on_plane.to_dict()
+    for cam in cams:
+        d = copy.deepcopy(doc2)
+        d["views"]["left"]["camera"] = cam.to_dict()
+        assert _agree(schema, d), cam
+        case = parse_landmarks(d, SRC2)
+        got = case.views["left"].camera
+        assert type(got) is type(cam)
+        np.testing.assert_allclose(got.project(HEAD), cam.project(HEAD), atol=1e-6)
+        assert landmarks_to_dict(case)["views"]["left"]["camera"] == cam.to_dict()
+
+
+def test_schema_agrees_with_jsonschema_on_version2_documents(schema, doc2):
+    assert _agree(schema, doc2)
+    d = copy.deepcopy(doc2)
+    d["views"]["left"]["camera"] = {"kind": "pinhole", "lens_mm": 28, "focal_prior": None}
+    d["views"]["left_mirror"]["camera"]["x-note"] = 1  # x- keys: only at view and top level
+    assert not _agree(schema, d)
+    del d["views"]["left_mirror"]["camera"]["x-note"]
+    d["views"]["front"]["x-note"] = {"checked": True}
+    d["views"]["front"]["passpoints"] = {}
+    assert _agree(schema, d)
+
+
+V2_INVALID_MUTATIONS = [mutate for mutate, _ in V2_INVALID.values()] + [
+    lambda d: d["views"]["left"].update(mirror_of=""),
+    lambda d: d["views"]["left"].update(mirror_of=5),
+    lambda d: d["views"]["front"].update(passpoints={"a": [1]}),
+    lambda d: d["views"]["front"].update(passpoints=[[1, 2]]),
+    lambda d: d.update(passpoints=[[0, 0, 0]]),
+    lambda d: d["views"]["left"]["camera"].update(focal_range_mm=[0, 5]),
+    lambda d: d["views"]["left"]["camera"].update(focal_prior="50mm"),
+    lambda d: d["views"]["left"]["camera"].update(free_k1=1),
+    lambda d: d["views"]["three_quarter"].update(camera={
+        "kind": "dlt", "matrix": np.eye(3).tolist()}),
+    lambda d: d["views"]["three_quarter"].update(camera={
+        "kind": "dlt", "matrix": np.eye(3, 4).tolist(), "distortion": [0, 0, 0, 0]}),
+    lambda d: d["views"]["left_mirror"].update(camera={"kind": "dlt", "size": [0, 1]}),
+    lambda d: d["views"]["left_mirror"].update(camera={}),
+    lambda d: d["views"]["left_mirror"].update(camera={"kind": 5}),
+]
+# the ones only the semantic checks find (the schema passes them)
+_SEMANTIC = {"mirror_of a missing view", "mirror_of itself", "mirror_of a mirror view",
+             "mirror view of another size", "mirror view in another photo",
+             "mirror view with a nominal camera",
+             "mirror view with a camera that is not mirrored", "view passpoint not defined",
+             "no top-level passpoints", "passpoint outside the image", "passpoint pixel NaN",
+             "passpoint position NaN", "passpoints on an orthographic view",
+             "too few passpoints to compute the camera", "passpoints in one plane",
+             "DLT parameter NaN", "DLT parameters and matrix",
+             "DLT distortion_centre without lens terms", "DLT singular",
+             "unknown DLT with depth_sign", "pinhole rotation without centre",
+             "pinhole rotation not a rotation", "unknown pinhole with a bad focal range",
+             "unknown pinhole of another size", "orthographic rotation not a rotation",
+             "camera size differs", "calibrated nominal camera",
+             "calibrated without parameters", "too few landmarks in a view without passpoints",
+             "too few landmarks to self-calibrate a DLT",
+             "camera without parameters in version 1"}
+
+
+@pytest.mark.parametrize("i", range(len(V2_INVALID_MUTATIONS)))
+def test_schema_agrees_with_jsonschema_on_invalid_version2_documents(schema, doc2, i):
+    d = copy.deepcopy(doc2)
+    V2_INVALID_MUTATIONS[i](d)
+    semantic = i < len(V2_INVALID) and list(V2_INVALID)[i] in _SEMANTIC
+    assert _agree(schema, d) is semantic
+    if semantic:
+        return
+    best = jsonschema.exceptions.best_match(
+        jsonschema.Draft202012Validator(schema).iter_errors(d))
+    ours = [e.path for e in validate(d, schema)]
+    ref = tuple(best.absolute_path)
+    assert any(p[:len(ref)] == ref or ref[:len(p)] == p for p in ours), (ref, ours)
+
+
+def test_schema_agrees_with_jsonschema_on_random_version2_mutations(schema, doc2):
+    rng = random.Random(4321)
+    n_valid = 0
+    for _ in range(400):
+        n_valid += _agree(schema, _random_mutation(doc2, rng))
+    assert 10 < n_valid < 390
+
+
+def test_cli_validate_describes_version2_files(tmp_path, doc2, capsys):
+    from solver import cli
+
+    path = tmp_path / "case2.json"
+    path.write_text(json.dumps(doc2), encoding="utf-8")
+    assert cli.main(["validate", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert out.strip() == (
+        f"{path}: OK (version 2; front 8 landmarks, orthographic camera (nominal), refined; "
+        "three_quarter 2 landmarks + 10 passpoints, dlt camera given, kept fixed; "
+        "left 8 landmarks, pinhole camera given, refined; "
+        "left_mirror 8 landmarks + 10 passpoints, dlt camera from passpoints, refined, "
+        "mirror image in 'left'; 10 passpoints defined)")
+    doc2["views"]["left_mirror"]["mirror_of"] = "lfet"
+    path.write_text(json.dumps(doc2), encoding="utf-8")
+    assert cli.main(["validate", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert f"{path}: views.left_mirror.mirror_of: no view named 'lfet'" in err

@@ -52,14 +52,10 @@ def demo(sample, tmp_path_factory):
     return out, json.loads((out / "report.json").read_text()), stdout
 
 
-def _views(case):
-    return {name: v for name, v in case.views.items()}
-
-
 def test_sample_is_a_valid_landmarks_file(sample, model):
     folder, truth = sample
     case = load_landmarks(folder / "sample.json", known_names=model)
-    views = _views(case)
+    views = case.views
     assert set(views) == {"front", "side"}
     assert views["front"].camera.view == "orthographic-front"
     assert views["side"].camera.view == "orthographic-right"
@@ -173,3 +169,11 @@ def test_demo_refuses_without_a_fit(monkeypatch):
     monkeypatch.setitem(sys.modules, "solver.fit", None)  # import fails like a missing fit
     with pytest.raises(demo_mod.DemoError, match="fit is not available"):
         demo_mod._fit_api()
+
+
+def test_make_sample_rejects_bad_settings(tmp_path, model):
+    with pytest.raises(ValueError, match="samples"):
+        make_sample(tmp_path / "s", samples=0, model=model)
+    with pytest.raises(ValueError, match="size"):
+        make_sample(tmp_path / "s", size=(32, 1024), model=model)
+    assert not (tmp_path / "s").exists()
