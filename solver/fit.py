@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .cameras import Camera
+from .cameras import Camera, OrthographicCamera
 from .fit_engine import (
     MIN_VIEW_LANDMARKS,
     ContourRows,
@@ -94,8 +94,10 @@ class FitOptions:
         Contour correspondences farther than this are dropped (thesis §4.4.1).
     landmark_weights : dict of str -> float, optional
         Per-landmark weight factors (canonical names or ibugNN), e.g. 0 to ignore one.
-    fixed_cameras : tuple of str
-        Views whose camera is kept as given (calibrated); the others are refitted.
+    fixed_cameras : tuple of str or None
+        Views whose camera is kept as given (calibrated); the others are refitted. None:
+        orthographic cameras are refitted (a photo's scale, tilt and framing are unknown),
+        cameras of every other kind (e.g. a DLT calibrated from passpoints) are kept.
     flag_sigmas : float
         A landmark is flagged when its residual exceeds the mean plus this many standard
         deviations of all the others' residuals ...
@@ -121,7 +123,7 @@ class FitOptions:
     contour_weight: float = 0.5
     contour_threshold_px: float = 20.0
     landmark_weights: dict | None = None
-    fixed_cameras: tuple = ()
+    fixed_cameras: tuple | None = None
     flag_sigmas: float = 3.0
     flag_min_px: float = 5.0
     tps_iterations: int = 6
@@ -208,7 +210,7 @@ def _prepare_views(model, case, opts):
             raise ValueError(f"options.landmark_weights[{key!r}]: must be a finite number "
                              f">= 0, got {val!r}")
     weights = {lms.canonical(k): float(v) for k, v in weights.items()}
-    fixed = set(opts.fixed_cameras)
+    fixed = set() if opts.fixed_cameras is None else set(opts.fixed_cameras)
     unknown = fixed - set(case.views)
     if unknown:
         raise ValueError(f"options.fixed_cameras: no view named {sorted(unknown)[0]!r} "
@@ -239,7 +241,10 @@ def _prepare_views(model, case, opts):
             px.append(uv)
         w = opts.landmark_weight * np.array([weights.get(n, 1.0) for n in names])
         used = int(np.count_nonzero(w))
-        refit = name not in fixed
+        if opts.fixed_cameras is None:
+            refit = isinstance(cam, OrthographicCamera)
+        else:
+            refit = name not in fixed
         need = max(MIN_VIEW_LANDMARKS, cam.min_refit_points if refit else 1)
         if used < need:
             raise ValueError(f"{where}: {used} usable landmark{'s' * (used != 1)}; the fit "
@@ -269,6 +274,35 @@ class _Progress:
             self.callback(float(min(max(fraction, 0.0), 1.0)), message)
 
 
+def _init_pose(eng, state):
+    """With two or more calibrated (kept) cameras the head's pose is set in their world:
+    the landmarks seen in two of them are triangulated and the mean head's landmark
+    vertices fitted to those points by a similarity (Procrustes). Otherwise the head starts
+    at the origin, upright, at scale 1 (the refitted cameras come to it)."""
+    fixed = [v for v in eng.views if not v.refit]
+    if len(fixed) < 2:
+        return
+    from .procrustes import similarity_procrustes
+    from .triangulate import triangulate
+
+    verts = np.unique(np.concatenate([v.vertices for v in fixed]))
+    pix = np.full((len(fixed), len(verts), 2), np.nan)
+    for j, v in enumerate(fixed):
+        pix[j, np.searchsorted(verts, v.vertices)] = v.pixels
+    try:
+        tri = triangulate([v.camera for v in fixed], pix)
+    except (ValueError, TypeError):  # a kind triangulation does not know
+        return
+    ok = np.isfinite(tri.points).all(axis=1)
+    if ok.sum() < 4:
+        return
+    try:
+        sim = similarity_procrustes(eng.local(state, verts[ok]), tri.points[ok])
+    except ValueError:
+        return
+    state.scale, state.rotation, state.translation = sim.scale, sim.rotation, sim.translation
+
+
 def _profile_fit(eng, state, opts):
     """Thesis §4.4.1 on the side views: the cameras alone (similarity-only ICP: a profile
     camera's 2-D similarity is the head's scale, sagittal rotation and position), then the
@@ -278,9 +312,13 @@ def _profile_fit(eng, state, opts):
     if not side:
         return state, info
     joint = eng.joint(side)
-    state, hist = joint.run(state, max_outer=opts.max_iterations, tolerance=opts.tolerance,
-                            cameras_only=True)
-    info["similarity_history"] = hist
+    # The head's scale and position stay too: one profile photo cannot tell its depth
+    # (and with a calibrated camera the front photo is needed to place the head).
+    joint.gauge = True
+    if joint.mode_views:
+        state, hist = joint.run(state, max_outer=opts.max_iterations,
+                                tolerance=opts.tolerance, cameras_only=True)
+        info["similarity_history"] = hist
     state, hist = joint.run(state, freeze=("rotation",), max_outer=opts.max_iterations,
                             tolerance=opts.tolerance)
     info["shape_history"] = hist
@@ -676,6 +714,7 @@ def fit_head(model, case, options=None, initial=None):
     if initial is None:
         state = State(np.eye(3), np.zeros(eng.lin.n_coeffs), {v.name: v.camera for v in views})
         progress(0.0, "placing the cameras")
+        _init_pose(eng, state)
         eng.init_cameras(state)
         progress(0.05, "fitting the profile")
         t = time.perf_counter()

@@ -149,7 +149,6 @@ def write_blend(model, case, result, photo_paths, out):
     head = headless.build_scene_from_fit(model, case, result, images=photo_paths,
                                          texture_size=TEXTURE_SIZE, name="Demo head")
     headless.save_blend(out / "head.blend")
-    (out / "head.blend1").unlink(missing_ok=True)  # Blender's backup of an earlier run
     return head
 
 
