@@ -107,6 +107,7 @@ def build_scene_from_fit(model, case, result, images=None, scene=None, texture_s
         planes = landmarks.build_view_planes(case, imgs)
         for plane in planes:
             photos.link_object(plane, scene.collection)
+        landmarks.store_case_level(scene, case)
         textures = None
         if bake:
             arrays = {v: photos.image_to_array(img) for v, img in imgs.items()

@@ -11,6 +11,7 @@ Modal operators cannot run in background tests, so their logic lives in plain fu
 and in ``PlacementSession`` / ``ContourSession``; the operators only translate events.
 """
 
+import json
 import os
 from pathlib import Path
 
@@ -23,7 +24,7 @@ from mathutils import Vector
 
 from . import material, photos
 from .data import Transaction
-from .solver_link import LandmarkCase, View, load_landmark_set, load_landmarks, save_landmarks
+from .solver_link import landmarks_file, load_landmark_set, load_landmarks, save_landmarks
 
 MARKER_RADIUS = 0.0025  # metres (plane space): about 7 px on a 1024 px photo
 LIFT = 0.001  # landmarks and contour float this far in front of the photo (plane +z)
@@ -301,16 +302,37 @@ def _image_ref(image, base_dir):
         return str(path)
 
 
-def view_from_plane(plane, base_dir=None):
-    """The solver's View of a photo plane (pixels derived from the landmark objects)."""
+_EDITED = ("image", "size", "points", "contour", "camera")
+
+
+def view_dict_from_plane(plane, base_dir=None):
+    """A photo plane as a view of the landmarks file (its JSON form): size, photo,
+    camera and the landmark and contour pixels from the scene; every other key as the
+    imported file had it (``view_json``)."""
     (w, h), _ = photos.plane_size(plane)
-    return View(name=plane.headrecon.view, image=_image_ref(plane.headrecon.image, base_dir),
-                size=(w, h), camera=photos.plane_camera(plane),
-                points=landmark_pixels(plane), contour=contour_pixels(plane))
+    props = plane.headrecon
+    d = json.loads(props.view_json) if props.view_json else {}
+    if props.camera_json:
+        d["camera"] = json.loads(props.camera_json)
+    elif not isinstance(d.get("camera"), dict):  # (a dict here: hints, camera unknown)
+        d["camera"] = props.camera_view
+    image = _image_ref(props.image, base_dir)
+    if image is None:
+        d.pop("image", None)
+    else:
+        d["image"] = image
+    d["size"] = [w, h]
+    d["points"] = {k: list(v) for k, v in landmark_pixels(plane).items()}
+    contour = contour_pixels(plane)
+    if contour is None:
+        d.pop("contour", None)
+    else:
+        d["contour"] = contour.tolist()
+    return d
 
 
-def case_from_scene(scene, base_dir=None, source="<scene>"):
-    """The scene's photos and landmarks as a LandmarkCase.
+def case_dict_from_scene(scene, base_dir=None):
+    """The scene's photos and landmarks as a landmarks document (a dict).
 
     Raises
     ------
@@ -326,8 +348,42 @@ def case_from_scene(scene, base_dir=None, source="<scene>"):
         if v in views:
             raise ValueError(f"view {v!r}: two photo planes claim it ({plane.name!r} and "
                              f"another); rename one view")
-        views[v] = view_from_plane(plane, base_dir)
-    return LandmarkCase(views, source)
+        views[v] = view_dict_from_plane(plane, base_dir)
+    doc = {"format": landmarks_file.FORMAT, "version": landmarks_file.CURRENT_VERSION,
+           "views": views}
+    if scene.headrecon.case_json:
+        doc.update(json.loads(scene.headrecon.case_json))
+    return doc
+
+
+def case_from_scene(scene, base_dir=None, source=None):
+    """The scene's photos and landmarks as a LandmarkCase, checked by the solver's own
+    parser (as work in progress: without the fit's landmark count floor).
+
+    Parameters
+    ----------
+    base_dir : path-like, optional
+        Folder photo paths are written relative to (absolute paths when None).
+    source : str, optional
+        Name for messages and for resolving photos (default: a file in ``base_dir``).
+
+    Raises
+    ------
+    ValueError
+        No photos, two planes with one view name, or what the parser finds (a landmark
+        dragged off its photo, ...), naming view and landmark.
+    """
+    doc = case_dict_from_scene(scene, base_dir)
+    if source is None:
+        source = str(Path(base_dir) / "scene.json") if base_dir is not None else "<scene>"
+    return landmarks_file.parse_landmarks(doc, source, for_fit=False)
+
+
+def store_case_level(scene, case):
+    """Remember the case's top-level keys besides the views (passpoints, x- keys)."""
+    doc = landmarks_file.landmarks_to_dict(case)
+    rest = {k: v for k, v in doc.items() if k not in ("format", "version", "views")}
+    scene.headrecon.case_json = json.dumps(rest) if rest else ""
 
 
 def placeholder_image(view, size):
@@ -349,9 +405,16 @@ def build_view_planes(case, images, centre=(0.0, 0.0, 0.0)):
             raise ValueError(f"view {name!r}: the photo {img.name!r} is "
                              f"{img.size[0]}x{img.size[1]} pixels but the landmarks file "
                              f"says {view.size[0]}x{view.size[1]}")
-        plane = photos.new_photo_plane(img, name, photos.nearest_view(view.camera),
+        plane = photos.new_photo_plane(img, name, photos.nearest_view(view.camera, name),
                                        camera=view.camera, centre=centre)
         planes.append(plane)
+        vd = view.to_dict()  # the file's form: a camera keeps its numbers as read
+        keep = {k: v for k, v in vd.items() if k not in _EDITED}
+        if view.camera is None:
+            keep["camera"] = vd["camera"]  # hints: the fit computes this camera
+        elif not isinstance(vd["camera"], str):
+            plane.headrecon.camera_json = json.dumps(vd["camera"])
+        plane.headrecon.view_json = json.dumps(keep) if keep else ""
         for lm, uv in view.points.items():
             place_landmark(plane, lm, uv)
         if view.contour is not None and len(view.contour):
@@ -404,6 +467,7 @@ def import_landmarks(context, path):
                 photos.remove_objects([*old.children_recursive, old])
         for plane in planes:
             photos.link_object(plane, scene.collection)
+        store_case_level(scene, case)
     return planes
 
 

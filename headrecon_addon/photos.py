@@ -184,10 +184,16 @@ def set_plane_camera(plane, camera):
         plane.headrecon.camera_view = nearest_view(camera)
 
 
-def nearest_view(camera):
-    """The nominal orthographic view whose viewing direction is closest to the camera's."""
+def nearest_view(camera, name=""):
+    """The nominal orthographic view whose viewing direction is closest to the camera's;
+    for a camera not known yet (None), a guess from the view's name."""
     rot = getattr(camera, "rotation", None)
     if rot is None:
+        low = name.lower()
+        if "left" in low:
+            return "orthographic-left"
+        if any(w in low for w in ("right", "side", "profile")):
+            return "orthographic-right"
         return "orthographic-front"
     d = np.asarray(rot, dtype=np.float64)[2]
     return max(ORTHO_VIEWS, key=lambda k: float(ORTHO_VIEWS[k][2] @ d))
@@ -285,8 +291,14 @@ def set_plane_image(plane, image):
     old = tuple(props.image_size)
     props.image = image
     props.image_size = (w, h)
-    if props.camera_json and old != (w, h):
+    if old != (w, h):  # a camera (or camera hints) of the old photo says nothing of this one
         props.camera_json = ""
+        if props.view_json:
+            import json
+
+            data = json.loads(props.view_json)
+            data.pop("camera", None)
+            props.view_json = json.dumps(data)
     _set_plane_mesh(plane.data, w, h, props.plane_height)
     mat = plane.data.materials[0] if len(plane.data.materials) else None
     if mat is not None and material.photo_image(mat) is not None:

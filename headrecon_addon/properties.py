@@ -70,6 +70,11 @@ class HEADRECON_PG_object(bpy.types.PropertyGroup):
         name="Camera Parameters",
         description="The view's camera as JSON when it is not the nominal one (from an "
                     "imported file); empty for the nominal orthographic camera")
+    view_json: StringProperty(
+        name="View Data",
+        description="What the landmarks file said about this view that the add-on does not "
+                    "edit (calibration flags, mirror, passpoints, camera hints, x- keys), as "
+                    "JSON, written back on export")
     image_size: IntVectorProperty(name="Image Size", size=2, min=0)
     plane_height: FloatProperty(name="Plane Height", unit="LENGTH", default=0.375, min=1e-6,
                                 description="Height of the photo plane (its local units)")
@@ -148,6 +153,10 @@ class HEADRECON_PG_scene(bpy.types.PropertyGroup):
     residuals: CollectionProperty(type=HEADRECON_PG_residual)
     residual_index: IntProperty(name="Residual", default=-1, update=_on_residual_index)
     status: StringProperty(name="Status")
+    case_json: StringProperty(
+        name="Case Data",
+        description="Top-level keys of the imported landmarks file besides the views "
+                    "(passpoints, x- keys), as JSON, written back on export")
 
 
 CLASSES = (HEADRECON_PG_object, HEADRECON_PG_residual, HEADRECON_PG_scene)

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .cameras import Camera, OrthographicCamera
+from .cameras import Camera
 from .fit_engine import (
     MIN_VIEW_LANDMARKS,
     ContourRows,
@@ -94,10 +94,9 @@ class FitOptions:
         Contour correspondences farther than this are dropped (thesis §4.4.1).
     landmark_weights : dict of str -> float, optional
         Per-landmark weight factors (canonical names or ibugNN), e.g. 0 to ignore one.
-    fixed_cameras : tuple of str or None
-        Views whose camera is kept as given (calibrated); the others are refitted. None:
-        orthographic cameras are refitted (a photo's scale, tilt and framing are unknown),
-        cameras of every other kind (e.g. a DLT calibrated from passpoints) are kept.
+    fixed_cameras : tuple of str
+        Views whose camera is kept as given, besides those the case marks ``calibrated``;
+        every other camera is refitted (a photo's scale, tilt and framing are unknown).
     flag_sigmas : float
         A landmark is flagged when its residual exceeds the mean plus this many standard
         deviations of all the others' residuals ...
@@ -123,7 +122,7 @@ class FitOptions:
     contour_weight: float = 0.5
     contour_threshold_px: float = 20.0
     landmark_weights: dict | None = None
-    fixed_cameras: tuple | None = None
+    fixed_cameras: tuple = ()
     flag_sigmas: float = 3.0
     flag_min_px: float = 5.0
     tps_iterations: int = 6
@@ -210,7 +209,7 @@ def _prepare_views(model, case, opts):
             raise ValueError(f"options.landmark_weights[{key!r}]: must be a finite number "
                              f">= 0, got {val!r}")
     weights = {lms.canonical(k): float(v) for k, v in weights.items()}
-    fixed = set() if opts.fixed_cameras is None else set(opts.fixed_cameras)
+    fixed = set(opts.fixed_cameras)
     unknown = fixed - set(case.views)
     if unknown:
         raise ValueError(f"options.fixed_cameras: no view named {sorted(unknown)[0]!r} "
@@ -220,6 +219,8 @@ def _prepare_views(model, case, opts):
     for name, view in case.views.items():
         where = f"{case.source}: view {name!r}"
         cam = view.camera
+        if cam is None:
+            cam = _compute_camera(model, case, view, lms, where)
         if not isinstance(cam, Camera):
             raise ValueError(f"{where}: camera of unknown kind ({type(cam).__name__}); "
                              "expected a solver.cameras.Camera")
@@ -241,10 +242,7 @@ def _prepare_views(model, case, opts):
             px.append(uv)
         w = opts.landmark_weight * np.array([weights.get(n, 1.0) for n in names])
         used = int(np.count_nonzero(w))
-        if opts.fixed_cameras is None:
-            refit = isinstance(cam, OrthographicCamera)
-        else:
-            refit = name not in fixed
+        refit = not getattr(view, "camera_fixed", False) and name not in fixed
         need = max(MIN_VIEW_LANDMARKS, cam.min_refit_points if refit else 1)
         if used < need:
             raise ValueError(f"{where}: {used} usable landmark{'s' * (used != 1)}; the fit "
@@ -260,6 +258,42 @@ def _prepare_views(model, case, opts):
                               np.array(px, dtype=np.float64).reshape(-1, 2), w, side,
                               contour, refit))
     return views
+
+
+def _compute_camera(model, case, view, lms, where):
+    """A camera for a view whose file gives only its kind (``View.camera`` None): a DLT
+    from the view's passpoints when it has them, else one self-calibrated on the mean
+    head's landmarks (a start the fit refines); a "pinhole" kind becomes the nearest
+    pinhole camera (with the file's ``lens_mm`` as a prior on the focal length)."""
+    from .dlt import fit_dlt
+    from .pinhole import PinholeCamera
+
+    hints = dict(getattr(view, "camera_hints", {}) or {})
+    kind = hints.get("kind")
+    if kind not in ("dlt", "pinhole"):
+        raise ValueError(f"{where}: no camera parameters and no way to compute a camera of "
+                         f"kind {kind!r} (give the parameters, or a 'dlt'/'pinhole' kind)")
+    if getattr(view, "mirror_of", None) is not None:
+        raise ValueError(f"{where}: a mirror view needs its camera before the fit "
+                         "(solver/mirror.py: estimate_mirror, then reflected_camera)")
+    try:
+        if view.passpoints:
+            _, xyz, uv = case.passpoint_arrays(view.name)
+            dlt = fit_dlt(xyz, uv, view.size).camera
+        else:
+            verts = [lms.vertices[lms.canonical(k)] for k in view.points
+                     if lms.canonical(k) is not None]
+            uv = np.array([view.points[k] for k in view.points
+                           if lms.canonical(k) is not None], dtype=np.float64)
+            dlt = fit_dlt(model.vertices[verts], uv.reshape(-1, 2), view.size).camera
+    except ValueError as e:
+        raise ValueError(f"{where}: cannot compute the {kind} camera: {e}") from None
+    if kind == "dlt":
+        return dlt
+    options = {}
+    if "lens_mm" in hints:
+        options["focal_prior"] = (float(hints["lens_mm"]), 0.05)
+    return PinholeCamera.from_dlt(dlt, **options)
 
 
 # ----------------------------------------------------------------------------- stages
@@ -580,7 +614,7 @@ def _follow_skin(model, skin_disp):
     return out
 
 
-def _uncertainty(model, eng, cov, n_identity):
+def _uncertainty(model, eng, cov):
     """Posterior standard deviation of each vertex, millimetres: sqrt of the trace of
     B_v Sigma B_v^T over the skin (float32: display precision), the nearest skin vertex's
     value elsewhere."""
@@ -744,7 +778,7 @@ def fit_head(model, case, options=None, initial=None):
     t = time.perf_counter()
     joint.cost(state)
     cov = joint.covariance(state)
-    unc = _uncertainty(model, eng, cov, opts.n_identity)
+    unc = _uncertainty(model, eng, cov)
     contour = joint.contour_residuals(state)
     pairs = joint.contour_pairs(state)
     info = {

@@ -5,8 +5,8 @@ Each photo has its own camera (an orthographic photo: scale, in-plane rotation, 
 its free parameters are its own business (``Camera.refit``), so a perspective or DLT
 camera plugs in without the fit knowing its parametrisation. The head's pose and shape are
 solved by the shape-ICP (``solver/shape_icp.py``) together with a linearised image-plane
-similarity of every camera (:class:`Joint`), and the cameras are refitted exactly after
-every step.
+similarity of every camera (:class:`Joint`); after every step each camera is refitted to
+what the step predicted.
 
 Gauge: orthographic photos cannot tell how large or where the head is, only how it looks;
 when every camera is refitted the head's scale stays 1 and its translation 0 and the
@@ -81,23 +81,6 @@ class State:
     def copy(self):
         return replace(self, rotation=self.rotation.copy(), coeffs=self.coeffs.copy(),
                        cameras=dict(self.cameras), translation=self.translation.copy())
-
-
-def rotation_vector(r):
-    """Axis * angle (radians) of a rotation matrix, shape (3,)."""
-    r = np.asarray(r, dtype=np.float64)
-    cos = np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0)
-    angle = float(np.arccos(cos))
-    w = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
-    if angle < 1e-6:
-        return 0.5 * w
-    if angle > np.pi - 1e-6:
-        # Near a half turn the antisymmetric part vanishes; the axis is the dominant
-        # column of R + I.
-        m = r + np.eye(3)
-        axis = m[:, int(np.argmax(np.linalg.norm(m, axis=0)))]
-        return angle * axis / np.linalg.norm(axis)
-    return angle * w / (2.0 * np.sin(angle))
 
 
 def is_side_camera(camera):

@@ -153,6 +153,15 @@ def test_import_export_round_trip(files, scene, tmp_path):
     from solver import landmarks_file
 
     path, case, _ = files
+    # keys the add-on does not edit travel through the scene untouched
+    data = json.loads(path.read_text())
+    data["version"] = 2
+    data["x-tool"] = {"made by": "test"}
+    data["views"]["front"]["calibrated"] = False
+    data["views"]["front"]["x-note"] = "kept"
+    path = path.parent / "case_v2.json"
+    path.write_text(json.dumps(data))
+    case = landmarks_file.load_landmarks(path)
     assert bpy.ops.headrecon.import_landmarks(filepath=str(path)) == {"FINISHED"}
     planes = [o for o in scene.objects if o.headrecon.role == "PHOTO"]
     assert sorted(p.headrecon.view for p in planes) == sorted(case.views)
@@ -163,6 +172,9 @@ def test_import_export_round_trip(files, scene, tmp_path):
     assert bpy.ops.headrecon.export_landmarks(filepath=str(out)) == {"FINISHED"}
     again = landmarks_file.load_landmarks(out)
     assert _same(again, case)
+    assert again.extra == {"x-tool": {"made by": "test"}}
+    assert again.views["front"].calibrated is False
+    assert again.views["front"].extra == {"x-note": "kept"}
     # image paths are rewritten relative to the new file and still find the photos
     for v in case.views:
         assert again.image_path(v).resolve() == case.image_path(v).resolve()

@@ -246,3 +246,69 @@ def test_fixed_camera_keeps_the_given_calibration(model):
     nose = model.landmarks["nose_tip"]
     # x and z of the nose in the world frame the calibrated camera defines
     assert np.abs(world[nose, [0, 2]] - true_world[nose, [0, 2]]).max() < 0.003
+
+
+def _pinhole_case(model, seed, **view_kw):
+    """A synthetic head photographed by two 85 mm pinhole cameras at 1.5 m (landmarks with
+    1 px noise, the profile's outline traced), and the true cameras."""
+    from solver.pinhole import PinholeCamera
+    from solver.synthetic import resample_polyline, trace_silhouette
+
+    case, truth = make_case(model, seed, noise_px=0.0)
+    rng = np.random.default_rng(seed)
+    world = truth.world_vertices
+    views, cams = {}, {}
+    for name, direction in (("front", (0.0, -1.0, 0.0)), ("right", (-1.0, 0.0, 0.0))):
+        cam = PinholeCamera.look_at(1.5 * np.array(direction), np.zeros(3), (768, 1024),
+                                    lens_mm=85)
+        names = list(case.views[name].points)
+        px = cam.project(world[[model.landmarks[n] for n in names]])
+        px += rng.normal(size=px.shape)
+        contour = None
+        if name == "right":
+            contour = resample_polyline(trace_silhouette(model, world, cam), 100)
+        views[name] = View(name, None, (768, 1024), view_kw.get("camera", cam),
+                           dict(zip(names, px, strict=True)), contour,
+                           **{k: v for k, v in view_kw.items() if k != "camera"})
+        cams[name] = cam
+    return views, cams, truth
+
+
+def test_calibrated_perspective_cameras_are_kept(model):
+    views, cams, truth = _pinhole_case(model, 41, calibrated=True)
+    res = fit_head(model, LandmarkCase(views), FitOptions(method="approach1"))
+    assert res.cameras["front"] is views["front"].camera
+    # the head is placed and sized in the cameras' world, not only shaped
+    assert res.scale == pytest.approx(truth.scale, rel=0.05)
+    assert skin_error_mm(model, res.local_vertices, truth) < 1.6
+    assert max(np.sqrt((r.pixels**2).mean()) for r in res.residuals.values()) < 2.0
+
+
+def test_cameras_from_passpoints_and_self_calibration(model):
+    # passpoints of a calibration cube around the head give DLT cameras, kept as computed
+    views, cams, truth = _pinhole_case(model, 42, camera=None, calibrated=True,
+                                       camera_hints={"kind": "dlt"})
+    corners = np.array([[x, y, z] for x in (-0.2, 0.2) for y in (-0.2, 0.2)
+                        for z in (-0.25, 0.2)])
+    corners[0] += (0.03, 0.0, 0.0)  # not a perfect cube: no symmetric degeneracy
+    passpoints = {f"p{i}": p for i, p in enumerate(corners)}
+    for name, view in views.items():
+        view.passpoints = {k: tuple(cams[name].project(p[None])[0]) for k, p in
+                           passpoints.items()}
+    res = fit_head(model, LandmarkCase(views, passpoints=passpoints),
+                   FitOptions(method="approach1"))
+    assert res.cameras["front"].kind == "dlt"
+    np.testing.assert_allclose(res.cameras["front"].project(corners),
+                               cams["front"].project(corners), atol=1e-3)
+    assert skin_error_mm(model, res.local_vertices, truth) < 1.6
+    # without passpoints a pinhole camera is self-calibrated on the head
+    views, cams, truth = _pinhole_case(model, 43, camera=None,
+                                       camera_hints={"kind": "pinhole", "lens_mm": 85})
+    res = fit_head(model, LandmarkCase(views), FitOptions(method="approach1"))
+    assert res.cameras["right"].kind == "pinhole"
+    assert res.cameras["right"].focal_px == pytest.approx(cams["right"].focal_px, rel=0.05)
+    assert skin_error_mm(model, res.local_vertices, truth) < 0.6 * skin_error_mm(
+        model, model.vertices, truth)
+    views["front"].camera_hints = {"kind": "orthographic"}
+    with pytest.raises(ValueError, match=r"view 'front': no camera parameters"):
+        fit_head(model, LandmarkCase(views))
