@@ -8,8 +8,6 @@ case when it exists (``./run sample``), else a synthetic case with generated pho
 """
 
 import argparse
-import os
-import platform
 import statistics
 import sys
 import tempfile
@@ -23,17 +21,9 @@ if str(ROOT) not in sys.path:
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 
+from bench.common import machine_description  # noqa: E402
+
 SAMPLE = ROOT / "generated" / "sample" / "sample.json"
-
-
-def cpu_model():
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def _synthetic_case(folder):
@@ -127,7 +117,7 @@ def main(argv=None):
     p.add_argument("--repeat", type=int, default=3)
     p.add_argument("--moves", type=int, default=20)
     args = p.parse_args(argv)
-    print(f"machine: {cpu_model()}, {os.cpu_count()} cores; Blender {bpy.app.version_string}")
+    print(f"machine: {machine_description()}")
     with tempfile.TemporaryDirectory() as tmp:
         if args.case:
             case = Path(args.case)

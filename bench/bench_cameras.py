@@ -4,49 +4,44 @@ triangulation, passpoint checking, mirror estimation. Prints numbers; asserts no
     python -m bench.bench_cameras
 """
 
-import time
-
 import numpy as np
 
+from bench.common import machine_description, median_time
 from solver.calib_errors import check_passpoints
 from solver.dlt import DLTCamera, fit_dlt
 from solver.mirror import MirrorPlane, estimate_mirror
+from solver.pinhole import PinholeCamera
 from solver.triangulate import triangulate
 
 SIZE = (1920, 1080)
-K = np.array([[1500.0, 0.0, 960.0], [0.0, 1500.0, 540.0], [0.0, 0.0, 1.0]])
+F_PX = 1500.0  # focal length, pixels (principal point at the image centre)
 DIST = np.array([-4e-8, 2e-14, -3e-21, 1.5e-6, -1e-6])
 
 
-def look_at(centre, target, up=(0.0, 0.0, 1.0)):
-    f = np.asarray(target, float) - centre
-    f /= np.linalg.norm(f)
-    r = np.cross(f, up)
-    r /= np.linalg.norm(r)
-    return np.array([r, np.cross(f, r), f])
+def camera(centre, target=(0.0, 0.0, 0.0)):
+    """A full-HD DLT camera at ``centre`` looking at ``target``."""
+    return PinholeCamera.look_at(centre, target, SIZE, f_px=F_PX).to_dlt()
 
 
 def timed(label, fn, repeat=5):
-    fn()  # warm up
-    t = time.perf_counter()
-    for _ in range(repeat):
-        out = fn()
-    ms = (time.perf_counter() - t) / repeat * 1e3
-    print(f"{label:<58s} {ms:9.2f} ms")
-    return out
+    """Run ``fn`` once untimed, then ``repeat`` times; print the median; return its result."""
+    t = median_time(fn, repeat)
+    print(f"{label:<58s} {t.median * 1e3:9.2f} ms")
+    return t.result
 
 
 def main():
     rng = np.random.default_rng(0)
-    centres = [np.array(c) for c in ([0.0, -1.0, 0.05], [0.8, -0.7, 0.1], [-0.7, -0.8, 0.3])]
-    cams = [DLTCamera.from_krc(K, look_at(c, [0, 0, 0]), c, SIZE) for c in centres]
+    centres = ([0.0, -1.0, 0.05], [0.8, -0.7, 0.1], [-0.7, -0.8, 0.3])
+    cams = [camera(c) for c in centres]
     lens = DLTCamera(cams[0].matrix, SIZE, DIST)
     marks = rng.uniform([-0.07, -0.1, -0.11], [0.07, 0.02, 0.11], (68, 3))
     px = cams[0].project(marks) + rng.normal(0, 0.5, (68, 2))
     pxd = lens.project(marks) + rng.normal(0, 0.5, (68, 2))
     head = rng.uniform(-0.12, 0.12, (26719, 3))
 
-    print("DLT cameras (numpy/scipy), 1920x1080")
+    print(f"machine: {machine_description()}")
+    print("DLT cameras (numpy/scipy), 1920x1080; median of 5 runs after one warm-up")
     timed("fit_dlt 11 parameters, 68 passpoints", lambda: fit_dlt(marks, px, SIZE))
     f16 = timed("fit_dlt 16 parameters, 68 passpoints",
                 lambda: fit_dlt(marks, pxd, SIZE, n_params=16))
@@ -71,7 +66,7 @@ def main():
                 lambda: check_passpoints(marks, views), repeat=2)
     print(f"    flagged: {[(s.view, s.name) for s in chk.suspects]}")
     plane = MirrorPlane.from_point_normal([0.35, 0.05, 0.0], [-1.0, -0.6, 0.1])
-    cam = DLTCamera.from_krc(K, look_at(centres[0], [0.25, 0.1, 0.0]), centres[0], SIZE)
+    cam = camera(centres[0], [0.25, 0.1, 0.0])
     d = cam.project(marks) + rng.normal(0, 0.3, (68, 2))
     m = cam.project(plane.reflect_points(marks)) + rng.normal(0, 0.3, (68, 2))
     fit = timed("estimate_mirror 68 landmark pairs",

@@ -17,29 +17,17 @@ import); by default the environment is left as it is and reported.
 
 import argparse
 import os
-import platform
-import resource
-import statistics
 import sys
-import time
-import tracemalloc
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+# numpy is imported after the BLAS thread count is settled (main), bench.common does not.
+from bench.common import machine_description, max_rss_mb, median_time, peak_memory  # noqa: E402
+
 TARGET_SECONDS = 0.3
-
-
-def cpu_model():
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def make_case(model, coeff_scale, seed):
@@ -65,17 +53,9 @@ def run_case(label, model, coeff_scale, repeat, seed=0):
     from solver.register import register
 
     cloud, truth, rot, scale = make_case(model, coeff_scale, seed)
-    register(model, cloud)  # warm-up
-    wall, cpu = [], []
-    for _ in range(repeat):
-        w0, c0 = time.perf_counter(), time.process_time()
-        fit = register(model, cloud)
-        wall.append(time.perf_counter() - w0)
-        cpu.append(time.process_time() - c0)
-    tracemalloc.start()
-    register(model, cloud)
-    _, peak = tracemalloc.get_traced_memory()
-    tracemalloc.stop()
+    t = median_time(lambda: register(model, cloud), repeat, warmup=1)
+    fit = t.result
+    _, peak = peak_memory(lambda: register(model, cloud))
 
     err = np.linalg.norm(fit.world_vertices(model) - truth, axis=1)
     cos = (np.trace(fit.rotation.T @ rot) - 1.0) / 2.0
@@ -84,10 +64,10 @@ def run_case(label, model, coeff_scale, repeat, seed=0):
         "label": label,
         "vertices": model.n_vertices,
         "coeffs": model.n_coeffs,
-        "wall": statistics.median(wall),
-        "wall_min": min(wall),
-        "wall_max": max(wall),
-        "cpu": statistics.median(cpu),
+        "wall": t.median,
+        "wall_min": t.min,
+        "wall_max": t.max,
+        "cpu": t.cpu_median,
         "peak_mb": peak / 2**20,
         "rms_mm": 1e3 * float(np.sqrt(np.mean(err**2))),
         "max_mm": 1e3 * float(err.max()),
@@ -111,9 +91,6 @@ def main(argv=None):
         os.execve(sys.executable, [sys.executable, "-m", "bench.bench_register",
                                    "--repeat", str(args.repeat)], env)
 
-    import numpy as np
-    import scipy
-
     from solver.model import load_model
 
     head = load_model()
@@ -125,11 +102,7 @@ def main(argv=None):
     ]
 
     print("bench_register: 3-D registration of the model skin to a sampled-head point cloud")
-    print(f"machine: {cpu_model()}, {os.cpu_count()} logical cores, "
-          f"load average {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
-    print(f"python {platform.python_version()}, numpy {np.__version__}, scipy "
-          f"{scipy.__version__}, OPENBLAS_NUM_THREADS="
-          f"{os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}")
+    print(f"machine: {machine_description()}")
     print("cloud: skin vertices of a model instance, 10 deg rotation, scale +-10 %, "
           "translation, 0.5 mm noise; start: centroid + RMS-radius scale, identity rotation")
     print(f"timing: median of {args.repeat} runs after 1 warm-up; peak memory: tracemalloc "
@@ -145,8 +118,7 @@ def main(argv=None):
               f"{r['peak_mb']:>8.1f} {r['rms_mm']:>7.3f} {r['max_mm']:>7.2f} "
               f"{r['surface_mm']:>8.3f} {r['rot_deg']:>8.3f} {r['scale_pct']:>8.3f}  "
               f"{r['steps'][0]}/{r['steps'][1]}/{r['steps'][2]}")
-    maxrss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-    print(f"process ru_maxrss (whole process incl. the loaded model): {maxrss_mb:.0f} MB")
+    print(f"process ru_maxrss (whole process incl. the loaded model): {max_rss_mb():.0f} MB")
     reg = rows[0]["wall"]
     verdict = "meets" if reg <= TARGET_SECONDS else "MISSES"
     print(f"regional model: {reg:.3f} s median, {verdict} the {TARGET_SECONDS} s target "

@@ -8,30 +8,19 @@ cached), a single-tile bake, and peak memory.
 """
 
 import argparse
-import os
-import platform
-import resource
-import statistics
-import time
-import tracemalloc
 
 import numpy as np
-import scipy
 
+from bench.common import (
+    load_average,
+    machine_description,
+    max_rss_mb,
+    median_time,
+    peak_memory,
+)
 from solver.cameras import OrthographicCamera
 from solver.model import load_model
 from solver.texture import bake_texture, bake_tiles, clear_raster_cache, uv_raster, uv_tiles
-
-
-def cpu_model():
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def photos(width=768, height=1024, seed=0):
@@ -47,20 +36,9 @@ def photos(width=768, height=1024, seed=0):
     return views
 
 
-def timed(fn, repeat):
-    """Median wall and CPU (this process, all threads) seconds, and wall min/max."""
-    wall, cpu = [], []
-    for _ in range(repeat):
-        t0, c0 = time.perf_counter(), time.process_time()
-        fn()
-        wall.append(time.perf_counter() - t0)
-        cpu.append(time.process_time() - c0)
-    return statistics.median(wall), statistics.median(cpu), min(wall), max(wall)
-
-
 def line(label, t):
-    return (f"  {label:<30} median {t[0]:.3f} s wall, {t[1]:.3f} s CPU  "
-            f"(wall min {t[2]:.3f}, max {t[3]:.3f})")
+    return (f"  {label:<30} median {t.median:.3f} s wall, {t.cpu_median:.3f} s CPU  "
+            f"(wall min {t.min:.3f}, max {t.max:.3f})")
 
 
 def main(argv=None):
@@ -74,10 +52,8 @@ def main(argv=None):
     views = photos()
     world = model.vertices
     tiles = uv_tiles(model)
-    affinity = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None
     print("bench_texture: texture bake of the skin from two photos")
-    print(f"  machine: {cpu_model()}, {os.cpu_count()} cores ({affinity} usable), "
-          f"Python {platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}")
+    print(f"  machine: {machine_description()}")
     print(f"  photos: 2 x 768x1024 (front, right, right also mirrored); texture "
           f"{args.size}x{args.size} per tile, tiles {', '.join(map(str, tiles))}")
 
@@ -93,34 +69,27 @@ def main(argv=None):
         for t in tiles:
             uv_raster(model, args.size, tile=t)
 
-    rt = timed(raster_only, args.cold_repeat)
-    c = timed(cold, args.cold_repeat)
+    rt = median_time(raster_only, args.cold_repeat, warmup=0)
+    c = median_time(cold, args.cold_repeat, warmup=0)
     warm()  # make sure the rasters are cached
     texels = {t: len(uv_raster(model, args.size, tile=t).texel) for t in tiles}
-    w = timed(warm, args.repeat)
-    face = timed(lambda: bake_texture(model, world, views, args.size, tile=tiles[0]),
-                 args.repeat)
+    w = median_time(warm, args.repeat, warmup=0)
+    face = median_time(lambda: bake_texture(model, world, views, args.size, tile=tiles[0]),
+                       args.repeat, warmup=0)
     print("  covered texels: " + ", ".join(f"{t}: {n}" for t, n in texels.items()))
     print(line("UV raster build (all tiles):", rt))
     print(line("cold bake (raster + bake):", c))
     print(line("warm bake, all tiles:", w))
     print(line(f"warm bake, tile {tiles[0]} only:", face))
-    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    print(f"  load average during the run: {load:.2f} (wall times grow with other jobs; "
-          "CPU time less so)")
+    print(f"  load average during the run: {load_average()} (wall times grow with other "
+          "jobs; CPU time less so)")
 
-    tracemalloc.start()
-    warm()
-    _, peak_warm = tracemalloc.get_traced_memory()
-    tracemalloc.stop()
+    _, peak_warm = peak_memory(warm)
     clear_raster_cache()
-    tracemalloc.start()
-    warm()
-    _, peak_cold = tracemalloc.get_traced_memory()
-    tracemalloc.stop()
-    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB on Linux
+    _, peak_cold = peak_memory(warm)
     print(f"  peak traced memory: warm bake {peak_warm / 2**20:.0f} MiB, cold bake "
-          f"{peak_cold / 2**20:.0f} MiB; process max RSS {rss:.0f} MiB (model included)")
+          f"{peak_cold / 2**20:.0f} MiB; process max RSS {max_rss_mb():.0f} MiB "
+          "(model included)")
 
 
 if __name__ == "__main__":

@@ -22,6 +22,7 @@ from mathutils import Matrix
 
 from . import landmarks, material, photos, reference_head, shape_keys
 from .data import Transaction
+from .polls import object_mode_problem, poll_result
 from .solver_link import (
     FitOptions,
     bake_fit_texture,
@@ -244,6 +245,12 @@ def write_uncertainty(mesh, mm):
     return vmax
 
 
+def fit_method(result):
+    """The approach that made ``result``: for a "combined" fit the one that won (the
+    solver's ``info["approach"]``), not the method requested."""
+    return str(result.info.get("approach", result.method))
+
+
 def rms_residual(result):
     px = [np.asarray(r.pixels, dtype=np.float64) for r in result.residuals.values()]
     px = np.concatenate(px) if px else np.zeros(0)
@@ -323,7 +330,7 @@ def apply_result(scene, model, result, textures=None, head=None, name=None):
             scene.collection.objects.link(head)
     scene.headrecon.head = head
     head.matrix_world = similarity_matrix(result)
-    head.headrecon.fit_method = str(result.info.get("approach", result.method))
+    head.headrecon.fit_method = fit_method(result)
     head.headrecon.fit_rms_px = rms_residual(result)
     update_residuals(scene, result)
     centre = result.world_vertices[model.skin].mean(axis=0)
@@ -571,17 +578,9 @@ class HEADRECON_OT_fit(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if context.mode != "OBJECT":
-            cls.poll_message_set("Switch to Object Mode first")
-            return False
-        if _running["job"] is not None:
-            cls.poll_message_set("A fit is running (Esc cancels it)")
-            return False
-        problem = fit_problem(context.scene)
-        if problem:
-            cls.poll_message_set(problem)
-            return False
-        return True
+        running = "A fit is running (Esc cancels it)" if _running["job"] is not None else None
+        return poll_result(cls, object_mode_problem(context) or running
+                           or fit_problem(context.scene))
 
     def _report_error(self, e):
         if isinstance(e, FitCancelled):
@@ -673,10 +672,8 @@ class HEADRECON_OT_live_refit_now(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if not live_ready():
-            cls.poll_message_set("Run Fit once first (quick refits start from it)")
-            return False
-        return True
+        return poll_result(cls, None if live_ready() else
+                           "Run Fit once first (quick refits start from it)")
 
     def execute(self, context):
         try:

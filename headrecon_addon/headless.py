@@ -74,7 +74,7 @@ def _only(case, view):
 
 
 def build_scene_from_fit(model, case, result, images=None, scene=None, texture_size=1024,
-                         bake=True, name=None):
+                         bake=True, name=None, textures=None):
     """Build the artist's scene for a finished fit: photo planes with landmarks (and
     contour), and the head with shape keys, transform, uncertainty and baked texture.
 
@@ -91,9 +91,12 @@ def build_scene_from_fit(model, case, result, images=None, scene=None, texture_s
     texture_size : int
         Baked texture size in texels.
     bake : bool
-        Bake the texture from the photos.
+        Bake the texture from the photos (when ``textures`` is not given).
     name : str, optional
         The head object's name (default "HeadRecon Head").
+    textures : dict of int -> ndarray (S, S, 3|4), optional
+        A bake the caller already has (``bake_fit_texture(model, result, ...)``, UDIM tile
+        -> texture, row 0 at the top): used as it is, nothing is baked again.
 
     Returns
     -------
@@ -108,8 +111,7 @@ def build_scene_from_fit(model, case, result, images=None, scene=None, texture_s
         for plane in planes:
             photos.link_object(plane, scene.collection)
         landmarks.store_case_level(scene, case)
-        textures = None
-        if bake:
+        if textures is None and bake:
             arrays = {v: photos.image_to_array(img) for v, img in imgs.items()
                       if not img.get(photos.PLACEHOLDER)}
             if arrays:
@@ -168,7 +170,7 @@ def fit_file(path, out, model, options=None, texture_size=1024, bake=True, glb=F
     written = [save_blend(out)]
     if glb:
         written.append(export_glb(Path(out).with_suffix(".glb"), head))
-    return {"name": Path(path).stem, "method": str(result.info.get("approach", result.method)),
+    return {"name": Path(path).stem, "method": fit_ops.fit_method(result),
             "rms_px": rms_px(result), "flagged": len(result.flagged()),
             "seconds": time.perf_counter() - t0, "outputs": [str(p) for p in written]}
 

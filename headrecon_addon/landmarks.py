@@ -24,6 +24,7 @@ from mathutils import Vector
 
 from . import material, photos
 from .data import Transaction
+from .polls import ObjectModeOperator, object_mode_problem, poll_result, view3d_problem
 from .solver_link import landmarks_file, load_landmark_set, load_landmarks, save_landmarks
 
 MARKER_RADIUS = 0.0025  # metres (plane space): about 7 px on a 1024 px photo
@@ -567,6 +568,8 @@ STATUS_CONTOUR = ("Click: add point   Backspace: remove last point   "
 class ContourSession:
     """Trace the profile outline: every click adds a point to the plane's contour."""
 
+    done = False  # a contour takes points until the artist ends the tool
+
     def __init__(self, plane):
         self.plane_name = plane.name
         self.added = 0
@@ -635,22 +638,25 @@ _NAVIGATION = {"MIDDLEMOUSE", "WHEELUPMOUSE", "WHEELDOWNMOUSE", "TRACKPADPAN", "
                "NUMPAD_5", "NUMPAD_PERIOD", "NUMPAD_PLUS", "NUMPAD_MINUS", "HOME"}
 
 
+def _photos_problem(context, message="Load a photo first (Photos panel)"):
+    return None if photos.photo_planes(context.scene) else message
+
+
 class _PlaneToolMixin:
+    """What the two click tools share: the target plane, header and status texts, and the
+    modal loop (navigation passes through, a click on the photo goes to the session, a
+    click elsewhere to Blender). Subclasses set STATUS and DONE_KEYS and implement
+    ``_key`` (their own shortcuts) and ``_edited`` (whether anything changed)."""
+
     view: StringProperty(name="View", description="Photo view name (empty: the active "
                          "object's photo)", options={"SKIP_SAVE"})
+    STATUS = ""
+    DONE_KEYS = {"ESC", "RIGHTMOUSE"}
 
     @classmethod
     def poll(cls, context):
-        if context.area is None or context.area.type != "VIEW_3D":
-            cls.poll_message_set("Use it in a 3D Viewport")
-            return False
-        if context.mode != "OBJECT":
-            cls.poll_message_set("Switch to Object Mode first")
-            return False
-        if not photos.photo_planes(context.scene):
-            cls.poll_message_set("Load a photo first (Photos panel)")
-            return False
-        return True
+        return poll_result(cls, view3d_problem(context) or object_mode_problem(context)
+                           or _photos_problem(context))
 
     def _start(self, context):
         plane = _target_plane(context, self.view)
@@ -660,10 +666,43 @@ class _PlaneToolMixin:
             return None
         return plane
 
+    def _run(self, context):
+        """Show the session's header and hand events to ``modal``."""
+        self._refresh(context)
+        context.window_manager.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def _refresh(self, context):
+        context.area.header_text_set(self.session.header())
+        if context.workspace is not None:
+            context.workspace.status_text_set(self.STATUS)
+
     def _finish(self, context):
         context.area.header_text_set(None)
         if context.workspace is not None:
             context.workspace.status_text_set(None)
+
+    def modal(self, context, event):
+        if self.session.plane is None:
+            self._finish(context)
+            return {"CANCELLED"}
+        if event.type in _NAVIGATION:
+            return {"PASS_THROUGH"}
+        if event.value != "PRESS":
+            return {"RUNNING_MODAL"}
+        if event.type in self.DONE_KEYS:
+            self._finish(context)
+            return {"FINISHED"} if self._edited() else {"CANCELLED"}
+        if event.type == "LEFTMOUSE":
+            ray = _ray(context, event)
+            if ray is None:
+                return {"PASS_THROUGH"}  # a click on the sidebar or header: theirs
+            if not self.session.done and not self.session.click(*ray):
+                self.report({"WARNING"}, "Click on the photo")
+        elif not self._key(event.type):
+            return {"RUNNING_MODAL"}
+        self._refresh(context)
+        return {"RUNNING_MODAL"}
 
 
 class HEADRECON_OT_place_landmarks(_PlaneToolMixin, bpy.types.Operator):
@@ -672,6 +711,7 @@ class HEADRECON_OT_place_landmarks(_PlaneToolMixin, bpy.types.Operator):
     bl_idname = "headrecon.place_landmarks"
     bl_label = "Place Landmarks"
     bl_options = {"REGISTER", "UNDO"}
+    STATUS = STATUS_PLACE
 
     def invoke(self, context, event):
         plane = self._start(context)
@@ -684,42 +724,21 @@ class HEADRECON_OT_place_landmarks(_PlaneToolMixin, bpy.types.Operator):
             return {"CANCELLED"}
         if self.session.done:  # everything placed already: walk from the start to adjust
             self.session.index = 0
-        self._refresh(context)
-        context.window_manager.modal_handler_add(self)
-        return {"RUNNING_MODAL"}
+        return self._run(context)
 
-    def _refresh(self, context):
-        context.area.header_text_set(self.session.header())
-        if context.workspace is not None:
-            context.workspace.status_text_set(STATUS_PLACE)
+    def _edited(self):
+        return self.session.placed > 0
 
-    def modal(self, context, event):
-        if self.session.plane is None:
-            self._finish(context)
-            return {"CANCELLED"}
-        if event.type in _NAVIGATION:
-            return {"PASS_THROUGH"}
-        if event.value != "PRESS":
-            return {"RUNNING_MODAL"}
-        if event.type in {"ESC", "RIGHTMOUSE"}:
-            self._finish(context)
-            return {"FINISHED"} if self.session.placed else {"CANCELLED"}
-        if event.type == "LEFTMOUSE":
-            ray = _ray(context, event)
-            if ray is None:
-                return {"PASS_THROUGH"}  # a click on the sidebar or header: theirs
-            if not self.session.done and not self.session.click(*ray):
-                self.report({"WARNING"}, "Click on the photo")
-        elif event.type in {"S", "RIGHT_ARROW", "SPACE"}:
+    def _key(self, key):
+        if key in {"S", "RIGHT_ARROW", "SPACE"}:
             self.session.skip()
-        elif event.type in {"BACK_SPACE", "LEFT_ARROW"}:
+        elif key in {"BACK_SPACE", "LEFT_ARROW"}:
             self.session.back()
-        elif event.type in {"X", "DEL"}:
+        elif key in {"X", "DEL"}:
             self.session.unplace()
         else:
-            return {"RUNNING_MODAL"}
-        self._refresh(context)
-        return {"RUNNING_MODAL"}
+            return False
+        return True
 
 
 class HEADRECON_OT_draw_contour(_PlaneToolMixin, bpy.types.Operator):
@@ -728,44 +747,24 @@ class HEADRECON_OT_draw_contour(_PlaneToolMixin, bpy.types.Operator):
     bl_idname = "headrecon.draw_contour"
     bl_label = "Draw Contour"
     bl_options = {"REGISTER", "UNDO"}
+    STATUS = STATUS_CONTOUR
+    DONE_KEYS = {"ESC", "RIGHTMOUSE", "RET", "NUMPAD_ENTER"}
 
     def invoke(self, context, event):
         plane = self._start(context)
         if plane is None:
             return {"CANCELLED"}
         self.session = ContourSession(plane)
-        self._refresh(context)
-        context.window_manager.modal_handler_add(self)
-        return {"RUNNING_MODAL"}
+        return self._run(context)
 
-    def _refresh(self, context):
-        context.area.header_text_set(self.session.header())
-        if context.workspace is not None:
-            context.workspace.status_text_set(STATUS_CONTOUR)
+    def _edited(self):
+        return self.session.added > 0
 
-    def modal(self, context, event):
-        if self.session.plane is None:
-            self._finish(context)
-            return {"CANCELLED"}
-        if event.type in _NAVIGATION:
-            return {"PASS_THROUGH"}
-        if event.value != "PRESS":
-            return {"RUNNING_MODAL"}
-        if event.type in {"ESC", "RIGHTMOUSE", "RET", "NUMPAD_ENTER"}:
-            self._finish(context)
-            return {"FINISHED"} if self.session.added else {"CANCELLED"}
-        if event.type == "LEFTMOUSE":
-            ray = _ray(context, event)
-            if ray is None:
-                return {"PASS_THROUGH"}
-            if not self.session.click(*ray):
-                self.report({"WARNING"}, "Click on the photo")
-        elif event.type in {"BACK_SPACE", "DEL"}:
+    def _key(self, key):
+        if key in {"BACK_SPACE", "DEL"}:
             self.session.undo_point()
-        else:
-            return {"RUNNING_MODAL"}
-        self._refresh(context)
-        return {"RUNNING_MODAL"}
+            return True
+        return False
 
 
 class HEADRECON_OT_clear_landmarks(bpy.types.Operator):
@@ -779,10 +778,7 @@ class HEADRECON_OT_clear_landmarks(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if not photos.photo_planes(context.scene):
-            cls.poll_message_set("There are no photos")
-            return False
-        return True
+        return poll_result(cls, _photos_problem(context, "There are no photos"))
 
     def invoke(self, context, event):
         return context.window_manager.invoke_confirm(self, event)
@@ -797,7 +793,8 @@ class HEADRECON_OT_clear_landmarks(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class HEADRECON_OT_import_landmarks(bpy.types.Operator, ImportHelper):
+class HEADRECON_OT_import_landmarks(ObjectModeOperator, bpy.types.Operator,
+                                    ImportHelper):
     """Read a HeadRecon landmarks file (JSON): its photos become photo planes with their
     landmarks and contour"""
 
@@ -807,13 +804,6 @@ class HEADRECON_OT_import_landmarks(bpy.types.Operator, ImportHelper):
 
     filename_ext = ".json"
     filter_glob: StringProperty(default="*.json", options={"HIDDEN"})
-
-    @classmethod
-    def poll(cls, context):
-        if context.mode != "OBJECT":
-            cls.poll_message_set("Switch to Object Mode first")
-            return False
-        return True
 
     def execute(self, context):
         try:
@@ -841,10 +831,8 @@ class HEADRECON_OT_export_landmarks(bpy.types.Operator, ExportHelper):
 
     @classmethod
     def poll(cls, context):
-        if not photos.photo_planes(context.scene):
-            cls.poll_message_set("There are no photos with landmarks to export")
-            return False
-        return True
+        return poll_result(cls, _photos_problem(
+            context, "There are no photos with landmarks to export"))
 
     def execute(self, context):
         try:
@@ -856,7 +844,7 @@ class HEADRECON_OT_export_landmarks(bpy.types.Operator, ExportHelper):
         return {"FINISHED"}
 
 
-class HEADRECON_OT_select_landmark(bpy.types.Operator):
+class HEADRECON_OT_select_landmark(ObjectModeOperator, bpy.types.Operator):
     """Select this landmark"""
 
     bl_idname = "headrecon.select_landmark"
@@ -865,13 +853,6 @@ class HEADRECON_OT_select_landmark(bpy.types.Operator):
 
     view: StringProperty(name="View")
     landmark: StringProperty(name="Landmark")
-
-    @classmethod
-    def poll(cls, context):
-        if context.mode != "OBJECT":
-            cls.poll_message_set("Switch to Object Mode first")
-            return False
-        return True
 
     def execute(self, context):
         if select_landmark(context, self.view, self.landmark) is None:

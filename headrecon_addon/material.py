@@ -1,7 +1,15 @@
 """Materials of the head, the photo planes and the landmarks, and the uncertainty colour ramp.
 
+The head's eyes and eyelashes are procedural (no image files): an eye with iris, pupil,
+limbal ring and a wet coat, painted by the distance from the eye's axis (a per-vertex
+attribute, :func:`eye_attribute`); eyelashes as dark strands cut out of ICT's lash strips
+by an alpha drawn from their UVs. The sample renderer (tools/make_sample.py) uses the same
+eye material, so the photos and the fitted head have the same eyes.
+
 Node trees are built by name so they work unchanged on Blender 4.2 and 5.x (the socket
-names used here, "Base Color", "Roughness", "Alpha", "Color", "Strength", exist in both).
+names used here, "Base Color", "Roughness", "Alpha", "Color", "Strength", exist in both;
+where 5.0 renamed a socket, e.g. "Fac" -> "Factor", :class:`NodeBuilder` uses the
+identifier, which did not change).
 """
 
 import bpy
@@ -11,8 +19,9 @@ import numpy as np
 # First match wins.
 PART_GROUPS = (
     ("Eye Wetness", ("lacrimal", "blend", "occlusion"), (1.0, 1.0, 1.0, 0.0)),
-    # ICT's eyelashes are flat strips made for an alpha-mapped texture: opaque, they read
-    # as grey slabs over the eyes, so they start invisible (still deformed by the keys).
+    # ICT's eyelashes are flat strips made for an alpha-mapped texture: the lash shader
+    # cuts strands out of them; the viewport colour stays clear (solid mode cannot show
+    # the strands, and opaque strips read as grey slabs over the eyes).
     ("Eyelashes", ("eyelash",), (0.02, 0.015, 0.01, 0.0)),
     ("Eyes", ("eyeball",), (0.85, 0.85, 0.82, 1.0)),
     ("Teeth", ("teeth", "tooth"), (0.9, 0.87, 0.78, 1.0)),
@@ -28,6 +37,20 @@ SKIN_GROUPS = ("Face", "Head")
 TEXTURE_NODE = "HeadRecon Texture"
 GROUP_KEY = "headrecon_group"  # custom property naming a head material's part group
 PHOTO_NODE = "HeadRecon Photo"
+
+# ICT README, "Eyeball details" (vertex ranges, inclusive; the model keeps ICT's vertex
+# order). The sclera is the outer shell with the cornea bulge; the iris part is an inner
+# sphere the opaque sclera hides, so the eye material paints iris and pupil onto the
+# sclera's front.
+SCLERA_RANGES = ((21451, 22220), (23021, 23790))
+IRIS_RANGES = ((22221, 23020), (23791, 24590))
+IRIS_RADIUS = 0.0058  # metres from the eye's axis
+PUPIL_RADIUS = 0.0021
+# Per-vertex float the eye material reads: 1 on the eye's axis, falling linearly to 0 at
+# EYE_RANGE_MM from it, on the front of the sclera; 0 everywhere else. Zero where it is
+# missing, so a mesh without it shows plain sclera, not a black pupil.
+EYE_ATTRIBUTE = "headrecon_eye"
+EYE_RANGE_MM = 20.0
 
 LANDMARK_COLOURS = {
     "PLACED": (0.1, 0.85, 0.2, 1.0),
@@ -74,17 +97,248 @@ def _set_transparent(mat):
 
 def new_part_material(group, name_prefix="HeadRecon"):
     """A new material for one part group of the head (not shared: each head owns its own,
-    so a re-fit or a delete of one head never touches another's)."""
+    so a re-fit or a delete of one head never touches another's). Eyes and eyelashes get
+    their procedural shaders; every other group a plain colour."""
     colour = next(c for g, _, c in PART_GROUPS if g == group)
     mat = bpy.data.materials.new(f"{name_prefix} {group}")
     mat[GROUP_KEY] = group
     bsdf = _principled(mat)
+    # The plain colour stays as the sockets' own values under procedural links too: what
+    # an exporter that cannot follow the nodes (glTF) falls back to.
     bsdf.inputs["Base Color"].default_value = colour[:3] + (1.0,)
     bsdf.inputs["Roughness"].default_value = 0.1 if group in ("Eyes", "Eye Wetness") else 0.55
     mat.diffuse_color = colour
     if colour[3] < 1.0:
         bsdf.inputs["Alpha"].default_value = colour[3]
         _set_transparent(mat)
+    shader = {"Eyes": eye_shader, "Eyelashes": eyelash_shader}.get(group)
+    if shader is not None:
+        shader(mat)
+    return mat
+
+
+# --------------------------------------------------------------------------------------
+# Procedural shaders
+
+
+class NodeBuilder:
+    """Builds a material's node chain feeding its Principled BSDF (``bsdf``).
+
+    Methods take inputs as sockets (linked) or values (set: a float, or an RGB(A)
+    tuple), and return the new node's output socket, so chains read as expressions::
+
+        b = NodeBuilder(mat)
+        r = b.math("DIVIDE", b.attribute("eye_radius"), 8.0)
+        b.set(b.bsdf.inputs["Base Color"], b.ramp(r, [(0.5, (0, 0, 0)), (0.6, (1, 1, 1))]))
+        b.arrange()
+    """
+
+    def __init__(self, mat):
+        self.bsdf = _principled(mat)
+        self.tree = mat.node_tree
+        self.nodes, self.links = self.tree.nodes, self.tree.links
+
+    def set(self, socket, value):
+        """Link ``value`` into ``socket`` (a socket) or set it (a number, a vector, or a
+        colour: RGB gets alpha 1)."""
+        if isinstance(value, bpy.types.NodeSocket):
+            self.links.new(value, socket)
+        elif socket.type == "RGBA" and isinstance(value, tuple | list) and len(value) == 3:
+            socket.default_value = tuple(value) + (1.0,)
+        else:
+            socket.default_value = value
+        return socket
+
+    def new(self, kind, **inputs):
+        """A node of type ``kind`` with inputs set by name (``Scale=3.0``)."""
+        node = self.nodes.new(kind)
+        for name, value in inputs.items():
+            self.set(node.inputs[name], value)
+        return node
+
+    @staticmethod
+    def _socket(sockets, identifier):
+        return next(s for s in sockets if s.identifier == identifier)
+
+    def coordinates(self, kind="Object"):
+        """Texture coordinates: "Object" (metres in the object's space), "UV", ..."""
+        node = self.nodes.get("Texture Coordinate") or self.nodes.new("ShaderNodeTexCoord")
+        return node.outputs[kind]
+
+    def attribute(self, name):
+        """A mesh attribute's value (0 where the mesh has none)."""
+        node = self.nodes.new("ShaderNodeAttribute")
+        node.attribute_name = name
+        return self._socket(node.outputs, "Fac")
+
+    def separate(self, vector):
+        """(x, y, z) sockets of a vector."""
+        node = self.new("ShaderNodeSeparateXYZ", Vector=vector)
+        return node.outputs["X"], node.outputs["Y"], node.outputs["Z"]
+
+    def math(self, op, a, b=0.0):
+        """``a op b`` by a Math node ("ADD", "MULTIPLY", "FRACT", "LESS_THAN", ...)."""
+        node = self.nodes.new("ShaderNodeMath")
+        node.operation = op
+        self.set(node.inputs[0], a)
+        self.set(node.inputs[1], b)
+        return node.outputs["Value"]
+
+    def map_range(self, value, from_min, from_max, to_min=0.0, to_max=1.0, smooth=True):
+        """``value`` mapped from [from_min, from_max] to [to_min, to_max], clamped;
+        smoothstep between the ends unless ``smooth`` is False."""
+        node = self.nodes.new("ShaderNodeMapRange")
+        node.interpolation_type = "SMOOTHSTEP" if smooth else "LINEAR"
+        node.clamp = True
+        for name, v in (("Value", value), ("From Min", from_min), ("From Max", from_max),
+                        ("To Min", to_min), ("To Max", to_max)):
+            self.set(node.inputs[name], v)
+        return node.outputs["Result"]
+
+    def mix(self, fac, a, b):
+        """Colour ``a`` mixed toward ``b`` by ``fac``."""
+        node = self.nodes.new("ShaderNodeMix")
+        node.data_type = "RGBA"
+        for ident, value in (("Factor_Float", fac), ("A_Color", a), ("B_Color", b)):
+            self.set(self._socket(node.inputs, ident), value)
+        return self._socket(node.outputs, "Result_Color")
+
+    def noise(self, vector, scale, detail=2.0):
+        """Perlin noise in [0, 1] (its factor output)."""
+        node = self.new("ShaderNodeTexNoise", Vector=vector, Scale=scale, Detail=detail)
+        return self._socket(node.outputs, "Fac")
+
+    def white_noise(self, w):
+        """A random value in [0, 1) per distinct ``w`` (1-D white noise)."""
+        node = self.nodes.new("ShaderNodeTexWhiteNoise")
+        node.noise_dimensions = "1D"
+        self.set(node.inputs["W"], w)
+        return node.outputs["Value"]
+
+    def ramp(self, fac, stops):
+        """A colour ramp over ``fac``: ``stops`` = [(position, RGB), ...], at least two."""
+        node = self.nodes.new("ShaderNodeValToRGB")
+        elements = node.color_ramp.elements
+        for i, (pos, col) in enumerate(stops):
+            e = elements[i] if i < 2 else elements.new(pos)
+            e.position, e.color = pos, tuple(col) + (1.0,)
+        self.set(self._socket(node.inputs, "Fac"), fac)
+        return node.outputs["Color"]
+
+    def arrange(self, dx=300.0, dy=220.0):
+        """Lay the nodes out in columns by their distance in links from the output, so the
+        tree reads left to right in the shader editor."""
+        depth = {n.name: 0 for n in self.nodes if n.type == "OUTPUT_MATERIAL"}
+        for _ in range(len(self.nodes)):  # longest path; the trees are small
+            changed = False
+            for link in self.links:
+                d = depth.get(link.to_node.name)
+                if d is not None and depth.get(link.from_node.name, -1) < d + 1:
+                    depth[link.from_node.name] = d + 1
+                    changed = True
+            if not changed:
+                break
+        columns = {}
+        for node in self.nodes:
+            columns.setdefault(depth.get(node.name, max(depth.values()) + 1), []).append(node)
+        for d, column in columns.items():
+            for i, node in enumerate(column):
+                node.location = (-dx * d, dy * ((len(column) - 1) / 2.0 - i))
+
+
+def eye_attribute(vertices):
+    """The per-vertex value the eye material reads (``EYE_ATTRIBUTE``).
+
+    Parameters
+    ----------
+    vertices : ndarray, shape (V, 3), metres
+        A head in the ICT vertex order, looking toward -Y (the model's mean shape: the
+        value then follows the vertices through every identity).
+
+    Returns
+    -------
+    ndarray, shape (V,), float32 in [0, 1]
+        1 - r / EYE_RANGE_MM on the front half of each sclera, r being the distance from
+        the eye's axis (the line through the iris sphere's centre along -Y); 0 elsewhere.
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    need = IRIS_RANGES[-1][1] + 1
+    if v.ndim != 2 or v.shape[1] != 3 or len(v) < need:
+        raise ValueError(f"vertices: expected the ICT head's (V, 3) vertices with V >= {need}"
+                         f", got shape {v.shape}")
+    out = np.zeros(len(v), dtype=np.float32)
+    for (s0, s1), (i0, i1) in zip(SCLERA_RANGES, IRIS_RANGES, strict=True):
+        d = v[s0:s1 + 1] - v[i0:i1 + 1].mean(axis=0)
+        r_mm = np.hypot(d[:, 0], d[:, 2]) * 1000.0
+        out[s0:s1 + 1] = np.where(d[:, 1] < 0, np.clip(1.0 - r_mm / EYE_RANGE_MM, 0, 1), 0)
+    return out
+
+
+def eye_shader(mat):
+    """Make ``mat`` an eye: sclera, an iris with radial streaks and a dark limbal ring, a
+    pupil, under a clear wet coat; drawn by the distance from the eye's axis
+    (``EYE_ATTRIBUTE``, 8 mm = 1 below)."""
+    b = NodeBuilder(mat)
+    r = b.math("MULTIPLY", b.math("SUBTRACT", 1.0, b.attribute(EYE_ATTRIBUTE)),
+               EYE_RANGE_MM / 8.0)
+    iris = b.ramp(b.noise(b.coordinates("Object"), 900.0),
+                  [(0.35, (0.10, 0.16, 0.22)), (0.65, (0.22, 0.32, 0.36))])
+    p, q = PUPIL_RADIUS * 1000 / 8.0, IRIS_RADIUS * 1000 / 8.0
+    ring = b.ramp(r, [(p - 0.01, (0.0, 0.0, 0.0)), (p + 0.01, (1.0, 1.0, 1.0)),
+                      (q - 0.08, (1.0, 1.0, 1.0)), (q - 0.01, (0.35, 0.35, 0.35)),
+                      (q + 0.01, (0.0, 0.0, 0.0))])
+    sclera = b.ramp(r, [(q, (0.45, 0.42, 0.40)), (1.5, (0.62, 0.55, 0.52))])
+    inside = b.math("LESS_THAN", r, q + 0.005)
+    b.set(b.bsdf.inputs["Base Color"], b.mix(inside, sclera, b.mix(ring, (0.005,) * 3, iris)))
+    b.bsdf.inputs["Roughness"].default_value = 0.25
+    b.bsdf.inputs["Coat Weight"].default_value = 1.0
+    b.bsdf.inputs["Coat Roughness"].default_value = 0.03
+    b.arrange()
+    return mat
+
+
+# ICT's eyelash UVs (tile u in [6, 7]): per eye six strips stacked in v, each 1/6 high,
+# three for the lower lid, then three for the upper; along a strip u runs along the lid
+# (0.48 wide, left eye in [6.5, 7], right in [6, 6.5]) and v from the lash tips (strip
+# bottom, 0.084 of the strip) to the roots on the lid (0.924).
+LASH_STRIP_TIP, LASH_STRIP_ROOT = 0.084, 0.924
+LASH_STRANDS = 45  # strands per strip (x 3 strips: ~135 lashes per lid)
+LASH_HALF_WIDTH = 0.14  # at the root, in strand spacings (the tip is a third as thick)
+
+
+def eyelash_shader(mat):
+    """Make ``mat`` eyelashes: thin dark strands along ICT's lash strips, each its own
+    length, thinning and fading toward the tips and toward the lid's corners; the lower
+    lid's lashes lighter. Everything between the strands is transparent."""
+    b = NodeBuilder(mat)
+    u, v, _ = b.separate(b.coordinates("UV"))
+    along = b.math("FRACT", b.math("MULTIPLY", u, 2.0))  # 0..1 along the lid
+    strip = b.math("FLOOR", b.math("MULTIPLY", v, 6.0))  # 0-2 lower lid, 3-5 upper
+    root = b.map_range(b.math("FRACT", b.math("MULTIPLY", v, 6.0)), LASH_STRIP_TIP,
+                       LASH_STRIP_ROOT, smooth=False)  # 0 at the tips, 1 at the lid
+    tipward = b.math("SUBTRACT", 1.0, root)
+    # strand coordinate: the three strips' strands interleave; each strand leans a little
+    x = b.math("ADD", b.math("MULTIPLY", along, float(LASH_STRANDS)),
+               b.math("ADD", b.math("MULTIPLY", strip, 0.37), b.math("MULTIPLY", tipward, 0.3)))
+    rand = b.white_noise(b.math("ADD", b.math("FLOOR", x), b.math("MULTIPLY", strip, 101.0)))
+    x = b.math("ADD", x, b.math("MULTIPLY", b.math("SUBTRACT", rand, 0.5),
+                                b.math("MULTIPLY", tipward, tipward)))  # curl apart
+    off_centre = b.math("ABSOLUTE", b.math("SUBTRACT", b.math("FRACT", x), 0.5))
+    half = b.math("MULTIPLY", b.math("ADD", b.math("MULTIPLY", root, 2.0), 1.0),
+                  LASH_HALF_WIDTH / 3.0)
+    strand = b.map_range(off_centre, b.math("MULTIPLY", half, 0.5), half, 1.0, 0.0)
+    # each strand ends somewhere between 55 % and 100 % of the strip
+    length = b.math("ADD", b.math("MULTIPLY", rand, 0.45), 0.55)
+    cut = b.math("SUBTRACT", 1.0, length)
+    alpha = b.math("MULTIPLY", strand, b.map_range(root, cut, b.math("ADD", cut, 0.08)))
+    alpha = b.math("MULTIPLY", alpha, b.map_range(root, 0.0, 0.7, 0.35, 1.0))
+    corners = b.math("MULTIPLY", b.map_range(along, 0.02, 0.14),
+                     b.map_range(along, 0.98, 0.86))
+    lower = b.math("ADD", b.math("MULTIPLY", b.math("GREATER_THAN", strip, 2.5), 0.35), 0.65)
+    b.set(b.bsdf.inputs["Alpha"], b.math("MULTIPLY", alpha, b.math("MULTIPLY", corners, lower)))
+    b.bsdf.inputs["Roughness"].default_value = 0.45
+    _set_transparent(mat)
+    b.arrange()
     return mat
 
 
@@ -103,43 +357,54 @@ def set_skin_texture(mat, image):
     return tex
 
 
-def skin_texture(mat):
-    """The image of the skin's texture node, or None."""
+def _node_image(mat, node_name):
+    """The image of ``mat``'s image node ``node_name``, or None."""
     if mat is None or mat.node_tree is None:
         return None
-    tex = mat.node_tree.nodes.get(TEXTURE_NODE)
+    tex = mat.node_tree.nodes.get(node_name)
     return tex.image if tex is not None else None
+
+
+def skin_texture(mat):
+    """The image of the skin's texture node, or None."""
+    return _node_image(mat, TEXTURE_NODE)
+
+
+def _emission_material(name, colour):
+    """A new material that only emits (unlit: reads the same under any light and in every
+    viewport mode). Returns the material and its Emission node."""
+    mat = bpy.data.materials.new(name)
+    ensure_nodes(mat)
+    nodes = mat.node_tree.nodes
+    nodes.clear()
+    out = nodes.new("ShaderNodeOutputMaterial")
+    out.location = (300, 0)
+    emit = nodes.new("ShaderNodeEmission")
+    emit.inputs["Color"].default_value = colour
+    emit.inputs["Strength"].default_value = 1.0
+    mat.node_tree.links.new(emit.outputs["Emission"], out.inputs["Surface"])
+    mat.diffuse_color = colour
+    return mat, emit
 
 
 def photo_material(image, name):
     """Unlit material showing ``image`` as it is: emission of strength 1, no lighting, so the
     photo's colours stay true and nothing shades or shadows it."""
-    mat = bpy.data.materials.new(name)
-    ensure_nodes(mat)
+    mat, emit = _emission_material(name, (1.0, 1.0, 1.0, 1.0))
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
-    nodes.clear()
-    out = nodes.new("ShaderNodeOutputMaterial")
-    out.location = (300, 0)
-    emit = nodes.new("ShaderNodeEmission")
-    emit.inputs["Strength"].default_value = 1.0
     tex = nodes.new("ShaderNodeTexImage")
     tex.name = tex.label = PHOTO_NODE
     tex.location = (-300, 0)
     tex.image = image
     tex.extension = "CLIP"
     links.new(tex.outputs["Color"], emit.inputs["Color"])
-    links.new(emit.outputs["Emission"], out.inputs["Surface"])
-    mat.diffuse_color = (1.0, 1.0, 1.0, 1.0)
     mat.use_backface_culling = False
     return mat
 
 
 def photo_image(mat):
     """The photo shown by a photo material, or None."""
-    if mat is None or mat.node_tree is None:
-        return None
-    tex = mat.node_tree.nodes.get(PHOTO_NODE)
-    return tex.image if tex is not None else None
+    return _node_image(mat, PHOTO_NODE)
 
 
 def set_photo_image(mat, image):
@@ -153,17 +418,7 @@ def landmark_material(state):
     mat = bpy.data.materials.get(name)
     if mat is not None and mat.library is None:
         return mat
-    colour = LANDMARK_COLOURS[state]
-    mat = bpy.data.materials.new(name)
-    ensure_nodes(mat)
-    nodes, links = mat.node_tree.nodes, mat.node_tree.links
-    nodes.clear()
-    out = nodes.new("ShaderNodeOutputMaterial")
-    emit = nodes.new("ShaderNodeEmission")
-    emit.inputs["Color"].default_value = colour
-    links.new(emit.outputs["Emission"], out.inputs["Surface"])
-    mat.diffuse_color = colour
-    return mat
+    return _emission_material(name, LANDMARK_COLOURS[state])[0]
 
 
 # Uncertainty colour ramp: blue (well determined) - cyan - green - yellow - red (uncertain).

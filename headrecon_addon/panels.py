@@ -7,6 +7,7 @@ from . import fit_ops, landmarks, photos, reference_head
 
 
 class _Panel:
+    # No bl_idname: a panel's ID is its class name.
     bl_space_type = "VIEW_3D"
     bl_region_type = "UI"
     bl_category = "HeadRecon"
@@ -14,7 +15,6 @@ class _Panel:
 
 class HEADRECON_PT_head(_Panel, bpy.types.Panel):
     bl_label = "1. Reference Head"
-    bl_idname = "HEADRECON_PT_head"
 
     def draw(self, context):
         layout = self.layout
@@ -37,7 +37,6 @@ def _slot_plane(scene, front):
 
 class HEADRECON_PT_photos(_Panel, bpy.types.Panel):
     bl_label = "2. Photos"
-    bl_idname = "HEADRECON_PT_photos"
 
     def draw(self, context):
         layout = self.layout
@@ -77,7 +76,6 @@ class HEADRECON_PT_photos(_Panel, bpy.types.Panel):
 
 class HEADRECON_PT_landmarks(_Panel, bpy.types.Panel):
     bl_label = "3. Landmarks"
-    bl_idname = "HEADRECON_PT_landmarks"
 
     def draw(self, context):
         layout = self.layout
@@ -105,7 +103,6 @@ class HEADRECON_PT_landmarks(_Panel, bpy.types.Panel):
 
 class HEADRECON_PT_fit(_Panel, bpy.types.Panel):
     bl_label = "4. Fit"
-    bl_idname = "HEADRECON_PT_fit"
 
     def draw(self, context):
         layout = self.layout
@@ -154,7 +151,6 @@ class HEADRECON_UL_residuals(bpy.types.UIList):
 
 class HEADRECON_PT_result(_Panel, bpy.types.Panel):
     bl_label = "5. Result"
-    bl_idname = "HEADRECON_PT_result"
 
     def draw(self, context):
         layout = self.layout

@@ -23,6 +23,7 @@ import numpy as np
 from mathutils import Matrix
 
 from . import material
+from .polls import ObjectModeOperator, poll_result, view3d_problem
 from .solver_link import ORTHO_VIEWS, OrthographicCamera, camera_from_json, camera_to_json
 
 PLACEHOLDER = "headrecon_placeholder"  # custom property on stand-in images (no photo)
@@ -344,7 +345,7 @@ def link_object(obj, collection):
 # Operators
 
 
-class HEADRECON_OT_load_photo(bpy.types.Operator):
+class HEADRECON_OT_load_photo(ObjectModeOperator, bpy.types.Operator):
     """Choose a photo for this view: it becomes an image plane behind the head (a photo
     already there is swapped and its landmarks stay)"""
 
@@ -361,13 +362,6 @@ class HEADRECON_OT_load_photo(bpy.types.Operator):
         ("orthographic-front", "Front", "Photo taken from the front"),
         ("orthographic-right", "Right Profile", "The subject's right side"),
         ("orthographic-left", "Left Profile", "The subject's left side")))
-
-    @classmethod
-    def poll(cls, context):
-        if context.mode != "OBJECT":
-            cls.poll_message_set("Switch to Object Mode first")
-            return False
-        return True
 
     def invoke(self, context, event):
         context.window_manager.fileselect_add(self)
@@ -425,10 +419,7 @@ class HEADRECON_OT_view_photo(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if context.area is None or context.area.type != "VIEW_3D":
-            cls.poll_message_set("Use it in a 3D Viewport")
-            return False
-        return True
+        return poll_result(cls, view3d_problem(context))
 
     def execute(self, context):
         plane = find_plane(context.scene, self.view)

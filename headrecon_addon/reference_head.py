@@ -7,6 +7,7 @@ import bpy
 import numpy as np
 
 from . import material
+from .polls import ObjectModeOperator
 from .solver_link import load_model
 
 HEAD_NAME = "HeadRecon Head"
@@ -31,8 +32,8 @@ def _vertex_group_from_weights(obj, name, weights):
 
 
 def build_head_mesh(model, name=HEAD_NAME):
-    """Mesh of the model's mean head: vertices, polygons, UVs, smooth shading, material
-    slots (one per part group, each a new material)."""
+    """Mesh of the model's mean head: vertices, polygons, UVs, smooth shading, the eye
+    material's attribute, material slots (one per part group, each a new material)."""
     mesh = bpy.data.meshes.new(name)
     n_v, n_l, n_f = model.n_vertices, model.loop_vertex.size, model.face_loop_start.size
     mesh.vertices.add(n_v)
@@ -51,6 +52,8 @@ def build_head_mesh(model, name=HEAD_NAME):
     part_slot = np.array([slot[g] for g in groups], dtype=np.int32)
     mesh.polygons.foreach_set("material_index", part_slot[model.face_part])
     mesh.polygons.foreach_set("use_smooth", np.ones(n_f, dtype=bool))
+    eye = mesh.attributes.new(material.EYE_ATTRIBUTE, "FLOAT", "POINT")
+    eye.data.foreach_set("value", material.eye_attribute(model.vertices))
     mesh.update(calc_edges=True)
     for g in used:
         mesh.materials.append(material.new_part_material(g))
@@ -81,19 +84,12 @@ def is_head(obj):
     return obj is not None and obj.type == "MESH" and obj.headrecon.role == "HEAD"
 
 
-class HEADRECON_OT_add_head(bpy.types.Operator):
+class HEADRECON_OT_add_head(ObjectModeOperator, bpy.types.Operator):
     """Add the bundled reference head (the model's mean shape) to the scene"""
 
     bl_idname = "headrecon.add_head"
     bl_label = "Add Reference Head"
     bl_options = {"REGISTER", "UNDO"}
-
-    @classmethod
-    def poll(cls, context):
-        if context.mode != "OBJECT":
-            cls.poll_message_set("Switch to Object Mode first")
-            return False
-        return True
 
     def execute(self, context):
         from .data import Transaction

@@ -65,6 +65,14 @@ def _slider(kb, value):
     kb.value = float(value)
 
 
+def _set_value(kb, value):
+    """A coefficient key's value; the slider range widens only when it must."""
+    if kb.slider_min <= value <= kb.slider_max:
+        kb.value = float(value)
+    else:
+        _slider(kb, value)
+
+
 def regional_model_of(model, result):
     """The regional LinearModel a result's regional coefficients belong to, or None."""
     names = tuple(result.regional_names)
@@ -149,29 +157,32 @@ def update_fit_values(obj, model, result):
     Returns False when the head's keys do not match the result (a full fit is needed).
     """
     settle_live_shape(obj)
-    blocks = obj.data.shape_keys.key_blocks if obj.data.shape_keys is not None else None
-    if blocks is None:
+    keys = _coefficient_keys(obj, model, result)
+    if keys is None:
         return False
-    pairs = _coefficient_pairs(model, result)
-    kbs = [blocks.get(name) for name, _ in pairs]
-    detail = blocks.get(DETAIL)
-    if detail is None or any(kb is None for kb in kbs):
-        return False
+    kbs, pairs, detail = keys
     for kb, (_, c) in zip(kbs, pairs, strict=True):
-        if not kb.slider_min <= c <= kb.slider_max:
-            _slider(kb, c)
-        else:
-            kb.value = float(c)
+        _set_value(kb, c)
     set_key_co(detail, model.vertices + np.asarray(result.detail, dtype=np.float64))
     detail.value = 1.0
     obj.data.update()
     return True
 
 
-def _coefficient_pairs(model, result):
+def _coefficient_keys(obj, model, result):
+    """The keys a live refit writes: (coefficient key blocks, their (name, value) pairs,
+    the detail key), or None when the head's keys do not match the result."""
+    key = obj.data.shape_keys
+    if key is None:
+        return None
     k = len(result.identity_coeffs)
     pairs = list(zip(model.identity.names[:k], result.identity_coeffs, strict=True))
-    return pairs + list(zip(result.regional_names, result.regional_coeffs, strict=True))
+    pairs += list(zip(result.regional_names, result.regional_coeffs, strict=True))
+    kbs = [key.key_blocks.get(name) for name, _ in pairs]
+    detail = key.key_blocks.get(DETAIL)
+    if detail is None or any(kb is None for kb in kbs):
+        return None
+    return kbs, pairs, detail
 
 
 def show_live_shape(obj, model, result):
@@ -184,21 +195,14 @@ def show_live_shape(obj, model, result):
 
     Returns False when the head's keys do not match the result (a full fit is needed).
     """
+    keys = _coefficient_keys(obj, model, result)
+    if keys is None:
+        return False
+    kbs, pairs, detail = keys
     key = obj.data.shape_keys
-    blocks = key.key_blocks if key is not None else None
-    if blocks is None:
-        return False
-    pairs = _coefficient_pairs(model, result)
-    kbs = [blocks.get(name) for name, _ in pairs]
-    detail = blocks.get(DETAIL)
-    if detail is None or any(kb is None for kb in kbs):
-        return False
     muted = set(str(n) for n in key.get(LIVE_MUTED, ()))
     for kb, (name, c) in zip(kbs, pairs, strict=True):
-        if not kb.slider_min <= c <= kb.slider_max:
-            _slider(kb, c)
-        else:
-            kb.value = float(c)
+        _set_value(kb, c)
         if not kb.mute:
             kb.mute = True
             muted.add(name)

@@ -3,8 +3,9 @@
 Every approach starts with the profile-line fit (§4.4.1): first the side camera's 2-D
 similarity alone (the similarity-only ICP: in a profile photo that is the head's scale,
 rotation in the sagittal plane and position), then with the shape, against the traced
-outline (the model's midsagittal ``profile_chain``, closest points in the image, a
-distance threshold) and the side landmarks. Then:
+outline (the model's outline in the photo, found among vertices near its midsagittal
+``profile_chain``; closest points in the image, a distance threshold) and the side
+landmarks. Then:
 
 - approach 1 (§4.4.2): all landmarks as image rows through their cameras, so a front
   landmark contributes its two known coordinates only, the front rows weighted;
@@ -82,14 +83,15 @@ class FitOptions:
         Add the thin-plate-spline remainder that makes every landmark hit exactly
         (``FitResult.detail``).
     max_iterations : int
-        Most rounds of each alternation (shape-ICP steps + camera refits).
+        Most rounds of each stage (a round: Gauss-Newton steps of head and cameras).
     tolerance : float
-        Stop an alternation when its cost falls by less than this fraction per round.
+        Stop a stage when its cost changes by less than this fraction in a round.
     progress : callable(fraction, message) or None
     noise_px : float
         Standard deviation of landmark placement the weights assume, pixels.
     contour_weight : float
-        Weight of one profile-chain correspondence relative to one landmark.
+        Weight of one contour row (one per 6 pixels of traced outline) relative to one
+        landmark.
     contour_threshold_px : float
         Contour correspondences farther than this are dropped (thesis §4.4.1).
     landmark_weights : dict of str -> float, optional
@@ -119,7 +121,7 @@ class FitOptions:
     tolerance: float = 1e-4
     progress: Callable | None = None
     noise_px: float = 1.0
-    contour_weight: float = 0.5
+    contour_weight: float = 0.3
     contour_threshold_px: float = 20.0
     landmark_weights: dict | None = None
     fixed_cameras: tuple = ()
@@ -437,16 +439,16 @@ def _approach2(eng, model, state, opts):
     verts, _, tgt = landmark_targets(eng, state)
     side = [v for v in eng.views if v.contour is not None]
     # The shape-ICP works on copies of the vertices used: dense skin, landmarks, then the
-    # profile chain once per profile photo.
-    nd, nl, nc = len(dense), len(verts), len(eng.chain)
-    copies = np.concatenate([dense, verts] + [eng.chain] * len(side))
+    # outline candidates once per profile photo.
+    nd, nl, nc = len(dense), len(verts), len(eng.outline)
+    copies = np.concatenate([dense, verts] + [eng.outline] * len(side))
     mesh_rows = PointRows(np.arange(nd), eng.world(state, dense),
                           weights=_DENSE_SHARE * w_lm * n_lm / nd, name="tps mesh")
     lm_rows = PointRows(np.arange(nd, nd + nl), tgt, weights=w_lm, name="tps landmarks")
     contour = [ContourRows(np.arange(nd + nl + i * nc, nd + nl + (i + 1) * nc), v.contour,
                            v.camera, weights=eng.contour_weight * eng.inv_var,
-                           max_distance=eng.contour_threshold, reject_factor=4.0,
-                           name=v.name)
+                           faces=eng.outline_faces, edges=eng.outline_edges,
+                           max_distance=eng.contour_threshold, name=v.name)
                for i, v in enumerate(side)]
     # One problem for all rounds: only targets change, so the dense rows' Gram matrix
     # is computed once.
@@ -492,7 +494,8 @@ def reprojection_rms(eng, joint, state):
 def _pixels_per_metre_sq(eng, state):
     """Mean squared image scale of the cameras at the head (pixels per metre, squared)."""
     vals = []
-    centre = eng.world(state, np.asarray([eng.chain[len(eng.chain) // 2]]))
+    verts = np.concatenate([v.vertices for v in eng.views])
+    centre = eng.world(state, verts).mean(axis=0, keepdims=True)
     for v in eng.views:
         jac = np.asarray(state.cameras[v.name].jacobian(centre)).reshape(2, 3)
         vals.append(0.5 * float((jac * jac).sum()))
@@ -679,10 +682,62 @@ def _make_result(model, eng, state, opts, method, info, uncertainty=None, detail
 # ----------------------------------------------------------------------------- API
 
 
+_OUTLINE_CACHE = {}
+
+
+def outline_candidates(model, max_x=0.05, max_normal_x=0.4):
+    """Vertices that can form the head's outline in a profile photo, with their mesh
+    (cached per model): skin within ``max_x`` metres of the midsagittal plane whose
+    normals (of the mean head) face across the left-right axis (|n_x| < ``max_normal_x``:
+    about 24 degrees of margin for a turned head or another identity).
+
+    Returns
+    -------
+    vertices : ndarray, shape (n,)
+    faces : ndarray, shape (F, 3)
+        Triangles whose corners are all candidates, as indices into ``vertices``.
+    edges : ndarray, shape (E, 4)
+        Edges shared by exactly two of those triangles: (a, b, face 1, face 2).
+    """
+    hit = _OUTLINE_CACHE.get(id(model))
+    if hit is not None and hit[0] is model:
+        return hit[1]
+    v = model.vertices
+    tri, _, _ = model.triangles()
+    face = np.cross(v[tri[:, 1]] - v[tri[:, 0]], v[tri[:, 2]] - v[tri[:, 0]])
+    normal = np.zeros_like(v)
+    for k in range(3):
+        np.add.at(normal, tri[:, k], face)
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+    skin = np.asarray(model.skin, dtype=np.int64)
+    keep = (np.abs(v[skin, 0]) < max_x) & (np.abs(normal[skin, 0]) < max_normal_x)
+    verts = np.union1d(skin[keep], np.asarray(model.profile_chain, dtype=np.int64))
+    local = np.full(model.n_vertices, -1, dtype=np.int64)
+    local[verts] = np.arange(len(verts))
+    faces = local[tri]
+    faces = faces[(faces >= 0).all(axis=1)]
+    # edges with their two faces: sort the 3F half-edges by their vertex pair
+    half = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    owner = np.tile(np.arange(len(faces)), 3)
+    half = np.sort(half, axis=1)
+    key = half[:, 0] * len(verts) + half[:, 1]
+    order = np.argsort(key, kind="stable")
+    key, half, owner = key[order], half[order], owner[order]
+    # exactly two faces per edge (an edge on three would be a defect; it is skipped)
+    same = np.flatnonzero(key[1:] == key[:-1])
+    two = same[(same + 2 >= len(key)) | (key[np.minimum(same + 2, len(key) - 1)] != key[same])]
+    two = two[(two == 0) | (key[np.maximum(two - 1, 0)] != key[two])]
+    edges = np.column_stack([half[two, 0], half[two, 1], owner[two], owner[two + 1]])
+    out = (verts, faces, edges)
+    _OUTLINE_CACHE.clear()
+    _OUTLINE_CACHE[id(model)] = (model, out)
+    return out
+
+
 def _engine(model, views, opts):
     lin = _linear_model(model, opts)
     fix_gauge = all(v.refit and v.camera.min_refit_points > 0 for v in views)
-    return Engine(lin, views, model.profile_chain, opts.noise_px, opts.lambda1, opts.lambda2,
+    return Engine(lin, views, *outline_candidates(model), opts.noise_px, opts.lambda1, opts.lambda2,
                   opts.prior, opts.contour_weight, opts.contour_threshold_px, fix_gauge)
 
 

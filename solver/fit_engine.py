@@ -16,10 +16,11 @@ cameras absorb both (the identity modes carry the head's size).
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .cameras import Camera
 from .linear_model import LinearModel
-from .shape_icp import ClosestPixelRows, ImageRows, ShapeProblem, _General
+from .shape_icp import ImageRows, Rows, ShapeProblem, _General
 
 #: The fit refuses a view with fewer landmarks than this (its camera needs 2 for a 2-D
 #: similarity, one more to say anything about the head).
@@ -123,83 +124,156 @@ def set_camera(rows, camera):
         rows._version = getattr(rows, "_version", 0) + 1
 
 
-class ContourRows(ClosestPixelRows):
-    """Profile-line rows (thesis §4.4.1): model vertices whose projection is pulled to the
-    nearest point of the traced outline.
+class ContourRows(Rows):
+    """Profile-line rows (thesis §4.4.1): the model's outline in a photo pulled onto the
+    traced outline.
 
-    The cost is point-to-line, ``w (n . (q - P(x)))^2`` with the outline's normal n at the
-    nearest point q, plus ``tangential`` times the point-to-point distance: the distance
-    across the outline is what a nearest point measures; along it the vertex may slide, so
-    ICP settles in a few steps instead of crawling. Besides the distance threshold, a vertex
-    whose nearest outline point is one of the outline's ends is dropped: it lies beyond what
-    was traced (e.g. the neck below where the tracing stopped), not on it.
+    The model's outline is not a fixed set of vertices: the midsagittal profile is the
+    silhouette only of a symmetric head seen exactly from the side; the brows, the nose's
+    wings or the sides of the neck stick out beyond it, and a turned head shows other
+    vertices. So ``vertices`` are candidates (vertices near the midline whose normals face
+    roughly across the viewing direction), and every update finds the model's outline
+    among them:
+
+    1. the rim: candidates on an edge between a triangle facing the camera and one facing
+       away (the contour generator of the posed head);
+    2. the traced outline is cut into bins of ``bin_px`` pixels of arc length; each rim
+       vertex belongs to the bin of its nearest traced point, and per bin the one farthest
+       outward (along the outline's outward normal) is the model's outline there (a rim
+       hidden behind another, e.g. the midline under the brows, loses).
+
+    Each chosen vertex gives one point-to-line row ``w (n . (q - P(x)))^2`` with q its
+    nearest traced point and n the normal there: across the outline is what a nearest
+    point measures; along it the vertex may slide.
+
+    Vertices whose nearest traced point is one of the outline's ends are left out (they
+    lie beyond what was traced, e.g. the neck below where the tracing stopped), as are
+    those farther than ``max_distance`` pixels, or than ``reject_factor`` times the median
+    (but never below ``keep_distance``).
+
+    Parameters
+    ----------
+    vertices : array_like of int, shape (n,)
+    pixels : array_like, shape (m, 2)
+        The traced outline densified to about one point per pixel, in drawing order.
+    camera : Camera
+    weights : float
+        Weight of one row.
+    faces : ndarray, shape (F, 3), optional
+        Triangles among the candidates (indices into ``vertices``).
+    edges : ndarray, shape (E, 4), optional
+        Edges shared by two of those triangles: (vertex a, vertex b, face 1, face 2).
+        Without faces and edges every candidate counts as rim.
+    max_distance, reject_factor, keep_distance, end_margin, bin_px : float
+    name : str
     """
 
-    def __init__(self, vertices, pixels, camera, weights=1.0, max_distance=np.inf,
-                 reject_factor=None, keep_distance=5.0, end_margin=3.0, tangential=0.05,
-                 name="contour"):
-        super().__init__(vertices, pixels, camera, weights, max_distance, reject_factor, name)
-        p = self.pixels
+    def __init__(self, vertices, pixels, camera, weights=1.0, faces=None, edges=None,
+                 max_distance=20.0, reject_factor=4.0, keep_distance=5.0, end_margin=3.0,
+                 bin_px=6.0, name="contour"):
+        self.name = name
+        self.vertices = np.asarray(vertices, dtype=np.intp)
+        self.camera = camera
+        self.weight = float(weights)
+        self.faces = None if faces is None else np.asarray(faces, dtype=np.intp)
+        self.edges = None if edges is None else np.asarray(edges, dtype=np.intp)
+        p = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+        if len(p) < 2:
+            raise ValueError(f"{name}: the outline needs at least 2 points")
+        self.pixels = p
+        self.tree = cKDTree(p)
+        tangent = np.gradient(p, axis=0)
+        normal = np.stack([tangent[:, 1], -tangent[:, 0]], axis=1)
+        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+        # Outward: away from the middle of what the outline encloses (it runs around the
+        # head from neck to neck, so the mean of its points is inside).
+        if float(np.einsum("ij,ij->", normal, p - p.mean(axis=0))) < 0:
+            normal = -normal
+        self.normals = normal
         d0 = np.linalg.norm(p - p[0], axis=1)
         d1 = np.linalg.norm(p - p[-1], axis=1)
         self._at_end = (d0 <= end_margin) | (d1 <= end_margin)
-        tangent = np.gradient(p, axis=0) if len(p) > 1 else np.array([[1.0, 0.0]])
-        normal = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
-        self.normals = normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True),
-                                           1e-12)
+        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+        self._bin = (arc // float(bin_px)).astype(np.int64)
+        self.max_distance = float(max_distance)
+        self.reject_factor = reject_factor
         self.keep_distance = float(keep_distance)
-        self.tangential = float(tangential)
-        self._normal = None
+        self.selected = np.zeros(0, np.intp)  # candidate indices of the rows
+        self.targets = np.zeros((0, 2))
+        self.row_normals = np.zeros((0, 2))
+        self._updated = False
+
+    def rim(self, world):
+        """Indices of the candidates on the contour generator of the posed head."""
+        if self.faces is None or self.edges is None:
+            return np.arange(len(world))
+        f = self.faces
+        a, b, c = world[f[:, 0]], world[f[:, 1]], world[f[:, 2]]
+        normal = np.cross(b - a, c - a)
+        toward = np.asarray(self.camera.toward_camera((a + b + c) / 3.0), dtype=np.float64)
+        facing = np.einsum("ij,ij->i", normal, toward) > 0
+        e = self.edges[facing[self.edges[:, 2]] != facing[self.edges[:, 3]]]
+        mask = np.zeros(len(world), bool)
+        mask[e[:, 0]] = True
+        mask[e[:, 1]] = True
+        return np.flatnonzero(mask)
 
     def update(self, world):
-        proj = self.camera.project(world)
-        dist, idx = self.tree.query(proj, distance_upper_bound=self.max_distance)
+        rim = self.rim(world)
+        proj = self.camera.project(world[rim])
+        dist, j = self.tree.query(proj, distance_upper_bound=self.max_distance)
         ok = np.isfinite(dist)
-        idx = np.where(ok, idx, 0)
-        ok &= ~self._at_end[idx]
-        if self.reject_factor is not None and ok.any():
-            limit = max(self.reject_factor * float(np.median(dist[ok])), self.keep_distance)
-            ok &= dist <= limit
-        self.inliers = ok
-        self.targets = self.pixels[idx]
-        self._normal = self.normals[idx]
+        j = np.where(ok, j, 0)
+        ok &= ~self._at_end[j]
+        cand = rim[ok]
+        jc = j[ok]
+        out = np.einsum("ij,ij->i", proj[ok] - self.pixels[jc], self.normals[jc])
+        # per bin the outermost candidate (ties: the first)
+        b = self._bin[jc]
+        top = np.full(int(self._bin[-1]) + 1, -np.inf)
+        np.maximum.at(top, b, out)
+        win = np.flatnonzero(out >= top[b])
+        _, first = np.unique(b[win], return_index=True)
+        pick = win[first]
+        sel, off = cand[pick], np.abs(out[pick])
+        if self.reject_factor is not None and len(off):
+            limit = max(self.reject_factor * float(np.median(off)), self.keep_distance)
+            keep = off <= limit
+            sel, pick = sel[keep], pick[keep]
+        self.selected = sel
+        self.targets = self.pixels[jc[pick]]
+        self.row_normals = self.normals[jc[pick]]
+        self._updated = True
 
     def block(self, world, jacobian=True):
-        if self.targets is None:
+        if not self._updated:
             self.update(world)
-        w = np.where(self.inliers, self.weights, 0.0)
-        d = self.targets - self.camera.project(world)  # (n, 2)
-        n = self._normal
-        rn = np.einsum("ij,ij->i", d, n)
-        wt = self.tangential * w
-        sq_n = float(w @ rn**2)
-        sq_t = float(wt @ np.einsum("ij,ij->i", d, d))
-        used = int((w > 0).sum())
+        sel = self.selected
+        x = world[sel]
+        n = self.row_normals
+        r = np.einsum("ij,ij->i", self.targets - self.camera.project(x), n) if len(sel) \
+            else np.zeros(0)
+        w = np.full(len(sel), self.weight)
+        sq = float(w @ r**2)
         if not jacobian:
-            return [_General(None, None, None, None, sq_n, float(w.sum()), used),
-                    _General(None, None, None, None, sq_t, 0.0, 2 * used)]
-        m = len(w)
-        jac = np.asarray(self.camera.jacobian(world), dtype=np.float64).reshape(m, 2, 3)
+            return _General(None, None, None, None, sq, float(w.sum()), len(sel))
+        jac = np.asarray(self.camera.jacobian(x), dtype=np.float64).reshape(len(sel), 2, 3)
         g = np.einsum("ij,ijk->ik", n, jac)  # d(n . P(x)) / dx
-        return [_General(None, g, rn, w, sq_n, float(w.sum()), used),
-                _General(np.repeat(np.arange(m), 2), jac.reshape(2 * m, 3), d.reshape(-1),
-                         np.repeat(wt, 2), sq_t, 0.0, 2 * used)]
+        return _General(sel, g, r, w, sq, float(w.sum()), len(sel))
 
-    def pairs(self):
-        """(vertices, pixels) of the inlier correspondences, each pixel the foot of the
-        projection on the outline's tangent line (the point the point-to-line cost pulls
-        toward), for a camera refit consistent with this cost."""
-        if self.inliers is None:
-            return self.vertices[:0], np.zeros((0, 2))
-        inl = self.inliers
-        return self.vertices[inl], self._foot[inl]
+    def residuals(self, world):
+        """Signed pixel distances across the outline of the current rows, (k,)."""
+        x = world[self.selected]
+        return np.einsum("ij,ij->i", self.targets - self.camera.project(x), self.row_normals)
 
-    def refresh_feet(self, world):
-        """Feet of the current projections on the tangent lines (see :meth:`pairs`)."""
-        proj = self.camera.project(world)
-        d = self.targets - proj
-        rn = np.einsum("ij,ij->i", d, self._normal)
-        self._foot = proj + rn[:, None] * self._normal
+    def pairs(self, world):
+        """(candidate indices, pixels) of the current rows, each pixel the foot of the
+        vertex's projection on the outline's tangent line (where the row pulls it), for a
+        camera refit consistent with this cost."""
+        x = world[self.selected]
+        proj = self.camera.project(x)
+        rn = np.einsum("ij,ij->i", self.targets - proj, self.row_normals)
+        return self.selected, proj + rn[:, None] * self.row_normals
 
 
 class StackedModel:
@@ -270,8 +344,9 @@ class Engine:
     lin : StackedModel
         The model the fit changes (global modes, possibly with regional ones after them).
     views : list of ViewData
-    chain : ndarray, shape (P,)
-        Model vertices that form the head's outline in a profile photo.
+    outline, outline_faces, outline_edges : ndarray
+        Candidate vertices of the head's outline in a profile photo and their mesh (see
+        ContourRows).
     noise_px : float
         Landmark noise the weights assume (rows are weighted 1 / noise^2, so lambda2 = 1 is
         the Bayesian prior for standard-normal coefficients).
@@ -285,11 +360,13 @@ class Engine:
         Keep the head's scale 1 and translation 0 (every camera is refitted).
     """
 
-    def __init__(self, lin, views, chain, noise_px, lambda1, lambda2, prior, contour_weight,
-                 contour_threshold, fix_gauge):
+    def __init__(self, lin, views, outline, outline_faces, outline_edges, noise_px, lambda1,
+                 lambda2, prior, contour_weight, contour_threshold, fix_gauge):
         self.lin = lin
         self.views = views
-        self.chain = np.asarray(chain, dtype=np.int64)
+        self.outline = np.asarray(outline, dtype=np.int64)
+        self.outline_faces = outline_faces
+        self.outline_edges = outline_edges
         self.inv_var = 1.0 / noise_px**2
         self.lambda1 = 1000.0 * lambda1  # Gamma c is in metres; lambda1 is per millimetre
         self.prior = prior
@@ -436,6 +513,16 @@ class Engine:
         return out
 
 
+@dataclass
+class _Prepared:
+    problem: ShapeProblem
+    model: LinearModel
+    k: int
+    rotation: np.ndarray
+    freeze: tuple
+    cameras_only: bool
+
+
 class Joint:
     """Image rows of some views solved jointly for the head and the cameras.
 
@@ -466,16 +553,18 @@ class Joint:
                 orig.append(v.vertices)
                 off += n
             if contour and v.contour is not None:
-                n = len(eng.chain)
+                n = len(eng.outline)
                 rows = ContourRows(np.arange(off, off + n), v.contour, v.camera,
                                    weights=eng.contour_weight * eng.inv_var,
-                                   max_distance=eng.contour_threshold, reject_factor=4.0,
+                                   faces=eng.outline_faces, edges=eng.outline_edges,
+                                   max_distance=eng.contour_threshold,
                                    name=f"contour {v.name}")
                 self.groups.append((v, "contour", rows))
-                orig.append(eng.chain)
+                orig.append(eng.outline)
                 off += n
         if not self.groups:
             raise ValueError("views: no landmarks or contour to fit")
+        self._prep = None
         self.orig = np.concatenate(orig)
         self.rows = [g[2] for g in self.groups]
         self.mean, self.basis = eng.slice(self.orig)
@@ -513,19 +602,18 @@ class Joint:
         return total + self.eng.prior_cost(state.coeffs)
 
     def contour_pairs(self, state):
-        """view name -> [(model vertices, target pixels, weights)] of the inlier contour
-        correspondences (for the camera refit)."""
+        """view name -> [(model vertices, target pixels, weights)] of the current contour
+        rows (for the camera refit)."""
         out = {}
         x = None
         for v, kind, rows in self.groups:
-            if kind != "contour" or rows.inliers is None or not rows.inliers.any():
+            if kind != "contour" or len(rows.selected) == 0:
                 continue
             if x is None:
                 x = self.world(state)
-            rows.refresh_feet(x[rows.vertices])
-            verts, px = rows.pairs()
+            sel, px = rows.pairs(x[rows.vertices])
             out.setdefault(v.name, []).append(
-                (self.orig[verts], px, np.full(len(verts), self.eng.contour_weight)))
+                (self.orig[rows.vertices[sel]], px, np.full(len(sel), self.eng.contour_weight)))
         return out
 
     def refit(self, state):
@@ -535,8 +623,8 @@ class Joint:
         self.sync(state)
 
     def contour_residuals(self, state):
-        """view name -> pixel distances across the outline of the inlier contour
-        correspondences at ``state``."""
+        """view name -> pixel distances across the outline of the contour rows at
+        ``state`` (correspondences refreshed)."""
         self.sync(state)
         x = self.world(state)
         out = {}
@@ -545,9 +633,7 @@ class Joint:
                 continue
             xs = x[rows.vertices]
             rows.update(xs)
-            d = rows.targets - rows.camera.project(xs)
-            rn = np.einsum("ij,ij->i", d, rows._normal)
-            out[v.name] = np.abs(rn[rows.inliers])
+            out[v.name] = np.abs(rows.residuals(xs))
         return out
 
     def model(self, state):
@@ -588,12 +674,11 @@ class Joint:
         return LinearModel(self.mean, np.concatenate([self.basis, extra]),
                            np.concatenate([lin.stddev, np.full(n_extra, 1e-9)]), names, gamma)
 
-    def _solve(self, state, freeze, iterations, cameras_only=False):
+    def prepare(self, state, freeze=(), cameras_only=False):
+        """The shape-ICP problem over the copies with the camera modes linearised at
+        ``state`` (reused while the head turns little: building it copies the basis)."""
         model = self.model(state)
         k = len(state.coeffs)
-        start = np.zeros(model.n_coeffs)
-        start[:k] = state.coeffs
-        self.sync(state)
         active = np.arange(k, model.n_coeffs) if cameras_only else None
         if cameras_only:
             freeze = tuple(freeze) + ("rotation",)
@@ -602,12 +687,18 @@ class Joint:
                                freeze=tuple(freeze) + (("scale", "translation")
                                                        if self.gauge else ()),
                                active=active)
-        fit = problem.solve(scale=state.scale, rotation=state.rotation,
-                            translation=state.translation, coeffs=start,
-                            max_iterations=iterations, tolerance=0.0, sigma=1.0)
-        return fit, k, model
+        return _Prepared(problem, model, k, state.rotation.copy(), tuple(freeze),
+                         cameras_only)
 
-    def step(self, state, freeze=(), inner=2, cameras_only=False):
+    def _solve(self, prep, state, iterations):
+        start = np.zeros(prep.model.n_coeffs)
+        start[:prep.k] = state.coeffs
+        self.sync(state)
+        return prep.problem.solve(scale=state.scale, rotation=state.rotation,
+                                  translation=state.translation, coeffs=start,
+                                  max_iterations=iterations, tolerance=0.0, sigma=1.0)
+
+    def step(self, state, freeze=(), inner=2, cameras_only=False, prep=None):
         """One joint Gauss-Newton round (``inner`` shape-ICP steps), then the cameras.
 
         The step moves each refittable camera through its modes; the camera is then
@@ -616,8 +707,16 @@ class Joint:
         exactly the similarity the step chose (any camera kind gets its closest match),
         so camera and head stay one consistent Gauss-Newton step. Refittable cameras of
         views outside this problem are refitted to their landmarks.
+
+        ``prep`` (from :meth:`prepare`) is reused when given; it is rebuilt when the head
+        has turned by more than about 3 degrees since (its camera modes would be stale).
         """
-        fit, k, model = self._solve(state, freeze, inner, cameras_only)
+        if prep is None or prep.freeze != tuple(freeze) or \
+                prep.cameras_only != cameras_only or \
+                np.abs(state.rotation - prep.rotation).max() > 0.05:
+            prep = self.prepare(state, freeze, cameras_only)
+        fit = self._solve(prep, state, inner)
+        k, model = prep.k, prep.model
         new = state.copy()
         new.rotation, new.coeffs = fit.rotation, fit.coeffs[:k].copy()
         new.scale, new.translation = fit.scale, fit.translation
@@ -634,28 +733,43 @@ class Joint:
         if outside:
             self.eng.refit_cameras(new, views=outside)
         self.sync(new)
+        self._prep = prep
         return new
 
     def run(self, state, freeze=(), max_outer=20, inner=2, tolerance=1e-4,
-            cameras_only=False):
+            cameras_only=False, patience=2):
         """Rounds of :meth:`step` until the cost changes by less than ``tolerance``
-        (relative). Returns (state, cost history)."""
-        history = [self.cost(state)]
+        (relative) or has not reached a new low for ``patience`` rounds; returns the state
+        of the lowest cost and the cost history.
+
+        The contour's rows are a choice (which vertices form the outline), so near the end
+        the choice can flip back and forth between two sets and the cost with it; the
+        lowest one is kept.
+        """
+        best_cost = self.cost(state)
+        best = state
+        history = [best_cost]
+        since = 0
+        self._prep = None
         for _ in range(max(int(max_outer), 1)):
-            state = self.step(state, freeze, inner, cameras_only)
-            history.append(self.cost(state))
-            # Contour inliers may change between rounds, so the cost need not fall
-            # monotonically; stop once it no longer changes.
-            if abs(history[-2] - history[-1]) <= tolerance * history[-2]:
+            state = self.step(state, freeze, inner, cameras_only, self._prep)
+            cost = self.cost(state)
+            history.append(cost)
+            if cost < best_cost:
+                since = 0 if cost < best_cost * (1.0 - tolerance) else since + 1
+                best, best_cost = state, cost
+            else:
+                since += 1
+            if abs(history[-2] - history[-1]) <= tolerance * history[-2] or since >= patience:
                 break
-        self.sync(state)
-        self.cost(state)  # leave the correspondences at the returned state
-        return state, history
+        self.sync(best)
+        self.cost(best)  # leave the correspondences at the returned state
+        return best, history
 
     def covariance(self, state):
         """Posterior covariance (K, K) of the fitted coefficients at ``state``: the inverse
         of the normal matrix with pose and camera modes free (marginalised), rows weighted
         1 / noise^2 so sigma = 1."""
-        fit, k, _ = self._solve(state, (), 0)
-        cov = fit.coeff_covariance
-        return cov[:k, :k]
+        prep = self.prepare(state)
+        fit = self._solve(prep, state, 0)
+        return fit.coeff_covariance[:prep.k, :prep.k]

@@ -62,3 +62,51 @@ def test_headless_as_a_blender_script(model, tmp_path):
     head = _open(out)
     assert head.name == "bob"
     assert sum(kb.name.startswith("identity_") for kb in head.data.shape_keys.key_blocks) == 20
+
+
+def test_summary_names_the_winning_approach(model, tmp_path, monkeypatch, capsys):
+    # A "combined" fit runs both approaches and keeps the better one: the summary line
+    # (and the head) must name that one, not the method that was asked for.
+    from headrecon_addon import headless
+
+    path, _, _ = synthetic_files(model, tmp_path, seed=13, name="carol", photos=False)
+    fits = []
+    fit_head = headless.fit_head
+
+    def keep_result(*args, **kw):
+        fits.append(fit_head(*args, **kw))
+        return fits[-1]
+
+    monkeypatch.setattr(headless, "fit_head", keep_result)
+    code = headless.main([str(path), "--out", str(tmp_path / "carol.blend"), "--method",
+                          "combined", "--components", "20", "--no-texture"])
+    assert code == 0 and len(fits) == 1
+    won = fits[0].info["approach"]
+    assert fits[0].method == "combined" and won in ("approach1", "approach2")
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("carol:"))
+    assert line.startswith(f"carol: method {won}, RMS ")
+    assert bpy.data.objects["carol"].headrecon.fit_method == won
+
+
+def test_given_textures_are_used_without_a_second_bake(model, tmp_path, monkeypatch):
+    from headrecon_addon import headless, material, reference_head
+    from solver.fit import FitOptions, fit_head
+
+    _, case, _ = synthetic_files(model, tmp_path, seed=14, name="dave")
+    result = fit_head(model, case, FitOptions(n_identity=10))
+    rng = np.random.default_rng(0)
+    given = {tile: rng.integers(0, 256, (48, 64, 3)) / 255.0 for tile in (1001, 1002)}
+
+    def no_bake(*args, **kw):
+        raise AssertionError("build_scene_from_fit baked although textures were given")
+
+    monkeypatch.setattr(headless, "bake_fit_texture", no_bake)
+    headless.reset_scene()
+    head = headless.build_scene_from_fit(model, case, result, textures=given)
+    for group, tile in (("Face", 1001), ("Head", 1002)):
+        img = material.skin_texture(reference_head.part_material(head, group))
+        assert img is not None and tuple(img.size) == (64, 48)
+        px = np.empty(64 * 48 * 4, np.float32)
+        img.pixels.foreach_get(px)
+        got = px.reshape(48, 64, 4)[::-1, :, :3]  # Blender's rows run bottom-up
+        np.testing.assert_allclose(got, given[tile], atol=1e-6)

@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from camera_support import dlt_camera, look_at
 
 from solver.blender_camera import (
     blender_to_dlt,
@@ -13,21 +14,12 @@ from solver.blender_camera import (
     krc_to_blender,
     matrix_from_euler_xyz,
 )
-from solver.dlt import DLTCamera
 
 # 50 mm lens, 36 mm sensor, 1920 x 1080, shifted; at (0, -2, 0) rotated 90 deg about X,
 # i.e. looking along +Y with +Z up
 KNOWN = {"lens": 50.0, "sensor_width": 36.0, "sensor_fit": "AUTO", "shift_x": 0.1,
          "shift_y": -0.05, "resolution_x": 1920, "resolution_y": 1080,
          "location": [0.0, -2.0, 0.0], "rotation_euler": [math.pi / 2, 0.0, 0.0]}
-
-
-def look_at(centre, target, up=(0.0, 0.0, 1.0)):
-    f = np.asarray(target, float) - centre
-    f /= np.linalg.norm(f)
-    r = np.cross(f, up)
-    r /= np.linalg.norm(r)
-    return np.array([r, np.cross(f, r), f])
 
 
 def test_known_blender_camera_by_hand():
@@ -55,7 +47,7 @@ def test_known_blender_camera_by_hand():
 def test_round_trip_reprojects_identically(k, size):
     rng = np.random.default_rng(0)
     c = np.array([0.3, -1.1, 0.2])
-    cam = DLTCamera.from_krc(k, look_at(c, [0, 0, 0.05]), c, size)
+    cam = dlt_camera(c, [0, 0, 0.05], k, size)
     params = dlt_to_blender(cam)
     assert params["warnings"] == [] and not params["flip_x"]
     assert params["pixel_aspect_x"] >= 1 and params["pixel_aspect_y"] >= 1
@@ -86,8 +78,7 @@ def test_skew_and_distortion_are_reported():
     rng = np.random.default_rng(1)
     k = np.array([[1400.0, 2.0, 960.0], [0, 1400.0, 540.0], [0, 0, 1]])
     c = np.array([0.0, -1.0, 0.1])
-    cam = DLTCamera.from_krc(k, look_at(c, [0, 0, 0]), c, (1920, 1080),
-                             distortion=[-1e-8, 0, 0, 0, 0])
+    cam = dlt_camera(c, k=k, size=(1920, 1080), distortion=[-1e-8, 0, 0, 0, 0])
     params = dlt_to_blender(cam)
     assert params["dropped_skew_px"] == pytest.approx(2.0 * 540 / 1400)
     assert any("skew" in w for w in params["warnings"])
@@ -104,8 +95,7 @@ def test_mirrored_camera_needs_a_flip():
     rng = np.random.default_rng(2)
     c = np.array([0.2, -1.0, 0.1])
     h = np.diag([-1.0, 1.0, 1.0, 1.0])  # reflection in the plane x = 0
-    real = DLTCamera.from_krc([[1500, 0, 900], [0, 1500, 500], [0, 0, 1]],
-                              look_at(c, [0, 0, 0]), c, (1920, 1080))
+    real = dlt_camera(c, k=[[1500, 0, 900], [0, 1500, 500], [0, 0, 1]], size=(1920, 1080))
     mirrored = real.transformed(h)
     with pytest.raises(ValueError, match="mirrored"):
         dlt_to_blender(mirrored)

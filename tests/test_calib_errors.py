@@ -2,26 +2,16 @@
 
 import numpy as np
 import pytest
+from camera_support import dlt_camera
 
 from solver.calib_errors import check_passpoints, error_norms
-from solver.dlt import DLTCamera
 
-SIZE = (1920, 1080)
-K = np.array([[1500.0, 0.0, 960.0], [0.0, 1500.0, 540.0], [0.0, 0.0, 1.0]])
 NAMES = [f"marker_{i:02d}" for i in range(20)]
 
 
-def look_at(centre, target, up=(0.0, 0.0, 1.0)):
-    f = np.asarray(target, float) - centre
-    f /= np.linalg.norm(f)
-    r = np.cross(f, up)
-    r /= np.linalg.norm(r)
-    return np.array([r, np.cross(f, r), f])
-
-
 def scene(rng, noise):
-    cams = {name: DLTCamera.from_krc(K, look_at(np.array(c), [0, 0, 0]), c, SIZE)
-            for name, c in (("front", [0.0, -1.2, 0.1]), ("side", [0.9, -0.8, 0.2]))}
+    cams = {name: dlt_camera(c) for name, c in (("front", [0.0, -1.2, 0.1]),
+                                                ("side", [0.9, -0.8, 0.2]))}
     x = rng.uniform(-0.2, 0.2, (20, 3))
     px = {v: c.project(x) + rng.normal(0, noise, (20, 2)) for v, c in cams.items()}
     return x, px

@@ -2,28 +2,20 @@
 
 import numpy as np
 import pytest
+from camera_support import SIZE, dlt_camera, look_at
 
 from solver.cameras import Camera, camera_from_dict, camera_kinds
 from solver.dlt import DLTCamera, fit_dlt
 
-SIZE = (1920, 1080)
+# off-centre principal point: the fit must not assume the image centre
 K = np.array([[1400.0, 0.0, 980.0], [0.0, 1400.0, 530.0], [0.0, 0.0, 1.0]])
 C = np.array([0.15, -0.9, 0.1])
 # radial b12..b14 (px^-2, px^-4, px^-6), tangential b15, b16 (px^-1): ~24 px at the corners
 DIST = np.array([-4e-8, 2e-14, -3e-21, 1.5e-6, -1e-6])
 
 
-def look_at(centre, target, up=(0.0, 0.0, 1.0)):
-    """World -> camera rotation, rows (u right, v down, viewing direction)."""
-    f = np.asarray(target, float) - centre
-    f /= np.linalg.norm(f)
-    r = np.cross(f, up)
-    r /= np.linalg.norm(r)
-    return np.array([r, np.cross(f, r), f])
-
-
 def camera(distortion=None):
-    return DLTCamera.from_krc(K, look_at(C, [0, 0, 0]), C, SIZE, distortion)
+    return dlt_camera(C, k=K, distortion=distortion)
 
 
 def points_filling_image(cam, n, rng, depth=(0.75, 1.05)):

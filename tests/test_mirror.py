@@ -5,9 +5,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from camera_support import SIZE, K, dlt_camera
 
 from solver.cameras import camera_from_dict
-from solver.dlt import DLTCamera
 from solver.mirror import (
     IBUG_MIRROR,
     MirrorPlane,
@@ -20,8 +20,6 @@ from solver.mirror import (
     triangulate_mirror,
 )
 
-SIZE = (1920, 1080)
-K = np.array([[1500.0, 0.0, 960.0], [0.0, 1500.0, 540.0], [0.0, 0.0, 1.0]])
 F1 = np.array([0.0, -1.0, 0.05])
 # mirror beside and a little behind the head, facing head and camera
 G = np.array([0.35, 0.05, 0.0])
@@ -29,16 +27,8 @@ NORMAL = np.array([-1.0, -0.6, 0.1]) / np.linalg.norm([-1.0, -0.6, 0.1])
 LANDMARKS = Path(__file__).resolve().parents[1] / "assets" / "landmarks.json"
 
 
-def look_at(centre, target, up=(0.0, 0.0, 1.0)):
-    f = np.asarray(target, float) - centre
-    f /= np.linalg.norm(f)
-    r = np.cross(f, up)
-    r /= np.linalg.norm(r)
-    return np.array([r, np.cross(f, r), f])
-
-
 def setup(rng, n=30):
-    cam = DLTCamera.from_krc(K, look_at(F1, [0.25, 0.1, 0.0]), F1, SIZE)
+    cam = dlt_camera(F1, [0.25, 0.1, 0.0])
     plane = MirrorPlane.from_point_normal(G, NORMAL)
     head = rng.uniform([-0.08, -0.1, -0.12], [0.08, 0.02, 0.12], (n, 3))
     direct = cam.project(head)

@@ -3,27 +3,17 @@ eq. 3.5-3.7)."""
 
 import numpy as np
 import pytest
+from camera_support import dlt_camera
 
 from solver.cameras import OrthographicCamera
-from solver.dlt import DLTCamera
 from solver.triangulate import ray_midpoint, triangulate
 
-SIZE = (1920, 1080)
-K = np.array([[1500.0, 0.0, 960.0], [0.0, 1500.0, 540.0], [0.0, 0.0, 1.0]])
 DIST = np.array([-3e-8, 1e-14, 0.0, 1e-6, -5e-7])
 
 
-def look_at(centre, target, up=(0.0, 0.0, 1.0)):
-    f = np.asarray(target, float) - centre
-    f /= np.linalg.norm(f)
-    r = np.cross(f, up)
-    r /= np.linalg.norm(r)
-    return np.array([r, np.cross(f, r), f])
-
-
 def cameras(distortion=None):
-    centres = [np.array(c) for c in ([0.0, -1.0, 0.05], [0.8, -0.7, 0.1], [-0.7, -0.8, 0.3])]
-    return [DLTCamera.from_krc(K, look_at(c, [0, 0, 0]), c, SIZE, distortion) for c in centres]
+    centres = ([0.0, -1.0, 0.05], [0.8, -0.7, 0.1], [-0.7, -0.8, 0.3])
+    return [dlt_camera(c, distortion=distortion) for c in centres]
 
 
 def observe(cams, x, noise=0.0, rng=None):

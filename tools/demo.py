@@ -119,7 +119,15 @@ def read_photo(path):
 
 
 def write_obj_and_texture(model, result, photos, out, log):
-    """Bake the texture from the photos and write head.obj/.mtl/head_texture.png."""
+    """Bake the texture from the photos and write head.obj/.mtl/head_texture.png.
+
+    Returns
+    -------
+    tiles : dict of int -> ndarray (S, S, 3)
+        The bake (UDIM tile -> texture), for the .blend to reuse.
+    seconds : float
+        Time of the bake.
+    """
     from solver.obj_export import write_obj
     from solver.texture import bake_fit_texture, tile_atlas
     from tools.render_util import save_png
@@ -138,16 +146,17 @@ def write_obj_and_texture(model, result, photos, out, log):
               loop_uv=model.loop_uv[loops] * uv_scale, mtl_texture=out / "head_texture.png",
               textured_faces=np.isin(model.face_part[keep], skin_parts))
     log(f"  texture baked in {t_bake:.1f} s ({len(tiles)} UDIM tiles), OBJ written")
-    return t_bake
+    return tiles, t_bake
 
 
-def write_blend(model, case, result, photo_paths, out):
-    """The add-on's scene for the fit, saved as head.blend. Returns the head object."""
+def write_blend(model, case, result, photo_paths, textures, out):
+    """The add-on's scene for the fit with the texture already baked (``textures``, UDIM
+    tile -> texture), saved as head.blend. Returns the head object."""
     from headrecon_addon import headless
 
     headless.reset_scene()
     head = headless.build_scene_from_fit(model, case, result, images=photo_paths,
-                                         texture_size=TEXTURE_SIZE, name="Demo head")
+                                         textures=textures, name="Demo head")
     headless.save_blend(out / "head.blend")
     return head
 
@@ -363,10 +372,10 @@ def run_demo(out=DEFAULT_OUT, sample=DEFAULT_SAMPLE, size=DEFAULT_SIZE,
 
     out.mkdir(parents=True, exist_ok=True)
     t = time.perf_counter()
-    timings["bake_s"] = write_obj_and_texture(model, result, photos, out, log)
+    tiles, timings["bake_s"] = write_obj_and_texture(model, result, photos, out, log)
     timings["obj_s"] = time.perf_counter() - t - timings["bake_s"]
     t = time.perf_counter()
-    head = write_blend(model, case, result, photo_paths, out)
+    head = write_blend(model, case, result, photo_paths, tiles, out)
     timings["blend_s"] = time.perf_counter() - t
     log(f"  head.blend written in {timings['blend_s']:.1f} s")
 

@@ -60,13 +60,7 @@ SIDE_SCALE = 0.98  # the side photo is a second shot: slightly different scale
 VIEWS = {"front": "orthographic-front", "side": "orthographic-right"}
 FILES = ("front.png", "side.png", "truth.npz", "sample.json")
 
-# ICT README, "Eyeball details" (vertex ranges, inclusive). The sclera is the outer shell
-# with the cornea bulge; the iris part is an inner sphere an opaque sclera would hide, so
-# the render paints iris and pupil onto the sclera's front and leaves the iris part out.
-SCLERA_RANGES = ((21451, 22220), (23021, 23790))
-IRIS_RANGES = ((22221, 23020), (23791, 24590))
-IRIS_RADIUS = 0.0058  # metres from the eye's axis
-PUPIL_RADIUS = 0.0021
+# The eyes are the add-on's (headrecon_addon/material.py: eye material, eyeball layout).
 # Parts made for Unreal's digital-human eye shaders (wet film, soft shadow) and the
 # eyelashes' alpha-textured strips: drawn opaque they would be grey sheets over the eyes.
 HIDDEN_PART_WORDS = ("lacrimal", "blend", "occlusion", "eyelash")
@@ -173,9 +167,11 @@ def appearance_attributes(model):
     Returns
     -------
     dict of str -> ndarray (V,)
-        ``lips``, ``brows``, ``blush``, ``lash`` in [0, 1]; ``eye_r``: distance from the eye's axis
-        in millimetres on the eyeballs' front (99 elsewhere).
+        ``lips``, ``brows``, ``blush``, ``lash`` in [0, 1], and the eye material's attribute
+        (``material.EYE_ATTRIBUTE``, see ``material.eye_attribute``).
     """
+    from headrecon_addon import material
+
     v = model.vertices
     n = len(v)
     face_part = np.zeros(n, dtype=bool)
@@ -237,14 +233,7 @@ def appearance_attributes(model):
         lash[near] = np.maximum(w_up, w_low)
     out["lash"] = lash
 
-    # Eyes: radius from each eye's axis (the eyeball's centre, looking along -Y).
-    eye_r = np.full(n, 99.0)
-    for (s0, s1), (i0, i1) in zip(SCLERA_RANGES, IRIS_RANGES, strict=True):
-        centre = v[i0:i1 + 1].mean(axis=0)
-        d = v[s0:s1 + 1] - centre
-        r = np.hypot(d[:, 0], d[:, 2]) * 1000.0
-        eye_r[s0:s1 + 1] = np.where(d[:, 1] < 0, r, 99.0)
-    out["eye_r"] = eye_r
+    out[material.EYE_ATTRIBUTE] = material.eye_attribute(v)
     return out
 
 
@@ -252,112 +241,43 @@ def appearance_attributes(model):
 
 
 def _materials():
-    """Skin, eye, mouth, teeth, eye socket and shirt materials (procedural)."""
+    """Skin, eye, mouth, teeth, eye socket and shirt materials (procedural; the eye is the
+    add-on's)."""
     import bpy
 
-    def nodes_of(name):
-        mat = bpy.data.materials.new(name)
-        nt = mat.node_tree
-        return mat, nt, nt.nodes.get("Principled BSDF")
-
-    def sock(sockets, ident):
-        return next(s for s in sockets if s.identifier == ident)
-
-    def attr(nt, name):
-        n = nt.nodes.new("ShaderNodeAttribute")
-        n.attribute_name = name
-        return sock(n.outputs, "Fac")
-
-    def mix(nt, fac, a, b):
-        n = nt.nodes.new("ShaderNodeMix")
-        n.data_type = "RGBA"
-        for ident, val in (("Factor_Float", fac), ("A_Color", a), ("B_Color", b)):
-            s = sock(n.inputs, ident)
-            if isinstance(val, tuple):
-                s.default_value = val + (1.0,) if len(val) == 3 else val
-            elif isinstance(val, float):
-                s.default_value = val
-            else:
-                nt.links.new(val, s)
-        return sock(n.outputs, "Result_Color")
-
-    def noise(nt, coords, scale, detail=2.0):
-        n = nt.nodes.new("ShaderNodeTexNoise")
-        n.inputs["Scale"].default_value = scale
-        n.inputs["Detail"].default_value = detail
-        nt.links.new(coords, n.inputs["Vector"])
-        return n.outputs["Factor"]
-
-    def ramp(nt, fac, stops):
-        n = nt.nodes.new("ShaderNodeValToRGB")
-        els = n.color_ramp.elements
-        els[0].position, els[0].color = stops[0][0], stops[0][1] + (1.0,)
-        els[1].position, els[1].color = stops[1][0], stops[1][1] + (1.0,)
-        for pos, col in stops[2:]:
-            e = els.new(pos)
-            e.color = col + (1.0,)
-        nt.links.new(fac, n.inputs["Fac"])
-        return n.outputs["Color"]
-
-    def math(nt, op, a, b):
-        n = nt.nodes.new("ShaderNodeMath")
-        n.operation = op
-        for s, val in zip(n.inputs[:2], (a, b), strict=True):
-            if isinstance(val, float):
-                s.default_value = val
-            else:
-                nt.links.new(val, s)
-        return n.outputs["Value"]
+    from headrecon_addon import material
 
     # Skin: tone with blotchy variation, warm blush, darker lips, hairy brows, lash line,
     # pores.
-    skin, nt, bsdf = nodes_of("Skin")
-    obj_co = nt.nodes.new("ShaderNodeTexCoord").outputs["Object"]
-    tone = ramp(nt, noise(nt, obj_co, 90.0, 4.0),
-                [(0.3, (0.56, 0.35, 0.26)), (0.7, (0.66, 0.43, 0.33))])
-    col = mix(nt, math(nt, "MULTIPLY", attr(nt, "blush"), 0.55), tone, (0.66, 0.30, 0.24))
-    lip_col = ramp(nt, noise(nt, obj_co, 600.0),
-                   [(0.3, (0.38, 0.13, 0.12)), (0.7, (0.46, 0.18, 0.16))])
-    col = mix(nt, attr(nt, "lips"), col, lip_col)
+    skin = bpy.data.materials.new("Skin")
+    b = material.NodeBuilder(skin)
+    obj_co = b.coordinates("Object")
+    tone = b.ramp(b.noise(obj_co, 90.0, 4.0),
+                  [(0.3, (0.56, 0.35, 0.26)), (0.7, (0.66, 0.43, 0.33))])
+    col = b.mix(b.math("MULTIPLY", b.attribute("blush"), 0.55), tone, (0.66, 0.30, 0.24))
+    lip_col = b.ramp(b.noise(obj_co, 600.0),
+                     [(0.3, (0.38, 0.13, 0.12)), (0.7, (0.46, 0.18, 0.16))])
+    col = b.mix(b.attribute("lips"), col, lip_col)
     # brow hairs: streaks from noise stretched across the brow
-    stretch = nt.nodes.new("ShaderNodeMapping")
-    stretch.inputs["Scale"].default_value = (0.25, 1.0, 1.0)
-    nt.links.new(obj_co, stretch.inputs["Vector"])
-    hairs = noise(nt, stretch.outputs["Vector"], 1500.0, 1.0)
-    strands = math(nt, "ADD", math(nt, "MULTIPLY", hairs, 0.7), 0.45)  # 0.45 .. 1.15
-    hair_fac = math(nt, "MINIMUM", math(nt, "MULTIPLY", attr(nt, "brows"), strands), 1.0)
-    col = mix(nt, math(nt, "MULTIPLY", hair_fac, 0.95), col, (0.035, 0.02, 0.012))
-    col = mix(nt, math(nt, "MULTIPLY", attr(nt, "lash"), 0.9), col, (0.02, 0.012, 0.01))
-    nt.links.new(col, bsdf.inputs["Base Color"])
+    stretch = b.new("ShaderNodeMapping", Vector=obj_co, Scale=(0.25, 1.0, 1.0))
+    hairs = b.noise(stretch.outputs["Vector"], 1500.0, 1.0)
+    strands = b.math("ADD", b.math("MULTIPLY", hairs, 0.7), 0.45)  # 0.45 .. 1.15
+    hair_fac = b.math("MINIMUM", b.math("MULTIPLY", b.attribute("brows"), strands), 1.0)
+    col = b.mix(b.math("MULTIPLY", hair_fac, 0.95), col, (0.035, 0.02, 0.012))
+    col = b.mix(b.math("MULTIPLY", b.attribute("lash"), 0.9), col, (0.02, 0.012, 0.01))
+    b.set(b.bsdf.inputs["Base Color"], col)
     # No subsurface scattering: at this photo size it changes little and costs a third of
     # the render time.
-    bsdf.inputs["Roughness"].default_value = 0.5
-    bsdf.inputs["Specular IOR Level"].default_value = 0.35
-    bump = nt.nodes.new("ShaderNodeBump")
-    bump.inputs["Strength"].default_value = 0.08
-    bump.inputs["Distance"].default_value = 0.0003
-    nt.links.new(noise(nt, obj_co, 1200.0, 3.0), bump.inputs["Height"])
-    nt.links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
-
-    # Eyes: sclera, iris (with radial streaks and a dark limbal ring) and pupil by radius.
-    eye, nt, bsdf = nodes_of("Eye")
-    r = math(nt, "DIVIDE", attr(nt, "eye_r"), 8.0)  # 1.0 = 8 mm
-    streaks = noise(nt, nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], 900.0)
-    iris = ramp(nt, streaks, [(0.35, (0.10, 0.16, 0.22)), (0.65, (0.22, 0.32, 0.36))])
-    p, q = PUPIL_RADIUS * 1000 / 8.0, IRIS_RADIUS * 1000 / 8.0
-    ring = ramp(nt, r, [(p - 0.01, (0.0, 0.0, 0.0)), (p + 0.01, (1.0, 1.0, 1.0)),
-                        (q - 0.08, (1.0, 1.0, 1.0)), (q - 0.01, (0.35, 0.35, 0.35)),
-                        (q + 0.01, (0.0, 0.0, 0.0))])
-    sclera = ramp(nt, r, [(q, (0.45, 0.42, 0.40)), (1.5, (0.62, 0.55, 0.52))])
-    inside = math(nt, "LESS_THAN", r, q + 0.005)
-    col = mix(nt, inside, sclera, mix(nt, ring, (0.005,) * 3, iris))
-    nt.links.new(col, bsdf.inputs["Base Color"])
-    bsdf.inputs["Roughness"].default_value = 0.25
-    bsdf.inputs["Coat Weight"].default_value = 1.0
-    bsdf.inputs["Coat Roughness"].default_value = 0.03
+    b.bsdf.inputs["Roughness"].default_value = 0.5
+    b.bsdf.inputs["Specular IOR Level"].default_value = 0.35
+    bump = b.new("ShaderNodeBump", Strength=0.08, Distance=0.0003,
+                 Height=b.noise(obj_co, 1200.0, 3.0))
+    b.set(b.bsdf.inputs["Normal"], bump.outputs["Normal"])
+    b.arrange()
 
     def plain(name, colour, rough):
-        mat, nt, bsdf = nodes_of(name)
+        mat = bpy.data.materials.new(name)
+        bsdf = material.NodeBuilder(mat).bsdf
         bsdf.inputs["Base Color"].default_value = colour + (1.0,)
         bsdf.inputs["Roughness"].default_value = rough
         return mat
@@ -365,13 +285,15 @@ def _materials():
     mouth = plain("Mouth", (0.18, 0.04, 0.04), 0.4)
     teeth = plain("Teeth", (0.75, 0.72, 0.62), 0.3)
     socket = plain("Eye socket", (0.40, 0.16, 0.14), 0.3)
-    shirt, nt, bsdf = nodes_of("Shirt")
-    weave = noise(nt, nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], 400.0)
-    nt.links.new(ramp(nt, weave, [(0.3, (0.02, 0.03, 0.05)), (0.7, (0.03, 0.045, 0.07))]),
-                 bsdf.inputs["Base Color"])
-    bsdf.inputs["Roughness"].default_value = 0.9
-    return {"skin": skin, "eye": eye, "mouth": mouth, "teeth": teeth, "socket": socket,
-            "shirt": shirt}
+    shirt = bpy.data.materials.new("Shirt")
+    b = material.NodeBuilder(shirt)
+    weave = b.noise(b.coordinates("Object"), 400.0)
+    b.set(b.bsdf.inputs["Base Color"],
+          b.ramp(weave, [(0.3, (0.02, 0.03, 0.05)), (0.7, (0.03, 0.045, 0.07))]))
+    b.bsdf.inputs["Roughness"].default_value = 0.9
+    b.arrange()
+    return {"skin": skin, "eye": material.new_part_material("Eyes"), "mouth": mouth,
+            "teeth": teeth, "socket": socket, "shirt": shirt}
 
 
 def face_subset(model, keep):
@@ -395,6 +317,8 @@ SLOTS = ("skin", "eye", "mouth", "teeth", "socket")  # the head's material slots
 
 def _face_materials(model):
     """Material slot of each polygon (index into ``SLOTS``), -1 for polygons left out."""
+    from headrecon_addon import material
+
     slot_of_part = []
     for name in model.part_names:
         low = name.lower()
@@ -411,9 +335,9 @@ def _face_materials(model):
         else:  # mouth socket, gums and tongue
             slot_of_part.append(SLOTS.index("mouth"))
     slot = np.asarray(slot_of_part)[model.face_part]
-    # leave the eyeballs' inner iris spheres out (see IRIS_RANGES)
+    # leave the eyeballs' inner iris spheres out: the sclera hides them (material.py)
     first = model.loop_vertex[model.face_loop_start]
-    for i0, i1 in IRIS_RANGES:
+    for i0, i1 in material.IRIS_RANGES:
         slot[(first >= i0) & (first <= i1)] = -1
     return slot
 
