@@ -163,15 +163,16 @@ def prepare_job(scene):
 
 
 def warm_up(texture_size):
-    """Load the model and build the texture bake's UV rasters in a background thread, so
-    the artist's first Fit does not wait for them (they are cached per size). Only in the
-    interactive UI: background runs pay when they fit."""
+    """Load the model, build the texture bake's UV rasters and the eyelash texture in a
+    background thread, so the artist's first Fit does not wait for them (they are cached).
+    Only in the interactive UI: background runs pay when they fit."""
     if bpy.app.background:
         return None
 
     def work():
         try:
             model = load_model()
+            material.cached_eyelash_alpha()
             for tile in uv_tiles(model):
                 uv_raster(model, int(texture_size), tile=tile)
         except Exception:

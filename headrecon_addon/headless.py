@@ -145,9 +145,11 @@ def export_glb(path, head):
 
     if not hasattr(bpy.types, "EXPORT_SCENE_OT_gltf"):
         addon_utils.enable("io_scene_gltf2", default_set=False)
-    for obj in bpy.context.view_layer.objects:
+    layer = bpy.context.view_layer
+    layer.update()  # objects linked since the last update are not in layer.objects yet
+    for obj in layer.objects:
         obj.select_set(obj == head)
-    bpy.context.view_layer.objects.active = head
+    layer.objects.active = head
     path = Path(path).resolve()
     bpy.ops.export_scene.gltf(filepath=str(path), export_format="GLB", use_selection=True,
                               export_morph=True, export_apply=False)

@@ -3,8 +3,9 @@
 The head's eyes and eyelashes are procedural (no image files): an eye with iris, pupil,
 limbal ring and a wet coat, painted by the distance from the eye's axis (a per-vertex
 attribute, :func:`eye_attribute`); eyelashes as dark strands cut out of ICT's lash strips
-by an alpha drawn from their UVs. The sample renderer (tools/make_sample.py) uses the same
-eye material, so the photos and the fitted head have the same eyes.
+by an alpha texture computed from their UV layout (:func:`eyelash_alpha`). The sample
+renderer (tools/make_sample.py) uses the same eye material, so the photos and the fitted
+head have the same eyes.
 
 Node trees are built by name so they work unchanged on Blender 4.2 and 5.x (the socket
 names used here, "Base Color", "Roughness", "Alpha", "Color", "Strength", exist in both;
@@ -171,11 +172,6 @@ class NodeBuilder:
         node.attribute_name = name
         return self._socket(node.outputs, "Fac")
 
-    def separate(self, vector):
-        """(x, y, z) sockets of a vector."""
-        node = self.new("ShaderNodeSeparateXYZ", Vector=vector)
-        return node.outputs["X"], node.outputs["Y"], node.outputs["Z"]
-
     def math(self, op, a, b=0.0):
         """``a op b`` by a Math node ("ADD", "MULTIPLY", "FRACT", "LESS_THAN", ...)."""
         node = self.nodes.new("ShaderNodeMath")
@@ -183,17 +179,6 @@ class NodeBuilder:
         self.set(node.inputs[0], a)
         self.set(node.inputs[1], b)
         return node.outputs["Value"]
-
-    def map_range(self, value, from_min, from_max, to_min=0.0, to_max=1.0, smooth=True):
-        """``value`` mapped from [from_min, from_max] to [to_min, to_max], clamped;
-        smoothstep between the ends unless ``smooth`` is False."""
-        node = self.nodes.new("ShaderNodeMapRange")
-        node.interpolation_type = "SMOOTHSTEP" if smooth else "LINEAR"
-        node.clamp = True
-        for name, v in (("Value", value), ("From Min", from_min), ("From Max", from_max),
-                        ("To Min", to_min), ("To Max", to_max)):
-            self.set(node.inputs[name], v)
-        return node.outputs["Result"]
 
     def mix(self, fac, a, b):
         """Colour ``a`` mixed toward ``b`` by ``fac``."""
@@ -207,13 +192,6 @@ class NodeBuilder:
         """Perlin noise in [0, 1] (its factor output)."""
         node = self.new("ShaderNodeTexNoise", Vector=vector, Scale=scale, Detail=detail)
         return self._socket(node.outputs, "Fac")
-
-    def white_noise(self, w):
-        """A random value in [0, 1) per distinct ``w`` (1-D white noise)."""
-        node = self.nodes.new("ShaderNodeTexWhiteNoise")
-        node.noise_dimensions = "1D"
-        self.set(node.inputs["W"], w)
-        return node.outputs["Value"]
 
     def ramp(self, fac, stops):
         """A colour ramp over ``fac``: ``stops`` = [(position, RGB), ...], at least two."""
@@ -229,12 +207,13 @@ class NodeBuilder:
         """Lay the nodes out in columns by their distance in links from the output, so the
         tree reads left to right in the shader editor."""
         depth = {n.name: 0 for n in self.nodes if n.type == "OUTPUT_MATERIAL"}
+        pairs = [(link.from_node.name, link.to_node.name) for link in self.links]
         for _ in range(len(self.nodes)):  # longest path; the trees are small
             changed = False
-            for link in self.links:
-                d = depth.get(link.to_node.name)
-                if d is not None and depth.get(link.from_node.name, -1) < d + 1:
-                    depth[link.from_node.name] = d + 1
+            for src, dst in pairs:
+                d = depth.get(dst)
+                if d is not None and depth.get(src, -1) < d + 1:
+                    depth[src] = d + 1
                     changed = True
             if not changed:
                 break
@@ -304,38 +283,102 @@ def eye_shader(mat):
 LASH_STRIP_TIP, LASH_STRIP_ROOT = 0.084, 0.924
 LASH_STRANDS = 45  # strands per strip (x 3 strips: ~135 lashes per lid)
 LASH_HALF_WIDTH = 0.14  # at the root, in strand spacings (the tip is a third as thick)
+LASH_COLOUR = (0.02, 0.015, 0.01)  # linear RGB
+LASH_IMAGE = "HeadRecon Eyelashes"
+LASH_TEXTURE_SIZE = 1024
+LASH_KEY = "headrecon_lashes"  # custom property on the generated lash image
+
+
+def _smoothstep(e0, e1, x):
+    t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+def eyelash_alpha(size=LASH_TEXTURE_SIZE):
+    """Coverage of ICT's lash strips by lashes, as a texture over one UV tile.
+
+    Thin strands run from the lid (root) to the tip across each strip, each its own
+    length, thinning and fading toward the tip and toward the lid's corners; the three
+    strips of a lid interleave; the lower lid's lashes are fewer, shorter and lighter.
+
+    Parameters
+    ----------
+    size : int
+        Texels per side.
+
+    Returns
+    -------
+    ndarray, shape (size, size), float32 in [0, 1]
+        Row 0 at the top (v = 1), like an image file; 0 between the strands.
+    """
+    t = (np.arange(size, dtype=np.float64) + 0.5) / size
+    u, v = t[None, :], 1.0 - t[:, None]
+    along = np.broadcast_to(np.mod(2.0 * u, 1.0), (size, size))  # 0..1 along the lid
+    strip = np.floor(6.0 * v)  # 0-2 lower lid, 3-5 upper
+    root = np.clip((np.mod(6.0 * v, 1.0) - LASH_STRIP_TIP)
+                   / (LASH_STRIP_ROOT - LASH_STRIP_TIP), 0.0, 1.0)  # 0 tip .. 1 lid
+    tipward = 1.0 - root
+    # strand coordinate: the three strips' strands interleave; each strand leans a little
+    x = along * LASH_STRANDS + 0.37 * strip + 0.3 * tipward
+    ids = (np.floor(x) + 101 * strip).astype(np.int64)
+    rand = np.random.default_rng(7).random(int(ids.max()) + 1)[ids]
+    x = x + (rand - 0.5) * tipward**2  # tips curl apart
+    off_centre = np.abs(np.mod(x, 1.0) - 0.5)
+    half = LASH_HALF_WIDTH / 3.0 * (1.0 + 2.0 * root)
+    strand = 1.0 - _smoothstep(0.5 * half, half, off_centre)
+    upper = (strip > 2.5).astype(np.float64)
+    strand *= rand > 0.45 * (1.0 - upper)
+    # each strand ends somewhere between 55 % and 100 % of the strip (upper lid)
+    cut = 1.0 - (0.55 + 0.45 * rand) * (0.7 + 0.3 * upper)
+    alpha = strand * _smoothstep(cut, cut + 0.08, root)
+    alpha *= 0.35 + 0.65 * _smoothstep(0.0, 0.7, root)
+    alpha *= _smoothstep(0.02, 0.14, along) * _smoothstep(0.98, 0.86, along)
+    return (alpha * (0.55 + 0.45 * upper)).astype(np.float32)
+
+
+def _srgb(linear):
+    c = np.asarray(linear, dtype=np.float64)
+    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
+
+
+_LASH_ALPHA = {}  # texture size -> eyelash_alpha(size)
+
+
+def cached_eyelash_alpha(size=LASH_TEXTURE_SIZE):
+    """``eyelash_alpha(size)``, computed once per session (~0.3 s at 1024; the UI's
+    warm-up thread pays it before the first fit)."""
+    if size not in _LASH_ALPHA:
+        _LASH_ALPHA[size] = eyelash_alpha(size)
+    return _LASH_ALPHA[size]
+
+
+def eyelash_image():
+    """The lash texture (``eyelash_alpha`` in alpha, the lash colour in RGB), made once
+    per file and shared by every head; packed, so a saved file carries it."""
+    img = bpy.data.images.get(LASH_IMAGE)
+    if img is not None and img.library is None and img.get(LASH_KEY) \
+            and tuple(img.size) == (LASH_TEXTURE_SIZE,) * 2:
+        return img
+    n = LASH_TEXTURE_SIZE
+    rgba = np.empty((n, n, 4), dtype=np.float32)
+    rgba[..., :3] = _srgb(LASH_COLOUR)
+    rgba[..., 3] = cached_eyelash_alpha(n)
+    img = bpy.data.images.new(LASH_IMAGE, n, n, alpha=True)
+    img.pixels.foreach_set(rgba[::-1].ravel())  # Blender's rows run bottom-up
+    img[LASH_KEY] = True
+    img.pack()
+    return img
 
 
 def eyelash_shader(mat):
-    """Make ``mat`` eyelashes: thin dark strands along ICT's lash strips, each its own
-    length, thinning and fading toward the tips and toward the lid's corners; the lower
-    lid's lashes lighter. Everything between the strands is transparent."""
+    """Make ``mat`` eyelashes: dark strands cut out of ICT's lash strips by the lash
+    texture's alpha (an image, so exporters such as glTF carry it too)."""
     b = NodeBuilder(mat)
-    u, v, _ = b.separate(b.coordinates("UV"))
-    along = b.math("FRACT", b.math("MULTIPLY", u, 2.0))  # 0..1 along the lid
-    strip = b.math("FLOOR", b.math("MULTIPLY", v, 6.0))  # 0-2 lower lid, 3-5 upper
-    root = b.map_range(b.math("FRACT", b.math("MULTIPLY", v, 6.0)), LASH_STRIP_TIP,
-                       LASH_STRIP_ROOT, smooth=False)  # 0 at the tips, 1 at the lid
-    tipward = b.math("SUBTRACT", 1.0, root)
-    # strand coordinate: the three strips' strands interleave; each strand leans a little
-    x = b.math("ADD", b.math("MULTIPLY", along, float(LASH_STRANDS)),
-               b.math("ADD", b.math("MULTIPLY", strip, 0.37), b.math("MULTIPLY", tipward, 0.3)))
-    rand = b.white_noise(b.math("ADD", b.math("FLOOR", x), b.math("MULTIPLY", strip, 101.0)))
-    x = b.math("ADD", x, b.math("MULTIPLY", b.math("SUBTRACT", rand, 0.5),
-                                b.math("MULTIPLY", tipward, tipward)))  # curl apart
-    off_centre = b.math("ABSOLUTE", b.math("SUBTRACT", b.math("FRACT", x), 0.5))
-    half = b.math("MULTIPLY", b.math("ADD", b.math("MULTIPLY", root, 2.0), 1.0),
-                  LASH_HALF_WIDTH / 3.0)
-    strand = b.map_range(off_centre, b.math("MULTIPLY", half, 0.5), half, 1.0, 0.0)
-    # each strand ends somewhere between 55 % and 100 % of the strip
-    length = b.math("ADD", b.math("MULTIPLY", rand, 0.45), 0.55)
-    cut = b.math("SUBTRACT", 1.0, length)
-    alpha = b.math("MULTIPLY", strand, b.map_range(root, cut, b.math("ADD", cut, 0.08)))
-    alpha = b.math("MULTIPLY", alpha, b.map_range(root, 0.0, 0.7, 0.35, 1.0))
-    corners = b.math("MULTIPLY", b.map_range(along, 0.02, 0.14),
-                     b.map_range(along, 0.98, 0.86))
-    lower = b.math("ADD", b.math("MULTIPLY", b.math("GREATER_THAN", strip, 2.5), 0.35), 0.65)
-    b.set(b.bsdf.inputs["Alpha"], b.math("MULTIPLY", alpha, b.math("MULTIPLY", corners, lower)))
+    tex = b.new("ShaderNodeTexImage")
+    tex.image = eyelash_image()
+    tex.extension = "REPEAT"  # the lash UVs lie in tile u in [6, 7]
+    b.set(b.bsdf.inputs["Base Color"], tex.outputs["Color"])
+    b.set(b.bsdf.inputs["Alpha"], tex.outputs["Alpha"])
     b.bsdf.inputs["Roughness"].default_value = 0.45
     _set_transparent(mat)
     b.arrange()

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .cameras import Camera
+from .cameras import Camera, OrthographicCamera
 from .fit_engine import (
     MIN_VIEW_LANDMARKS,
     ContourRows,
@@ -42,11 +42,13 @@ from .fit_engine import (
     StackedModel,
     State,
     ViewData,
+    as_dlt,
     densify,
+    is_perspective,
     is_side_camera,
-    set_camera,
 )
 from .landmarks_file import LandmarkCase, LandmarkSet
+from .mirror import MirrorPlane
 from .result import FitResult, ViewResidual
 from .shape_icp import ImageRows, PointRows
 from .tps import ThinPlateSpline
@@ -106,6 +108,16 @@ class FitOptions:
         ... and this many pixels (so noise alone rarely flags).
     tps_iterations : int
         Most TPS-ICP rounds of approach 2.
+    camera_distance_m : float or None
+        How far the photographer stood from the middle of the head, metres (optional). The
+        fit cannot know it for orthographic photos; given, it checks each orthographic
+        photo's parallel-projection error against the landmarks' reading error (seed 001
+        ch. 2, ``solver/projection_check.py``) and warns in ``info["warnings"]`` when a
+        perspective camera is needed. Perspective cameras are always checked (reported
+        only: their projection is central anyway).
+    calibration_rounds : int
+        Most re-calibrations of free perspective cameras and mirror planes between joint
+        rounds (see ``Joint.settle``).
     """
 
     method: str = "combined"
@@ -128,6 +140,8 @@ class FitOptions:
     flag_sigmas: float = 3.0
     flag_min_px: float = 5.0
     tps_iterations: int = 6
+    camera_distance_m: float | None = None
+    calibration_rounds: int = 8
 
 
 # ----------------------------------------------------------------------------- input
@@ -165,6 +179,14 @@ def _check_options(options, model):
         val = getattr(o, name)
         if isinstance(val, bool) or not isinstance(val, int | np.integer) or val < 1:
             raise ValueError(f"options.{name}: must be an integer >= 1, got {val!r}")
+    val = o.calibration_rounds
+    if isinstance(val, bool) or not isinstance(val, int | np.integer) or val < 0:
+        raise ValueError(f"options.calibration_rounds: must be an integer >= 0, got {val!r}")
+    d = o.camera_distance_m
+    if d is not None and (isinstance(d, bool) or not isinstance(d, int | float)
+                          or not np.isfinite(d) or d <= 0):
+        raise ValueError(f"options.camera_distance_m: must be None or a finite number > 0 "
+                         f"(metres), got {d!r}")
     if o.progress is not None and not callable(o.progress):
         raise ValueError("options.progress: must be callable(fraction, message) or None")
     return o
@@ -193,9 +215,15 @@ def _linear_model(model, opts):
     return lin
 
 
-def _prepare_views(model, case, opts):
+def _prepare_views(model, case, opts, cameras=None):
     """The case's views as ``ViewData``; every problem is a ValueError naming the view or
-    landmark."""
+    landmark. ``cameras`` (view name -> Camera, e.g. a previous fit's) replaces the file's
+    cameras and nothing is computed.
+
+    A mirror view (``View.mirror_of``) whose camera is not kept is linked to the view it
+    mirrors: its camera is that view's camera reflected in a mirror plane the fit
+    estimates, so the file's camera for it (often just ``{"kind": "dlt"}``) is not used.
+    """
     if not isinstance(case, LandmarkCase):
         raise ValueError(f"case: expected a LandmarkCase, got {type(case).__name__}")
     if not case.views:
@@ -220,10 +248,20 @@ def _prepare_views(model, case, opts):
     views = []
     for name, view in case.views.items():
         where = f"{case.source}: view {name!r}"
-        cam = view.camera
-        if cam is None:
-            cam = _compute_camera(model, case, view, lms, where)
-        if not isinstance(cam, Camera):
+        kept = bool(getattr(view, "camera_fixed", False)) or name in fixed
+        link = _mirror_link(case, view, kept, where)
+        if cameras is not None:
+            if name not in cameras:
+                raise ValueError(f"{where}: was not in that fit (views: "
+                                 f"{', '.join(cameras)})")
+            cam = cameras[name]
+        elif link is not None:
+            cam = None  # the real camera reflected, once that camera is placed
+        else:
+            cam = view.camera
+            if cam is None:
+                cam = _compute_camera(model, case, view, lms, where)
+        if cam is not None and not isinstance(cam, Camera):
             raise ValueError(f"{where}: camera of unknown kind ({type(cam).__name__}); "
                              "expected a solver.cameras.Camera")
         names, verts, px = [], [], []
@@ -244,22 +282,43 @@ def _prepare_views(model, case, opts):
             px.append(uv)
         w = opts.landmark_weight * np.array([weights.get(n, 1.0) for n in names])
         used = int(np.count_nonzero(w))
-        refit = not getattr(view, "camera_fixed", False) and name not in fixed
+        refit = not kept and link is None
         need = max(MIN_VIEW_LANDMARKS, cam.min_refit_points if refit else 1)
         if used < need:
             raise ValueError(f"{where}: {used} usable landmark{'s' * (used != 1)}; the fit "
                              f"needs at least {need} in this view ({need - used} more)")
         contour = None
-        side = is_side_camera(cam)
-        if view.contour is not None and len(view.contour) >= 2 and side:
+        if view.contour is not None and len(view.contour) >= 2:
             c = np.asarray(view.contour, dtype=np.float64)
             if not np.isfinite(c).all():
                 raise ValueError(f"{where}: contour has a point that is not finite")
             contour = densify(c, 1.0)
+        side = cam is not None and is_side_camera(cam)
         views.append(ViewData(name, cam, names, np.array(verts, dtype=np.int64),
                               np.array(px, dtype=np.float64).reshape(-1, 2), w, side,
-                              contour, refit))
+                              contour, refit, link))
     return views
+
+
+def _mirror_link(case, view, kept, where):
+    """The view a mirror view's camera is derived from (None: not a mirror view, or one
+    whose camera is kept as given)."""
+    target = getattr(view, "mirror_of", None)
+    if target is None:
+        return None
+    if target not in case.views or target == view.name:
+        raise ValueError(f"{where}: mirror_of names {target!r}, not another view of the case "
+                         f"(views: {', '.join(case.views)})")
+    if getattr(case.views[target], "mirror_of", None) is not None:
+        raise ValueError(f"{where}: mirror_of names {target!r}, itself a mirror view; name "
+                         "the view seen directly")
+    if kept:
+        if view.camera is None:
+            raise ValueError(f"{where}: a mirror view whose camera is kept needs the camera's "
+                             "parameters (or leave it free: it is then the real camera "
+                             "reflected in the mirror)")
+        return None
+    return target
 
 
 def _compute_camera(model, case, view, lms, where):
@@ -275,9 +334,6 @@ def _compute_camera(model, case, view, lms, where):
     if kind not in ("dlt", "pinhole"):
         raise ValueError(f"{where}: no camera parameters and no way to compute a camera of "
                          f"kind {kind!r} (give the parameters, or a 'dlt'/'pinhole' kind)")
-    if getattr(view, "mirror_of", None) is not None:
-        raise ValueError(f"{where}: a mirror view needs its camera before the fit "
-                         "(solver/mirror.py: estimate_mirror, then reflected_camera)")
     try:
         if view.passpoints:
             _, xyz, uv = case.passpoint_arrays(view.name)
@@ -311,13 +367,21 @@ class _Progress:
 
 
 def _init_pose(eng, state):
-    """With two or more calibrated (kept) cameras the head's pose is set in their world:
-    the landmarks seen in two of them are triangulated and the mean head's landmark
-    vertices fitted to those points by a similarity (Procrustes). Otherwise the head starts
-    at the origin, upright, at scale 1 (the refitted cameras come to it)."""
-    fixed = [v for v in eng.views if not v.refit]
-    if len(fixed) < 2:
+    """Place the head in the world of the calibrated (kept) cameras. With two or more, the
+    landmarks seen in two of them are triangulated and the mean head's landmark vertices
+    fitted to those points by a similarity (Procrustes). With one perspective camera, the
+    mean head is posed so its landmarks project onto the placed ones (a pose-only pinhole
+    refit, scale 1: one photo cannot tell size from distance). Otherwise the head starts
+    at the origin, upright, at scale 1 (the free cameras come to it)."""
+    fixed = [v for v in eng.views if not v.refit and v.mirror_of is None]
+    if len(fixed) >= 2 and _pose_by_triangulation(eng, state, fixed):
         return
+    persp = [v for v in fixed if is_perspective(v.camera)]
+    if len(persp) >= 1:
+        _pose_by_resection(eng, state, max(persp, key=lambda v: len(v.vertices)))
+
+
+def _pose_by_triangulation(eng, state, fixed):
     from .procrustes import similarity_procrustes
     from .triangulate import triangulate
 
@@ -328,15 +392,44 @@ def _init_pose(eng, state):
     try:
         tri = triangulate([v.camera for v in fixed], pix)
     except (ValueError, TypeError):  # a kind triangulation does not know
-        return
+        return False
     ok = np.isfinite(tri.points).all(axis=1)
     if ok.sum() < 4:
-        return
+        return False
     try:
         sim = similarity_procrustes(eng.local(state, verts[ok]), tri.points[ok])
     except ValueError:
-        return
+        return False
     state.scale, state.rotation, state.translation = sim.scale, sim.rotation, sim.translation
+    return True
+
+
+def _pose_by_resection(eng, state, view):
+    """Pose the head (scale kept) from one calibrated perspective camera: the camera's pose
+    relative to the mean head (a pinhole refit with its intrinsics kept) composed with
+    its pose in the world."""
+    from .pinhole import PinholeCamera
+
+    cam = view.camera
+    try:
+        if isinstance(cam, PinholeCamera):
+            probe = PinholeCamera(cam.focal_px, cam.rotation, cam.centre, cam.size,
+                                  cam.principal_point, cam.k1, free_focal=False,
+                                  focal_range_mm=None)
+        else:
+            k, r, c = cam.decompose()
+            if np.linalg.det(r) < 0:
+                return
+            probe = PinholeCamera.from_krc(k, r, c, cam.size, principal_point="keep",
+                                           free_focal=False, focal_range_mm=None)
+        local = eng.local(state, view.vertices)
+        rel = probe.refit(local, view.pixels, view.weights)
+    except ValueError:
+        return
+    rot = probe.rotation.T @ rel.rotation
+    state.rotation = rot
+    state.translation = probe.centre - rot @ rel.centre
+    state.scale = 1.0
 
 
 def _profile_fit(eng, state, opts):
@@ -350,8 +443,8 @@ def _profile_fit(eng, state, opts):
     joint = eng.joint(side)
     # The head's scale and position stay too: one profile photo cannot tell its depth
     # (and with a calibrated camera the front photo is needed to place the head).
-    joint.gauge = True
-    if joint.mode_views:
+    joint.gauge = tuple(sorted(set(joint.gauge) | {"scale", "translation"}))
+    if joint.blocks:
         state, hist = joint.run(state, max_outer=opts.max_iterations,
                                 tolerance=opts.tolerance, cameras_only=True)
         info["similarity_history"] = hist
@@ -362,10 +455,29 @@ def _profile_fit(eng, state, opts):
 
 
 def _approach1(eng, state, opts):
-    """Thesis §4.4.2: every landmark as image rows (front ones weighted), plus contour."""
+    """Thesis §4.4.2: every landmark as image rows (front ones weighted), plus contour.
+
+    With free perspective cameras or mirror planes (self-calibration) the joint rounds
+    alternate with full re-calibrations of those cameras until both settle
+    (``Joint.settle``: a re-calibration that lowers the cost by less than ``tolerance``
+    ends it; at most ``calibration_rounds``)."""
     joint = eng.joint(eng.views, front_weight=opts.front_weight)
     state, hist = joint.run(state, max_outer=opts.max_iterations, tolerance=opts.tolerance)
-    return state, {"history": hist}
+    out = {"history": hist}
+    if _self_calibrating(eng):
+        state, more, rounds = joint.settle(state, opts.calibration_rounds, opts.tolerance,
+                                           max_outer=opts.max_iterations)
+        out["history"] = hist + more
+        out["calibration_rounds"] = rounds
+    return state, out
+
+
+def _self_calibrating(eng):
+    """Whether a free camera has parameters the joint rounds linearise (perspective) or a
+    mirror plane is estimated: then camera calibration and shape are alternated until
+    both settle."""
+    return any(v.mirror_of is not None or (eng.camera_moves(v) and is_perspective(v.camera))
+               for v in eng.views)
 
 
 def landmark_targets(eng, state):
@@ -439,19 +551,24 @@ def _approach2(eng, model, state, opts):
     verts, _, tgt = landmark_targets(eng, state)
     side = [v for v in eng.views if v.contour is not None]
     # The shape-ICP works on copies of the vertices used: dense skin, landmarks, then the
-    # outline candidates once per profile photo.
-    nd, nl, nc = len(dense), len(verts), len(eng.outline)
-    copies = np.concatenate([dense, verts] + [eng.outline] * len(side))
+    # outline candidates once per photo with a traced outline.
+    nd, nl = len(dense), len(verts)
     mesh_rows = PointRows(np.arange(nd), eng.world(state, dense),
                           weights=_DENSE_SHARE * w_lm * n_lm / nd, name="tps mesh")
     lm_rows = PointRows(np.arange(nd, nd + nl), tgt, weights=w_lm, name="tps landmarks")
-    contour = [ContourRows(np.arange(nd + nl + i * nc, nd + nl + (i + 1) * nc), v.contour,
-                           v.camera, weights=eng.contour_weight * eng.inv_var,
-                           faces=eng.outline_faces, edges=eng.outline_edges,
-                           max_distance=eng.contour_threshold, name=v.name)
-               for i, v in enumerate(side)]
+    outlines = [v.outline if v.outline is not None else
+                (eng.outline, eng.outline_faces, eng.outline_edges) for v in side]
+    contour, parts, off = [], [], nd + nl
+    for v, (cand, faces, edges) in zip(side, outlines, strict=True):
+        contour.append(ContourRows(np.arange(off, off + len(cand)), v.contour, v.camera,
+                                   weights=eng.contour_weight * eng.inv_var, faces=faces,
+                                   edges=edges, max_distance=eng.contour_threshold,
+                                   name=v.name))
+        parts.append(cand)
+        off += len(cand)
     # One problem for all rounds: only targets change, so the dense rows' Gram matrix
     # is computed once.
+    copies = np.concatenate([dense, verts] + parts)
     problem = eng.problem(eng.copies_model(copies), [mesh_rows, lm_rows] + contour)
     best = (reprojection_rms(eng, joint, state), state.copy())
     history = [best[0]]
@@ -461,7 +578,7 @@ def _approach2(eng, model, state, opts):
         mesh_rows.set_targets(tps.apply(eng.world(state, dense)))
         lm_rows.set_targets(tgt)
         for rows in contour:
-            set_camera(rows, state.cameras[rows.name])
+            rows.set_camera(state.cameras[rows.name])
         fit = problem.solve(scale=state.scale, rotation=state.rotation,
                             translation=state.translation, coeffs=state.coeffs,
                             max_iterations=3, tolerance=opts.tolerance, sigma=1.0)
@@ -683,6 +800,55 @@ def _make_result(model, eng, state, opts, method, info, uncertainty=None, detail
 
 
 _OUTLINE_CACHE = {}
+_NORMAL_CACHE = {}
+
+
+def _mean_normals(model):
+    """Unit vertex normals of the mean head (area-weighted face normals), (V, 3), cached
+    per model."""
+    hit = _NORMAL_CACHE.get(id(model))
+    if hit is not None and hit[0] is model:
+        return hit[1]
+    v = model.vertices
+    tri, _, _ = model.triangles()
+    face = np.cross(v[tri[:, 1]] - v[tri[:, 0]], v[tri[:, 2]] - v[tri[:, 0]])
+    normal = np.zeros_like(v)
+    for k in range(3):
+        np.add.at(normal, tri[:, k], face)
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+    _NORMAL_CACHE.clear()
+    _NORMAL_CACHE[id(model)] = (model, normal)
+    return normal
+
+
+def _candidate_mesh(model, verts):
+    """Triangles among candidate vertices and the edges two of them share.
+
+    Returns
+    -------
+    faces : ndarray, shape (F, 3)
+        Triangles whose corners are all candidates, as indices into ``verts``.
+    edges : ndarray, shape (E, 4)
+        Edges shared by exactly two of those triangles: (a, b, face 1, face 2).
+    """
+    tri, _, _ = model.triangles()
+    local = np.full(model.n_vertices, -1, dtype=np.int64)
+    local[verts] = np.arange(len(verts))
+    faces = local[tri]
+    faces = faces[(faces >= 0).all(axis=1)]
+    # edges with their two faces: sort the 3F half-edges by their vertex pair
+    half = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    owner = np.tile(np.arange(len(faces)), 3)
+    half = np.sort(half, axis=1)
+    key = half[:, 0] * len(verts) + half[:, 1]
+    order = np.argsort(key, kind="stable")
+    key, half, owner = key[order], half[order], owner[order]
+    # exactly two faces per edge (an edge on three would be a defect; it is skipped)
+    same = np.flatnonzero(key[1:] == key[:-1])
+    two = same[(same + 2 >= len(key)) | (key[np.minimum(same + 2, len(key) - 1)] != key[same])]
+    two = two[(two == 0) | (key[np.maximum(two - 1, 0)] != key[two])]
+    edges = np.column_stack([half[two, 0], half[two, 1], owner[two], owner[two + 1]])
+    return faces, edges
 
 
 def outline_candidates(model, max_x=0.05, max_normal_x=0.4):
@@ -703,42 +869,46 @@ def outline_candidates(model, max_x=0.05, max_normal_x=0.4):
     if hit is not None and hit[0] is model:
         return hit[1]
     v = model.vertices
-    tri, _, _ = model.triangles()
-    face = np.cross(v[tri[:, 1]] - v[tri[:, 0]], v[tri[:, 2]] - v[tri[:, 0]])
-    normal = np.zeros_like(v)
-    for k in range(3):
-        np.add.at(normal, tri[:, k], face)
-    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+    normal = _mean_normals(model)
     skin = np.asarray(model.skin, dtype=np.int64)
     keep = (np.abs(v[skin, 0]) < max_x) & (np.abs(normal[skin, 0]) < max_normal_x)
     verts = np.union1d(skin[keep], np.asarray(model.profile_chain, dtype=np.int64))
-    local = np.full(model.n_vertices, -1, dtype=np.int64)
-    local[verts] = np.arange(len(verts))
-    faces = local[tri]
-    faces = faces[(faces >= 0).all(axis=1)]
-    # edges with their two faces: sort the 3F half-edges by their vertex pair
-    half = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    owner = np.tile(np.arange(len(faces)), 3)
-    half = np.sort(half, axis=1)
-    key = half[:, 0] * len(verts) + half[:, 1]
-    order = np.argsort(key, kind="stable")
-    key, half, owner = key[order], half[order], owner[order]
-    # exactly two faces per edge (an edge on three would be a defect; it is skipped)
-    same = np.flatnonzero(key[1:] == key[:-1])
-    two = same[(same + 2 >= len(key)) | (key[np.minimum(same + 2, len(key) - 1)] != key[same])]
-    two = two[(two == 0) | (key[np.maximum(two - 1, 0)] != key[two])]
-    edges = np.column_stack([half[two, 0], half[two, 1], owner[two], owner[two + 1]])
-    out = (verts, faces, edges)
+    out = (verts, *_candidate_mesh(model, verts))
     _OUTLINE_CACHE.clear()
     _OUTLINE_CACHE[id(model)] = (model, out)
     return out
 
 
+def view_outline(model, eng, state, view, max_normal=0.4):
+    """Outline candidates of a photo that is not a profile (a front or three-quarter view,
+    a second photo at any angle): skin vertices of the head at ``state`` whose (mean-head)
+    normals face across the camera's line of sight there (|n . t| < ``max_normal``, t the
+    unit vector toward the camera), with their mesh; ``ContourRows`` finds the outline
+    among them each round.
+
+    Returns
+    -------
+    (vertices (n,), faces (F, 3), edges (E, 4))
+    """
+    skin = np.asarray(model.skin, dtype=np.int64)
+    toward = np.asarray(view.camera.toward_camera(eng.world(state, skin)), dtype=np.float64)
+    normal = _mean_normals(model)[skin] @ state.rotation.T
+    verts = skin[np.abs(np.einsum("ij,ij->i", normal, toward)) < max_normal]
+    return (verts, *_candidate_mesh(model, verts))
+
+
+def _prepare_outlines(model, eng, state):
+    """Give every non-profile view with a traced outline its own outline candidates."""
+    for v in eng.views:
+        v.outline = None
+        if v.contour is not None and not v.side:
+            v.outline = view_outline(model, eng, state, v)
+
+
 def _engine(model, views, opts):
     lin = _linear_model(model, opts)
-    fix_gauge = all(v.refit and v.camera.min_refit_points > 0 for v in views)
-    return Engine(lin, views, *outline_candidates(model), opts.noise_px, opts.lambda1, opts.lambda2,
-                  opts.prior, opts.contour_weight, opts.contour_threshold_px, fix_gauge)
+    return Engine(lin, views, *outline_candidates(model), opts.noise_px, opts.lambda1,
+                  opts.lambda2, opts.prior, opts.contour_weight, opts.contour_threshold_px)
 
 
 def _rms(values):
@@ -747,7 +917,8 @@ def _rms(values):
 
 
 def _saved_state(previous, eng, views, where):
-    """The State a previous FitResult ended in (cameras of the views it had)."""
+    """The State a previous FitResult ended in (cameras of the views it had, mirror
+    planes)."""
     saved = getattr(previous, "info", {}).get("refit_state") if previous is not None else None
     if saved is None:
         raise ValueError(f"{where}: expected a FitResult from fit_head (its info has no "
@@ -761,42 +932,140 @@ def _saved_state(previous, eng, views, where):
     if missing:
         raise ValueError(f"{where}: view {missing[0]!r} was not in that fit (views: "
                          f"{', '.join(previous.cameras)})")
+    planes = {}
+    for v in views:
+        if v.mirror_of is None:
+            continue
+        p = saved.get("planes", {}).get(v.name)
+        if p is None:
+            raise ValueError(f"{where}: view {v.name!r} was not a mirror view in that fit")
+        planes[v.name] = MirrorPlane(np.asarray(p["normal"], dtype=np.float64),
+                                     float(p["offset"]))
     return State(np.asarray(previous.rotation, dtype=np.float64).copy(), coeffs.copy(),
                  {v.name: previous.cameras[v.name] for v in views}, float(previous.scale),
-                 np.asarray(previous.translation, dtype=np.float64).copy()), saved
+                 np.asarray(previous.translation, dtype=np.float64).copy(), planes), saved
+
+
+def _previous_cameras(previous, where):
+    cams = getattr(previous, "cameras", None)
+    if not isinstance(cams, dict) or "refit_state" not in getattr(previous, "info", {}):
+        raise ValueError(f"{where}: expected a FitResult from fit_head (its info has no "
+                         "'refit_state')")
+    return cams
+
+
+def _mirror_info(eng, state, opts):
+    """Per mirror view: the plane, and each landmark seen directly and in the mirror
+    triangulated from both rays (seed 001 eq. 3.5-3.7) with the gap between them: in
+    metres and in pixels at the landmark's depth (gap * f / depth). A gap that stands out
+    (``flag_residuals`` with the options' sigmas and pixel floor) means a landmark placed
+    on different points in the two images. Returns (info, warnings)."""
+    from .mirror import triangulate_mirror
+
+    out, warnings = {}, []
+    for m in eng.views:
+        if m.mirror_of is None:
+            continue
+        r = eng.view(m.mirror_of)
+        plane = state.planes[m.name]
+        real = as_dlt(state.cameras[r.name])
+        direct = {n: i for i, n in enumerate(r.names)}
+        pairs = [(n, direct[n], j) for j, n in enumerate(m.names) if n in direct]
+        names = [p[0] for p in pairs]
+        d_px = r.pixels[[p[1] for p in pairs]]
+        m_px = m.pixels[[p[2] for p in pairs]]
+        mid, gaps = triangulate_mirror(real, plane, d_px, m_px)
+        k = real.decompose()[0]
+        depth = np.maximum(np.abs(real.depth(mid)), 1e-9)
+        gap_px = gaps * float(np.sqrt(k[0, 0] * k[1, 1])) / depth
+        flags = flag_residuals({"gaps": gap_px}, opts.flag_sigmas, opts.flag_min_px)["gaps"]
+        flagged = [n for n, f in zip(names, flags, strict=True) if f]
+        out[m.name] = {
+            "mirror_of": r.name, "normal": plane.normal.copy(), "offset_m": plane.offset,
+            "point_m": plane.point,
+            "ray_gap_mm": {n: 1000.0 * float(g) for n, g in zip(names, gaps, strict=True)},
+            "ray_gap_px": {n: float(g) for n, g in zip(names, gap_px, strict=True)},
+            "flagged": flagged}
+        if flagged:
+            worst = ", ".join(f"{n} ({out[m.name]['ray_gap_px'][n]:.1f} px)" for n in flagged)
+            warnings.append(f"view {m.name!r} (mirror of {r.name!r}): the direct and the "
+                            f"mirrored ray of {worst} miss each other; check where these "
+                            "landmarks are placed in both images")
+    return out, warnings
+
+
+def _projection_info(model, result, eng, opts):
+    """Seed 001 ch. 2: the parallel-projection error epsilon of every photo for the fitted
+    head (its skin). Perspective cameras are always reported; an orthographic photo only
+    when ``camera_distance_m`` is given, with a warning when its epsilon exceeds what the
+    landmarks can tell (reading error 2 noise_px over the head's image size). Returns
+    (info, warnings)."""
+    from .projection_check import check_orthographic, check_projection
+
+    pts = result.world_vertices[np.asarray(model.skin, dtype=np.int64)]
+    out, warnings = {}, []
+    reading = 2.0 * opts.noise_px
+    for v in eng.views:
+        cam = result.cameras[v.name]
+        try:
+            if is_perspective(cam):
+                chk = check_projection(cam, pts, reading_error_px=reading, view=v.name)
+            elif isinstance(cam, OrthographicCamera) and opts.camera_distance_m is not None:
+                chk = check_orthographic(cam, pts, opts.camera_distance_m,
+                                         reading_error_px=reading, view=v.name)
+                if chk.exceeds:
+                    warnings.append(chk.message)
+            else:
+                continue
+        except ValueError as e:  # e.g. a head point behind the camera: say so, go on
+            warnings.append(str(e))
+            continue
+        out[v.name] = {"epsilon": chk.epsilon, "epsilon_max": chk.epsilon_max,
+                       "distance_m": chk.distance, "depth_extent_m": chk.depth_extent,
+                       "min_distance_m": chk.min_distance, "exceeds": chk.exceeds,
+                       "perspective": is_perspective(cam)}
+    return out, warnings
 
 
 def fit_head(model, case, options=None, initial=None):
-    """Fit the head model to the landmarks (and profile contour) of a case.
+    """Fit the head model to the landmarks (and contours) of a case.
 
     Parameters
     ----------
     model : HeadModel
     case : LandmarkCase
-        Views with landmarks in pixels; profile views may carry a traced contour.
+        Views with landmarks in pixels (any number, any angle; orthographic, DLT or
+        pinhole cameras, given, calibrated or to be computed; mirror views); any view may
+        carry a traced contour.
     options : FitOptions, optional
     initial : FitResult, optional
-        Start from this fit's cameras, pose and coefficients (same views and model sizes)
-        instead of the mean head; the profile stage is then skipped.
+        Start from this fit's cameras, pose, mirror planes and coefficients (same views and
+        model sizes) instead of the mean head; the profile stage is then skipped.
 
     Returns
     -------
     FitResult
         ``info`` holds: "approach" (the one used), "candidates" (each approach's RMS
-        reprojection error in pixels and prior), "iterations" and "errors" per stage,
-        "timings" (seconds), "rms_px" per view and "contour_rms_px", and "refit_state"
-        (what :func:`refit_landmarks` continues from).
+        reprojection error in pixels and prior), "iterations" and "errors" per stage
+        ("calibration_rounds": re-calibrations of self-calibrated cameras in approach 1),
+        "timings" (seconds), "rms_px" per view and "contour_rms_px", "projection" (per
+        photo the parallel-projection error epsilon, see :func:`_projection_info`),
+        "mirror" (per mirror view the plane and the landmarks' ray gaps), "warnings"
+        (messages for the user) and "refit_state" (what :func:`refit_landmarks`
+        continues from).
 
     Raises
     ------
     ValueError
         Bad options, a view with an unknown camera kind or too few landmarks (naming the
-        view and how many more it needs), unknown landmark names, an unusable ``initial``.
+        view and how many more it needs), unknown landmark names, a mirror view that
+        cannot be placed, an unusable ``initial``.
     """
     t0 = time.perf_counter()
     opts = _check_options(options, model)
     progress = _Progress(opts.progress)
-    views = _prepare_views(model, case, opts)
+    cams = None if initial is None else _previous_cameras(initial, "initial")
+    views = _prepare_views(model, case, opts, cameras=cams)
     eng = _engine(model, views, opts)
     timings = {}
     info_p = {}
@@ -805,13 +1074,16 @@ def fit_head(model, case, options=None, initial=None):
         progress(0.0, "placing the cameras")
         _init_pose(eng, state)
         eng.init_cameras(state)
+        eng.finish_views(state)
+        _prepare_outlines(model, eng, state)
         progress(0.05, "fitting the profile")
         t = time.perf_counter()
         state_p, info_p = _profile_fit(eng, state, opts)
         timings["profile"] = time.perf_counter() - t
     else:
         state_p, _ = _saved_state(initial, eng, views, "initial")
-        eng.use(state_p)
+        eng.finish_views(state_p)
+        _prepare_outlines(model, eng, state_p)
     candidates = {}
     if opts.method in ("approach1", "combined"):
         progress(0.35, "approach 1: landmark ICP")
@@ -849,12 +1121,24 @@ def fit_head(model, case, options=None, initial=None):
         "refit_state": {
             "coeffs": state.coeffs.copy(), "n_identity": int(opts.n_identity),
             "n_regional": int(opts.n_regional),
+            "planes": {n: {"normal": p.normal.copy(), "offset": p.offset}
+                       for n, p in state.planes.items()},
             "contour": {n: {"vertices": np.concatenate([p[0] for p in lst]),
                             "pixels": np.vstack([p[1] for p in lst])}
                         for n, lst in pairs.items()}},
     }
+    if "approach1" in candidates and "calibration_rounds" in candidates["approach1"][1]:
+        info["iterations"]["calibration_rounds"] = \
+            candidates["approach1"][1]["calibration_rounds"]
     result = _make_result(model, eng, state, opts, opts.method, info, uncertainty=unc)
     info["rms_px"] = {n: _rms(r.pixels) for n, r in result.residuals.items()}
+    warnings = []
+    info["projection"], more = _projection_info(model, result, eng, opts)
+    warnings += more
+    if state.planes:
+        info["mirror"], more = _mirror_info(eng, state, opts)
+        warnings += more
+    info["warnings"] = warnings
     timings["result"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
     info["timings"] = timings
@@ -898,7 +1182,7 @@ def refit_landmarks(model, case, previous, options=None):
     opts = _check_options(options, model)
     opts = FitOptions(**{**opts.__dict__, "n_identity": int(saved["n_identity"]),
                          "n_regional": int(saved["n_regional"]), "method": previous.method})
-    views = _prepare_views(model, case, opts)
+    views = _prepare_views(model, case, opts, cameras=_previous_cameras(previous, "previous"))
     eng = _engine(model, views, opts)
     state, saved = _saved_state(previous, eng, views, "previous")
     eng.use(state)
@@ -927,7 +1211,8 @@ def refit_landmarks(model, case, previous, options=None):
                         max_iterations=1, tolerance=0.0, sigma=1.0)
     state.coeffs = fit.coeffs.copy()
     info = {"approach": previous.info.get("approach", previous.method), "refit": True,
-            "refit_state": {**saved, "coeffs": state.coeffs.copy()}}
+            "refit_state": {**saved, "coeffs": state.coeffs.copy()},
+            "warnings": list(previous.info.get("warnings", []))}
     result = _make_result(model, eng, state, opts, previous.method, info,
                           uncertainty=np.asarray(previous.uncertainty).copy(),
                           detail=np.asarray(previous.detail).copy())

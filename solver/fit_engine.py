@@ -1,16 +1,26 @@
 """The machinery the fit's stages share: the views of a case as arrays, the rows they give
 the shape-ICP, and the joint solve of head and cameras.
 
-Each photo has its own camera (an orthographic photo: scale, in-plane rotation, offset);
-its free parameters are its own business (``Camera.refit``), so a perspective or DLT
-camera plugs in without the fit knowing its parametrisation. The head's pose and shape are
-solved by the shape-ICP (``solver/shape_icp.py``) together with a linearised image-plane
-similarity of every camera (:class:`Joint`); after every step each camera is refitted to
-what the step predicted.
+Each photo has its own camera; its free parameters enter the joint Gauss-Newton step as
+extra modes of the shape-ICP (:class:`Joint`), one block per camera:
 
-Gauge: orthographic photos cannot tell how large or where the head is, only how it looks;
-when every camera is refitted the head's scale stays 1 and its translation 0 and the
-cameras absorb both (the identity modes carry the head's size).
+- orthographic (and any kind the fit does not know): the 2-D similarity of the photo
+  (shift, in-plane rotation, scale), moved exactly by ``Camera.refit`` after each step;
+- pinhole (``solver/pinhole.py``): its own parameters (rotation, centre, log focal
+  length), moved exactly; a focal prior (EXIF) enters the step as the prior of its mode;
+- DLT: the 11 directions of its projection matrix, refitted after each step;
+- a mirror view (one camera and a flat mirror, seed 001 ch. 3): no camera of its own. It
+  is the real camera reflected in the mirror plane (:func:`mirror_camera`), so its rows
+  move with the real camera's parameters and with three of the plane's (the tilt of its
+  normal, its offset).
+
+Gauge (:meth:`Engine.gauge`): photos whose cameras are all free cannot tell how large the
+head is or where it is, only how it looks; then the head's scale stays 1 and its
+translation 0, and the cameras absorb both (the identity modes carry the head's size).
+When every free camera is perspective the head's rotation is kept too: the world is the
+head's frame and the cameras stand around it. One calibrated perspective camera (alone or
+with a mirror) cannot tell the head's size from its distance either: the head's scale
+stays 1 (the model's size), which also fixes the mirror's distance.
 """
 
 from dataclasses import dataclass, field, replace
@@ -18,9 +28,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .cameras import Camera
+from .cameras import Camera, OrthographicCamera
+from .dlt import DLTCamera
 from .linear_model import LinearModel
-from .shape_icp import ImageRows, Rows, ShapeProblem, _General
+from .mirror import MirrorPlane, estimate_mirror
+from .pinhole import FREE_FOCAL_POINTS, PinholeCamera
+from .shape_icp import CameraRows, ImageRows, ScalarRows, ShapeProblem, rotation_from_vector, skew
 
 #: The fit refuses a view with fewer landmarks than this (its camera needs 2 for a 2-D
 #: similarity, one more to say anything about the head).
@@ -53,13 +66,21 @@ class ViewData:
     side : bool
         The camera looks along the head's left-right axis (a profile photo).
     contour : ndarray, shape (m, 2) or None
-        The traced outline densified to about one point per pixel (side views only).
+        The traced outline densified to about one point per pixel.
     refit : bool
-        Whether the fit may change this camera.
+        Whether the fit may change this camera (False for a mirror view: its camera
+        follows the real camera and the mirror plane).
+    mirror_of : str or None
+        The view whose camera, reflected in a mirror plane the fit estimates, is this
+        view's camera (None: an ordinary view, or a mirror view whose camera is given and
+        kept).
+    outline : (ndarray, ndarray, ndarray) or None
+        Candidate outline vertices of this view's contour and their mesh (see
+        ContourRows); None: the engine's profile candidates.
     """
 
     name: str
-    camera: Camera
+    camera: Camera | None
     names: list
     vertices: np.ndarray
     pixels: np.ndarray
@@ -67,27 +88,249 @@ class ViewData:
     side: bool
     contour: np.ndarray | None = None
     refit: bool = True
+    mirror_of: str | None = None
+    outline: tuple | None = None
 
 
 @dataclass
 class State:
-    """Head pose, coefficients and cameras: ``world = scale * R (mean + B c) + t``."""
+    """Head pose, coefficients, cameras and mirror planes (view name -> MirrorPlane of the
+    mirror views): ``world = scale * R (mean + B c) + t``."""
 
     rotation: np.ndarray
     coeffs: np.ndarray
     cameras: dict
     scale: float = 1.0
     translation: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    planes: dict = field(default_factory=dict)
 
     def copy(self):
         return replace(self, rotation=self.rotation.copy(), coeffs=self.coeffs.copy(),
-                       cameras=dict(self.cameras), translation=self.translation.copy())
+                       cameras=dict(self.cameras), translation=self.translation.copy(),
+                       planes=dict(self.planes))
 
 
-def is_side_camera(camera):
-    """True when the camera looks along the world x axis (the head's left-right axis)."""
-    d = np.asarray(camera.toward_camera(np.zeros((1, 3))), dtype=np.float64).reshape(3)
+def is_side_camera(camera, at=None):
+    """True when the camera looks along the world x axis (the head's left-right axis) at
+    the point ``at`` (3,) (default the origin)."""
+    p = np.zeros((1, 3)) if at is None else np.asarray(at, dtype=np.float64).reshape(1, 3)
+    d = np.asarray(camera.toward_camera(p), dtype=np.float64).reshape(3)
     return abs(d[0]) > 0.7 * np.linalg.norm(d)
+
+
+def is_perspective(camera):
+    """True for a central projection (pinhole, DLT): rays through one centre."""
+    return isinstance(camera, PinholeCamera | DLTCamera)
+
+
+def mirror_camera(camera, plane):
+    """The camera of a mirror view: ``camera`` reflected in ``plane`` (seed 001 eq. 3.11-
+    3.13), which maps a physical point to where its mirror image appears in the photo.
+
+    Parameters
+    ----------
+    camera : PinholeCamera or DLTCamera
+        The real camera.
+    plane : MirrorPlane
+
+    Returns
+    -------
+    PinholeCamera or DLTCamera
+        Same kind and intrinsics; rotation R M (determinant -1), centre reflected.
+    """
+    if isinstance(camera, PinholeCamera):
+        centre = plane.reflect_points(camera.centre[None, :])[0]
+        return camera.replaced(rotation=camera.rotation @ plane.matrix, centre=centre)
+    if isinstance(camera, DLTCamera):
+        return camera.transformed(plane.homogeneous)
+    raise ValueError(f"a mirror view needs a perspective (pinhole or DLT) camera, got "
+                     f"{type(camera).__name__}: a parallel projection cannot place a mirror")
+
+
+def as_dlt(camera):
+    """A DLTCamera for ``camera`` (a pinhole camera converted; a lens term the DLT cannot
+    match is dropped)."""
+    if isinstance(camera, DLTCamera):
+        return camera
+    if isinstance(camera, PinholeCamera):
+        try:
+            return camera.to_dlt()
+        except ValueError:
+            return camera.replaced(k1=0.0).to_dlt()
+    raise ValueError(f"expected a perspective camera, got {type(camera).__name__}")
+
+
+# ----------------------------------------------------------------------------- camera modes
+# Pixel fields: how the projections of points move per unit of a camera's (or a mirror
+# plane's) parameter, shape (P, n, 2). The joint step lifts them into extra shape modes.
+
+
+def _plane_axes(normal):
+    """Two unit vectors completing ``normal`` to an orthonormal frame."""
+    a = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(normal, a)
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(normal, e1)
+
+
+def plane_fields(real, plane, points):
+    """Pixel fields (3, n, 2) of the mirror images of ``points`` (n, 3) seen by ``real``,
+    per unit tilt of the plane's normal along its two axes (radians) and per metre of its
+    offset (see :func:`moved_plane`)."""
+    x = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    n = plane.normal
+    e1, e2 = _plane_axes(n)
+    dist = x @ n - plane.offset
+    jac = np.asarray(real.jacobian(plane.reflect_points(x)), dtype=np.float64)
+    d = np.empty((3, len(x), 3))  # d(reflected point) / d(parameter)
+    for j, e in enumerate((e1, e2)):
+        d[j] = -2.0 * ((x @ e)[:, None] * n + dist[:, None] * e)
+    d[2] = 2.0 * n
+    return np.einsum("kij,pkj->pki", jac.reshape(len(x), 2, 3), d)
+
+
+def moved_plane(plane, step):
+    """The plane moved by ``step`` (3,): normal tilted by step[0] along the first axis of
+    :func:`_plane_axes` and step[1] along the second, offset + step[2] metres."""
+    n = plane.normal
+    e1, e2 = _plane_axes(n)
+    m = n + step[0] * e1 + step[1] * e2
+    return MirrorPlane(m / np.linalg.norm(m), float(plane.offset + step[2]))
+
+
+def pinhole_fields(camera, points, focal=True):
+    """Pixel fields (6 or 7, n, 2) of a PinholeCamera's parameters at world points (n, 3):
+    a rotation increment in the camera frame (``R <- rot(w) R``, radians, 3), the centre
+    (metres, 3) and, with ``focal``, the log focal length (k1 included)."""
+    x = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    rot = camera.rotation
+    xc = (x - camera.centre) @ rot.T
+    z = xc[:, 2]
+    p = xc[:, :2] / z[:, None]
+    dp = np.zeros((len(x), 2, 3))  # d p / d x_c
+    dp[:, 0, 0] = 1.0 / z
+    dp[:, 1, 1] = 1.0 / z
+    dp[:, :, 2] = -p / z[:, None]
+    f, k1 = camera.focal_px, camera.k1
+    rho2 = (p * p).sum(axis=1)
+    if k1 == 0.0:
+        g = f * dp
+    else:
+        dd = (2.0 * f * k1) * p[:, :, None] * p[:, None, :]
+        dd[:, 0, 0] += f * (1.0 + k1 * rho2)
+        dd[:, 1, 1] += f * (1.0 + k1 * rho2)
+        g = np.einsum("nij,njk->nik", dd, dp)
+    by_rot = -np.einsum("nij,njk->nik", g, skew(xc))  # x_c += w x x_c
+    by_centre = -g @ rot
+    out = [by_rot[:, :, i] for i in range(3)] + [by_centre[:, :, i] for i in range(3)]
+    if focal:
+        out.append(f * p * (1.0 + k1 * rho2)[:, None])
+    return np.stack(out)
+
+
+def moved_pinhole(camera, step):
+    """The camera moved by ``step`` (6 or 7,) in the order of :func:`pinhole_fields`; the
+    focal length is kept inside ``focal_range_mm``."""
+    f = camera.focal_px
+    if len(step) > 6:
+        f = f * float(np.exp(np.clip(step[6], -1.0, 1.0)))
+        if camera.focal_range_mm is not None:
+            ppm = camera.px_per_mm(camera.size)
+            f = float(np.clip(f, camera.focal_range_mm[0] * ppm, camera.focal_range_mm[1] * ppm))
+    return camera.replaced(focal_px=f, rotation=rotation_from_vector(step[:3]) @ camera.rotation,
+                           centre=camera.centre + step[3:6])
+
+
+def dlt_fields(camera, points):
+    """Pixel fields (12, n, 2) of the 12 entries of a DLT matrix (lens terms left out)."""
+    x = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    pm = camera.matrix
+    xt = np.column_stack([x, np.ones(len(x))])
+    h = xt @ pm.T
+    w = h[:, 2]
+    q = h[:, :2] / w[:, None]
+    out = np.zeros((12, len(x), 2))
+    for j in range(4):
+        a = xt[:, j] / w
+        out[j, :, 0] = a
+        out[4 + j, :, 1] = a
+        out[8 + j] = -q * a[:, None]
+    return out
+
+
+def similarity_fields(camera, points, centre_points):
+    """Pixel fields (4, n, 2) of a 2-D similarity of the photo: shifts in u and v, and a
+    rotation and a scaling about the projection of ``centre_points``' mean (both
+    normalised to one pixel at their RMS radius)."""
+    p = camera.project(points)
+    d = p - camera.project(centre_points).mean(axis=0)
+    radius = max(float(np.sqrt((d * d).sum(1).mean())), 1e-9)
+    fields = np.zeros((4, len(p), 2))
+    fields[0, :, 0] = 1.0
+    fields[1, :, 1] = 1.0
+    fields[2] = np.stack([-d[:, 1], d[:, 0]], axis=1) / radius
+    fields[3] = d / radius
+    return fields
+
+
+def focal_prior(camera, n_points):
+    """(log f0 in pixels, relative sigma) of a pinhole camera whose focal length is free in
+    the fit (``free_focal`` and at least FREE_FOCAL_POINTS points) and has a prior, else
+    None."""
+    if not isinstance(camera, PinholeCamera) or not focal_free(camera, n_points) \
+            or camera.focal_prior is None:
+        return None
+    mm, sigma = camera.focal_prior
+    return float(np.log(mm * camera.px_per_mm(camera.size))), float(sigma)
+
+
+def focal_free(camera, n_points):
+    """Whether the fit moves a pinhole camera's focal length (as ``PinholeCamera.refit``
+    does: ``free_focal`` and enough points)."""
+    return bool(camera.free_focal) and n_points >= FREE_FOCAL_POINTS
+
+
+def refit_plane(real, plane, points, pixels, weights, iterations=10):
+    """The mirror plane that best maps ``points`` (n, 3) onto ``pixels`` (n, 2) through the
+    real camera, from ``plane`` (Gauss-Newton on the tilt and offset, weighted squared
+    pixels; a step that does not lower the cost is halved).
+
+    Returns
+    -------
+    MirrorPlane
+    """
+    x = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    q = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+    w = np.asarray(weights, dtype=np.float64).reshape(-1)
+    if np.count_nonzero(w) < 2:
+        return plane
+
+    def cost(pl):
+        r = q - real.project(pl.reflect_points(x))
+        return float(w @ (r * r).sum(axis=1)), r
+
+    c0, r = cost(plane)
+    for _ in range(iterations):
+        jac = plane_fields(real, plane, x)  # (3, n, 2)
+        a = np.einsum("pni,qni,n->pq", jac, jac, w)
+        b = np.einsum("pni,ni,n->p", jac, r, w)
+        try:
+            step = np.linalg.solve(a + 1e-12 * np.trace(a) * np.eye(3), b)
+        except np.linalg.LinAlgError:
+            break
+        for _ in range(6):
+            cand = moved_plane(plane, step)
+            c1, r1 = cost(cand)
+            if c1 < c0:
+                break
+            step = 0.5 * step
+        else:
+            break
+        done = c0 - c1 <= 1e-10 * c0
+        plane, c0, r = cand, c1, r1
+        if done:
+            break
+    return plane
 
 
 def densify(polyline, step=1.0):
@@ -116,15 +359,7 @@ def _slice_cache(lin):
     return hit[1]
 
 
-def set_camera(rows, camera):
-    """Point image rows at a (refitted) camera. The version bump tells the shape-ICP that a
-    system it cached for these rows is stale."""
-    if rows.camera is not camera:
-        rows.camera = camera
-        rows._version = getattr(rows, "_version", 0) + 1
-
-
-class ContourRows(Rows):
+class ContourRows(CameraRows):
     """Profile-line rows (thesis §4.4.1): the model's outline in a photo pulled onto the
     traced outline.
 
@@ -256,10 +491,10 @@ class ContourRows(Rows):
         w = np.full(len(sel), self.weight)
         sq = float(w @ r**2)
         if not jacobian:
-            return _General(None, None, None, None, sq, float(w.sum()), len(sel))
+            return ScalarRows(None, None, None, None, sq, float(w.sum()), len(sel))
         jac = np.asarray(self.camera.jacobian(x), dtype=np.float64).reshape(len(sel), 2, 3)
         g = np.einsum("ij,ijk->ik", n, jac)  # d(n . P(x)) / dx
-        return _General(sel, g, r, w, sq, float(w.sum()), len(sel))
+        return ScalarRows(sel, g, r, w, sq, float(w.sum()), len(sel))
 
     def residuals(self, world):
         """Signed pixel distances across the outline of the current rows, (k,)."""
@@ -346,7 +581,7 @@ class Engine:
     views : list of ViewData
     outline, outline_faces, outline_edges : ndarray
         Candidate vertices of the head's outline in a profile photo and their mesh (see
-        ContourRows).
+        ContourRows); a view with its own ``outline`` uses that instead.
     noise_px : float
         Landmark noise the weights assume (rows are weighted 1 / noise^2, so lambda2 = 1 is
         the Bayesian prior for standard-normal coefficients).
@@ -356,12 +591,10 @@ class Engine:
     contour_weight : float
     contour_threshold : float
         Largest pixel distance of a contour correspondence.
-    fix_gauge : bool
-        Keep the head's scale 1 and translation 0 (every camera is refitted).
     """
 
     def __init__(self, lin, views, outline, outline_faces, outline_edges, noise_px, lambda1,
-                 lambda2, prior, contour_weight, contour_threshold, fix_gauge):
+                 lambda2, prior, contour_weight, contour_threshold):
         self.lin = lin
         self.views = views
         self.outline = np.asarray(outline, dtype=np.int64)
@@ -379,7 +612,8 @@ class Engine:
             self.lambda2 = lambda2
         self.contour_weight = contour_weight
         self.contour_threshold = contour_threshold
-        self.fix_gauge = fix_gauge
+        self._by_name = {v.name: v for v in views}
+        self.fixed_similarity = self.gauge(views)
         self._slices = _slice_cache(lin)
         # Gamma enters the cost only as Gamma^T Gamma: a factor with one row per
         # coefficient gives the same cost for far fewer rows than three per border vertex.
@@ -392,6 +626,50 @@ class Engine:
                 keep = evals > 1e-12 * max(float(evals[-1]), 1e-300)
                 self.gamma = np.sqrt(evals[keep])[:, None] * evecs[:, keep].T
                 self._slices["gamma"] = self.gamma
+
+    # ------------------------------------------------------------------ views
+
+    def view(self, name):
+        """The ViewData called ``name``."""
+        return self._by_name[name]
+
+    def real_view(self, view):
+        """The view whose camera ``view``'s camera is (itself unless a mirror view)."""
+        return self._by_name[view.mirror_of] if view.mirror_of is not None else view
+
+    def camera_moves(self, view):
+        """Whether the fit moves the camera of ``view`` (a mirror view's: its real one)."""
+        real = self.real_view(view)
+        return bool(real.refit and real.camera is not None
+                    and real.camera.min_refit_points > 0)
+
+    def mirrors_of(self, view):
+        """The mirror views whose camera is ``view``'s camera reflected."""
+        return [u for u in self.views if u.mirror_of == view.name]
+
+    def gauge(self, views):
+        """The head's similarity parameters the views cannot determine, to keep fixed:
+
+        - every camera free: ("scale", "translation"), plus "rotation" when every camera is
+          perspective (an orthographic camera keeps its viewing direction, which fixes the
+          head's turn; free perspective cameras turn with the head);
+        - a calibrated orthographic camera, or two calibrated perspective ones, measure
+          the head: nothing;
+        - else (one calibrated perspective camera, with or without a mirror): ("scale",):
+          size and distance trade off along the rays; the model's size decides.
+        """
+        views = list(views)
+        fixed = [v for v in views if not self.camera_moves(v)]
+        if not fixed:
+            out = ("scale", "translation")
+            if views and all(is_perspective(self.real_view(v).camera) for v in views):
+                out += ("rotation",)
+            return out
+        if any(not is_perspective(self.real_view(v).camera) for v in fixed):
+            return ()
+        if sum(1 for v in fixed if v.mirror_of is None) >= 2:
+            return ()
+        return ("scale",)
 
     # ------------------------------------------------------------------ geometry
 
@@ -437,12 +715,11 @@ class Engine:
         return LinearModel(mean, basis, self.lin.stddev, self.lin.names, self.gamma)
 
     def problem(self, lin, rows, freeze=(), gauge=None):
-        """A ShapeProblem with the fit's priors; ``gauge`` (default: the engine's) says
-        whether the head's scale and translation are frozen."""
-        fix = self.fix_gauge if gauge is None else gauge
-        sim = ("scale", "translation") if fix else ()
+        """A ShapeProblem with the fit's priors; ``gauge`` (default: the engine's, see
+        :meth:`gauge`) are the head's similarity parameters kept fixed besides ``freeze``."""
+        fix = self.fixed_similarity if gauge is None else tuple(gauge)
         return ShapeProblem(lin, rows, lambda1=self.lambda1, lambda2=self.lambda2,
-                            prior=self.prior, freeze=tuple(freeze) + sim)
+                            prior=self.prior, freeze=tuple(freeze) + fix)
 
     def prior_cost(self, coeffs):
         """lambda2^2 |Lambda c|^2 + lambda1^2 |Gamma c|^2 as the shape-ICP counts it."""
@@ -456,6 +733,28 @@ class Engine:
             cost += self.lambda1**2 * float(gc @ gc)
         return cost
 
+    def camera_prior_cost(self, state, views=None):
+        """The focal-length priors of the free pinhole cameras (of ``views``' real cameras,
+        default all): sum of ((log f - log f0) / sigma)^2, the cost ``PinholeCamera.refit``
+        adds for points weighted as inverse pixel variances."""
+        total = 0.0
+        seen = set()
+        for v in self.views if views is None else views:
+            real = self.real_view(v)
+            if real.name in seen or not self.camera_moves(real) or self.lambda2 <= 0:
+                continue
+            seen.add(real.name)
+            cam = state.cameras[real.name]
+            prior = focal_prior(cam, self.landmark_count(real))
+            if prior is not None:
+                total += ((np.log(cam.focal_px) - prior[0]) / prior[1]) ** 2
+        return float(total)
+
+    def landmark_count(self, view):
+        """Weighted landmarks a real camera is seen through: its own and its mirror
+        views'."""
+        return int(sum(np.count_nonzero(u.weights) for u in [view] + self.mirrors_of(view)))
+
     # ------------------------------------------------------------------ cameras
 
     def use(self, state):
@@ -463,40 +762,130 @@ class Engine:
         for v in self.views:
             v.camera = state.cameras[v.name]
 
+    def finish_views(self, state):
+        """After the cameras are placed: which views look along the head's left-right axis
+        (at the head's landmarks)."""
+        self.use(state)
+        verts = np.concatenate([v.vertices for v in self.views])
+        centre = self.world(state, verts).mean(axis=0)
+        axis = state.rotation[:, 0]
+        for v in self.views:
+            d = np.asarray(v.camera.toward_camera(centre[None, :]), dtype=np.float64)[0]
+            v.side = bool(abs(d @ axis) > 0.7 * np.linalg.norm(d))
+
+    def _camera_points(self, state, view, extra):
+        """(world points, pixels, weights) a real camera is refitted to: its landmarks,
+        ``extra`` pairs, and its mirror views' landmarks and pairs with the points
+        reflected in their planes (the real camera sees the reflection where the mirror
+        image is)."""
+        pts, px, w = [], [], []
+        for u in [view] + self.mirrors_of(view):
+            x = [self.world(state, u.vertices)]
+            q, ww = [u.pixels], [u.weights]
+            for ev, ep, ew in extra.get(u.name, ()):
+                x.append(self.world(state, ev))
+                q.append(ep)
+                ww.append(ew)
+            x = np.concatenate(x)
+            if u is not view:
+                x = state.planes[u.name].reflect_points(x)
+            pts.append(x)
+            px.append(np.vstack(q))
+            w.append(np.concatenate(ww))
+        return np.concatenate(pts), np.vstack(px), self.inv_var * np.concatenate(w)
+
     def refit_cameras(self, state, extra=None, views=None):
-        """Every refittable camera (of ``views``, default all) refitted to the head of
+        """Every free camera (of ``views``, default all) refitted to the head of
         ``state``: its landmarks plus ``extra[view name]`` = list of (model vertices,
-        pixels, weights) (e.g. contour correspondences). Updates ``state.cameras`` and the
-        views."""
+        pixels, weights) (e.g. contour correspondences), with weights read as inverse
+        pixel variances (times 1 / noise^2) so a pinhole camera's focal prior weighs as it
+        should. A real camera also fits its mirror views' points; then each mirror plane
+        is refitted with its real camera kept. Updates ``state.cameras`` (and
+        ``state.planes``) and the views."""
         extra = extra or {}
-        for v in self.views if views is None else views:
-            if not v.refit:
+        todo = list(self.views if views is None else views)
+        names = {v.name for v in todo}
+        for v in todo:
+            if not v.refit or v.mirror_of is not None:
                 continue
-            verts, px, w = [v.vertices], [v.pixels], [v.weights]
-            for ev, ep, ew in extra.get(v.name, ()):
-                verts.append(ev)
-                px.append(ep)
+            x, q, w = self._camera_points(state, v, extra)
+            state.cameras[v.name] = v.camera.refit(x, q, w)
+            names.update(u.name for u in self.mirrors_of(v))
+        for u in self.views:
+            if u.mirror_of is None or u.name not in names:
+                continue
+            real = state.cameras[u.mirror_of]
+            x, q, w = [self.world(state, u.vertices)], [u.pixels], [u.weights]
+            for ev, ep, ew in extra.get(u.name, ()):
+                x.append(self.world(state, ev))
+                q.append(ep)
                 w.append(ew)
-            verts = np.concatenate(verts)
-            state.cameras[v.name] = v.camera.refit(self.world(state, verts), np.vstack(px),
-                                                   np.concatenate(w))
+            plane = refit_plane(real, state.planes[u.name], np.concatenate(x), np.vstack(q),
+                                np.concatenate(w))
+            state.planes[u.name] = plane
+            state.cameras[u.name] = mirror_camera(real, plane)
         self.use(state)
 
     def init_cameras(self, state, robust_steps=4):
-        """Start each refittable camera from the head of ``state`` (the mean head):
-        Procrustes of the landmark vertices' projections to the placed points, reweighted
-        robustly (Cauchy) so one misplaced landmark does not tilt the start."""
+        """Start each free camera from the head of ``state`` (the mean head): fitted to the
+        landmark vertices' placed pixels, reweighted robustly (Cauchy) so one misplaced
+        landmark does not tilt the start. Then each mirror view's plane from the landmarks
+        seen both directly and in the mirror (:meth:`initial_plane`)."""
         for v in self.views:
-            if not v.refit:
+            if not v.refit or v.mirror_of is not None:
                 continue
             x = self.world(state, v.vertices)
-            cam = v.camera.refit(x, v.pixels, v.weights)
+            w = self.inv_var * v.weights
+            cam = v.camera.refit(x, v.pixels, w)
             for _ in range(robust_steps):
                 r = np.linalg.norm(cam.project(x) - v.pixels, axis=1)
                 c = max(2.0 * float(np.median(r)), 1e-6)
-                cam = v.camera.refit(x, v.pixels, v.weights / (1.0 + (r / c) ** 2))
+                cam = v.camera.refit(x, v.pixels, w / (1.0 + (r / c) ** 2))
             state.cameras[v.name] = cam
+        for v in self.views:
+            if v.mirror_of is not None:
+                state.planes[v.name] = self.initial_plane(state, v)
+                state.cameras[v.name] = mirror_camera(state.cameras[v.mirror_of],
+                                                      state.planes[v.name])
         self.use(state)
+
+    def initial_plane(self, state, view):
+        """A mirror view's plane from its real camera (seed 001 §3.2.2,
+        ``solver.mirror.estimate_mirror``): the normal from the viewing rays of the
+        landmarks seen both directly and in the mirror (the file names both by the
+        subject's true side, so pairs match by name), the distance from a length on the
+        current head: the two paired landmarks farthest apart.
+
+        Raises
+        ------
+        ValueError
+            Fewer than 2 landmarks in both views, a real camera that is not perspective,
+            or pairs that do not fix the normal (names the view).
+        """
+        real_view = self.view(view.mirror_of)
+        where = f"view {view.name!r} (mirror of {real_view.name!r})"
+        real = state.cameras[real_view.name]
+        if not is_perspective(real):
+            raise ValueError(f"{where}: the mirror needs a perspective camera in "
+                             f"{real_view.name!r} (pinhole or DLT), got {real.kind}")
+        direct = {n: i for i, n in enumerate(real_view.names) if real_view.weights[i] > 0}
+        common = [(direct[n], j) for j, n in enumerate(view.names)
+                  if n in direct and view.weights[j] > 0]
+        if len(common) < 2:
+            raise ValueError(f"{where}: {len(common)} landmark(s) seen both directly and in "
+                             "the mirror; the mirror's plane needs at least 2")
+        i_d = np.array([a for a, _ in common])
+        i_m = np.array([b for _, b in common])
+        x = self.world(state, real_view.vertices[i_d])
+        d = np.linalg.norm(x[:, None] - x[None], axis=2)
+        a, b = np.unravel_index(int(np.argmax(d)), d.shape)
+        names = [real_view.names[i] for i in i_d]
+        try:
+            fit = estimate_mirror(as_dlt(real), real_view.pixels[i_d], view.pixels[i_m],
+                                  names, known_length=(names[a], names[b], float(d[a, b])))
+        except ValueError as e:
+            raise ValueError(f"{where}: {e}") from None
+        return fit.plane
 
     def joint(self, views, front_weight=1.0, contour=True, landmarks=True):
         """A :class:`Joint` problem over the landmarks and contours of ``views``."""
@@ -514,6 +903,17 @@ class Engine:
 
 
 @dataclass
+class _Block:
+    """Free parameters of one camera ("camera": the real camera of ``view``, seen by the
+    ``users`` views: itself and its mirror views) or of a mirror plane ("plane": of the
+    mirror view ``view``)."""
+
+    kind: str
+    view: ViewData
+    users: list
+
+
+@dataclass
 class _Prepared:
     problem: ShapeProblem
     model: LinearModel
@@ -521,6 +921,9 @@ class _Prepared:
     rotation: np.ndarray
     freeze: tuple
     cameras_only: bool
+    layout: list  # per block: (block, mode kind, number of modes, units, start, prior)
+    start: np.ndarray  # coefficients of the camera modes at the linearisation point
+    reusable: bool
 
 
 class Joint:
@@ -528,22 +931,28 @@ class Joint:
 
     The shape-ICP knows one similarity and linear modes. To let it move the cameras in the
     same Gauss-Newton step as the head, every group of rows gets its own copies of the
-    model vertices it uses, and each refittable camera gets four extra modes that move only
-    its copies, within its image plane: the pixel fields of a shift in u, a shift in v, an
-    in-plane rotation and a scaling of the photo, lifted to 3-D through the camera's
-    Jacobian (pseudo-inverse). For an orthographic camera those span exactly its free
-    parameters; the step is then a joint Gauss-Newton step, so the fit converges in a few
+    model vertices it uses, and each free camera (and mirror plane) gets extra modes that
+    move only the copies it sees: the pixel fields of its parameters (see the module
+    docstring), lifted to 3-D through each copy's camera Jacobian (pseudo-inverse), so a
+    mode's coefficient moves those projections exactly as the parameter would, to first
+    order. The step is then a joint Gauss-Newton step, so the fit converges in a few
     rounds where alternating "head, then cameras" crawls along every motion that a camera
-    and the head share. After each step the cameras are refitted exactly
-    (``Camera.refit``) and the extra modes reset: they are re-linearised every round.
+    and the head share. After each step the cameras and planes are moved by their modes'
+    coefficients (or refitted to what the step predicted) and the modes reset: they are
+    re-linearised every round.
+
+    A pinhole camera's focal prior is the prior of its focal mode: one unit of that mode
+    is ``sigma * lambda2`` in log f, and its coefficient starts at the camera's distance
+    from the prior, so the shape-ICP's ``lambda2^2 c^2`` is exactly the prior's cost.
     """
 
     def __init__(self, eng, views, front_weight=1.0, contour=True, landmarks=True):
         self.eng = eng
+        self.views = list(views)
         self.groups = []  # (view, kind, rows)
         orig = []
         off = 0
-        for v in views:
+        for v in self.views:
             if landmarks and len(v.vertices):
                 n = len(v.vertices)
                 w = (1.0 if v.side else front_weight) * eng.inv_var * v.weights
@@ -553,14 +962,16 @@ class Joint:
                 orig.append(v.vertices)
                 off += n
             if contour and v.contour is not None:
-                n = len(eng.outline)
+                cand, faces, edges = v.outline if v.outline is not None else \
+                    (eng.outline, eng.outline_faces, eng.outline_edges)
+                n = len(cand)
                 rows = ContourRows(np.arange(off, off + n), v.contour, v.camera,
                                    weights=eng.contour_weight * eng.inv_var,
-                                   faces=eng.outline_faces, edges=eng.outline_edges,
+                                   faces=faces, edges=edges,
                                    max_distance=eng.contour_threshold,
                                    name=f"contour {v.name}")
                 self.groups.append((v, "contour", rows))
-                orig.append(eng.outline)
+                orig.append(cand)
                 off += n
         if not self.groups:
             raise ValueError("views: no landmarks or contour to fit")
@@ -568,20 +979,29 @@ class Joint:
         self.orig = np.concatenate(orig)
         self.rows = [g[2] for g in self.groups]
         self.mean, self.basis = eng.slice(self.orig)
-        # Gauge: when every camera here is refitted they absorb the head's scale and
-        # position; a calibrated camera fixes them instead.
-        self.gauge = all(v.refit and v.camera.min_refit_points > 0 for v in views)
-        self.mode_views = []
-        for v in views:
-            if v.refit and v.camera.min_refit_points > 0:
-                idx = np.concatenate([r.vertices for gv, _, r in self.groups if gv is v])
-                lm = [r.vertices for gv, k, r in self.groups if gv is v and k == "landmarks"]
-                self.mode_views.append((v, idx, lm[0] if lm else idx))
+        self.view_idx, self.view_lm = {}, {}
+        for v, kind, rows in self.groups:
+            self.view_idx.setdefault(v.name, []).append(rows.vertices)
+            if kind == "landmarks":
+                self.view_lm[v.name] = rows.vertices
+        self.view_idx = {k: np.concatenate(i) for k, i in self.view_idx.items()}
+        self.members = [v for v in self.views if v.name in self.view_idx]
+        # Gauge: the head's similarity parameters these views cannot determine.
+        self.gauge = eng.gauge(self.members)
+        self.blocks = []
+        for v in eng.views:
+            if v.mirror_of is not None or not eng.camera_moves(v):
+                continue
+            users = [u for u in self.members if u is v or u.mirror_of == v.name]
+            if users:
+                self.blocks.append(_Block("camera", v, users))
+        self.blocks += [_Block("plane", u, [u]) for u in self.members
+                        if u.mirror_of is not None]
 
     def sync(self, state):
         self.eng.use(state)
         for v, _, rows in self.groups:
-            set_camera(rows, state.cameras[v.name])
+            rows.set_camera(state.cameras[v.name])
 
     def world(self, state):
         """World positions of the copies, (n, 3)."""
@@ -589,7 +1009,8 @@ class Joint:
         return state.scale * local @ state.rotation.T + state.translation
 
     def cost(self, state):
-        """Weighted squared pixel residuals (correspondences refreshed) plus priors."""
+        """Weighted squared pixel residuals (correspondences refreshed) plus priors (shape
+        and focal length)."""
         self.sync(state)
         x = self.world(state)
         total = 0.0
@@ -599,7 +1020,12 @@ class Joint:
             blocks = rows.block(xs, jacobian=False)
             blocks = blocks if isinstance(blocks, list | tuple) else [blocks]
             total += sum(float(b.sq) for b in blocks)
-        return total + self.eng.prior_cost(state.coeffs)
+        return total + self.eng.prior_cost(state.coeffs) + self.camera_prior_cost(state)
+
+    def camera_prior_cost(self, state):
+        """The focal priors of the cameras this problem moves."""
+        return self.eng.camera_prior_cost(state, [b.view for b in self.blocks
+                                                  if b.kind == "camera"])
 
     def contour_pairs(self, state):
         """view name -> [(model vertices, target pixels, weights)] of the current contour
@@ -617,7 +1043,8 @@ class Joint:
         return out
 
     def refit(self, state):
-        """Refit every refittable camera to the head (landmarks + contour pairs)."""
+        """Refit every free camera and mirror plane to the head (landmarks + contour
+        pairs)."""
         self.sync(state)
         self.eng.refit_cameras(state, self.contour_pairs(state))
         self.sync(state)
@@ -636,63 +1063,117 @@ class Joint:
             out[v.name] = np.abs(rows.residuals(xs))
         return out
 
+    # ------------------------------------------------------------------ camera modes
+
+    def _block_fields(self, blk, state, x):
+        """Pixel fields of one block over the copies it moves.
+
+        Returns (mode kind, copy indices (m,), fields (P, m, 2) per natural unit, units
+        (P,) natural units per coefficient, start (P,) coefficients now, prior (P,) bool:
+        modes whose shape-ICP prior is a real prior, not a negligible one)."""
+        eng = self.eng
+        v = blk.view
+        if blk.kind == "plane":
+            idx = self.view_idx[v.name]
+            f = plane_fields(state.cameras[v.mirror_of], state.planes[v.name], x[idx])
+            return ("plane", idx, f, *_unit_scale(f), np.zeros(3, bool))
+        cam = state.cameras[v.name]
+        idx, pts = [], []
+        for u in blk.users:
+            i = self.view_idx[u.name]
+            idx.append(i)
+            pts.append(x[i] if u is v else state.planes[u.name].reflect_points(x[i]))
+        idx, pts = np.concatenate(idx), np.concatenate(pts)
+        if isinstance(cam, PinholeCamera):
+            n_lm = eng.landmark_count(v)
+            free_f = focal_free(cam, n_lm)
+            f = pinhole_fields(cam, pts, free_f)
+            units, start = _unit_scale(f)
+            has_prior = np.zeros(len(f), bool)
+            prior = focal_prior(cam, n_lm)
+            if prior is not None and eng.lambda2 > 0:
+                units[6] = prior[1] * eng.lambda2
+                start[6] = (np.log(cam.focal_px) - prior[0]) / units[6]
+                has_prior[6] = True
+            return ("pinhole", idx, f, units, start, has_prior)
+        if isinstance(cam, DLTCamera):
+            f = dlt_fields(cam, pts)
+            flat = f.reshape(len(f), -1)
+            _, sv, vt = np.linalg.svd(flat, full_matrices=False)
+            keep = sv > 1e-9 * sv[0]
+            f = vt[keep].reshape(-1, len(idx), 2)
+            return ("refit", idx, f, *_unit_scale(f), np.zeros(len(f), bool))
+        own = self.view_idx[v.name]
+        lm = self.view_lm.get(v.name, own)
+        f = similarity_fields(cam, x[own], x[lm])
+        return ("refit", own, f, np.full(4, _MODE_PIXELS), np.zeros(4), np.zeros(4, bool))
+
     def model(self, state):
-        """The copies' linear model at ``state``: the fitted modes, then 4 camera modes per
-        refittable view (see the class docstring)."""
+        """The copies' linear model at ``state``: the fitted modes, then the camera and
+        plane modes (see the class docstring); with the layout of the extra modes and their
+        start coefficients."""
         eng = self.eng
         x = self.world(state)
-        modes = []
-        for v, idx, lm in self.mode_views:
-            cam = state.cameras[v.name]
-            xv = x[idx]
-            p = cam.project(xv)
-            jac = np.asarray(cam.jacobian(xv), dtype=np.float64).reshape(len(idx), 2, 3)
-            d = p - cam.project(x[lm]).mean(axis=0)
-            radius = max(float(np.sqrt((d * d).sum(1).mean())), 1e-9)
-            fields = np.zeros((4, len(idx), 2))
-            fields[0, :, 0] = 1.0
-            fields[1, :, 1] = 1.0
-            fields[2] = np.stack([-d[:, 1], d[:, 0]], axis=1) / radius
-            fields[3] = d / radius
-            jjt = np.einsum("nij,nkj->nik", jac, jac)
-            pinv = np.einsum("nji,njk->nik", jac, np.linalg.inv(jjt))  # (n, 3, 2)
-            lift = np.einsum("nij,fnj->fni", pinv, fields)  # world displacement per unit
-            m = np.zeros((4, len(x), 3))
-            # model frame (x = s R m + t), one unit of coefficient = _MODE_PIXELS pixels so
-            # the shape prior on these coefficients is negligible.
-            m[:, idx] = _MODE_PIXELS * (lift @ state.rotation) / state.scale
-            modes.append(m)
+        n = len(x)
         lin = eng.lin
-        if not modes:
-            return LinearModel(self.mean, self.basis, lin.stddev, lin.names, eng.gamma)
-        extra = np.concatenate(modes)
-        n_extra = extra.shape[0]
+        if not self.blocks:
+            return (LinearModel(self.mean, self.basis, lin.stddev, lin.names, eng.gamma), [],
+                    np.zeros(0))
+        # each copy's camera Jacobian, pseudo-inverted: pixel fields -> world displacement
+        pinv = np.zeros((n, 3, 2))
+        for v in self.members:
+            idx = self.view_idx[v.name]
+            jac = np.asarray(state.cameras[v.name].jacobian(x[idx]),
+                             dtype=np.float64).reshape(len(idx), 2, 3)
+            jjt = np.einsum("nij,nkj->nik", jac, jac)
+            pinv[idx] = np.einsum("nji,njk->nik", jac, np.linalg.inv(jjt))
+        modes, layout, starts, sds = [], [], [], []
+        mean = self.mean
+        for blk in self.blocks:
+            kind, idx, f, units, start, has_prior = self._block_fields(blk, state, x)
+            lift = np.einsum("nij,pnj->pni", pinv[idx], f * units[:, None, None])
+            m = np.zeros((len(f), n, 3))
+            # model frame (x = s R m + t)
+            m[:, idx] = (lift @ state.rotation) / state.scale
+            if start.any():
+                mean = mean - np.tensordot(start, m, axes=1)
+            modes.append(m)
+            layout.append((blk, kind, len(f), units, start, has_prior))
+            starts.append(start)
+            # a prior mode keeps its prior under prior="identity" (which weighs by stddev)
+            sds.append(np.where(has_prior, 1.0, 1e-9))
+        extra_b = np.concatenate(modes)
+        n_extra = extra_b.shape[0]
         gamma = None
         if eng.gamma is not None:
             gamma = np.hstack([eng.gamma, np.zeros((eng.gamma.shape[0], n_extra))])
         names = tuple(lin.names) + tuple(f"camera {i}" for i in range(n_extra))
-        return LinearModel(self.mean, np.concatenate([self.basis, extra]),
-                           np.concatenate([lin.stddev, np.full(n_extra, 1e-9)]), names, gamma)
+        model = LinearModel(mean, np.concatenate([self.basis, extra_b]),
+                            np.concatenate([lin.stddev] + sds), names, gamma)
+        return model, layout, np.concatenate(starts)
 
     def prepare(self, state, freeze=(), cameras_only=False):
         """The shape-ICP problem over the copies with the camera modes linearised at
-        ``state`` (reused while the head turns little: building it copies the basis)."""
-        model = self.model(state)
+        ``state`` (reused while the head turns little if every camera is orthographic:
+        building it copies the basis)."""
+        model, layout, start = self.model(state)
         k = len(state.coeffs)
         active = np.arange(k, model.n_coeffs) if cameras_only else None
         if cameras_only:
             freeze = tuple(freeze) + ("rotation",)
         problem = ShapeProblem(model, self.rows, lambda1=self.eng.lambda1,
                                lambda2=self.eng.lambda2, prior=self.eng.prior,
-                               freeze=tuple(freeze) + (("scale", "translation")
-                                                       if self.gauge else ()),
-                               active=active)
+                               freeze=tuple(freeze) + tuple(self.gauge), active=active)
+        reusable = all(kind == "refit" and isinstance(state.cameras[b.view.name],
+                                                      OrthographicCamera)
+                       for b, kind, *_ in layout)
         return _Prepared(problem, model, k, state.rotation.copy(), tuple(freeze),
-                         cameras_only)
+                         cameras_only, layout, start, reusable)
 
     def _solve(self, prep, state, iterations):
         start = np.zeros(prep.model.n_coeffs)
         start[:prep.k] = state.coeffs
+        start[prep.k:] = prep.start
         self.sync(state)
         return prep.problem.solve(scale=state.scale, rotation=state.rotation,
                                   translation=state.translation, coeffs=start,
@@ -701,17 +1182,20 @@ class Joint:
     def step(self, state, freeze=(), inner=2, cameras_only=False, prep=None):
         """One joint Gauss-Newton round (``inner`` shape-ICP steps), then the cameras.
 
-        The step moves each refittable camera through its modes; the camera is then
-        refitted to what the step predicted: the new head's copies seen where the
-        old camera saw them displaced by the modes. For an orthographic camera that is
-        exactly the similarity the step chose (any camera kind gets its closest match),
-        so camera and head stay one consistent Gauss-Newton step. Refittable cameras of
-        views outside this problem are refitted to their landmarks.
+        The step moves each free camera through its modes. A pinhole camera and a mirror
+        plane take the step's parameter change directly; any other camera is refitted to
+        what the step predicted: the new head's copies seen where the old camera saw them
+        displaced by the modes (for an orthographic camera exactly the similarity the step
+        chose; any kind gets its closest match), so camera and head stay one consistent
+        Gauss-Newton step. Mirror cameras follow their real camera and plane. Free cameras
+        of views outside this problem are refitted to their landmarks.
 
-        ``prep`` (from :meth:`prepare`) is reused when given; it is rebuilt when the head
-        has turned by more than about 3 degrees since (its camera modes would be stale).
+        ``prep`` (from :meth:`prepare`) is reused when given and reusable; it is rebuilt
+        when the head has turned by more than about 3 degrees since (its camera modes
+        would be stale), and always for perspective cameras and mirrors (their modes
+        carry the camera's parameters).
         """
-        if prep is None or prep.freeze != tuple(freeze) or \
+        if prep is None or not prep.reusable or prep.freeze != tuple(freeze) or \
                 prep.cameras_only != cameras_only or \
                 np.abs(state.rotation - prep.rotation).max() > 0.05:
             prep = self.prepare(state, freeze, cameras_only)
@@ -720,16 +1204,42 @@ class Joint:
         new = state.copy()
         new.rotation, new.coeffs = fit.rotation, fit.coeffs[:k].copy()
         new.scale, new.translation = fit.scale, fit.translation
-        if self.mode_views:
-            full = model.mean + np.tensordot(fit.coeffs, model.basis, axes=1)
-            head = self.mean + np.tensordot(new.coeffs, self.basis, axes=1)
-            full = new.scale * full @ new.rotation.T + new.translation
-            head = new.scale * head @ new.rotation.T + new.translation
-            for v, idx, _ in self.mode_views:
-                old = state.cameras[v.name]
-                new.cameras[v.name] = old.refit(head[idx], old.project(full[idx]))
-        inside = {v.name for v, _, _ in self.groups}
-        outside = [v for v in self.eng.views if v.name not in inside]
+        full = head = None
+        col = k
+        moved = set()
+        for blk, kind, p, units, start, _ in prep.layout:
+            delta = (fit.coeffs[col:col + p] - start) * units
+            col += p
+            v = blk.view
+            if kind == "plane":
+                new.planes[v.name] = moved_plane(state.planes[v.name], delta)
+                continue
+            old = state.cameras[v.name]
+            moved.add(v.name)
+            if kind == "pinhole":
+                new.cameras[v.name] = moved_pinhole(old, delta)
+                continue
+            if full is None:
+                full = model.mean + np.tensordot(fit.coeffs, model.basis, axes=1)
+                head = self.mean + np.tensordot(new.coeffs, self.basis, axes=1)
+                full = new.scale * full @ new.rotation.T + new.translation
+                head = new.scale * head @ new.rotation.T + new.translation
+            pts, px = [], []
+            for u in blk.users:
+                i = self.view_idx[u.name]
+                h = head[i] if u is v else state.planes[u.name].reflect_points(head[i])
+                pts.append(h)
+                px.append(state.cameras[u.name].project(full[i]))
+            try:
+                new.cameras[v.name] = old.refit(np.concatenate(pts), np.vstack(px))
+            except ValueError:  # too few copies for this kind: keep the camera this round
+                new.cameras[v.name] = old
+        for u in self.eng.views:
+            if u.mirror_of is not None and u.name in new.planes:
+                new.cameras[u.name] = mirror_camera(new.cameras[u.mirror_of],
+                                                    new.planes[u.name])
+        inside = {v.name for v in self.members} | moved
+        outside = [v for v in self.eng.views if v.name not in inside and v.mirror_of is None]
         if outside:
             self.eng.refit_cameras(new, views=outside)
         self.sync(new)
@@ -766,6 +1276,34 @@ class Joint:
         self.cost(best)  # leave the correspondences at the returned state
         return best, history
 
+    def settle(self, state, max_rounds=10, tolerance=1e-4, **run_kw):
+        """Self-calibration: alternate a full re-calibration of every free camera and
+        mirror plane (``Camera.refit`` on the landmarks and contour pairs, with all of its
+        parameters and priors: a pinhole camera's principal point and k1 when free, its
+        focal range) and joint rounds (:meth:`run`), until the re-calibration lowers the
+        cost by less than ``tolerance`` (relative): cameras and shape agree. At most
+        ``max_rounds`` re-calibrations. Returns (state, cost history of the joint rounds
+        appended, re-calibrations made)."""
+        cost = self.cost(state)
+        history = []
+        rounds = 0
+        for _ in range(max(int(max_rounds), 0)):
+            trial = state.copy()
+            try:
+                self.refit(trial)
+            except ValueError:  # a camera cannot be refitted alone: the joint rounds rule
+                break
+            rounds += 1
+            c = self.cost(trial)
+            if not c < cost * (1.0 - tolerance):
+                break
+            state, hist = self.run(trial, tolerance=tolerance, **run_kw)
+            history += hist
+            cost = self.cost(state)
+        self.sync(state)
+        self.cost(state)
+        return state, history, rounds
+
     def covariance(self, state):
         """Posterior covariance (K, K) of the fitted coefficients at ``state``: the inverse
         of the normal matrix with pose and camera modes free (marginalised), rows weighted
@@ -773,3 +1311,10 @@ class Joint:
         prep = self.prepare(state)
         fit = self._solve(prep, state, 0)
         return fit.coeff_covariance[:prep.k, :prep.k]
+
+
+def _unit_scale(fields):
+    """Units (P,) making each field move the points by _MODE_PIXELS pixels RMS per unit of
+    coefficient (so the shape prior on the coefficient is negligible), and zero starts."""
+    rms = np.sqrt((fields**2).sum(axis=2).mean(axis=1))
+    return _MODE_PIXELS / np.maximum(rms, 1e-12), np.zeros(len(fields))

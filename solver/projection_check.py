@@ -18,14 +18,20 @@ centre to its nearest point, so ε = 1 - d_min / d_max over the head's depths: a
 0.1 m deep head gives 0.1 / 1.1 ≈ 9 %, while landmarks read to 2 px on a 600 px head are
 good to 0.3 %; the orthographic cameras then distort the head's proportions far more than
 the landmark error does, and a perspective (DLT) camera should be used.
+
+``check_projection`` measures L and ΔL with a calibrated perspective camera (DLT or
+pinhole); ``check_orthographic`` does it for a photo treated as orthographic, whose
+distance the photo cannot tell, from a distance the user gives.
 """
 
 from dataclasses import dataclass
 
 import numpy as np
 
+from .cameras import OrthographicCamera
 from .dlt import DLTCamera
 from .errors import as_points
+from .pinhole import PinholeCamera
 
 
 def perspective_ratio(depth_extent, distance):
@@ -96,8 +102,9 @@ def check_projection(camera, points, epsilon_max=None, reading_error_px=2.0, vie
 
     Parameters
     ----------
-    camera : DLTCamera
-        The photo's calibrated camera.
+    camera : DLTCamera or PinholeCamera
+        The photo's calibrated camera (a mirrored one too: depths are along its viewing
+        direction).
     points : array_like, shape (n, 3), metres
         Head points (e.g. landmark vertices or the whole skin) in the camera's world.
     epsilon_max : float, optional
@@ -115,21 +122,63 @@ def check_projection(camera, points, epsilon_max=None, reading_error_px=2.0, vie
     Raises
     ------
     ValueError
-        Not a DLT camera, or head points on or behind the camera.
+        Not a perspective camera, or head points on or behind the camera.
     """
-    if not isinstance(camera, DLTCamera):
+    if not isinstance(camera, DLTCamera | PinholeCamera):
         raise ValueError(f"view {view!r}: the projection check needs a calibrated "
-                         f"perspective (DLT) camera, got {type(camera).__name__}")
+                         f"perspective (DLT or pinhole) camera, got {type(camera).__name__}")
     x = as_points(points, "points", min_count=2)
     depth = camera.depth(x)
     if (depth <= 0).any():
         raise ValueError(f"view {view!r}: {int((depth <= 0).sum())} head point(s) lie on or "
                          "behind the camera")
     near, far = float(depth.min()), float(depth.max())
-    extent = far - near
+    return _check(view, near, far - near, camera.project(x), epsilon_max, reading_error_px,
+                  "the camera is")
+
+
+def check_orthographic(camera, points, distance, epsilon_max=None, reading_error_px=2.0,
+                       view="photo"):
+    """ε of a photo fitted as a parallel projection, taken from a given distance.
+
+    The photo itself cannot tell how far the camera was; ``distance`` (metres, from the
+    camera to the middle of the head) says it. ΔL is the head's extent along the camera's
+    viewing direction, L = ``distance`` - ΔL / 2 the distance to its nearest point.
+
+    Parameters
+    ----------
+    camera : OrthographicCamera
+    points : array_like, shape (n, 3), metres
+        Head points (e.g. the fitted skin) in the camera's world.
+    distance : float, metres
+    epsilon_max, reading_error_px, view : see ``check_projection``
+
+    Returns
+    -------
+    ProjectionCheck
+
+    Raises
+    ------
+    ValueError
+        Not an orthographic camera, or a distance not beyond half the head's depth.
+    """
+    if not isinstance(camera, OrthographicCamera):
+        raise ValueError(f"view {view!r}: expected an orthographic camera, got "
+                         f"{type(camera).__name__}")
+    x = as_points(points, "points", min_count=2)
+    depth = x @ camera.rotation[2]
+    extent = float(depth.max() - depth.min())
+    near = float(distance) - 0.5 * extent
+    if not near > 0:
+        raise ValueError(f"view {view!r}: camera distance {float(distance):.3f} m does not "
+                         f"clear the head ({extent * 100:.1f} cm deep)")
+    return _check(view, near, extent, camera.project(x), epsilon_max, reading_error_px,
+                  "the photo was taken")
+
+
+def _check(view, near, extent, px, epsilon_max, reading_error_px, what):
     eps = float(perspective_ratio(extent, near))
     if epsilon_max is None:
-        px = camera.project(x)
         span = float(np.max(px.max(axis=0) - px.min(axis=0)))
         if not span > 0:
             raise ValueError(f"view {view!r}: the head points project to one pixel")
@@ -139,10 +188,10 @@ def check_projection(camera, points, epsilon_max=None, reading_error_px=2.0, vie
     exceeds = eps > epsilon_max
     msg = ""
     if exceeds:
-        msg = (f"view {view!r}: the camera is {near:.2f} m from a head {extent * 100:.1f} cm "
+        msg = (f"view {view!r}: {what} {near:.2f} m from a head {extent * 100:.1f} cm "
                f"deep, so a parallel projection is off by {eps * 100:.1f} % (eq. 2.2) while "
                f"landmarks are good to {epsilon_max * 100:.2f} %; treat this photo as a "
-               f"perspective (DLT) camera, or shoot from at least {lmin:.1f} m")
+               f"perspective (pinhole or DLT) camera, or shoot from at least {lmin:.1f} m")
     return ProjectionCheck(view, near, extent, eps, epsilon_max, lmin, exceeds, msg)
 
 
@@ -151,7 +200,7 @@ def check_views(cameras, points, epsilon_max=None, reading_error_px=2.0):
 
     Parameters
     ----------
-    cameras : dict of str -> DLTCamera
+    cameras : dict of str -> DLTCamera or PinholeCamera
     points : array_like, shape (n, 3), metres
     epsilon_max, reading_error_px : see ``check_projection``
 

@@ -25,6 +25,10 @@ Data come in groups of rows ("Rows") that a caller composes freely in one solve:
   symmetric correspondences; thesis §4.3.3);
 - ``ClosestPixelRows``: ICP in an image against a contour, e.g. the profile line (§4.4.1).
 
+Image rows (``CameraRows``) take a new camera through ``set_camera`` between solves. A
+group's ``block`` returns ``ScalarRows`` (or a list of blocks) for anything but full 3-D
+targets, so rows defined elsewhere (the fit's outline rows) plug in the same way.
+
 The solver forms the normal equations ``(J^T W J + priors) d = J^T W r`` of the 7 + K
 parameters directly (never the Jacobian of a 3-D registration, 33k rows by 7 + K columns),
 Jacobi-scales them and solves by Cholesky; a near-singular system is reported with the
@@ -73,13 +77,33 @@ class _Iso:
 
 
 @dataclass
-class _General:
-    """Explicit scalar rows: residual r_j = obs_j - pred_j with d pred_j / d x = g_j."""
+class ScalarRows:
+    """A block of explicit scalar rows, what ``Rows.block`` returns for anything but full
+    3-D targets: residual ``r_j = obs_j - pred_j`` with ``d pred_j / d x = g_j`` at the
+    row's vertex, weighted ``w_j``.
 
-    idx: np.ndarray  # (m,) position of the row's vertex within the group
-    g: np.ndarray  # (m, 3)
-    r: np.ndarray  # (m,)
-    w: np.ndarray  # (m,)
+    Attributes
+    ----------
+    idx : ndarray of int, shape (m,), or None
+        Position of each row's vertex within the group; None: one row per vertex, in
+        order. None together with ``g``, ``r``, ``w`` when only the cost was asked for
+        (``block(..., jacobian=False)``).
+    g : ndarray, shape (m, 3) or None
+        Derivative of each row's prediction by its vertex's world position.
+    r : ndarray, shape (m,) or None
+    w : ndarray, shape (m,) or None
+    sq : float
+        Weighted sum of squared residuals of the block (its data cost).
+    wsum : float
+        Sum of the weights of the points used (eq. 46 denominator).
+    nrows : int
+        Scalar rows with positive weight.
+    """
+
+    idx: np.ndarray | None
+    g: np.ndarray | None
+    r: np.ndarray | None
+    w: np.ndarray | None
     sq: float
     wsum: float
     nrows: int
@@ -126,7 +150,7 @@ class Rows(ABC):
 
     vertices: np.ndarray
     name: str
-    _version = 0  # bumped when targets change, so a cached system is not reused
+    _version = 0  # bumped when targets or the camera change: a cached system is stale
 
     def update(self, world):
         """Refresh correspondences from the current world positions (n, 3) of ``vertices``.
@@ -136,6 +160,30 @@ class Rows(ABC):
     @abstractmethod
     def block(self, world, jacobian=True):
         """Residuals (and, with ``jacobian``, their derivatives) at world positions (n, 3)."""
+
+
+class CameraRows(Rows):
+    """Rows whose residuals are pixels of a photo seen through ``camera``.
+
+    ``set_camera`` is how a caller that refits the photo's camera between solves (the fit
+    alternating head and cameras) hands the new one over: it also tells a ``ShapeProblem``
+    that a system it cached for these rows is stale.
+    """
+
+    camera: Camera
+
+    def set_camera(self, camera):
+        """Use ``camera`` from now on (a no-op when it is the current one).
+
+        Raises
+        ------
+        ValueError
+            ``camera`` has no ``project`` and ``jacobian``.
+        """
+        camera = _check_camera(camera, self.name)
+        if camera is not self.camera:
+            self.camera = camera
+            self._version += 1
 
 
 class PointRows(Rows):
@@ -196,11 +244,11 @@ class PointRows(Rows):
         g[np.arange(len(pt)), ax] = 1.0
         used = np.zeros(len(w), bool)
         used[pt] = True
-        return _General(pt, g, rr, ww, float(ww @ rr**2), float(w[used].sum()),
+        return ScalarRows(pt, g, rr, ww, float(ww @ rr**2), float(w[used].sum()),
                         int((ww > 0).sum()))
 
 
-class ImageRows(Rows):
+class ImageRows(CameraRows):
     """Vertices pulled toward pixels of a photo through its camera.
 
     The residual of point i is ``pixels[i] - camera.project(x_i)`` in pixels, so weights
@@ -237,9 +285,9 @@ class ImageRows(Rows):
         sq = float(w @ np.einsum("ij,ij->i", r, r))
         n = len(w)
         if not jacobian:
-            return _General(None, None, None, None, sq, float(w.sum()), 2 * int((w > 0).sum()))
+            return ScalarRows(None, None, None, None, sq, float(w.sum()), 2 * int((w > 0).sum()))
         jac = np.asarray(self.camera.jacobian(world), dtype=np.float64).reshape(n, 2, 3)
-        return _General(np.repeat(np.arange(n), 2), jac.reshape(2 * n, 3), r.reshape(-1),
+        return ScalarRows(np.repeat(np.arange(n), 2), jac.reshape(2 * n, 3), r.reshape(-1),
                         np.repeat(w, 2), sq, float(w.sum()), 2 * int((w > 0).sum()))
 
 
@@ -406,14 +454,14 @@ class ClosestPointRows(Rows):
         if plane is not None:
             nq, w = plane
             rp = np.einsum("ij,ij->i", self.targets - world, nq)
-            blocks.append(_General(None, nq, rp, w, float(w @ rp**2), float(w.sum()),
+            blocks.append(ScalarRows(None, nq, rp, w, float(w @ rp**2), float(w.sum()),
                                    int((w > 0).sum())))
         if not blocks:
             blocks.append(_Iso(a, np.zeros_like(world), 0.0, 0.0, 0))
         return blocks
 
 
-class ClosestPixelRows(Rows):
+class ClosestPixelRows(CameraRows):
     """ICP rows in a photo: each vertex's projection is pulled toward the nearest pixel of a
     contour (e.g. the profile line, thesis §4.4.1). Residuals in pixels as ``ImageRows``.
 
@@ -465,9 +513,9 @@ class ClosestPixelRows(Rows):
         n = len(w)
         nrows = 2 * int((w > 0).sum())
         if not jacobian:
-            return _General(None, None, None, None, sq, float(w.sum()), nrows)
+            return ScalarRows(None, None, None, None, sq, float(w.sum()), nrows)
         jac = np.asarray(self.camera.jacobian(world), dtype=np.float64).reshape(n, 2, 3)
-        return _General(np.repeat(np.arange(n), 2), jac.reshape(2 * n, 3), r.reshape(-1),
+        return ScalarRows(np.repeat(np.arange(n), 2), jac.reshape(2 * n, 3), r.reshape(-1),
                         np.repeat(w, 2), sq, float(w.sum()), nrows)
 
 

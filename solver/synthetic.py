@@ -1,12 +1,19 @@
 """Synthetic landmark cases with a known answer, for tests and benchmarks.
 
 A head is drawn from the model (identity coefficients ~ N(0, 1)), posed by a random
-similarity and photographed by orthographic cameras, each with its own scale, offset (and
-optionally in-plane tilt), like two photos taken separately. Its landmarks are the
-projections of the landmark vertices a view can see (``views`` in assets/landmarks.json)
-plus Gaussian noise; a side view also gets the traced head outline: the silhouette of the
-projected skin, rasterised at image resolution, traced along its outer boundary, the bottom
-cut of the neck left out (a person tracing a photo follows the head, not the mesh's end).
+similarity and photographed:
+
+- ``make_case``: by orthographic cameras, each with its own scale, offset (and optionally
+  in-plane tilt), like two photos taken separately. Its landmarks are the projections of
+  the landmark vertices a view can see (``views`` in assets/landmarks.json) plus Gaussian
+  noise; a side view also gets the traced head outline: the silhouette of the projected
+  skin, rasterised at image resolution, traced along its outer boundary, the bottom cut of
+  the neck left out (a person tracing a photo follows the head, not the mesh's end);
+- ``make_perspective_case``: by 2-4 pinhole cameras at any angle (35-85 mm equivalent,
+  0.5-2 m, yaw up to +-45 degrees), each landmark placed where the photo shows it:
+  its vertex faces the camera and nothing nearer covers it (``visible_landmarks``);
+- ``make_mirror_case``: by one pinhole camera that sees the face and, in a flat mirror
+  beside the head, its mirror image (seed 001 ch. 3): two views of one photo.
 """
 
 from dataclasses import dataclass, field
@@ -17,7 +24,9 @@ from scipy.sparse.csgraph import connected_components
 
 from .cameras import ORTHO_VIEWS, OrthographicCamera
 from .landmarks_file import LandmarkCase, View
-from .raster import rasterize
+from .mirror import MirrorPlane
+from .pinhole import SENSOR_MM, PinholeCamera
+from .raster import depth_buffer, rasterize
 
 # Moore neighbourhood in clockwise order on screen (rows run down): W, NW, N, NE, E, SE, S, SW.
 _MOORE = np.array([(0, -1), (-1, -1), (-1, 0), (-1, 1), (0, 1), (1, 1), (1, 0), (1, -1)])
@@ -43,6 +52,8 @@ class SyntheticTruth:
         Noise-free projection of every landmark placed in each view.
     contour : dict of str -> ndarray (n, 2)
         Noise-free traced outline of each side view (before subsampling noise).
+    planes : dict of str -> MirrorPlane
+        The mirror of each mirror view (``make_mirror_case``).
     """
 
     identity_coeffs: np.ndarray
@@ -53,6 +64,7 @@ class SyntheticTruth:
     cameras: dict
     pixels: dict = field(default_factory=dict)
     contour: dict = field(default_factory=dict)
+    planes: dict = field(default_factory=dict)
 
     @property
     def world_vertices(self):
@@ -127,20 +139,7 @@ def make_case(model, rng=None, *, noise_px=1.0, rotation_deg=5.0, image_height=1
         raise ValueError("noise_px and rotation_deg: must be >= 0")
     if not views:
         raise ValueError("views: at least one view is needed")
-    ident = model.identity
-    k = ident.n_coeffs
-    if coeffs is None:
-        c = coeff_scale * rng.normal(size=k)
-    else:
-        c = np.zeros(k)
-        given = np.asarray(coeffs, dtype=np.float64).reshape(-1)
-        if len(given) > k:
-            raise ValueError(f"coeffs: at most {k} values, got {len(given)}")
-        c[:len(given)] = given
-    local = ident.instance(c)
-    rot = random_rotation(rng, rotation_deg)
-    scale = float(rng.uniform(0.95, 1.05))
-    trans = rng.uniform(-0.01, 0.01, size=3)
+    c, local, rot, scale, trans = _random_head(model, rng, coeffs, coeff_scale, rotation_deg)
     world = scale * local @ rot.T + trans
     cnoise = noise_px if contour_noise_px is None else contour_noise_px
 
@@ -170,6 +169,305 @@ def make_case(model, rng=None, *, noise_px=1.0, rotation_deg=5.0, image_height=1
                                 points=dict(zip(names, noisy, strict=True)), contour=outline)
     truth = SyntheticTruth(c, local, scale, rot, trans, cams, clean, outlines)
     return LandmarkCase(case_views, "<synthetic>"), truth
+
+
+def _random_head(model, rng, coeffs, coeff_scale, rotation_deg):
+    """(coefficients, local vertices, rotation, scale, translation) of a random posed
+    head (the draws in this order, so seeds reproduce across versions)."""
+    ident = model.identity
+    k = ident.n_coeffs
+    if coeffs is None:
+        c = coeff_scale * rng.normal(size=k)
+    else:
+        c = np.zeros(k)
+        given = np.asarray(coeffs, dtype=np.float64).reshape(-1)
+        if len(given) > k:
+            raise ValueError(f"coeffs: at most {k} values, got {len(given)}")
+        c[:len(given)] = given
+    local = ident.instance(c)
+    rot = random_rotation(rng, rotation_deg)
+    scale = float(rng.uniform(0.95, 1.05))
+    trans = rng.uniform(-0.01, 0.01, size=3)
+    return c, local, rot, scale, trans
+
+
+def vertex_normals(model, world):
+    """Unit normals of the posed mesh's vertices (area-weighted face normals), (V, 3)."""
+    tri, _, _ = model.triangles()
+    face = np.cross(world[tri[:, 1]] - world[tri[:, 0]], world[tri[:, 2]] - world[tri[:, 0]])
+    normal = np.zeros_like(world)
+    for k in range(3):
+        np.add.at(normal, tri[:, k], face)
+    return normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+
+
+def visible_landmarks(model, world, camera, normals=None, min_cos=0.0, grid=1024,
+                      tolerance=0.004, triangles=None):
+    """The landmarks a photo shows: those whose vertex faces the camera (the normal's
+    cosine with the direction toward the camera above ``min_cos``, i.e. not seen edge-on),
+    that nothing nearer covers (a z-buffer of the skin at ``grid`` cells along the image's
+    longer side; slack ``tolerance`` metres plus what the surface's slope allows within a
+    cell), and that fall inside the image.
+
+    Parameters
+    ----------
+    model : HeadModel
+    world : ndarray, shape (V, 3), metres
+        Posed vertices.
+    camera : Camera with ``depth`` (pinhole, DLT)
+    normals : ndarray, shape (V, 3), optional
+        Vertex normals of ``world`` (computed when not given).
+    min_cos, grid, tolerance : float
+    triangles : ndarray, shape (T, 3), optional
+        Occluding triangles (default the skin's).
+
+    Returns
+    -------
+    list of str
+        Landmark names, in the order of ``model.landmark_info``.
+    """
+    if normals is None:
+        normals = vertex_normals(model, world)
+    names = [e["name"] for e in model.landmark_info]
+    verts = np.array([model.landmarks[n] for n in names], dtype=np.int64)
+    x = world[verts]
+    toward = camera.toward_camera(x)
+    cos = np.einsum("ij,ij->i", normals[verts], toward)
+    w, h = camera.size
+    px = camera.project(x)
+    inside = (px >= 0).all(axis=1) & (px[:, 0] <= w) & (px[:, 1] <= h)
+    tris = _skin_triangles(model) if triangles is None else triangles
+    f = grid / max(w, h)
+    gw, gh = int(np.ceil(w * f)), int(np.ceil(h * f))
+    corner = world[tris].reshape(-1, 3)
+    buf = depth_buffer((camera.project(corner) * f).reshape(-1, 3, 2),
+                       camera.depth(corner).reshape(-1, 3), gw, gh)
+    g = np.clip(np.floor(px * f).astype(int), 0, [gw - 1, gh - 1])
+    near = buf[g[:, 1], g[:, 0]]
+    # metres a grid cell spans at the landmark, times the slope there (cos >= min_cos)
+    jac = np.asarray(camera.jacobian(x), dtype=np.float64)
+    cell = (1.0 / f) / np.sqrt(0.5 * (jac**2).sum(axis=(1, 2)))
+    slope = np.minimum(np.sqrt(np.maximum(1.0 - cos**2, 0.0)) / np.maximum(cos, 1e-3), 5.0)
+    uncovered = camera.depth(x) <= near + tolerance + cell * slope
+    keep = (cos > min_cos) & inside & uncovered
+    return [n for n, k in zip(names, keep, strict=True) if k]
+
+
+def _look(centre, target, size, f_px, roll):
+    """A pinhole camera at ``centre`` looking at ``target``, +Z up, turned by ``roll``
+    radians about its viewing direction."""
+    cam = PinholeCamera.look_at(centre, target, size, f_px=f_px)
+    q = np.array([[np.cos(roll), -np.sin(roll)], [np.sin(roll), np.cos(roll)]])
+    rot = cam.rotation.copy()
+    rot[:2] = q @ rot[:2]
+    return cam.replaced(rotation=rot)
+
+
+def perspective_yaws(rng, n_views, yaw_deg):
+    """Yaw of each photo, degrees: the first near the front (|yaw| <= yaw_deg / 4), then
+    alternately to either side at least half of ``yaw_deg`` out, further ones anywhere in
+    +-yaw_deg (photos of a person taken from a few places around them)."""
+    yaws = [rng.uniform(-0.25, 0.25) * yaw_deg]
+    side = rng.choice([-1.0, 1.0])
+    for i in range(1, n_views):
+        if i <= 2:
+            yaws.append(side * rng.uniform(0.5, 1.0) * yaw_deg)
+            side = -side
+        else:
+            yaws.append(rng.uniform(-1.0, 1.0) * yaw_deg)
+    return yaws
+
+
+def make_perspective_case(model, rng=None, *, n_views=2, noise_px=1.0, lens_mm=(35.0, 85.0),
+                          distance_m=(0.5, 2.0), yaw_deg=45.0, pitch_deg=10.0,
+                          roll_deg=3.0, rotation_deg=5.0, coeffs=None, coeff_scale=1.0,
+                          head_px=(768.0, 922.0), calibrated=False, focal_prior=0.05,
+                          contour=False, contour_points=100, contour_noise_px=None,
+                          min_cos=0.0):
+    """A synthetic case photographed by pinhole cameras around the head.
+
+    Each photo: a lens of ``lens_mm`` (35 mm equivalent, uniform in the range), a camera
+    ``distance_m`` from the head's centre (uniform, but at least where the head fits in the
+    frame), turned by a yaw (see :func:`perspective_yaws`), a pitch within
+    +-``pitch_deg`` and a roll within +-``roll_deg``, aimed at the head's centre (plus up
+    to 2 cm). The photo is a portrait frame (3:4) whose resolution makes the head's skin
+    ``head_px`` pixels tall (uniform in the range; by default what ``make_case`` gives a
+    1024-pixel photo), so a pixel of noise means the same as in the orthographic cases.
+    The landmarks are those the photo shows (:func:`visible_landmarks`), with Gaussian
+    noise.
+
+    Parameters
+    ----------
+    model : HeadModel
+    rng : numpy.random.Generator or int or None
+    n_views : int
+        Photos, 1 or more.
+    noise_px : float
+        Landmark noise, pixels (standard deviation per coordinate).
+    lens_mm, distance_m : (float, float)
+    yaw_deg, pitch_deg, roll_deg, rotation_deg : float
+        Largest camera yaw, pitch, roll and head rotation (random axis), degrees.
+    coeffs, coeff_scale : see ``make_case``
+    head_px : (float, float)
+    calibrated : bool
+        True: the views carry their true cameras, kept by the fit. False: the cameras are
+        to be self-calibrated (``{"kind": "pinhole", "lens_mm": ...}``).
+    focal_prior : float or None
+        With ``calibrated=False``: the relative error of the ``lens_mm`` the file states
+        (drawn from N(0, focal_prior), like EXIF data of uncertain crop factor; the fit's
+        prior assumes 5 %). None: no lens_mm (the focal length only walled in to 20-200 mm).
+    contour : bool
+        Trace the head's outline in every photo.
+    contour_points : int
+    contour_noise_px : float, optional
+    min_cos : float
+        Visibility: the smallest cosine between a landmark's normal and the direction to
+        the camera.
+
+    Returns
+    -------
+    case : LandmarkCase
+        Views "photo0", "photo1", ...
+    truth : SyntheticTruth
+        ``cameras`` the true PinholeCameras.
+    """
+    rng = np.random.default_rng(rng)
+    if int(n_views) < 1:
+        raise ValueError(f"n_views: at least 1, got {n_views}")
+    if noise_px < 0 or rotation_deg < 0:
+        raise ValueError("noise_px and rotation_deg: must be >= 0")
+    c, local, rot, scale, trans = _random_head(model, rng, coeffs, coeff_scale, rotation_deg)
+    world = scale * local @ rot.T + trans
+    normals = vertex_normals(model, world)
+    skin_tris = _skin_triangles(model)
+    skin = world[model.skin]
+    centre = 0.5 * (skin.min(axis=0) + skin.max(axis=0))
+    cnoise = noise_px if contour_noise_px is None else contour_noise_px
+    views, cams, clean, outlines = {}, {}, {}, {}
+    for i, yaw in enumerate(perspective_yaws(rng, int(n_views), yaw_deg)):
+        name = f"photo{i}"
+        lens = float(rng.uniform(*lens_mm))
+        pitch = np.radians(rng.uniform(-pitch_deg, pitch_deg))
+        roll = np.radians(rng.uniform(-roll_deg, roll_deg))
+        target = centre + rng.uniform(-0.02, 0.02, size=3)
+        want = float(rng.uniform(*head_px))
+        direction = np.array([np.sin(np.radians(yaw)) * np.cos(pitch),
+                              -np.cos(np.radians(yaw)) * np.cos(pitch), np.sin(pitch)])
+        lo = max(distance_m[0], 0.0)
+        for _ in range(50):
+            dist = float(rng.uniform(lo, distance_m[1]))
+            probe = _look(centre + dist * direction, target, (3, 4), 1.0, roll)
+            ext = np.ptp(probe.project(skin), axis=0)  # metres per unit focal length
+            f_px = want / ext[1]
+            height = int(round(SENSOR_MM * f_px / lens))
+            size = (int(round(0.75 * height)), height)
+            cam = _look(centre + dist * direction, target, size, lens * height / SENSOR_MM,
+                        roll)
+            px = cam.project(skin)
+            if px.min() >= 0.02 * height and (px <= np.array(size) * 0.98).all():
+                break
+            lo = min(0.5 * (dist + distance_m[1]), distance_m[1])  # farther, then retry
+        else:
+            raise ValueError(f"photo {i}: the head does not fit in the frame at up to "
+                             f"{distance_m[1]} m with a {lens:.0f} mm lens")
+        cams[name] = cam
+        names = visible_landmarks(model, world, cam, normals, min_cos, triangles=skin_tris)
+        verts = np.array([model.landmarks[n] for n in names], dtype=np.int64)
+        px = cam.project(world[verts])
+        clean[name] = dict(zip(names, px, strict=True))
+        noisy = np.clip(px + noise_px * rng.normal(size=px.shape), 0.0, size)
+        outline = None
+        if contour:
+            traced = trace_silhouette(model, world, cam, skin_tris)
+            outlines[name] = traced
+            outline = resample_polyline(traced, contour_points)
+            outline = np.clip(outline + cnoise * rng.normal(size=outline.shape), 0.0, size)
+        if calibrated:
+            view = View(name, None, size, cam, dict(zip(names, noisy, strict=True)), outline,
+                        calibrated=True)
+        else:
+            hints = {"kind": "pinhole"}
+            if focal_prior is not None:
+                hints["lens_mm"] = float(lens * (1.0 + focal_prior * rng.normal()))
+            view = View(name, None, size, None, dict(zip(names, noisy, strict=True)), outline,
+                        camera_hints=hints)
+        views[name] = view
+    truth = SyntheticTruth(c, local, scale, rot, trans, cams, clean, outlines)
+    return LandmarkCase(views, "<synthetic>"), truth
+
+
+def make_mirror_case(model, rng=None, *, noise_px=1.0, distance_m=(0.9, 1.4),
+                     mirror_angle_deg=(30.0, 50.0), mirror_gap_m=(0.2, 0.3), yaw_deg=10.0,
+                     rotation_deg=5.0, coeffs=None, coeff_scale=1.0, head_px=700.0,
+                     calibrated=False, focal_prior=0.05, min_cos=0.0):
+    """One photo of a head and its mirror image (seed 001 ch. 3).
+
+    The camera stands ``distance_m`` in front of the head (yaw within +-``yaw_deg``). A
+    vertical flat mirror stands beside the head on the subject's left, ``mirror_gap_m``
+    from its centre, its normal turned ``mirror_angle_deg`` from the left-right axis
+    toward the camera, so the mirror shows the head from its left side. The camera aims
+    between the head and its mirror image; the lens is chosen so both fill 85 % of the
+    landscape (4:3) frame (its width, or its height), the resolution so the head is
+    ``head_px`` tall.
+
+    Returns
+    -------
+    case : LandmarkCase
+        View "front" (the face seen directly) and view "mirror" (``mirror_of="front"``, its
+        landmarks named by the subject's true side, camera to be derived by the fit), one
+        image and size.
+    truth : SyntheticTruth
+        ``cameras``: the real camera ("front") and the reflected one ("mirror");
+        ``planes["mirror"]``: the mirror.
+    """
+    from .fit_engine import mirror_camera
+
+    rng = np.random.default_rng(rng)
+    c, local, rot, scale, trans = _random_head(model, rng, coeffs, coeff_scale, rotation_deg)
+    world = scale * local @ rot.T + trans
+    normals = vertex_normals(model, world)
+    skin_tris = _skin_triangles(model)
+    skin = world[model.skin]
+    centre = 0.5 * (skin.min(axis=0) + skin.max(axis=0))
+    alpha = np.radians(rng.uniform(*mirror_angle_deg))
+    normal = np.array([-np.cos(alpha), -np.sin(alpha), 0.0])
+    plane = MirrorPlane.from_point_normal(centre + [rng.uniform(*mirror_gap_m), 0.0, 0.0],
+                                          normal)
+    mirrored_centre = plane.reflect_points(centre[None])[0]
+    yaw = np.radians(rng.uniform(-yaw_deg, yaw_deg))
+    dist = float(rng.uniform(*distance_m))
+    eye = centre + dist * np.array([np.sin(yaw), -np.cos(yaw), 0.0])
+    aim = 0.5 * (centre + mirrored_centre)
+    probe = _look(eye, aim, (4, 3), 1.0, 0.0)
+    both = np.vstack([probe.project(skin), mirror_camera(probe, plane).project(skin)])
+    ext = np.ptp(both, axis=0)
+    lens = 0.85 * SENSOR_MM / max(ext[0], ext[1] / 0.75)
+    f_unit = np.ptp(probe.project(skin)[:, 1])
+    width = int(round(SENSOR_MM * head_px / (f_unit * lens)))
+    size = (width, int(round(0.75 * width)))
+    cam = _look(eye, aim, size, lens * width / SENSOR_MM, 0.0)
+    mcam = mirror_camera(cam, plane)
+    views, clean = {}, {}
+    hints = {"kind": "pinhole"}
+    if focal_prior is not None:
+        hints["lens_mm"] = float(lens * (1.0 + focal_prior * rng.normal()))
+    for name, camera in (("front", cam), ("mirror", mcam)):
+        names = visible_landmarks(model, world, camera, normals, min_cos, triangles=skin_tris)
+        verts = np.array([model.landmarks[n] for n in names], dtype=np.int64)
+        px = camera.project(world[verts])
+        clean[name] = dict(zip(names, px, strict=True))
+        noisy = dict(zip(names, np.clip(px + noise_px * rng.normal(size=px.shape), 0.0,
+                                        size), strict=True))
+        if name == "front":
+            views[name] = View(name, None, size, cam if calibrated else None, noisy,
+                               calibrated=True if calibrated else None,
+                               camera_hints={} if calibrated else hints)
+        else:
+            views[name] = View(name, None, size, None, noisy, mirror_of="front",
+                               camera_hints={"kind": "pinhole"})
+    truth = SyntheticTruth(c, local, scale, rot, trans, {"front": cam, "mirror": mcam}, clean,
+                           planes={"mirror": plane})
+    return LandmarkCase(views, "<synthetic>"), truth
 
 
 def _random_camera(rng, cam_name, size, skin_world, fill, in_plane_deg):

@@ -13,8 +13,9 @@ weighed differently; ``iterations`` re-solves with every row divided by that den
 the current estimate (the a_i of eq. 12b), after which the least squares weighs pixel
 errors alike in every view. ``iterations=0`` is eq. 16 as printed.
 
-Lens distortion is removed first (eq. 15, ``DLTCamera.undistort``). Orthographic cameras
-(solver/cameras.py) are affine and fit the same equations with denominator 1.
+Lens distortion is removed first (eq. 15, ``DLTCamera.undistort``; a pinhole camera's k1
+by ``PinholeCamera.undistort``, its matrix K R [I | -C] is then exact). Orthographic
+cameras (solver/cameras.py) are affine and fit the same equations with denominator 1.
 
 Two residuals are reported per point: the reprojection residual in each view (pixels) and
 the gap between the viewing rays (metres): the length of the common perpendicular of two
@@ -27,6 +28,7 @@ import numpy as np
 
 from .cameras import OrthographicCamera
 from .dlt import DLTCamera
+from .pinhole import PinholeCamera
 
 
 @dataclass
@@ -66,13 +68,15 @@ def projection_matrix(camera):
 
     Parameters
     ----------
-    camera : DLTCamera or OrthographicCamera
+    camera : DLTCamera, PinholeCamera or OrthographicCamera
+        A pinhole camera's matrix is K R [I | -C] without k1 (``triangulate`` removes k1
+        from the pixels first).
 
     Returns
     -------
     ndarray, shape (3, 4)
     """
-    if isinstance(camera, DLTCamera):
+    if isinstance(camera, DLTCamera | PinholeCamera):
         p = camera.matrix
         if abs(p[2, 3]) > 1e-9:
             return p / p[2, 3]
@@ -83,8 +87,8 @@ def projection_matrix(camera):
         p[:2, 3] = camera.offset
         p[2, 3] = 1.0
         return p
-    raise ValueError(f"cameras: triangulation needs DLT or orthographic cameras, got "
-                     f"{type(camera).__name__}")
+    raise ValueError(f"cameras: triangulation needs DLT, pinhole or orthographic cameras, "
+                     f"got {type(camera).__name__}")
 
 
 def viewing_rays(camera, pixels):
@@ -92,17 +96,18 @@ def viewing_rays(camera, pixels):
 
     Parameters
     ----------
-    camera : DLTCamera or OrthographicCamera
+    camera : DLTCamera, PinholeCamera or OrthographicCamera
     pixels : ndarray, shape (n, 2), pixels
     """
     q = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
-    if isinstance(camera, DLTCamera):
+    if isinstance(camera, DLTCamera | PinholeCamera):
         return camera.back_project(q)
     if isinstance(camera, OrthographicCamera):
         r = camera.rotation
         origins = ((q - camera.offset) / camera.scale) @ r[:2]
         return origins, np.broadcast_to(r[2], origins.shape).copy()
-    raise ValueError(f"cameras: need DLT or orthographic cameras, got {type(camera).__name__}")
+    raise ValueError(f"cameras: need DLT, pinhole or orthographic cameras, got "
+                     f"{type(camera).__name__}")
 
 
 def ray_midpoint(origin1, direction1, origin2, direction2):
@@ -158,7 +163,7 @@ def triangulate(cameras, pixels, weights=None, iterations=2):
 
     Parameters
     ----------
-    cameras : sequence of DLTCamera or OrthographicCamera, length m
+    cameras : sequence of DLTCamera, PinholeCamera or OrthographicCamera, length m
     pixels : array_like, shape (m, n, 2), pixels
         Observed pixel of point i in view j; NaN rows where a view does not see a point.
     weights : array_like, shape (m,) or (m, n), optional
@@ -203,7 +208,8 @@ def triangulate(cameras, pixels, weights=None, iterations=2):
     # corrected pixels (eq. 15), zeros where missing (their rows get weight 0)
     qc = np.where(seen[:, :, None], q, 0.0)
     for j, c in enumerate(cams):
-        if isinstance(c, DLTCamera) and c.has_distortion:
+        if (isinstance(c, DLTCamera) and c.has_distortion) or \
+                (isinstance(c, PinholeCamera) and c.k1 != 0.0):
             qc[j] = c.undistort(qc[j])
     # rows: (P0[:3] - x P2[:3]) X = x P2[3] - P0[3], and the same with P1, y
     a = mats[:, None, :2, :3] - qc[:, :, :, None] * mats[:, None, 2:3, :3]  # (m, n, 2, 3)

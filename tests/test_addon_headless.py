@@ -1,6 +1,10 @@
 """The headless script writes .blend files that reopen with their shape keys and texture;
 a batch goes on past a bad file and says so in its exit code (subprocesses)."""
 
+import json
+import struct
+from pathlib import Path
+
 import bpy
 import numpy as np
 from addon_support import ROOT, addon, run_python, synthetic_files
@@ -64,6 +68,14 @@ def test_headless_as_a_blender_script(model, tmp_path):
     assert sum(kb.name.startswith("identity_") for kb in head.data.shape_keys.key_blocks) == 20
 
 
+def _glb_json(path):
+    """The JSON chunk of a binary glTF file."""
+    data = Path(path).read_bytes()
+    assert data[:4] == b"glTF"
+    n = struct.unpack("<I", data[12:16])[0]
+    return json.loads(data[20:20 + n])
+
+
 def test_summary_names_the_winning_approach(model, tmp_path, monkeypatch, capsys):
     # A "combined" fit runs both approaches and keeps the better one: the summary line
     # (and the head) must name that one, not the method that was asked for.
@@ -79,13 +91,22 @@ def test_summary_names_the_winning_approach(model, tmp_path, monkeypatch, capsys
 
     monkeypatch.setattr(headless, "fit_head", keep_result)
     code = headless.main([str(path), "--out", str(tmp_path / "carol.blend"), "--method",
-                          "combined", "--components", "20", "--no-texture"])
+                          "combined", "--components", "20", "--no-texture", "--glb"])
     assert code == 0 and len(fits) == 1
     won = fits[0].info["approach"]
     assert fits[0].method == "combined" and won in ("approach1", "approach2")
     line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("carol:"))
     assert line.startswith(f"carol: method {won}, RMS ")
     assert bpy.data.objects["carol"].headrecon.fit_method == won
+    # the .glb holds the head with its shape keys as morph targets, and the lashes as an
+    # alpha-blended texture (not opaque strips over the eyes)
+    doc = _glb_json(tmp_path / "carol.glb")
+    assert [n["name"] for n in doc["nodes"]] == ["carol"]
+    targets = {len(p.get("targets", ())) for p in doc["meshes"][0]["primitives"]}
+    assert targets == {1 + 20 + 57}  # identity keys, detail, expressions
+    lashes = next(m for m in doc["materials"] if m["name"].endswith("Eyelashes"))
+    assert lashes["alphaMode"] == "BLEND"
+    assert "baseColorTexture" in lashes["pbrMetallicRoughness"]
 
 
 def test_given_textures_are_used_without_a_second_bake(model, tmp_path, monkeypatch):

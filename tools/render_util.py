@@ -207,6 +207,8 @@ def studio_lighting(center, world_strength=0.2, light_scale=1.0,
               color=(0.92, 0.96, 1.0), name="Fill")
     add_light("AREA", c + (0.3, 1.3, 1.0), c, 40.0 * light_scale, size=0.8, name="Rim")
     world = bpy.data.worlds.new("World")
+    if world.node_tree is None:  # Blender 4.x: node trees are switched on by hand
+        world.use_nodes = True
     bg = world.node_tree.nodes.get("Background")
     bg.inputs["Color"].default_value = tuple(world_color) + (1.0,)
     bg.inputs["Strength"].default_value = world_strength
@@ -219,6 +221,8 @@ PREVIEW_LIGHTING = {"world_strength": 0.7, "light_scale": 0.25, "world_color": (
 def vertex_color_material(name, attribute):
     """A matte material coloured by a per-vertex colour attribute (e.g. an error map)."""
     mat = bpy.data.materials.new(name)
+    if mat.node_tree is None:  # Blender 4.x
+        mat.use_nodes = True
     nt = mat.node_tree
     bsdf = nt.nodes.get("Principled BSDF")
     node = nt.nodes.new("ShaderNodeAttribute")
