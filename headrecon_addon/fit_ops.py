@@ -3,8 +3,14 @@
 The fit runs in three steps so the interactive operator can keep Blender responsive and
 cancel cleanly: ``prepare_job`` (main thread: reads landmarks and photo pixels from the
 scene), ``FitJob.run`` (any thread: solver only, no bpy), ``apply_job`` (main thread:
-shape keys, transform, texture, uncertainty, residual list). Until the last step the scene
-is untouched, so Esc (or an error) leaves it as it was.
+shape keys, transform, texture, uncertainty, residual list, the perspective photos'
+cameras). Until the last step the scene is untouched, so Esc (or an error) leaves it as
+it was.
+
+Calibration residuals: every view with passpoints is checked on its own by the solver's
+``check_passpoints`` (seed 000 §5-6: each view's DLT from its passpoints, leave-one-out
+suspects); its passpoints' residuals join the landmark residuals in the list, suspects
+first.
 
 Live refit: a depsgraph handler watches the landmark positions; when one moved it asks
 the solver's fast path (``refit_landmarks``, cameras and correspondences of the last full
@@ -26,6 +32,7 @@ from .polls import object_mode_problem, poll_result
 from .solver_link import (
     FitOptions,
     bake_fit_texture,
+    check_passpoints,
     fit_head,
     landmarks_file,
     load_model,
@@ -63,7 +70,9 @@ def fit_problem(scene):
         return "Load a front and a profile photo first"
     counts = {p.headrecon.view: len(landmarks.landmark_objects(p)) for p in planes}
     need = landmarks_file.MIN_LANDMARKS_PER_VIEW
-    few = [f"{v} ({n})" for v, n in counts.items() if n < need]
+    # a view with passpoints gets its camera from them: its landmarks are optional
+    calibrated = {p.headrecon.view for p in planes if landmarks.passpoint_objects(p)}
+    few = [f"{v} ({n})" for v, n in counts.items() if n < need and v not in calibrated]
     if few:
         return f"Too few landmarks on {', '.join(few)}: place at least {need} per photo"
     total = sum(counts.values())
@@ -84,6 +93,32 @@ def photo_arrays(scene):
     return out
 
 
+def calibration_checks(case):
+    """Passpoint check of every view with passpoints (``check_passpoints`` per view, so
+    one view that cannot be checked does not hide the others).
+
+    Returns
+    -------
+    checks : dict of str -> (list of str, PasspointCheck)
+        Per view: its passpoint names (the order of the check's arrays) and the check.
+    notes : list of str
+        Views that could not be checked, and the checks' own notes.
+    """
+    checks, notes = {}, []
+    for name, view in case.views.items():
+        if not view.passpoints:
+            continue
+        try:
+            names, xyz, uv = case.passpoint_arrays(name)
+            check = check_passpoints(xyz, {name: uv}, names, sizes={name: view.size})
+        except ValueError as e:
+            notes.append(f"view {name!r}: passpoints not checked: {e}")
+            continue
+        checks[name] = (names, check)
+        notes += check.notes
+    return checks, notes
+
+
 @dataclasses.dataclass
 class FitJob:
     """Everything a fit needs, read from the scene; ``run`` touches no bpy data."""
@@ -95,12 +130,15 @@ class FitJob:
     texture_size: int = 1024
     bake: bool = True
     result: object = None
+    calibration: dict = dataclasses.field(default_factory=dict)
+    calibration_notes: list = dataclasses.field(default_factory=list)
     textures: dict = None
     error: BaseException = None
     cancelled: bool = False
     fraction: float = 0.0
     message: str = "starting"
     timings: dict = dataclasses.field(default_factory=dict)
+    notes: list = dataclasses.field(default_factory=list)
 
     def progress(self, fraction, message):
         if self.cancelled:
@@ -115,6 +153,7 @@ class FitJob:
             self.options = dataclasses.replace(self.options, progress=self.progress)
             self.result = fit_head(self.model, self.case, self.options)
             self.timings["fit"] = time.perf_counter() - t
+            self.calibration, self.calibration_notes = calibration_checks(self.case)
         except BaseException as e:  # noqa: B036  (kept for the main thread to report)
             self.error = e
 
@@ -258,16 +297,30 @@ def rms_residual(result):
     return float(np.sqrt(np.mean(px ** 2))) if px.size else 0.0
 
 
-def update_residuals(scene, result):
-    """Fill the residual list (flagged first, then worst first) and colour the landmarks.
-    Cheap enough for every live refit: rows are rewritten in place, a landmark's material
-    only changes when its flag does."""
+def residual_rows(result, calibration=None):
+    """The residual list's rows: (rank, pixels, view, name, kind, message), sorted: flagged
+    passpoints (suspects) first, then flagged landmarks, then the rest; worst first."""
     rows = []
     for view, r in result.residuals.items():
         flagged = set(r.flagged)
         for name, px in zip(r.names, np.asarray(r.pixels, dtype=np.float64), strict=True):
-            rows.append((name in flagged, float(px), view, name))
-    rows.sort(key=lambda t: (not t[0], -t[1]))
+            rows.append((1 if name in flagged else 2, float(px), view, name, "LANDMARK", ""))
+    for view, (names, check) in (calibration or {}).items():
+        suspects = {s.name: s for s in check.suspects if s.view == view}
+        px = np.asarray(check.residuals[view], dtype=np.float64)
+        for name, r in zip(names, px, strict=True):
+            s = suspects.get(name)
+            rows.append((0 if s else 2, float(r), view, name, "PASSPOINT",
+                         s.message if s else ""))
+    rows.sort(key=lambda t: (t[0], -t[1]))
+    return rows
+
+
+def update_residuals(scene, result, calibration=None):
+    """Fill the residual list (see ``residual_rows``) and colour landmarks and passpoints.
+    Cheap enough for every live refit: rows are rewritten in place, a marker's material
+    only changes when its flag does."""
+    rows = residual_rows(result, calibration)
     props = scene.headrecon
     items = props.residuals
     if len(items) != len(rows):
@@ -275,24 +328,28 @@ def update_residuals(scene, result):
         for _ in rows:
             items.add()
         props.residual_index = -1
-    for item, (flagged, px, view, name) in zip(items, rows, strict=True):
-        item.view, item.landmark, item.pixels, item.flagged = view, name, px, flagged
+    for item, (rank, px, view, name, kind, message) in zip(items, rows, strict=True):
+        item.view, item.landmark, item.pixels, item.flagged = view, name, px, rank < 2
+        item.kind, item.message = kind, message
     by_view = {}
-    for flagged, px, view, name in rows:
-        by_view.setdefault(view, {})[name] = (flagged, px)
+    for rank, px, view, name, kind, _ in rows:
+        by_view.setdefault((view, kind), {})[name] = (rank < 2, px)
     for plane in photos.photo_planes(scene):
-        res = by_view.get(plane.headrecon.view, {})
-        for name, obj in landmarks.landmark_objects(plane).items():
-            flagged, px = res.get(name, (False, -1.0))
-            if obj.headrecon.flagged != flagged:
-                landmarks.set_landmark_state(obj, flagged, px)
-            else:
-                obj.headrecon.residual_px = px
+        for kind in landmarks.MARKER_ROLES:
+            res = by_view.get((plane.headrecon.view, kind), {})
+            for name, obj in landmarks.marker_objects(plane, kind).items():
+                flagged, px = res.get(name, (False, -1.0))
+                if obj.headrecon.flagged != flagged:
+                    landmarks.set_landmark_state(obj, flagged, px)
+                else:
+                    obj.headrecon.residual_px = px
 
 
-def apply_result(scene, model, result, textures=None, head=None, name=None):
+def apply_result(scene, model, result, textures=None, head=None, name=None, calibration=None,
+                 notes=None):
     """Write a FitResult into the scene: shape keys, transform, texture, uncertainty,
-    residuals, landmark colours; photo planes lined up with the fitted cameras.
+    residuals, landmark colours; photo planes lined up with the fitted cameras (a
+    perspective photo's Blender camera set to its fitted camera).
 
     Parameters
     ----------
@@ -305,6 +362,10 @@ def apply_result(scene, model, result, textures=None, head=None, name=None):
         Default: the scene's head; one is made (and linked) if there is none.
     name : str, optional
         Name of a head made here (default "HeadRecon Head").
+    calibration : dict, optional
+        Passpoint checks (``calibration_checks``) for the residual list.
+    notes : list, optional
+        Gets what showing the cameras dropped or could not do (one line per view).
 
     Returns
     -------
@@ -333,12 +394,20 @@ def apply_result(scene, model, result, textures=None, head=None, name=None):
     head.matrix_world = similarity_matrix(result)
     head.headrecon.fit_method = fit_method(result)
     head.headrecon.fit_rms_px = rms_residual(result)
-    update_residuals(scene, result)
+    update_residuals(scene, result, calibration)
     centre = result.world_vertices[model.skin].mean(axis=0)
     for plane in photos.photo_planes(scene):
-        cam = result.cameras.get(plane.headrecon.view)
-        if isinstance(cam, photos.OrthographicCamera):
-            plane.matrix_world = photos.plane_matrix(plane, cam, centre=centre)
+        view = plane.headrecon.view
+        cam = result.cameras.get(view)
+        perspective = getattr(cam, "kind", None) in photos.photo_cameras.PERSPECTIVE_KINDS
+        if cam is None or perspective != photos.is_perspective(plane):
+            continue
+        try:
+            shown = photos.place_plane(plane, cam, centre=centre)
+        except ValueError as e:  # a camera Blender cannot show: the fit itself stands
+            shown = [f"camera not shown: {e}"]
+        if notes is not None:
+            notes += [f"view {view!r}: {w}" for w in shown]
     return head
 
 
@@ -346,19 +415,23 @@ def apply_job(scene, job, textures=True):
     """Main-thread half of a fit: write the job's result (and its baked texture unless
     ``textures`` is False); remember the result for live refits."""
     t = time.perf_counter()
-    head = apply_result(scene, job.model, job.result, job.textures if textures else None)
+    job.notes = list(job.calibration_notes)
+    head = apply_result(scene, job.model, job.result, job.textures if textures else None,
+                        calibration=job.calibration, notes=job.notes)
     job.timings["write"] = time.perf_counter() - t
-    remember_fit(scene, head, job.model, job.result, job.options)
+    remember_fit(scene, head, job.model, job.result, job.options, job.calibration)
     _status(scene, head, job)
     return head
 
 
 def _status(scene, head, job):
     flagged = job.result.flagged()
+    suspects = sum(len(check.suspects) for _, check in job.calibration.values())
     total = job.timings.get("total", sum(job.timings.values()))
     scene.headrecon.status = (f"{head.headrecon.fit_method}: RMS "
-                              f"{head.headrecon.fit_rms_px:.2f} px, {len(flagged)} flagged, "
-                              f"{total:.2f} s")
+                              f"{head.headrecon.fit_rms_px:.2f} px, {len(flagged)} flagged"
+                              + (f", {suspects} passpoint suspect{'s' * (suspects != 1)}"
+                                 if suspects else "") + f", {total:.2f} s")
 
 
 def run_fit(scene):
@@ -400,14 +473,16 @@ def run_fit(scene):
 
 
 _live = {"base": None, "result": None, "model": None, "options": None, "head": "",
-         "signature": None, "busy": False, "ms": 0.0, "error": "", "moved_at": 0.0}
+         "signature": None, "busy": False, "ms": 0.0, "error": "", "moved_at": 0.0,
+         "calibration": {}}
 
 
-def remember_fit(scene, head, model, result, options):
+def remember_fit(scene, head, model, result, options, calibration=None):
     """Keep the last full fit in memory: live refits start from its cameras and
     correspondences (not saved in the .blend; after reopening, fit once again)."""
     _live.update(base=result, result=result, model=model, head=head.name, error="",
                  options=dataclasses.replace(options, progress=None),
+                 calibration=dict(calibration or {}),
                  signature=landmarks.landmark_signature(photos.photo_planes(scene)))
 
 
@@ -418,7 +493,8 @@ def reset_live_state():
 
 
 def forget_fit():
-    _live.update(base=None, result=None, model=None, options=None, head="", signature=None)
+    _live.update(base=None, result=None, model=None, options=None, head="", signature=None,
+                 calibration={})
 
 
 def last_result():
@@ -474,7 +550,7 @@ def live_refit_step(scene, force=False, drag=True):
         return None
     head.matrix_world = similarity_matrix(result)
     head.headrecon.fit_rms_px = rms_residual(result)
-    update_residuals(scene, result)
+    update_residuals(scene, result, _live["calibration"])
     _live["result"] = result
     _live["ms"] = (time.perf_counter() - t) * 1000.0
     _live["error"] = ""
@@ -594,6 +670,8 @@ class HEADRECON_OT_fit(bpy.types.Operator):
     def _done(self, context, head, job):
         level = "WARNING" if job.error is not None else "INFO"
         self.report({level}, f"Fitted {head.name}: {context.scene.headrecon.status}")
+        if job.notes:
+            self.report({"WARNING"}, "; ".join(job.notes))
 
     def execute(self, context):
         try:

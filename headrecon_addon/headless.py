@@ -76,7 +76,9 @@ def _only(case, view):
 def build_scene_from_fit(model, case, result, images=None, scene=None, texture_size=1024,
                          bake=True, name=None, textures=None):
     """Build the artist's scene for a finished fit: photo planes with landmarks (and
-    contour), and the head with shape keys, transform, uncertainty and baked texture.
+    contour, passpoints), a Blender camera per perspective photo set to its fitted camera,
+    and the head with shape keys, transform, uncertainty and baked texture; the residual
+    list with the passpoint checks.
 
     Parameters
     ----------
@@ -109,14 +111,16 @@ def build_scene_from_fit(model, case, result, images=None, scene=None, texture_s
         imgs = _images_for(case, images)
         planes = landmarks.build_view_planes(case, imgs)
         for plane in planes:
-            photos.link_object(plane, scene.collection)
+            photos.link_object(photos.view_root(plane), scene.collection)
         landmarks.store_case_level(scene, case)
         if textures is None and bake:
             arrays = {v: photos.image_to_array(img) for v, img in imgs.items()
                       if not img.get(photos.PLACEHOLDER)}
             if arrays:
                 textures = bake_fit_texture(model, result, arrays, size=int(texture_size))
-        head = fit_ops.apply_result(scene, model, result, textures, name=name)
+        calibration, _ = fit_ops.calibration_checks(case)
+        head = fit_ops.apply_result(scene, model, result, textures, name=name,
+                                    calibration=calibration)
     return head
 
 

@@ -1,11 +1,13 @@
-"""Landmarks and the profile contour on the photo planes; import and export of the
-landmarks file; the place-landmarks and draw-contour tools.
+"""Landmarks, passpoints and the profile contour on the photo planes; import and export of
+the landmarks file; the place-landmarks and draw-contour tools.
 
 A landmark is a small sphere parented to its photo plane (so it moves with the plane, can
 be grabbed, undone and is saved in the .blend), its position in plane space being the one
-source of truth for its pixel coordinates (see photos.py). The contour is a poly curve
-parented to the plane the same way. The file format is the solver's: reading and writing
-go through ``solver/landmarks_file.py`` only.
+source of truth for its pixel coordinates (see photos.py). A passpoint (where a point of a
+calibration object, whose 3-D position the file gives, is seen) is the same kind of marker
+in another colour and role. The contour is a poly curve parented to the plane the same way.
+The file format is the solver's: reading and writing go through ``solver/landmarks_file.py``
+only.
 
 Modal operators cannot run in background tests, so their logic lives in plain functions
 and in ``PlacementSession`` / ``ContourSession``; the operators only translate events.
@@ -25,7 +27,13 @@ from mathutils import Vector
 from . import material, photos
 from .data import Transaction
 from .polls import ObjectModeOperator, object_mode_problem, poll_result, view3d_problem
-from .solver_link import landmarks_file, load_landmark_set, load_landmarks, save_landmarks
+from .solver_link import (
+    fit_dlt,
+    landmarks_file,
+    load_landmark_set,
+    load_landmarks,
+    save_landmarks,
+)
 
 MARKER_RADIUS = 0.0025  # metres (plane space): about 7 px on a 1024 px photo
 LIFT = 0.001  # landmarks and contour float this far in front of the photo (plane +z)
@@ -72,13 +80,27 @@ def _marker_mesh():
     return mesh
 
 
+MARKER_ROLES = ("LANDMARK", "PASSPOINT")
+
+
 def is_landmark(obj):
     return obj is not None and obj.headrecon.role == "LANDMARK"
 
 
+def marker_objects(plane, role="LANDMARK"):
+    """Markers of a photo plane with ``role`` ("LANDMARK" or "PASSPOINT"): dict name ->
+    object (creation order)."""
+    return {c.headrecon.landmark: c for c in plane.children if c.headrecon.role == role}
+
+
 def landmark_objects(plane):
     """Landmarks of a photo plane: dict name -> object (creation order)."""
-    return {c.headrecon.landmark: c for c in plane.children if is_landmark(c)}
+    return marker_objects(plane, "LANDMARK")
+
+
+def passpoint_objects(plane):
+    """Passpoints of a photo plane: dict name -> object (creation order)."""
+    return marker_objects(plane, "PASSPOINT")
 
 
 def _link_like(obj, plane):
@@ -88,22 +110,26 @@ def _link_like(obj, plane):
 
 
 def set_landmark_state(obj, flagged, residual_px=-1.0):
-    """Colour a landmark as placed (green) or flagged by the fit (red)."""
+    """Colour a marker as placed (landmarks green, passpoints blue) or flagged (red)."""
     obj.headrecon.flagged = bool(flagged)
     obj.headrecon.residual_px = float(residual_px)
-    state = "FLAGGED" if flagged else "PLACED"
+    base = "PASSPOINT" if obj.headrecon.role == "PASSPOINT" else "PLACED"
+    state = "FLAGGED" if flagged else base
     obj.material_slots[0].material = material.landmark_material(state)
     obj.color = material.LANDMARK_COLOURS[state]
 
 
-def place_landmark_local(plane, name, xy):
-    """Put landmark ``name`` at plane-space (x, y) (creates it or moves it). Returns it."""
-    name = canonical_name(name)
-    obj = landmark_objects(plane).get(name)
+def place_marker_local(plane, name, xy, role="LANDMARK"):
+    """Put marker ``name`` of ``role`` at plane-space (x, y) (creates it or moves it).
+    Landmark names are made canonical. Returns the object."""
+    if role == "LANDMARK":
+        name = canonical_name(name)
+    obj = marker_objects(plane, role).get(name)
     if obj is None:
         view = plane.headrecon.view
-        obj = bpy.data.objects.new(f"HR {view} {name}", _marker_mesh())
-        obj.headrecon.role = "LANDMARK"
+        label = name if role == "LANDMARK" else f"passpoint {name}"
+        obj = bpy.data.objects.new(f"HR {view} {label}", _marker_mesh())
+        obj.headrecon.role = role
         obj.headrecon.view = view
         obj.headrecon.landmark = name
         obj.parent = plane
@@ -118,15 +144,23 @@ def place_landmark_local(plane, name, xy):
     return obj
 
 
-def place_landmark(plane, name, uv):
-    """Put landmark ``name`` at pixel ``uv`` = (u, v) of the plane's photo. Returns it."""
+def place_landmark_local(plane, name, xy):
+    """Put landmark ``name`` at plane-space (x, y) (creates it or moves it). Returns it."""
+    return place_marker_local(plane, name, xy, "LANDMARK")
+
+
+def place_landmark(plane, name, uv, role="LANDMARK"):
+    """Put landmark (or passpoint, ``role``) ``name`` at pixel ``uv`` = (u, v) of the
+    plane's photo. Returns it."""
     xy = photos.local_from_pixels(plane, [uv])[0]
-    return place_landmark_local(plane, name, xy)
+    return place_marker_local(plane, name, xy, role)
 
 
-def remove_landmark(plane, name):
-    """Unplace landmark ``name`` (no error if it was not placed). Returns True if removed."""
-    obj = landmark_objects(plane).get(canonical_name(name))
+def remove_landmark(plane, name, role="LANDMARK"):
+    """Unplace landmark (or passpoint) ``name`` (no error if it was not placed). Returns
+    True if removed."""
+    key = canonical_name(name) if role == "LANDMARK" else name
+    obj = marker_objects(plane, role).get(key)
     if obj is None:
         return False
     bpy.data.objects.remove(obj, do_unlink=True)
@@ -139,13 +173,14 @@ def clear_landmarks(plane):
     photos.remove_objects(objs)
 
 
-def landmark_pixels(plane):
-    """Placed landmarks of a plane: dict name -> (u, v) pixels, in the landmark set's
-    order (names it does not know last)."""
-    objs = landmark_objects(plane)
+def landmark_pixels(plane, role="LANDMARK"):
+    """Placed landmarks (or passpoints, ``role``) of a plane: dict name -> (u, v) pixels;
+    landmarks in the landmark set's order (names it does not know last), passpoints by
+    name."""
+    objs = marker_objects(plane, role)
     if not objs:
         return {}
-    order = {n: i for i, n in enumerate(landmark_set().names)}
+    order = {n: i for i, n in enumerate(landmark_set().names)} if role == "LANDMARK" else {}
     names = sorted(objs, key=lambda n: (order.get(n, len(order)), n))
     xy = np.array([_plane_xy(objs[n]) for n in names], dtype=np.float64)
     # Locations are float32 (~2e-5 px here); rounding to 1/1000 px gives back exactly the
@@ -174,10 +209,11 @@ def landmark_signature(planes):
     return np.array(rows, dtype=np.float64)
 
 
-def select_landmark(context, view, name):
-    """Make landmark ``name`` of view ``view`` the only selected, active object."""
+def select_landmark(context, view, name, role="LANDMARK"):
+    """Make landmark (or passpoint, ``role``) ``name`` of view ``view`` the only selected,
+    active object."""
     plane = photos.find_plane(context.scene, view)
-    obj = landmark_objects(plane).get(name) if plane is not None else None
+    obj = marker_objects(plane, role).get(name) if plane is not None else None
     if obj is None:
         return None
     layer = context.view_layer
@@ -303,7 +339,7 @@ def _image_ref(image, base_dir):
         return str(path)
 
 
-_EDITED = ("image", "size", "points", "contour", "camera")
+_EDITED = ("image", "size", "points", "contour", "camera", "passpoints")
 
 
 def view_dict_from_plane(plane, base_dir=None):
@@ -324,6 +360,11 @@ def view_dict_from_plane(plane, base_dir=None):
         d["image"] = image
     d["size"] = [w, h]
     d["points"] = {k: list(v) for k, v in landmark_pixels(plane).items()}
+    passpoints = landmark_pixels(plane, "PASSPOINT")
+    if passpoints:
+        d["passpoints"] = {k: list(v) for k, v in passpoints.items()}
+    else:
+        d.pop("passpoints", None)
     contour = contour_pixels(plane)
     if contour is None:
         d.pop("contour", None)
@@ -387,6 +428,13 @@ def store_case_level(scene, case):
     scene.headrecon.case_json = json.dumps(rest) if rest else ""
 
 
+def case_passpoints(scene):
+    """The calibration object's passpoints of the scene's case: dict name -> [x, y, z]
+    metres (from the imported file), in the file's order."""
+    props = scene.headrecon
+    return dict(json.loads(props.case_json).get("passpoints", {})) if props.case_json else {}
+
+
 def placeholder_image(view, size):
     """A plain grey image standing in for a view whose file names no photo."""
     w, h = size
@@ -397,8 +445,9 @@ def placeholder_image(view, size):
 
 
 def build_view_planes(case, images, centre=(0.0, 0.0, 0.0)):
-    """Photo planes with their landmarks and contours for every view of ``case`` (not
-    linked to a scene). ``images``: dict view -> bpy Image."""
+    """Photo planes with their landmarks, passpoints and contours for every view of
+    ``case``, with a Blender camera for each perspective photo (not linked to a scene: link
+    ``photos.view_root(plane)``). ``images``: dict view -> bpy Image."""
     planes = []
     for name, view in case.views.items():
         img = images[name]
@@ -406,21 +455,38 @@ def build_view_planes(case, images, centre=(0.0, 0.0, 0.0)):
             raise ValueError(f"view {name!r}: the photo {img.name!r} is "
                              f"{img.size[0]}x{img.size[1]} pixels but the landmarks file "
                              f"says {view.size[0]}x{view.size[1]}")
-        plane = photos.new_photo_plane(img, name, photos.nearest_view(view.camera, name),
-                                       camera=view.camera, centre=centre)
-        planes.append(plane)
         vd = view.to_dict()  # the file's form: a camera keeps its numbers as read
         keep = {k: v for k, v in vd.items() if k not in _EDITED}
+        hints, shown = None, None
         if view.camera is None:
-            keep["camera"] = vd["camera"]  # hints: the fit computes this camera
-        elif not isinstance(vd["camera"], str):
+            keep["camera"] = hints = vd["camera"]  # the fit computes this camera
+            shown = passpoint_camera(case, name)
+        plane = photos.new_photo_plane(
+            img, name, photos.nearest_view(view.camera or shown, name), camera=view.camera,
+            centre=centre, hints=hints, shown=shown)
+        planes.append(plane)
+        if view.camera is not None and not isinstance(vd["camera"], str):
             plane.headrecon.camera_json = json.dumps(vd["camera"])
         plane.headrecon.view_json = json.dumps(keep) if keep else ""
         for lm, uv in view.points.items():
             place_landmark(plane, lm, uv)
+        for pp, uv in view.passpoints.items():
+            place_landmark(plane, pp, uv, "PASSPOINT")
         if view.contour is not None and len(view.contour):
             set_contour(plane, view.contour)
     return planes
+
+
+def passpoint_camera(case, view):
+    """The DLT camera of a view's passpoints (what the fit starts from for a camera to be
+    computed), or None when they cannot give one (too few, coplanar, undefined)."""
+    if len(case.views[view].passpoints) < landmarks_file.MIN_PASSPOINTS:
+        return None
+    try:
+        _, xyz, uv = case.passpoint_arrays(view)
+        return fit_dlt(xyz, uv, case.views[view].size).camera
+    except ValueError:
+        return None
 
 
 def load_case_images(case):
@@ -465,9 +531,9 @@ def import_landmarks(context, path):
         for name in case.views:
             old = photos.find_plane(scene, name)
             if old is not None:
-                photos.remove_objects([*old.children_recursive, old])
+                photos.remove_objects(photos.view_objects(old))
         for plane in planes:
-            photos.link_object(plane, scene.collection)
+            photos.link_object(photos.view_root(plane), scene.collection)
         store_case_level(scene, case)
     return planes
 
@@ -484,28 +550,45 @@ def export_landmarks(scene, path):
 # Interactive tools: logic
 
 
+def _passpoint_description(xyz):
+    if xyz is None:
+        return "not defined in the file's passpoints"
+    return "calibration point at (" + ", ".join(f"{c:g}" for c in xyz) + ") m"
+
+
 class PlacementSession:
-    """Walk through the landmarks of one photo: place the current one, skip it, go back.
+    """Walk through the landmarks (or passpoints) of one photo: place the current one,
+    skip it, go back.
 
     Parameters
     ----------
     plane : bpy.types.Object
         The photo plane.
     names : list of str, optional
-        Landmarks to walk (default: those of assets/landmarks.json visible in the plane's
-        view, in file order). The walk starts at the first one not yet placed.
+        Markers to walk (default: the landmarks of assets/landmarks.json visible in the
+        plane's view, in file order; for passpoints, ``passpoints``' names). The walk
+        starts at the first one not yet placed.
+    role : {"LANDMARK", "PASSPOINT"}
+    passpoints : dict of str -> (3,) metres, optional
+        The calibration object's passpoints (``case_passpoints``), for ``role``
+        "PASSPOINT".
     """
 
-    def __init__(self, plane, names=None):
+    def __init__(self, plane, names=None, role="LANDMARK", passpoints=None):
         self.plane_name = plane.name
-        if names is None:
+        self.role = role
+        if role == "PASSPOINT":
+            xyz = dict(passpoints or {})
+            defs = [{"name": n, "description": _passpoint_description(xyz.get(n))}
+                    for n in (list(xyz) if names is None else names)]
+        elif names is None:
             defs = landmark_definitions(photos.view_kind(plane))
         else:
             known = {e["name"]: e for e in landmark_set().info}
             defs = [known.get(canonical_name(n), {"name": n, "description": ""})
                     for n in names]
         self.definitions = defs
-        placed = landmark_objects(plane)
+        placed = marker_objects(plane, role)
         self.index = next((i for i, d in enumerate(defs) if d["name"] not in placed),
                           len(defs))
         self.placed = 0
@@ -520,11 +603,11 @@ class PlacementSession:
 
     @property
     def current(self):
-        """The definition dict of the landmark to place next, or None when done."""
+        """The definition dict of the marker to place next, or None when done."""
         return None if self.done else self.definitions[self.index]
 
     def click(self, origin, direction):
-        """A click along a view ray: place the current landmark where the ray meets the
+        """A click along a view ray: place the current marker where the ray meets the
         photo and move on. Returns False when the ray misses the photo."""
         xy = hit_plane(self.plane, origin, direction)
         if xy is None or self.done:
@@ -533,29 +616,31 @@ class PlacementSession:
         return True
 
     def place_local(self, xy):
-        place_landmark_local(self.plane, self.current["name"], xy)
+        place_marker_local(self.plane, self.current["name"], xy, self.role)
         self.placed += 1
         self.index += 1
 
     def skip(self):
-        """Leave the current landmark as it is (unplaced stays unplaced)."""
+        """Leave the current marker as it is (unplaced stays unplaced)."""
         self.index = min(self.index + 1, len(self.definitions))
 
     def back(self):
         self.index = max(self.index - 1, 0)
 
     def unplace(self):
-        """Remove the current landmark from the photo."""
+        """Remove the current marker from the photo."""
         if not self.done:
-            remove_landmark(self.plane, self.current["name"])
+            remove_landmark(self.plane, self.current["name"], self.role)
 
     def header(self):
         n = len(self.definitions)
+        what = "Passpoint" if self.role == "PASSPOINT" else "Landmark"
         if self.done:
-            return f"HeadRecon: all {n} landmarks visited. Esc: done"
+            return f"HeadRecon: all {n} {what.lower()}s visited. Esc: done"
         d = self.current
-        state = " (placed: click to move)" if d["name"] in landmark_objects(self.plane) else ""
-        return (f"Landmark {self.index + 1}/{n}: {d['name']}{state} — "
+        placed = d["name"] in marker_objects(self.plane, self.role)
+        state = " (placed: click to move)" if placed else ""
+        return (f"{what} {self.index + 1}/{n}: {d['name']}{state} — "
                 f"{d.get('description', '')}")
 
 
@@ -706,18 +791,31 @@ class _PlaneToolMixin:
 
 
 class HEADRECON_OT_place_landmarks(_PlaneToolMixin, bpy.types.Operator):
-    """Click the landmarks on a photo one after the other; the header names the next one"""
+    """Click the landmarks (or passpoints) on a photo one after the other; the header
+    names the next one"""
 
     bl_idname = "headrecon.place_landmarks"
     bl_label = "Place Landmarks"
     bl_options = {"REGISTER", "UNDO"}
     STATUS = STATUS_PLACE
 
+    passpoints: bpy.props.BoolProperty(
+        name="Passpoints", options={"SKIP_SAVE"},
+        description="Place the calibration object's passpoints instead of landmarks")
+
     def invoke(self, context, event):
         plane = self._start(context)
         if plane is None:
             return {"CANCELLED"}
-        self.session = PlacementSession(plane)
+        if self.passpoints:
+            self.session = PlacementSession(plane, role="PASSPOINT",
+                                            passpoints=case_passpoints(context.scene))
+            if not self.session.definitions:
+                self.report({"ERROR"}, "The landmarks file defines no passpoints (a "
+                            "calibration object's points, top-level 'passpoints')")
+                return {"CANCELLED"}
+        else:
+            self.session = PlacementSession(plane)
         if not self.session.definitions:
             self.report({"ERROR"}, f"No landmarks are defined for a {photos.view_kind(plane)} "
                         "view")

@@ -56,6 +56,7 @@ EYE_RANGE_MM = 20.0
 LANDMARK_COLOURS = {
     "PLACED": (0.1, 0.85, 0.2, 1.0),
     "FLAGGED": (1.0, 0.08, 0.05, 1.0),
+    "PASSPOINT": (0.1, 0.45, 1.0, 1.0),  # passpoints: blue, red too when flagged
 }
 
 
@@ -455,8 +456,8 @@ def set_photo_image(mat, image):
 
 
 def landmark_material(state):
-    """The shared material of landmarks in ``state`` ("PLACED" or "FLAGGED"), unlit so the
-    state colour reads the same in every viewport mode."""
+    """The shared material of landmarks in ``state`` ("PLACED", "FLAGGED" or "PASSPOINT"),
+    unlit so the state colour reads the same in every viewport mode."""
     name = f"HeadRecon Landmark {state.title()}"
     mat = bpy.data.materials.get(name)
     if mat is not None and mat.library is None:

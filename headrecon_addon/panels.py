@@ -27,12 +27,13 @@ class HEADRECON_PT_head(_Panel, bpy.types.Panel):
         layout.prop(context.scene.headrecon, "head")
 
 
-def _slot_plane(scene, front):
-    """The photo plane of the front slot (front camera) or the profile slot (side camera)."""
-    for plane in photos.photo_planes(scene):
-        if (plane.headrecon.camera_view == "orthographic-front") == front:
-            return plane
-    return None
+def _load_photo(layout, text, icon, view="", projection="PERSPECTIVE",
+                camera_view="orthographic-front", lens_mm=0.0):
+    op = layout.operator("headrecon.load_photo", text=text, icon=icon)
+    op.view = view
+    op.projection = projection
+    op.camera_view = camera_view
+    op.lens_mm = lens_mm
 
 
 class HEADRECON_PT_photos(_Panel, bpy.types.Panel):
@@ -40,38 +41,34 @@ class HEADRECON_PT_photos(_Panel, bpy.types.Panel):
 
     def draw(self, context):
         layout = self.layout
-        scene = context.scene
-        shown = []
-        for front, view, cam, label in ((True, "front", "orthographic-front", "Front"),
-                                        (False, "side", "orthographic-right", "Profile")):
-            plane = _slot_plane(scene, front)
+        planes = photos.photo_planes(context.scene)
+        kinds = set()
+        for plane in planes:
+            props = plane.headrecon
+            perspective = photos.is_perspective(plane)
+            kinds.add("front" if photos.view_kind(plane) == "front" else "side")
             box = layout.box()
             row = box.row(align=True)
-            if plane is not None:
-                shown.append(plane)
-                img = plane.headrecon.image
-                row.label(text=f"{label}: {img.name if img else '(no photo)'}",
-                          icon="IMAGE_DATA")
-                row.operator("headrecon.view_photo", text="", icon="HIDE_OFF").view = \
-                    plane.headrecon.view
-            else:
-                row.label(text=f"{label}: none", icon="IMAGE")
-            op = box.operator("headrecon.load_photo",
-                              text="Swap Photo..." if plane else f"Load {label} Photo...",
-                              icon="FILEBROWSER")
-            op.view = plane.headrecon.view if plane else view
-            op.camera_view = plane.headrecon.camera_view if plane else cam
-            if plane is not None and not front:
-                box.prop(plane.headrecon, "camera_view", text="Side")
-        for plane in photos.photo_planes(scene):
-            if plane in shown:
-                continue
-            row = layout.row(align=True)
-            img = plane.headrecon.image
-            row.label(text=f"{plane.headrecon.view}: {img.name if img else '(no photo)'}",
+            img = props.image
+            row.label(text=f"{props.view}: {img.name if img else '(no photo)'}",
                       icon="IMAGE_DATA")
-            row.operator("headrecon.view_photo", text="", icon="HIDE_OFF").view = \
-                plane.headrecon.view
+            row.operator("headrecon.view_photo", text="",
+                         icon="VIEW_CAMERA" if perspective else "HIDE_OFF").view = props.view
+            _load_photo(row, "", "FILEBROWSER", props.view,
+                        "PERSPECTIVE" if perspective else "ORTHOGRAPHIC", props.camera_view,
+                        float(photos.lens_hint(plane) or 0.0))
+            box.label(text=photos.camera_label(plane),
+                      icon="CAMERA_DATA" if perspective else "VIEW_ORTHO")
+            if not props.camera_json and not landmarks.passpoint_objects(plane):
+                # the nominal camera, or where a camera to compute starts (passpoints place
+                # theirs)
+                box.prop(props, "camera_view", text="Direction")
+        if "front" not in kinds:
+            _load_photo(layout, "Load Front Photo...", "FILEBROWSER", "front", "ORTHOGRAPHIC")
+        if "side" not in kinds:
+            _load_photo(layout, "Load Profile Photo...", "FILEBROWSER", "side", "ORTHOGRAPHIC",
+                        "orthographic-right")
+        _load_photo(layout, "Add Photo (Any Camera)...", "ADD")
 
 
 class HEADRECON_PT_landmarks(_Panel, bpy.types.Panel):
@@ -80,6 +77,7 @@ class HEADRECON_PT_landmarks(_Panel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         planes = photos.photo_planes(context.scene)
+        case_passpoints = landmarks.case_passpoints(context.scene)
         if not planes:
             layout.label(text="Load the photos first", icon="INFO")
         for plane in planes:
@@ -96,6 +94,13 @@ class HEADRECON_PT_landmarks(_Panel, bpy.types.Panel):
                 row.operator("headrecon.draw_contour", text=f"Contour ({n})",
                              icon="CURVE_PATH").view = view
             row.operator("headrecon.clear_landmarks", text="", icon="TRASH").view = view
+            if case_passpoints and photos.is_perspective(plane):
+                n = len(landmarks.passpoint_objects(plane))
+                op = box.operator("headrecon.place_landmarks",
+                                  text=f"Passpoints ({n} / {len(case_passpoints)})",
+                                  icon="PIVOT_CURSOR")
+                op.view = view
+                op.passpoints = True
         row = layout.row(align=True)
         row.operator("headrecon.import_landmarks", text="Import...", icon="IMPORT")
         row.operator("headrecon.export_landmarks", text="Export...", icon="EXPORT")
@@ -139,12 +144,14 @@ class HEADRECON_PT_fit(_Panel, bpy.types.Panel):
 
 
 class HEADRECON_UL_residuals(bpy.types.UIList):
-    """Landmark residuals of the last fit; flagged ones first."""
+    """Residuals of the last fit, landmarks and passpoints (a photo's calibration);
+    suspect passpoints first, then flagged landmarks."""
 
     def draw_item(self, context, layout, data, item, icon, active_data, active_propname,
                   index=0):
         row = layout.row(align=True)
-        row.label(text=f"{item.view}: {item.landmark}",
+        what = "passpoint " if item.kind == "PASSPOINT" else ""
+        row.label(text=f"{item.view}: {what}{item.landmark}",
                   icon="ERROR" if item.flagged else "CHECKMARK")
         row.label(text=f"{item.pixels:.1f} px")
 
@@ -163,9 +170,17 @@ class HEADRECON_PT_result(_Panel, bpy.types.Panel):
         col = layout.column(align=True)
         col.label(text=f"Method: {props.fit_method}")
         col.label(text=f"RMS residual: {props.fit_rms_px:.2f} px")
-        flagged = sum(1 for r in scene.headrecon.residuals if r.flagged)
+        rows = scene.headrecon.residuals
+        flagged = sum(1 for r in rows if r.flagged and r.kind == "LANDMARK")
         col.label(text=f"Flagged landmarks: {flagged}",
                   icon="ERROR" if flagged else "CHECKMARK")
+        if any(r.kind == "PASSPOINT" for r in rows):
+            suspects = sum(1 for r in rows if r.flagged and r.kind == "PASSPOINT")
+            col.label(text=f"Suspect passpoints: {suspects}",
+                      icon="ERROR" if suspects else "CHECKMARK")
+        active = scene.headrecon.residual_index
+        if 0 <= active < len(rows) and rows[active].message:
+            col.label(text=rows[active].message, icon="INFO")
         if props.uncertainty_max_mm > 0:
             col.label(text=f"Uncertainty colours: blue 0 mm, red ≥ "
                            f"{props.uncertainty_max_mm:.1f} mm")

@@ -13,21 +13,31 @@ keeps H, so landmarks keep their place relative to the photo's centre and height
 World placement. For an orthographic camera (pixel = s R[:2] X + o) the plane's matrix has
 columns k R0, -k R1, -k R2 (k = (h / H) / s) and puts pixel (w/2, h/2) at depth ``depth``
 along the viewing direction R2, so a point in plane space at (x, y) projects through the
-camera exactly to its (u, v): the photo lines up with the fitted head.
+camera exactly to its (u, v): the photo lines up with the fitted head. A perspective
+camera (DLT, pinhole) becomes a Blender camera object and the plane its child, filling its
+view behind the head (photo_cameras.py); views whose camera is still to be computed get a
+provisional camera from their nominal direction until a fit places them. Either way the
+pixel mapping above is the plane's own, so landmarks, contour and tools never ask which.
+
+What the file says about a view's camera: ``camera_json`` (known parameters), else the
+camera object of ``view_json`` (``camera_hints``: kind and what is known, the parameters to
+be computed), else the nominal orthographic camera of ``camera_view``.
 """
 
+import json
 from pathlib import Path
 
 import bpy
 import numpy as np
 from mathutils import Matrix
 
-from . import material
+from . import material, photo_cameras
 from .polls import ObjectModeOperator, poll_result, view3d_problem
 from .solver_link import ORTHO_VIEWS, OrthographicCamera, camera_from_json, camera_to_json
 
 PLACEHOLDER = "headrecon_placeholder"  # custom property on stand-in images (no photo)
-PLANE_DEPTH = 0.3  # metres behind the head's centre, along the camera's viewing direction
+PLANE_DEPTH = photo_cameras.PLANE_DEPTH  # metres behind the head's centre, along the view
+NOMINAL_PLANE_HEIGHT = 0.375  # H of a nominal orthographic plane (h / (0.8 h / 0.3 m))
 VIEW_KINDS = {"orthographic-front": "front", "orthographic-right": "right",
               "orthographic-left": "left"}
 
@@ -159,22 +169,63 @@ def _set_plane_mesh(mesh, w, h, big_h):
     mesh.update(calc_edges=True)
 
 
+def camera_hints(plane):
+    """The camera object the file gave for a view whose camera is to be computed (e.g.
+    ``{"kind": "pinhole", "lens_mm": 50}``), or {} when the camera is known or nominal."""
+    props = plane.headrecon
+    if props.camera_json or not props.view_json:
+        return {}
+    cam = json.loads(props.view_json).get("camera")
+    return dict(cam) if isinstance(cam, dict) else {}
+
+
+def set_camera_hints(plane, hints):
+    """Make the view's camera one to compute (``hints``: its camera object, at least
+    "kind"), or the nominal orthographic one (``hints`` empty); a known camera is dropped."""
+    props = plane.headrecon
+    props.camera_json = ""
+    data = json.loads(props.view_json) if props.view_json else {}
+    data.pop("camera", None)
+    if hints:
+        data["camera"] = dict(hints)
+    props.view_json = json.dumps(data) if data else ""
+
+
+def camera_kind(plane):
+    """Kind of the view's camera ("orthographic", "dlt", "pinhole"), known or not."""
+    props = plane.headrecon
+    if props.camera_json:
+        return json.loads(props.camera_json).get("kind", "orthographic")
+    return camera_hints(plane).get("kind", "orthographic")
+
+
+def is_perspective(plane):
+    """Whether the plane's photo is seen by a perspective camera (a Blender camera)."""
+    return camera_kind(plane) in photo_cameras.PERSPECTIVE_KINDS
+
+
+def lens_hint(plane):
+    """The focal length (mm, 36 mm equivalent) known for a pinhole view, or None."""
+    props = plane.headrecon
+    if props.camera_json:
+        return json.loads(props.camera_json).get("lens_mm")
+    return camera_hints(plane).get("lens_mm")
+
+
 def plane_camera(plane):
-    """The camera of a plane's view: the stored parameters, or the nominal orthographic
-    camera of its ``camera_view`` for its image size."""
+    """The camera of a plane's view: the stored parameters, the nominal orthographic
+    camera of its ``camera_view`` for its image size, or None when it is to be computed."""
     (w, h), _ = plane_size(plane)
     props = plane.headrecon
     if props.camera_json:
-        import json
-
         return camera_from_json(json.loads(props.camera_json), (w, h))
+    if camera_hints(plane):
+        return None
     return OrthographicCamera.nominal(props.camera_view, (w, h))
 
 
 def set_plane_camera(plane, camera):
     """Remember ``camera`` as the plane's view camera (nominal ones are kept by name)."""
-    import json
-
     (w, h), _ = plane_size(plane)
     as_json = camera_to_json(camera, (w, h))
     if isinstance(as_json, str):
@@ -198,6 +249,29 @@ def nearest_view(camera, name=""):
         return "orthographic-front"
     d = np.asarray(rot, dtype=np.float64)[2]
     return max(ORTHO_VIEWS, key=lambda k: float(ORTHO_VIEWS[k][2] @ d))
+
+
+def camera_label(plane):
+    """A short description of a view's camera for the panel, e.g. "Front (orthographic)",
+    "Pinhole 50 mm, to compute", "DLT, calibrated", "mirror of front"."""
+    props = plane.headrecon
+    kind = camera_kind(plane)
+    extra = json.loads(props.view_json) if props.view_json else {}
+    if kind == "orthographic":
+        text = {"orthographic-front": "Front", "orthographic-right": "Right profile",
+                "orthographic-left": "Left profile"}[props.camera_view] + " (orthographic)"
+    else:
+        text = "Pinhole" if kind == "pinhole" else kind.upper()
+        lens = lens_hint(plane)
+        if lens:
+            text += f" {float(lens):.0f} mm"
+        if not props.camera_json:
+            text += ", to compute"
+    if extra.get("calibrated") is True:
+        text += ", calibrated"
+    if extra.get("mirror_of"):
+        text += f", mirror of {extra['mirror_of']}"
+    return text
 
 
 def view_kind(plane):
@@ -235,10 +309,94 @@ def plane_matrix(plane, camera=None, depth=PLANE_DEPTH, centre=(0.0, 0.0, 0.0)):
     return Matrix(m.tolist())
 
 
+def camera_object(plane):
+    """The Blender camera of a perspective plane's photo (its parent), or None."""
+    parent = plane.parent
+    return parent if photo_cameras.is_camera_object(parent) else None
+
+
+def view_root(plane):
+    """The top object of a view: its Blender camera for a perspective photo, else the
+    plane (link or remove this and everything under it)."""
+    return camera_object(plane) or plane
+
+
+def view_objects(plane):
+    """Every object of a view: camera (if any), plane, landmarks, passpoints, contour."""
+    root = view_root(plane)
+    return [root, *root.children_recursive]
+
+
+def provisional_camera(plane, centre=(0.0, 0.0, 0.0)):
+    """The stand-in camera of a perspective view whose camera is not known yet: from the
+    view's nominal direction, with the file's focal length if it gives one."""
+    (w, h), _ = plane_size(plane)
+    direction = ORTHO_VIEWS[plane.headrecon.camera_view][2]
+    return photo_cameras.provisional_camera((w, h), direction, centre, lens_hint(plane))
+
+
+def place_plane(plane, camera=None, centre=(0.0, 0.0, 0.0)):
+    """Stand the plane where ``camera`` (default: the view's own, or for a camera still to
+    be computed a provisional one) sees it: in the world for an orthographic photo, under
+    the photo's Blender camera (made when missing) for a perspective one.
+
+    Parameters
+    ----------
+    camera : Camera, optional
+        Shown as the view's camera; it is not stored as the view's (``set_plane_camera``).
+    centre : (3,) metres
+        The head's centre: the plane stands PLANE_DEPTH behind it.
+
+    Returns
+    -------
+    list of str
+        What the Blender camera could not show (skew, lens distortion dropped).
+
+    Raises
+    ------
+    ValueError
+        A camera Blender cannot show (e.g. a non-positive focal length).
+    """
+    if not is_perspective(plane):
+        cam_obj = camera_object(plane)
+        if cam_obj is not None:  # was perspective: the Blender camera goes
+            plane.parent = None
+            remove_objects([cam_obj])
+        plane.matrix_world = plane_matrix(plane, camera, centre=centre)
+        return []
+    cam = camera if camera is not None else plane_camera(plane)
+    if cam is None:
+        cam = provisional_camera(plane, centre)
+    (w, h), big_h = plane_size(plane)
+    settings = photo_cameras.blender_settings(cam)
+    obj = camera_object(plane)
+    if obj is None:
+        obj = photo_cameras.new_camera_object(f"HeadRecon Camera {plane.headrecon.view}")
+        for coll in plane.users_collection:
+            coll.objects.link(obj)
+    photo_cameras.apply_settings(obj, settings)
+    photo_cameras.set_background(obj, plane.headrecon.image)
+    depth = photo_cameras.camera_depth(obj, centre) + PLANE_DEPTH
+    photo_cameras.attach_plane(plane, obj, (w, h), big_h, depth)
+    return list(settings["warnings"])
+
+
+def refresh_plane(plane):
+    """Fit a perspective plane to its camera again (after its photo or the camera object's
+    settings changed), at the same distance. Orthographic planes need nothing."""
+    obj = camera_object(plane)
+    if obj is None:
+        return
+    (w, h), big_h = plane_size(plane)
+    photo_cameras.set_background(obj, plane.headrecon.image)
+    photo_cameras.attach_plane(plane, obj, (w, h), big_h, photo_cameras.plane_depth(plane))
+
+
 def new_photo_plane(image, view, camera_view="orthographic-front", camera=None,
-                    name=None, centre=(0.0, 0.0, 0.0)):
-    """A photo plane object for ``image`` (not linked to any scene: the caller links it
-    once everything it builds has succeeded).
+                    name=None, centre=(0.0, 0.0, 0.0), hints=None, shown=None):
+    """A photo plane object for ``image`` and, for a perspective photo, its Blender camera
+    (not linked to any scene: the caller links ``view_root(plane)`` once everything it
+    builds has succeeded).
 
     Parameters
     ----------
@@ -246,9 +404,16 @@ def new_photo_plane(image, view, camera_view="orthographic-front", camera=None,
     view : str
         View name in the landmarks file ("front", "side", ...).
     camera_view : str
-        Nominal view ("orthographic-front" | "-right" | "-left").
+        Nominal view ("orthographic-front" | "-right" | "-left"): the camera of an
+        orthographic photo without parameters, the direction of a provisional camera.
     camera : Camera, optional
         Explicit camera (from a landmarks file); default the nominal one.
+    hints : dict, optional
+        The view's camera is to be computed: its camera object (``{"kind": "pinhole",
+        "lens_mm": 50}``); ``camera`` is then not given.
+    shown : Camera, optional
+        For a camera to be computed: the camera to show until a fit places it (e.g. a DLT
+        from the view's passpoints); default a provisional one (``provisional_camera``).
     """
     w, h = image.size
     if w == 0 or h == 0:
@@ -263,20 +428,24 @@ def new_photo_plane(image, view, camera_view="orthographic-front", camera=None,
         props.camera_view = camera_view
         props.image_size = (w, h)
         props.image = image
-        nominal = OrthographicCamera.nominal(camera_view, (w, h))
         if camera is not None:
             set_plane_camera(obj, camera)
-        cam = camera if isinstance(camera, OrthographicCamera) else nominal
-        props.plane_height = h / cam.scale
+        elif hints:
+            set_camera_hints(obj, hints)
+        # Orthographic: the plane is the photo at the camera's scale; any other camera:
+        # the nominal plane, scaled into the camera's frustum by its object matrix.
+        scale = camera.scale if isinstance(camera, OrthographicCamera) else \
+            OrthographicCamera.nominal(camera_view, (w, h)).scale
+        props.plane_height = h / scale
         _set_plane_mesh(mesh, w, h, props.plane_height)
         mesh.materials.append(material.photo_material(image, name))
-        obj.matrix_world = plane_matrix(obj, centre=centre)
+        place_plane(obj, shown if camera is None else None, centre=centre)
         obj.hide_render = True  # a reference, not part of the render
         if hasattr(obj, "visible_shadow"):
             obj.visible_shadow = False
         obj.show_wire = False
     except Exception:
-        remove_objects([obj])
+        remove_objects(view_objects(obj))
         raise
     return obj
 
@@ -284,22 +453,21 @@ def new_photo_plane(image, view, camera_view="orthographic-front", camera=None,
 def set_plane_image(plane, image):
     """Swap the plane's photo; its landmarks and contour stay (same place relative to the
     photo's centre and height). A stored explicit camera is dropped when the size changes
-    (it was calibrated for the old photo)."""
+    (it was calibrated for the old photo): a perspective view keeps its kind (and a
+    pinhole's focal length, which is in 36 mm equivalent) as a camera to compute."""
     w, h = image.size
     if w == 0 or h == 0:
         raise ValueError(f"image {image.name!r}: has no pixels (file missing or unreadable?)")
     props = plane.headrecon
     old = tuple(props.image_size)
+    if old != (w, h):  # a camera (or camera hints) of the old photo says nothing of this one
+        kind, lens = camera_kind(plane), lens_hint(plane)
+        hints = {}
+        if kind in photo_cameras.PERSPECTIVE_KINDS:
+            hints = {"kind": kind, **({"lens_mm": lens} if kind == "pinhole" and lens else {})}
+        set_camera_hints(plane, hints)
     props.image = image
     props.image_size = (w, h)
-    if old != (w, h):  # a camera (or camera hints) of the old photo says nothing of this one
-        props.camera_json = ""
-        if props.view_json:
-            import json
-
-            data = json.loads(props.view_json)
-            data.pop("camera", None)
-            props.view_json = json.dumps(data)
     _set_plane_mesh(plane.data, w, h, props.plane_height)
     mat = plane.data.materials[0] if len(plane.data.materials) else None
     if mat is not None and material.photo_image(mat) is not None:
@@ -310,10 +478,12 @@ def set_plane_image(plane, image):
             plane.data.materials.append(new)
         else:
             plane.data.materials[0] = new
+    refresh_plane(plane)
 
 
 def remove_objects(objects):
-    """Delete objects and the meshes/curves only they used (for clean failure paths)."""
+    """Delete objects and the meshes/curves/cameras only they used (for clean failure
+    paths)."""
     for obj in list(objects):
         if obj is None:
             continue
@@ -331,6 +501,8 @@ def remove_objects(objects):
                         bpy.data.materials.remove(m)
             elif isinstance(data, bpy.types.Curve):
                 bpy.data.curves.remove(data)
+            elif isinstance(data, bpy.types.Camera):
+                bpy.data.cameras.remove(data)
 
 
 def link_object(obj, collection):
@@ -341,12 +513,37 @@ def link_object(obj, collection):
         link_object(child, collection)
 
 
+def free_view_name(scene, base):
+    """``base`` if no photo has that view name, else ``base2``, ``base3``, ..."""
+    taken = {p.headrecon.view for p in photo_planes(scene)}
+    if base not in taken:
+        return base
+    return next(f"{base}{i}" for i in range(2, len(taken) + 3) if f"{base}{i}" not in taken)
+
+
+def on_camera_view(plane, scene):
+    """The artist turned a view's nominal direction (e.g. right -> left profile): stand an
+    orthographic photo there, or move a provisional camera there. Known cameras stay."""
+    if plane.headrecon.camera_json or plane.headrecon.image_size[1] <= 0:
+        return
+    place_plane(plane, centre=head_centre(scene))
+
+
 # --------------------------------------------------------------------------------------
 # Operators
 
 
+PROJECTIONS = (
+    ("ORTHOGRAPHIC", "Orthographic",
+     "A front or profile photo taken from far away (long lens): parallel projection"),
+    ("PERSPECTIVE", "Perspective",
+     "A photo from any camera at any angle: the fit computes (self-calibrates) its camera"),
+)
+
+
 class HEADRECON_OT_load_photo(ObjectModeOperator, bpy.types.Operator):
-    """Choose a photo for this view: it becomes an image plane behind the head (a photo
+    """Choose a photo for a view: it becomes an image plane behind the head, or for a
+    perspective photo a camera looking at the head with the photo in its view (a photo
     already there is swapped and its landmarks stay)"""
 
     bl_idname = "headrecon.load_photo"
@@ -356,46 +553,83 @@ class HEADRECON_OT_load_photo(ObjectModeOperator, bpy.types.Operator):
     filepath: bpy.props.StringProperty(subtype="FILE_PATH", options={"SKIP_SAVE"})
     filter_image: bpy.props.BoolProperty(default=True, options={"HIDDEN", "SKIP_SAVE"})
     filter_folder: bpy.props.BoolProperty(default=True, options={"HIDDEN", "SKIP_SAVE"})
-    view: bpy.props.StringProperty(name="View", default="front",
-                                   description="View name in the landmarks file")
-    camera_view: bpy.props.EnumProperty(name="Camera", items=(
-        ("orthographic-front", "Front", "Photo taken from the front"),
-        ("orthographic-right", "Right Profile", "The subject's right side"),
-        ("orthographic-left", "Left Profile", "The subject's left side")))
+    view: bpy.props.StringProperty(
+        name="View", default="", options={"SKIP_SAVE"},
+        description="View name in the landmarks file (empty: a new view, named after its "
+                    "camera)")
+    projection: bpy.props.EnumProperty(name="Projection", items=PROJECTIONS,
+                                       default="ORTHOGRAPHIC")
+    camera_view: bpy.props.EnumProperty(
+        name="Direction", items=(
+            ("orthographic-front", "Front", "Photo taken from the front"),
+            ("orthographic-right", "Right Profile", "The subject's right side"),
+            ("orthographic-left", "Left Profile", "The subject's left side")),
+        description="Where the camera stood (for a perspective photo: roughly; the fit "
+                    "finds the camera)")
+    lens_mm: bpy.props.FloatProperty(
+        name="Focal Length", default=0.0, min=0.0, soft_max=300.0, unit="CAMERA",
+        description="Perspective photo: the lens's focal length in mm, full-frame (36 mm) "
+                    "equivalent, e.g. from the photo's EXIF data (0: unknown)")
 
     def invoke(self, context, event):
         context.window_manager.fileselect_add(self)
         return {"RUNNING_MODAL"}
 
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.prop(self, "view")
+        layout.prop(self, "projection")
+        layout.prop(self, "camera_view")
+        row = layout.row()
+        row.enabled = self.projection == "PERSPECTIVE"
+        row.prop(self, "lens_mm")
+
+    def _hints(self):
+        if self.projection != "PERSPECTIVE":
+            return {}
+        return {"kind": "pinhole", **({"lens_mm": self.lens_mm} if self.lens_mm > 0 else {})}
+
     def execute(self, context):
         from .data import Transaction
 
-        if not self.view.strip():
-            self.report({"ERROR"}, "The view needs a name (e.g. 'front')")
-            return {"CANCELLED"}
         scene = context.scene
+        hints = self._hints()
+        view = self.view.strip() or free_view_name(
+            scene, "photo" if hints else VIEW_KINDS[self.camera_view].replace("right", "side"))
         try:
             with Transaction():
                 image = load_image(bpy.path.abspath(self.filepath))
-                plane = find_plane(scene, self.view)
+                plane = find_plane(scene, view)
                 if plane is not None:
                     set_plane_image(plane, image)
-                    if plane.headrecon.camera_view != self.camera_view \
-                            and not plane.headrecon.camera_json:
-                        plane.headrecon.camera_view = self.camera_view
-                        plane.matrix_world = plane_matrix(plane, centre=head_centre(scene))
+                    self._retarget(plane, hints, scene)
                 else:
-                    plane = new_photo_plane(image, self.view, self.camera_view,
+                    plane = new_photo_plane(image, view, self.camera_view, hints=hints,
                                             centre=head_centre(scene))
-                    link_object(plane, context.collection)
+                    link_object(view_root(plane), context.collection)
         except ValueError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
-        self.report({"INFO"}, f"{self.view}: {image.name} ({image.size[0]}x{image.size[1]})")
+        self.report({"INFO"}, f"{view}: {image.name} ({image.size[0]}x{image.size[1]})")
         from .fit_ops import warm_up
 
         warm_up(scene.headrecon.texture_size)
         return {"FINISHED"}
+
+    def _retarget(self, plane, hints, scene):
+        """A swapped photo's camera as asked: another projection or direction makes the
+        view's camera one to compute again; a known camera of the same kind stays."""
+        props = plane.headrecon
+        same = bool(hints) == is_perspective(plane)
+        if same and (props.camera_json or props.camera_view == self.camera_view):
+            if hints and "lens_mm" in hints and camera_hints(plane):
+                set_camera_hints(plane, {**camera_hints(plane), **hints})
+                place_plane(plane, centre=head_centre(scene))
+            return
+        set_camera_hints(plane, hints)
+        props.camera_view = self.camera_view
+        place_plane(plane, centre=head_centre(scene))
 
 
 def head_centre(scene):
@@ -408,8 +642,27 @@ def head_centre(scene):
     return tuple(corners.mean(axis=0))
 
 
+def look_through(context, plane):
+    """Show the head through this photo's camera in the context's 3D viewport: the camera
+    view of a perspective photo (its Blender camera becomes the scene's, with the photo's
+    resolution), an orthographic view down the camera axis otherwise."""
+    rv3d = context.space_data.region_3d  # the viewport's, also from a sidebar button
+    obj = camera_object(plane)
+    if obj is not None:
+        photo_cameras.look_through(context.scene, obj, plane_size(plane)[0])
+        rv3d.view_perspective = "CAMERA"
+        rv3d.view_camera_zoom = 0.0
+        rv3d.view_camera_offset = (0.0, 0.0)
+        return
+    loc, rot, _ = plane.matrix_world.decompose()
+    rv3d.view_perspective = "ORTHO"
+    rv3d.view_rotation = rot
+    rv3d.view_location = loc
+    rv3d.view_distance = float(plane.headrecon.plane_height) * max(plane.scale) * 1.1
+
+
 class HEADRECON_OT_view_photo(bpy.types.Operator):
-    """Look at the head through this photo's camera (orthographic), to place landmarks"""
+    """Look at the head through this photo's camera, to place landmarks"""
 
     bl_idname = "headrecon.view_photo"
     bl_label = "View Photo"
@@ -426,12 +679,7 @@ class HEADRECON_OT_view_photo(bpy.types.Operator):
         if plane is None:
             self.report({"ERROR"}, f"No photo for view {self.view!r}")
             return {"CANCELLED"}
-        rv3d = context.space_data.region_3d  # the viewport's, also from a sidebar button
-        loc, rot, _ = plane.matrix_world.decompose()
-        rv3d.view_perspective = "ORTHO"
-        rv3d.view_rotation = rot
-        rv3d.view_location = loc
-        rv3d.view_distance = float(plane.headrecon.plane_height) * max(plane.scale) * 1.1
+        look_through(context, plane)
         return {"FINISHED"}
 
 

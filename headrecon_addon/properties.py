@@ -15,6 +15,7 @@ from bpy.props import (
     CollectionProperty,
     EnumProperty,
     FloatProperty,
+    FloatVectorProperty,
     IntProperty,
     IntVectorProperty,
     PointerProperty,
@@ -47,17 +48,19 @@ ROLES = (
     ("HEAD", "Head", "The fitted head"),
     ("PHOTO", "Photo", "A photo plane"),
     ("LANDMARK", "Landmark", "A landmark on a photo plane"),
+    ("PASSPOINT", "Passpoint",
+     "Where a point of a calibration object (known 3-D position) is seen on a photo plane"),
     ("CONTOUR", "Contour", "The traced profile outline of a photo plane"),
+    ("CAMERA", "Camera", "The camera of a perspective photo (its plane is its child)"),
 )
 
 
 def _on_camera_view(self, context):
-    # A photo plane's nominal view changed (e.g. right -> left profile): stand it there.
+    # A photo's nominal view changed (e.g. right -> left profile): stand it there.
     from . import photos
 
-    obj = self.id_data
-    if self.role == "PHOTO" and not self.camera_json and self.image_size[1] > 0:
-        obj.matrix_world = photos.plane_matrix(obj, centre=photos.head_centre(context.scene))
+    if self.role == "PHOTO":
+        photos.on_camera_view(self.id_data, context.scene)
 
 
 class HEADRECON_PG_object(bpy.types.PropertyGroup):
@@ -76,6 +79,13 @@ class HEADRECON_PG_object(bpy.types.PropertyGroup):
                     "edit (calibration flags, mirror, passpoints, camera hints, x- keys), as "
                     "JSON, written back on export")
     image_size: IntVectorProperty(name="Image Size", size=2, min=0)
+    pixel_aspect: FloatVectorProperty(
+        name="Pixel Aspect", size=2, default=(1.0, 1.0), min=1e-6,
+        description="Camera of a perspective photo: its pixel aspect (a render setting in "
+                    "Blender, set when looking through it)")
+    flip_x: BoolProperty(
+        name="Flipped", description="Camera of a perspective photo seen in a mirror: "
+                                    "the camera shown sees the photo flipped left-right")
     plane_height: FloatProperty(name="Plane Height", unit="LENGTH", default=0.375, min=1e-6,
                                 description="Height of the photo plane (its local units)")
     image: PointerProperty(name="Image", type=bpy.types.Image)
@@ -87,11 +97,20 @@ class HEADRECON_PG_object(bpy.types.PropertyGroup):
     fit_rms_px: FloatProperty(name="RMS Residual", subtype="PIXEL", default=-1.0)
 
 
+RESIDUAL_KINDS = (
+    ("LANDMARK", "Landmark", "Distance between the landmark and the fitted head's point"),
+    ("PASSPOINT", "Passpoint",
+     "Reprojection residual of a passpoint in its photo's calibration (seed 000 §5-6)"),
+)
+
+
 class HEADRECON_PG_residual(bpy.types.PropertyGroup):
     view: StringProperty(name="View")
-    landmark: StringProperty(name="Landmark")
+    landmark: StringProperty(name="Name", description="Landmark or passpoint name")
+    kind: EnumProperty(name="Kind", items=RESIDUAL_KINDS, default="LANDMARK")
     pixels: FloatProperty(name="Residual", subtype="PIXEL")
     flagged: BoolProperty(name="Flagged")
+    message: StringProperty(name="Message", description="Why it is flagged")
 
 
 def _on_residual_index(self, context):
@@ -99,7 +118,7 @@ def _on_residual_index(self, context):
 
     if 0 <= self.residual_index < len(self.residuals):
         item = self.residuals[self.residual_index]
-        select_landmark(context, item.view, item.landmark)
+        select_landmark(context, item.view, item.landmark, item.kind)
 
 
 def _on_live_refit(self, context):

@@ -10,7 +10,8 @@ missing scipy, a broken solver module) is re-raised so it is not mistaken for th
 
 import importlib
 
-_MODULES = ("cameras", "fit", "landmarks_file", "model", "result", "texture")
+_MODULES = ("blender_camera", "calib_errors", "cameras", "dlt", "fit", "landmarks_file", "model",
+            "pinhole", "result", "texture")
 
 
 try:
@@ -22,10 +23,14 @@ except ImportError as e:  # top-level headrecon_addon (a checkout): the solver i
 
 _mods = {name: importlib.import_module(f"{solver.__name__}.{name}") for name in _MODULES}
 
+blender_camera = _mods["blender_camera"]
+calib_errors = _mods["calib_errors"]
 cameras = _mods["cameras"]
+dlt = _mods["dlt"]
 fit = _mods["fit"]
 landmarks_file = _mods["landmarks_file"]
 model = _mods["model"]
+pinhole = _mods["pinhole"]
 result = _mods["result"]
 texture = _mods["texture"]
 
@@ -33,6 +38,10 @@ texture = _mods["texture"]
 ORTHO_VIEWS = cameras.ORTHO_VIEWS
 OrthographicCamera = cameras.OrthographicCamera
 camera_from_dict = cameras.camera_from_dict
+DLTCamera = dlt.DLTCamera
+fit_dlt = dlt.fit_dlt
+PinholeCamera = pinhole.PinholeCamera
+check_passpoints = calib_errors.check_passpoints
 FitOptions = fit.FitOptions
 fit_head = fit.fit_head
 refit_landmarks = fit.refit_landmarks
@@ -55,9 +64,10 @@ uv_tiles = texture.uv_tiles
 orthographic_uvs = texture.orthographic_uvs
 
 __all__ = [
-    "ORTHO_VIEWS", "FitOptions", "FitResult", "HeadModel", "LandmarkCase",
-    "OrthographicCamera", "View", "bake_fit_texture", "bake_texture", "camera_from_dict",
-    "camera_from_json", "camera_to_json", "fit_head", "landmarks_to_dict", "load_landmark_set",
+    "ORTHO_VIEWS", "DLTCamera", "FitOptions", "FitResult", "HeadModel", "LandmarkCase",
+    "OrthographicCamera", "PinholeCamera", "View", "bake_fit_texture", "bake_texture",
+    "blender_camera", "camera_from_dict", "camera_from_json", "camera_to_json",
+    "check_passpoints", "fit_dlt", "fit_head", "landmarks_to_dict", "load_landmark_set",
     "load_landmarks", "load_model", "orthographic_uvs", "parse_landmarks", "refit_landmarks",
     "save_landmarks", "solver", "uv_raster", "uv_tiles",
 ]

@@ -274,6 +274,8 @@ def _cmd_fit(args):
     t = time.perf_counter()
     result = fit_head(model, case, options)
     timings["fit"] = time.perf_counter() - t
+    for message in result.info.get("warnings", ()):
+        print(f"warning: {message}", file=sys.stderr)
 
     outputs = {}
     loop_uv, textured = model.loop_uv, None

@@ -14,7 +14,11 @@ landmarks. Then:
   photo that shows it: the profile gives depth, the front x and z), fit the model to the
   warped skin and the targets (landmarks weighted), repeat while the error falls;
 - combined (the thesis' outlook, §9): both, keeping the one whose landmarks and contour
-  reproject better, the smaller shape prior breaking near ties.
+  reproject better, the smaller shape prior breaking near ties. Approach 2 is the
+  thesis' method for orthographic photos: its 3-D targets come from the photos' image
+  planes, and it refines a head the profile stage has already shaped. With a perspective
+  camera (no profile stage) it measured 2-2.5 mm against 1.2 mm for approach 1
+  (``bench/bench_perspective.py``), so there combined is approach 1 alone.
 
 Cameras: no photo is assumed to share scale, tilt or framing with another. Each keeps its
 own camera, solved together with the head in every Gauss-Newton step and refitted through
@@ -321,11 +325,23 @@ def _mirror_link(case, view, kept, where):
     return target
 
 
+#: Lenses (mm, 35 mm equivalent) a pinhole camera without a stated focal length is tried
+#: with; the one whose pose fits the mean head's landmarks best starts the fit.
+TRIAL_LENSES_MM = (24.0, 35.0, 50.0, 85.0, 135.0)
+#: Relative standard deviation of the focal prior a stated ``lens_mm`` gives (EXIF data of
+#: uncertain crop factor).
+LENS_PRIOR_SIGMA = 0.05
+
+
 def _compute_camera(model, case, view, lms, where):
     """A camera for a view whose file gives only its kind (``View.camera`` None): a DLT
-    from the view's passpoints when it has them, else one self-calibrated on the mean
-    head's landmarks (a start the fit refines); a "pinhole" kind becomes the nearest
-    pinhole camera (with the file's ``lens_mm`` as a prior on the focal length)."""
+    from the view's passpoints when it has them (a "pinhole" kind: the nearest pinhole
+    camera). Else self-calibrated on the mean head's landmarks, a start the fit refines: a
+    DLT fitted to them; a pinhole camera posed on them with the file's focal length
+    (``lens_mm``, then also a prior of LENS_PRIOR_SIGMA on it) or, without one, with the
+    best of TRIAL_LENSES_MM. (A DLT or a free focal length fitted to the mean head would
+    bend the camera to the mean head's shape: a head is shallow, so focal length and
+    distance trade off.)"""
     from .dlt import fit_dlt
     from .pinhole import PinholeCamera
 
@@ -334,24 +350,42 @@ def _compute_camera(model, case, view, lms, where):
     if kind not in ("dlt", "pinhole"):
         raise ValueError(f"{where}: no camera parameters and no way to compute a camera of "
                          f"kind {kind!r} (give the parameters, or a 'dlt'/'pinhole' kind)")
-    try:
-        if view.passpoints:
-            _, xyz, uv = case.passpoint_arrays(view.name)
-            dlt = fit_dlt(xyz, uv, view.size).camera
-        else:
-            verts = [lms.vertices[lms.canonical(k)] for k in view.points
-                     if lms.canonical(k) is not None]
-            uv = np.array([view.points[k] for k in view.points
-                           if lms.canonical(k) is not None], dtype=np.float64)
-            dlt = fit_dlt(model.vertices[verts], uv.reshape(-1, 2), view.size).camera
-    except ValueError as e:
-        raise ValueError(f"{where}: cannot compute the {kind} camera: {e}") from None
-    if kind == "dlt":
-        return dlt
+    keys = [k for k in view.points if lms.canonical(k) is not None]
+    verts = [lms.vertices[lms.canonical(k)] for k in keys]
+    uv = np.array([view.points[k] for k in keys], dtype=np.float64).reshape(-1, 2)
     options = {}
     if "lens_mm" in hints:
-        options["focal_prior"] = (float(hints["lens_mm"]), 0.05)
-    return PinholeCamera.from_dlt(dlt, **options)
+        options["focal_prior"] = (float(hints["lens_mm"]), LENS_PRIOR_SIGMA)
+    if hints.get("focal_prior") is not None:
+        options["focal_prior"] = tuple(float(x) for x in hints["focal_prior"])
+    if "free_focal" in hints:
+        options["free_focal"] = bool(hints["free_focal"])
+    try:
+        if view.passpoints:
+            _, xyz, pts = case.passpoint_arrays(view.name)
+            dlt = fit_dlt(xyz, pts, view.size).camera
+            return dlt if kind == "dlt" else PinholeCamera.from_dlt(dlt, **options)
+        if kind == "dlt":
+            return fit_dlt(model.vertices[verts], uv, view.size).camera
+        ppm = PinholeCamera.px_per_mm(view.size)
+        if "focal_px" in hints:
+            lenses = [float(hints["focal_px"]) / ppm]
+        elif "lens_mm" in hints:
+            lenses = [float(hints["lens_mm"])]
+        else:
+            lenses = list(TRIAL_LENSES_MM)
+        best = None
+        for lens in lenses:
+            probe = PinholeCamera(lens * ppm, np.eye(3), np.zeros(3), view.size,
+                                  free_focal=False, focal_range_mm=None)
+            cam = probe.refit(model.vertices[verts], uv)
+            err = float((cam.reprojection_error(model.vertices[verts], uv) ** 2).sum())
+            if best is None or err < best[0]:
+                best = (err, cam)
+        cam = best[1]
+        return PinholeCamera(cam.focal_px, cam.rotation, cam.centre, view.size, **options)
+    except ValueError as e:
+        raise ValueError(f"{where}: cannot compute the {kind} camera: {e}") from None
 
 
 # ----------------------------------------------------------------------------- stages
@@ -433,10 +467,13 @@ def _pose_by_resection(eng, state, view):
 
 
 def _profile_fit(eng, state, opts):
-    """Thesis §4.4.1 on the side views: the cameras alone (similarity-only ICP: a profile
-    camera's 2-D similarity is the head's scale, sagittal rotation and position), then the
-    shape with them (the head's rotation frozen: the profile cannot see the other two)."""
-    side = [v for v in eng.views if v.side]
+    """Thesis §4.4.1 on the orthographic side views: the cameras alone (similarity-only
+    ICP: a profile camera's 2-D similarity is the head's scale, sagittal rotation and
+    position), then the shape with them (the head's rotation frozen: the profile cannot
+    see the other two). A perspective profile photo is left to the joint stages: alone it
+    cannot tell its camera's distance from the head's depth."""
+    side = [v for v in eng.views
+            if v.side and not is_perspective(eng.real_view(v).camera)]
     info = {}
     if not side:
         return state, info
@@ -459,17 +496,23 @@ def _approach1(eng, state, opts):
 
     With free perspective cameras or mirror planes (self-calibration) the joint rounds
     alternate with full re-calibrations of those cameras until both settle
-    (``Joint.settle``: a re-calibration that lowers the cost by less than ``tolerance``
-    ends it; at most ``calibration_rounds``)."""
+    (``Joint.settle``): a re-calibration that lowers the cost by less than 0.1 % (or
+    ``tolerance`` if larger; the choice of outline vertices alone moves the cost by about
+    that much) ends it, at most ``calibration_rounds``."""
     joint = eng.joint(eng.views, front_weight=opts.front_weight)
     state, hist = joint.run(state, max_outer=opts.max_iterations, tolerance=opts.tolerance)
-    out = {"history": hist}
+    out = {"history": hist, "joint": joint}
     if _self_calibrating(eng):
-        state, more, rounds = joint.settle(state, opts.calibration_rounds, opts.tolerance,
+        state, more, rounds = joint.settle(state, opts.calibration_rounds,
+                                           max(opts.tolerance, _SETTLE_TOLERANCE),
                                            max_outer=opts.max_iterations)
         out["history"] = hist + more
         out["calibration_rounds"] = rounds
     return state, out
+
+
+# Smallest relative gain of a re-calibration for another joint run (Joint.settle).
+_SETTLE_TOLERANCE = 1e-3
 
 
 def _self_calibrating(eng):
@@ -879,29 +922,36 @@ def outline_candidates(model, max_x=0.05, max_normal_x=0.4):
     return out
 
 
-def view_outline(model, eng, state, view, max_normal=0.4):
-    """Outline candidates of a photo that is not a profile (a front or three-quarter view,
-    a second photo at any angle): skin vertices of the head at ``state`` whose (mean-head)
+def view_outline(model, eng, state, view, max_normal=0.4, margin=3.0):
+    """Outline candidates of a photo that is not an orthographic profile (a front or
+    three-quarter view, a perspective photo at any angle): skin vertices of the head at ``state`` whose (mean-head)
     normals face across the camera's line of sight there (|n . t| < ``max_normal``, t the
-    unit vector toward the camera), with their mesh; ``ContourRows`` finds the outline
-    among them each round.
+    unit vector toward the camera) and that project within ``margin`` times the contour
+    threshold of the traced outline (which leaves out the inner folds: the sides of the
+    nose, the eye sockets), with their mesh; ``ContourRows`` finds the outline among them
+    each round.
 
     Returns
     -------
     (vertices (n,), faces (F, 3), edges (E, 4))
     """
     skin = np.asarray(model.skin, dtype=np.int64)
-    toward = np.asarray(view.camera.toward_camera(eng.world(state, skin)), dtype=np.float64)
+    world = eng.world(state, skin)
+    toward = np.asarray(view.camera.toward_camera(world), dtype=np.float64)
     normal = _mean_normals(model)[skin] @ state.rotation.T
-    verts = skin[np.abs(np.einsum("ij,ij->i", normal, toward)) < max_normal]
+    keep = np.abs(np.einsum("ij,ij->i", normal, toward)) < max_normal
+    dist, _ = cKDTree(view.contour).query(view.camera.project(world[keep]))
+    verts = skin[keep][dist <= margin * eng.contour_threshold]
     return (verts, *_candidate_mesh(model, verts))
 
 
 def _prepare_outlines(model, eng, state):
-    """Give every non-profile view with a traced outline its own outline candidates."""
+    """Give every view with a traced outline that is not an orthographic profile its own
+    outline candidates (a perspective photo from the side sees more than the midline: the
+    rays to the outline fan out over the head)."""
     for v in eng.views:
         v.outline = None
-        if v.contour is not None and not v.side:
+        if v.contour is not None and not (v.side and not is_perspective(v.camera)):
             v.outline = view_outline(model, eng, state, v)
 
 
@@ -1091,13 +1141,18 @@ def fit_head(model, case, options=None, initial=None):
         eng.use(state_p)
         candidates["approach1"] = _approach1(eng, state_p.copy(), opts)
         timings["approach1"] = time.perf_counter() - t
-    if opts.method in ("approach2", "combined"):
+    if opts.method == "approach2" or (opts.method == "combined" and not any(
+            is_perspective(eng.real_view(v).camera) for v in eng.views)):
         progress(0.6, "approach 2: TPS-ICP")
         t = time.perf_counter()
         eng.use(state_p)
         candidates["approach2"] = _approach2(eng, model, state_p.copy(), opts)
         timings["approach2"] = time.perf_counter() - t
-    joint = eng.joint(eng.views)
+    # the result's problem over all views (approach 1's, already linearised, when it has
+    # the same weights)
+    joint = candidates["approach1"][1].pop("joint") if "approach1" in candidates else None
+    if joint is None or opts.front_weight != 1.0:
+        joint = eng.joint(eng.views)
     chosen, scores = _choose(eng, joint, candidates)
     state = candidates[chosen][0]
     eng.use(state)

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
 
 from .cameras import Camera, OrthographicCamera
 from .dlt import DLTCamera
@@ -44,6 +45,9 @@ MIN_VIEW_LANDMARKS = 3
 # (a 10 px correction costs 0.01), yet it settles the split where a calibrated camera
 # leaves the head's position and a refitted camera's offset equally free.
 _MODE_PIXELS = 100.0
+
+# Fractions of a joint step tried when the whole step raises the cost (perspective cameras).
+_DAMPING = (0.5, 0.25, 0.1)
 
 
 @dataclass
@@ -829,18 +833,23 @@ class Engine:
     def init_cameras(self, state, robust_steps=4):
         """Start each free camera from the head of ``state`` (the mean head): fitted to the
         landmark vertices' placed pixels, reweighted robustly (Cauchy) so one misplaced
-        landmark does not tilt the start. Then each mirror view's plane from the landmarks
-        seen both directly and in the mirror (:meth:`initial_plane`)."""
+        landmark does not tilt the start; a pinhole camera's pose only (its focal length
+        fitted to the mean head would bend to the mean head's shape; the joint rounds fit
+        it with the shape). Then each mirror view's plane from the landmarks seen both
+        directly and in the mirror (:meth:`initial_plane`)."""
         for v in self.views:
             if not v.refit or v.mirror_of is not None:
                 continue
             x = self.world(state, v.vertices)
             w = self.inv_var * v.weights
-            cam = v.camera.refit(x, v.pixels, w)
+            probe = _pose_only(v.camera)
+            cam = probe.refit(x, v.pixels, w)
             for _ in range(robust_steps):
                 r = np.linalg.norm(cam.project(x) - v.pixels, axis=1)
                 c = max(2.0 * float(np.median(r)), 1e-6)
-                cam = v.camera.refit(x, v.pixels, w / (1.0 + (r / c) ** 2))
+                cam = probe.refit(x, v.pixels, w / (1.0 + (r / c) ** 2))
+            if probe is not v.camera:
+                cam = v.camera.replaced(rotation=cam.rotation, centre=cam.centre)
             state.cameras[v.name] = cam
         for v in self.views:
             if v.mirror_of is not None:
@@ -924,6 +933,7 @@ class _Prepared:
     layout: list  # per block: (block, mode kind, number of modes, units, start, prior)
     start: np.ndarray  # coefficients of the camera modes at the linearisation point
     reusable: bool
+    frozen: tuple  # everything frozen (with the gauge)
 
 
 class Joint:
@@ -976,6 +986,7 @@ class Joint:
         if not self.groups:
             raise ValueError("views: no landmarks or contour to fit")
         self._prep = None
+        self._fit = None
         self.orig = np.concatenate(orig)
         self.rows = [g[2] for g in self.groups]
         self.mean, self.basis = eng.slice(self.orig)
@@ -1113,25 +1124,47 @@ class Joint:
         plane modes (see the class docstring); with the layout of the extra modes and their
         start coefficients."""
         eng = self.eng
-        x = self.world(state)
-        n = len(x)
         lin = eng.lin
         if not self.blocks:
             return (LinearModel(self.mean, self.basis, lin.stddev, lin.names, eng.gamma), [],
                     np.zeros(0))
-        # each copy's camera Jacobian, pseudo-inverted: pixel fields -> world displacement
-        pinv = np.zeros((n, 3, 2))
+        mean, extra_b, layout, start, sd = self._extra_modes(state)
+        n_extra = extra_b.shape[0]
+        gamma = None
+        if eng.gamma is not None:
+            gamma = np.hstack([eng.gamma, np.zeros((eng.gamma.shape[0], n_extra))])
+        names = tuple(lin.names) + tuple(f"camera {i}" for i in range(n_extra))
+        # own arrays: replace_modes writes into them
+        model = LinearModel(np.array(mean), np.concatenate([self.basis, extra_b]),
+                            np.concatenate([lin.stddev, sd]), names, gamma)
+        return model, layout, start
+
+    def _extra_modes(self, state):
+        """(mean of the copies with the prior modes' start folded out (n, 3), the camera and
+        plane modes (P, n, 3) in the model frame, layout, start coefficients (P,),
+        stddev (P,))."""
+        x = self.world(state)
+        n = len(x)
+        # each copy's camera Jacobian, pseudo-inverted (J^T (J J^T)^-1, the 2x2 inverse
+        # written out): pixel fields -> world displacement; pinv[0] takes the u part
+        pinv = np.zeros((2, n, 3))
         for v in self.members:
             idx = self.view_idx[v.name]
             jac = np.asarray(state.cameras[v.name].jacobian(x[idx]),
                              dtype=np.float64).reshape(len(idx), 2, 3)
-            jjt = np.einsum("nij,nkj->nik", jac, jac)
-            pinv[idx] = np.einsum("nji,njk->nik", jac, np.linalg.inv(jjt))
+            ju, jv = jac[:, 0], jac[:, 1]
+            a = (ju * ju).sum(axis=1)[:, None]
+            b = (ju * jv).sum(axis=1)[:, None]
+            d = (jv * jv).sum(axis=1)[:, None]
+            det = a * d - b * b
+            pinv[0, idx] = (ju * d - jv * b) / det
+            pinv[1, idx] = (jv * a - ju * b) / det
         modes, layout, starts, sds = [], [], [], []
         mean = self.mean
         for blk in self.blocks:
             kind, idx, f, units, start, has_prior = self._block_fields(blk, state, x)
-            lift = np.einsum("nij,pnj->pni", pinv[idx], f * units[:, None, None])
+            f = f * units[:, None, None]
+            lift = f[:, :, 0:1] * pinv[0, idx] + f[:, :, 1:2] * pinv[1, idx]
             m = np.zeros((len(f), n, 3))
             # model frame (x = s R m + t)
             m[:, idx] = (lift @ state.rotation) / state.scale
@@ -1142,33 +1175,38 @@ class Joint:
             starts.append(start)
             # a prior mode keeps its prior under prior="identity" (which weighs by stddev)
             sds.append(np.where(has_prior, 1.0, 1e-9))
-        extra_b = np.concatenate(modes)
-        n_extra = extra_b.shape[0]
-        gamma = None
-        if eng.gamma is not None:
-            gamma = np.hstack([eng.gamma, np.zeros((eng.gamma.shape[0], n_extra))])
-        names = tuple(lin.names) + tuple(f"camera {i}" for i in range(n_extra))
-        model = LinearModel(mean, np.concatenate([self.basis, extra_b]),
-                            np.concatenate([lin.stddev] + sds), names, gamma)
-        return model, layout, np.concatenate(starts)
+        return (mean, np.concatenate(modes), layout, np.concatenate(starts),
+                np.concatenate(sds))
 
-    def prepare(self, state, freeze=(), cameras_only=False):
+    def prepare(self, state, freeze=(), cameras_only=False, previous=None):
         """The shape-ICP problem over the copies with the camera modes linearised at
         ``state`` (reused while the head turns little if every camera is orthographic:
-        building it copies the basis)."""
-        model, layout, start = self.model(state)
+        building it copies the basis). A ``previous`` problem of the same layout is
+        re-linearised in place (``ShapeProblem.replace_modes``) instead of rebuilt."""
         k = len(state.coeffs)
-        active = np.arange(k, model.n_coeffs) if cameras_only else None
         if cameras_only:
             freeze = tuple(freeze) + ("rotation",)
+        frozen = tuple(freeze) + tuple(self.gauge)
+        if previous is not None and previous.frozen == frozen and self.blocks and \
+                previous.cameras_only == cameras_only:
+            mean, extra_b, layout, start, sd = self._extra_modes(state)
+            same = len(layout) == len(previous.layout) and all(
+                a[0] is b[0] and a[1] == b[1] and a[2] == b[2]
+                for a, b in zip(layout, previous.layout, strict=True))
+            if same and np.array_equal(sd, previous.model.stddev[k:]):
+                previous.problem.replace_modes(k, extra_b, mean)
+                return replace(previous, rotation=state.rotation.copy(), layout=layout,
+                               start=start)
+        model, layout, start = self.model(state)
+        active = np.arange(k, model.n_coeffs) if cameras_only else None
         problem = ShapeProblem(model, self.rows, lambda1=self.eng.lambda1,
                                lambda2=self.eng.lambda2, prior=self.eng.prior,
-                               freeze=tuple(freeze) + tuple(self.gauge), active=active)
+                               freeze=frozen, active=active)
         reusable = all(kind == "refit" and isinstance(state.cameras[b.view.name],
                                                       OrthographicCamera)
                        for b, kind, *_ in layout)
         return _Prepared(problem, model, k, state.rotation.copy(), tuple(freeze),
-                         cameras_only, layout, start, reusable)
+                         cameras_only, layout, start, reusable, frozen)
 
     def _solve(self, prep, state, iterations):
         start = np.zeros(prep.model.n_coeffs)
@@ -1198,17 +1236,34 @@ class Joint:
         if prep is None or not prep.reusable or prep.freeze != tuple(freeze) or \
                 prep.cameras_only != cameras_only or \
                 np.abs(state.rotation - prep.rotation).max() > 0.05:
-            prep = self.prepare(state, freeze, cameras_only)
-        fit = self._solve(prep, state, inner)
+            prep = self.prepare(state, freeze, cameras_only,
+                                previous=None if prep is None or prep.reusable else prep)
+        self._fit = self._solve(prep, state, inner)
+        self._prep = prep
+        return self.apply(state, 1.0)
+
+    def apply(self, state, alpha):
+        """The state after a fraction ``alpha`` of the last :meth:`step`'s change (from
+        ``state``, the state that step started from): 1 the whole step; less when the
+        whole step overshoots (a perspective camera's modes are linear in its parameters,
+        its projection is not)."""
+        prep, fit = self._prep, self._fit
         k, model = prep.k, prep.model
         new = state.copy()
-        new.rotation, new.coeffs = fit.rotation, fit.coeffs[:k].copy()
-        new.scale, new.translation = fit.scale, fit.translation
+        if alpha == 1.0:
+            new.rotation, new.coeffs = fit.rotation, fit.coeffs[:k].copy()
+            new.scale, new.translation = fit.scale, fit.translation
+        else:
+            turn = Rotation.from_matrix(fit.rotation @ state.rotation.T).as_rotvec()
+            new.rotation = rotation_from_vector(alpha * turn) @ state.rotation
+            new.coeffs = state.coeffs + alpha * (fit.coeffs[:k] - state.coeffs)
+            new.scale = state.scale * (fit.scale / state.scale) ** alpha
+            new.translation = state.translation + alpha * (fit.translation - state.translation)
         full = head = None
         col = k
         moved = set()
         for blk, kind, p, units, start, _ in prep.layout:
-            delta = (fit.coeffs[col:col + p] - start) * units
+            delta = alpha * (fit.coeffs[col:col + p] - start) * units
             col += p
             v = blk.view
             if kind == "plane":
@@ -1220,7 +1275,10 @@ class Joint:
                 new.cameras[v.name] = moved_pinhole(old, delta)
                 continue
             if full is None:
-                full = model.mean + np.tensordot(fit.coeffs, model.basis, axes=1)
+                c_full = fit.coeffs.copy()
+                c_full[:k] = new.coeffs
+                c_full[k:] = prep.start + alpha * (fit.coeffs[k:] - prep.start)
+                full = model.mean + np.tensordot(c_full, model.basis, axes=1)
                 head = self.mean + np.tensordot(new.coeffs, self.basis, axes=1)
                 full = new.scale * full @ new.rotation.T + new.translation
                 head = new.scale * head @ new.rotation.T + new.translation
@@ -1243,7 +1301,6 @@ class Joint:
         if outside:
             self.eng.refit_cameras(new, views=outside)
         self.sync(new)
-        self._prep = prep
         return new
 
     def run(self, state, freeze=(), max_outer=20, inner=2, tolerance=1e-4,
@@ -1254,16 +1311,28 @@ class Joint:
 
         The contour's rows are a choice (which vertices form the outline), so near the end
         the choice can flip back and forth between two sets and the cost with it; the
-        lowest one is kept.
+        lowest one is kept. A step of perspective cameras that raises the cost is cut
+        back (:meth:`apply`, fractions _DAMPING) before it counts.
         """
         best_cost = self.cost(state)
         best = state
         history = [best_cost]
         since = 0
-        self._prep = None
+        if self._prep is not None and self._prep.reusable:
+            self._prep = None  # (a perspective problem is re-linearised in place instead)
         for _ in range(max(int(max_outer), 1)):
-            state = self.step(state, freeze, inner, cameras_only, self._prep)
+            start = state
+            state = self.step(start, freeze, inner, cameras_only, self._prep)
             cost = self.cost(state)
+            if cost > history[-1] and not self._prep.reusable:
+                # a perspective step that overshot: take part of it
+                for alpha in _DAMPING:
+                    trial = self.apply(start, alpha)
+                    c = self.cost(trial)
+                    if c < cost:
+                        state, cost = trial, c
+                    if c <= history[-1]:
+                        break
             history.append(cost)
             if cost < best_cost:
                 since = 0 if cost < best_cost * (1.0 - tolerance) else since + 1
@@ -1308,9 +1377,19 @@ class Joint:
         """Posterior covariance (K, K) of the fitted coefficients at ``state``: the inverse
         of the normal matrix with pose and camera modes free (marginalised), rows weighted
         1 / noise^2 so sigma = 1."""
-        prep = self.prepare(state)
+        last = self._prep
+        prep = self.prepare(state, previous=None if last is None or last.reusable else last)
         fit = self._solve(prep, state, 0)
         return fit.coeff_covariance[:prep.k, :prep.k]
+
+
+def _pose_only(camera):
+    """A pinhole camera's copy whose ``refit`` moves only its pose (other kinds: itself)."""
+    if not isinstance(camera, PinholeCamera):
+        return camera
+    return PinholeCamera(camera.focal_px, camera.rotation, camera.centre, camera.size,
+                         camera.principal_point, camera.k1, free_focal=False,
+                         focal_range_mm=None)
 
 
 def _unit_scale(fields):

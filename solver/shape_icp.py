@@ -868,6 +868,58 @@ class ShapeProblem:
         self._pos = None
         self.set_priors()
 
+    def replace_modes(self, start, basis, mean=None):
+        """Replace the model's modes ``start..start + P`` (and optionally its mean) between
+        solves, in place: the cached slices of every group are refreshed for those modes
+        only, so a caller that re-linearises a few modes every round (the fit's camera
+        modes) does not rebuild the problem and re-slice the whole basis.
+
+        Parameters
+        ----------
+        start : int
+            First mode replaced.
+        basis : array_like, shape (P, V, 3)
+        mean : array_like, shape (V, 3), optional
+
+        Raises
+        ------
+        ValueError
+            Shapes that do not match the model, modes beyond its end, or a model whose
+            arrays cannot be written.
+        """
+        b = np.asarray(basis, dtype=np.float64)
+        k, n_vert = self.model.basis.shape[:2]
+        start = int(start)
+        if b.ndim != 3 or b.shape[1:] != (n_vert, 3) or not 0 <= start <= k - b.shape[0]:
+            raise ValueError(f"basis: expected shape (P, {n_vert}, 3) for modes {start}.. "
+                             f"of {k}, got {b.shape}")
+        if not self.model.basis.flags.writeable:
+            raise ValueError("model: its basis is read-only; build a new ShapeProblem")
+        self.model.basis[start:start + len(b)] = b
+        if mean is not None:
+            m = np.asarray(mean, dtype=np.float64)
+            if m.shape != (n_vert, 3):
+                raise ValueError(f"mean: expected shape ({n_vert}, 3), got {m.shape}")
+            self.model.mean[...] = m
+        # rows of the active coefficients that were replaced, and where they sit
+        at = np.flatnonzero((self.active >= start) & (self.active < start + len(b)))
+        src = self.active[at] - start
+        every = np.array_equal(src, np.arange(len(b)))
+        for pg in self.groups:
+            v = pg.rows.vertices
+            if len(at):
+                rows = b if pg.whole else b[:, v]
+                rows = rows if every else rows[src]
+                pg.basis[at] = rows
+                if pg._basis_vm is not None:
+                    pg._basis_vm[:, :, at] = rows.transpose(1, 2, 0)
+                pg._gram = None
+            if mean is not None:
+                pg.mean = self.model.mean if pg.whole else self.model.mean[v]
+                pg.base = pg.mean
+        self._cache = None
+        self._pos = None
+
     def set_priors(self, lambda1=None, lambda2=None, anneal=None):
         """Change the prior weights between solves (the cached model slices stay valid).
 

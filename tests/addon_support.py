@@ -16,7 +16,7 @@ if str(ROOT) not in sys.path:
 import bpy  # noqa: E402  (after the path: tests run from anywhere)
 
 # bpy.data collections a failed operator must leave as they were.
-DATA_KINDS = ("objects", "meshes", "curves", "materials", "images", "collections")
+DATA_KINDS = ("objects", "meshes", "curves", "cameras", "materials", "images", "collections")
 
 
 def addon():
@@ -83,3 +83,45 @@ def run_python(args, env=None, timeout=600, cwd=ROOT):
     full_env.update(env or {})
     return subprocess.run([sys.executable, *map(str, args)], cwd=cwd, env=full_env,
                           capture_output=True, text=True, timeout=timeout)
+
+
+def add_passpoints(case, truth, view, rng, n=14, misplace=None, noise_px=0.3):
+    """Give ``view`` of a synthetic case the passpoints of a calibration object around the
+    head (``n`` points in a box about the face, those the photo shows), its camera to be
+    computed from them (``{"kind": "dlt"}``, calibrated). ``misplace``: (index, pixels)
+    moves one passpoint's pixel that far. Returns the passpoint names."""
+    centre = truth.world_vertices.mean(axis=0)
+    xyz = centre + rng.uniform(-1.0, 1.0, size=(n, 3)) * np.array([0.1, 0.1, 0.12])
+    cam = truth.cameras[view]
+    v = case.views[view]
+    px = cam.project(xyz) + noise_px * rng.normal(size=(n, 2))
+    inside = (px > 5).all(axis=1) & (px < np.array(v.size) - 5).all(axis=1)
+    names = [f"pp{i:02d}" for i in range(n) if inside[i]]
+    xyz, px = xyz[inside], px[inside]
+    if misplace is not None:
+        i, dist = misplace
+        px[i] += (dist, 0.0) if px[i, 0] + dist < v.size[0] else (-dist, 0.0)
+    case.passpoints = dict(zip(names, xyz, strict=True))
+    v.passpoints = dict(zip(names, px, strict=True))
+    v.camera, v.camera_hints, v.calibrated = None, {"kind": "dlt"}, True
+    return names
+
+
+def save_case(case, folder, name, photos=True, seed=0):
+    """Write a case (photos named after its views, one photo per image when views share
+    one) as ``folder/<name>.json``; returns (path, case as loaded)."""
+    from solver import landmarks_file
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    if photos:
+        for i, (vname, view) in enumerate(case.views.items()):
+            src = view.mirror_of or vname
+            fname = f"{name}_{src}.png"
+            if not (folder / fname).exists():
+                write_photo(folder / fname, view.size, seed + i)
+            view.image = fname
+    path = folder / f"{name}.json"
+    case.source = str(path)
+    landmarks_file.save_landmarks(case, path)
+    return path, landmarks_file.load_landmarks(path, for_fit=False)

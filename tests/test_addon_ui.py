@@ -53,6 +53,7 @@ class Layout:
         cat, name = idname.split(".")
         assert hasattr(bpy.types, f"{cat.upper()}_OT_{name}"), f"no operator {idname}"
         self.log.append(("operator", idname))
+        self.log.append(("button", kw.get("text", "")))
         return _OpProps(idname)
 
     def template_list(self, listtype, list_id, data, propname, active_data, active_propname,
@@ -103,3 +104,40 @@ def test_panels_draw_through_the_flow(files):
     assert ("list", "residuals") in log
     assert any(k == "label" and t.startswith("RMS residual: ") for k, t in log)
     scene.headrecon.live_refit = False
+
+
+def test_panels_draw_perspective_photos(model, tmp_path):
+    # any number of photos, each with its camera's description; passpoints can be placed;
+    # the residual list and the result panel show the passpoint check
+    import numpy as np
+    from addon_support import add_passpoints, save_case
+
+    from solver import synthetic
+
+    addon()
+    case, truth = synthetic.make_perspective_case(model, 0, n_views=3, head_px=(300.0, 320.0))
+    add_passpoints(case, truth, "photo0", np.random.default_rng(1), misplace=(3, 12.0))
+    path, _ = save_case(case, tmp_path, "persp", photos=False)
+    empty_scene()
+    assert bpy.ops.headrecon.import_landmarks(filepath=str(path)) == {"FINISHED"}
+    log = _draw_all()
+    labels = [t for k, t in log if k == "label"]
+    assert sum(t.startswith(("photo0: ", "photo1: ", "photo2: ")) and "(no photo)" not in t
+               for t in labels) == 3
+    assert "DLT, to compute, calibrated" in labels
+    assert sum(t.startswith("Pinhole ") and t.endswith("mm, to compute") for t in labels) == 2
+    n = len(case.passpoints)
+    # every perspective photo can take the calibration object's passpoints
+    assert [t for k, t in log if k == "button" and t.startswith("Passpoints")] == \
+        [f"Passpoints ({n} / {n})", f"Passpoints (0 / {n})", f"Passpoints (0 / {n})"]
+    assert ("button", "Add Photo (Any Camera)...") in log
+    assert log.count(("operator", "headrecon.view_photo")) == 3
+    scene = bpy.context.scene
+    scene.headrecon.bake_texture = False
+    scene.headrecon.n_identity = 10
+    assert bpy.ops.headrecon.fit() == {"FINISHED"}
+    scene.headrecon.residual_index = 0
+    log = _draw_all()
+    labels = [t for k, t in log if k == "label"]
+    assert "Suspect passpoints: 1" in labels
+    assert any("misplaced or mislabelled" in t for t in labels)

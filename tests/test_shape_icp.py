@@ -10,6 +10,7 @@ from solver.shape_icp import (
     ClosestPointRows,
     ImageRows,
     PointRows,
+    ScalarRows,
     ShapeProblem,
     orthonormalize,
     rotation_from_vector,
@@ -501,3 +502,51 @@ def test_unprojectable_vertex_is_named():
     first_bad = int(v[model.mean[:, 1] > 0.05][0])
     with pytest.raises(ValueError, match=f"front: vertex {first_bad} does not project"):
         shape_icp(model, ImageRows(v, np.zeros((len(v), 2)), cam, name="front"))
+
+
+def test_set_camera_makes_a_cached_system_stale():
+    # A problem solved once caches its final system; a camera swapped in through
+    # set_camera must be used by the next solve (the cache is keyed on the rows' version).
+    model = synthetic_model()
+    x = model.mean  # the head at rest: only the camera differs
+    v = np.arange(0, model.n_vertices, 3)
+    cam = OrthographicCamera.nominal("orthographic-front", (1200, 1600))
+    moved = OrthographicCamera(cam.rotation, cam.scale, cam.offset + [40.0, -25.0], cam.size,
+                               cam.view)
+    rows = ImageRows(v, cam.project(x[v]), cam, name="front")
+    depth = PointRows(v[:1], x[v[:1]], mask=np.array([[False, True, False]]), name="depth")
+    problem = ShapeProblem(model, [rows, depth], lambda2=1e-6,
+                           freeze=("rotation", "scale", "shape"))
+    first = problem.solve(max_iterations=0)  # builds and caches the system at the start
+    rows.set_camera(cam)  # the same camera: nothing changes
+    assert problem.solve(max_iterations=0).info["data_cost"] == first.info["data_cost"]
+    rows.set_camera(moved)
+    assert rows.camera is moved
+    stale = problem.solve(max_iterations=0)
+    # the cost at the start is the one through the new camera (40 and 25 px per point)
+    expected = float(((moved.project(model.mean[v]) - rows.pixels) ** 2).sum())
+    assert stale.info["data_cost"] == pytest.approx(expected, rel=1e-9)
+    assert stale.info["data_cost"] != pytest.approx(first.info["data_cost"], rel=1e-3)
+    # and the solve through it moves the head by the camera's offset (back in metres)
+    fit = problem.solve(max_iterations=10, tolerance=1e-14)
+    shift = np.array([40.0, -25.0]) / cam.scale  # u is world x, v is world -z
+    np.testing.assert_allclose(fit.translation, [-shift[0], 0.0, shift[1]], atol=1e-9)
+    with pytest.raises(ValueError, match="camera must be a Camera"):
+        rows.set_camera("front")
+    pix = ClosestPixelRows(v, cam.project(x[v]), cam)
+    pix.set_camera(moved)
+    assert pix.camera is moved and pix._version == 1
+
+
+def test_rows_return_scalar_rows_blocks():
+    model = synthetic_model()
+    v = np.arange(10)
+    cam = OrthographicCamera.nominal("orthographic-front", (100, 100))
+    rows = ImageRows(v, cam.project(model.mean[v]) + 1.0, cam)
+    cost_only = rows.block(model.mean[v], jacobian=False)
+    assert isinstance(cost_only, ScalarRows) and cost_only.g is None
+    assert cost_only.sq == pytest.approx(20.0) and cost_only.nrows == 20
+    full = rows.block(model.mean[v])
+    assert full.g.shape == (20, 3) and full.r.shape == (20,) and full.idx.shape == (20,)
+    masked = PointRows(v, model.mean[v], mask=np.tile([True, False, True], (10, 1)))
+    assert isinstance(masked.block(model.mean[v]), ScalarRows)

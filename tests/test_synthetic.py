@@ -4,7 +4,15 @@ import numpy as np
 import pytest
 
 from solver.landmarks_file import landmarks_to_dict, parse_landmarks
-from solver.synthetic import make_case, resample_polyline, trace_silhouette
+from solver.pinhole import PinholeCamera
+from solver.synthetic import (
+    make_case,
+    make_mirror_case,
+    make_perspective_case,
+    resample_polyline,
+    trace_silhouette,
+    vertex_normals,
+)
 
 
 @pytest.fixture(scope="module")
@@ -109,3 +117,97 @@ def test_bad_arguments(model):
         make_case(model, 0, views=("top",))
     with pytest.raises(ValueError, match="coeffs"):
         make_case(model, 0, coeffs=np.zeros(500))
+
+
+# ----------------------------------------------------------------------------- perspective
+
+
+@pytest.fixture(scope="module")
+def perspective(model):
+    return make_perspective_case(model, 4, n_views=3, noise_px=0.0, contour=True,
+                                 contour_points=80)
+
+
+def test_perspective_photos_show_what_faces_them(model, perspective):
+    case, truth = perspective
+    assert list(case.views) == ["photo0", "photo1", "photo2"]
+    world = truth.world_vertices
+    normals = vertex_normals(model, world)
+    skin = world[model.skin]
+    for name, view in case.views.items():
+        cam = truth.cameras[name]
+        assert isinstance(cam, PinholeCamera) and 35.0 <= cam.lens_mm <= 85.0
+        assert view.camera is None and view.camera_hints["kind"] == "pinhole"
+        assert view.camera_hints["lens_mm"] == pytest.approx(cam.lens_mm, rel=0.25)
+        centre = 0.5 * (skin.min(axis=0) + skin.max(axis=0))
+        assert 0.5 <= np.linalg.norm(cam.centre - centre) <= 2.0
+        # the head is as tall as in the orthographic cases' 1024-px photos
+        assert 768.0 * 0.97 <= np.ptp(cam.project(skin)[:, 1]) <= 922.0 * 1.03
+        # noise free: every landmark is its vertex's projection, and that vertex faces the
+        # camera; the landmarks it does not show face away or are hidden
+        verts = np.array([model.landmarks[n] for n in view.points])
+        np.testing.assert_allclose(np.array(list(view.points.values())),
+                                   cam.project(world[verts]), atol=1e-9)
+        facing = np.einsum("ij,ij->i", normals[verts], cam.toward_camera(world[verts]))
+        assert (facing > 0).all()
+        left_out = [e["name"] for e in model.landmark_info if e["name"] not in view.points]
+        lv = np.array([model.landmarks[n] for n in left_out])
+        away = np.einsum("ij,ij->i", normals[lv], cam.toward_camera(world[lv])) <= 0
+        assert away.mean() > 0.5  # most are on the far side, the rest covered
+        assert view.contour.shape == (80, 2)
+    # the first photo looks at the face, the others from either side (up to 45 degrees)
+    yaw = {n: np.degrees(np.arctan2(truth.cameras[n].centre[0], -truth.cameras[n].centre[1]))
+           for n in case.views}
+    assert abs(yaw["photo0"]) < 15.0
+    assert 15.0 < abs(yaw["photo1"]) < 50.0 and 15.0 < abs(yaw["photo2"]) < 50.0
+    assert np.sign(yaw["photo1"]) != np.sign(yaw["photo2"])
+    # a three-quarter view misses landmarks on the far side that the front photo shows
+    far = "left" if yaw["photo1"] < 0 else "right"
+    assert any(n.endswith(far) for n in case.views["photo0"].points
+               if n not in case.views["photo1"].points)
+    # a valid version-2 landmarks document
+    again = parse_landmarks(landmarks_to_dict(case), "<synthetic>", model)
+    assert again.views["photo1"].points == case.views["photo1"].points
+
+
+def test_perspective_case_calibrated_and_seeded(model):
+    a, ta = make_perspective_case(model, 9, n_views=2, calibrated=True, focal_prior=None)
+    b, _ = make_perspective_case(model, 9, n_views=2, calibrated=True, focal_prior=None)
+    assert a == b
+    for name, view in a.views.items():
+        assert view.camera is ta.cameras[name] and view.camera_fixed
+    # the same seed gives the orthographic cases' head
+    _, tortho = make_case(model, 9)
+    np.testing.assert_array_equal(ta.identity_coeffs, tortho.identity_coeffs)
+    with pytest.raises(ValueError, match="n_views"):
+        make_perspective_case(model, 0, n_views=0)
+
+
+def test_mirror_case_is_one_photo_with_a_mirrored_camera(model):
+    case, truth = make_mirror_case(model, 3, noise_px=0.0)
+    front, mirror = case.views["front"], case.views["mirror"]
+    assert mirror.mirror_of == "front" and mirror.size == front.size
+    plane = truth.planes["mirror"]
+    real, virtual = truth.cameras["front"], truth.cameras["mirror"]
+    assert virtual.is_mirrored and not real.is_mirrored
+    world = truth.world_vertices
+    # a mirror landmark is where the real camera sees the reflected point, named by the
+    # subject's true side; the mirror shows the subject's left (the mirror is at +x)
+    verts = np.array([model.landmarks[n] for n in mirror.points])
+    np.testing.assert_allclose(np.array(list(mirror.points.values())),
+                               real.project(plane.reflect_points(world[verts])), atol=1e-6)
+    assert sum(n.endswith("_left") for n in mirror.points) > \
+        sum(n.endswith("_right") for n in mirror.points)
+    # both images of the head lie inside the one photo, apart
+    w, h = front.size
+    for pts in (front.points, mirror.points):
+        p = np.array(list(pts.values()))
+        assert (p >= 0).all() and (p[:, 0] <= w).all() and (p[:, 1] <= h).all()
+    du = np.mean([u for u, _ in mirror.points.values()]) - \
+        np.mean([u for u, _ in front.points.values()])
+    assert abs(du) > 0.2 * w
+    # the mirror faces the camera and the head
+    assert plane.signed_distance(real.centre[None])[0] > 0
+    assert plane.signed_distance(world[model.skin]).min() > 0
+    again = parse_landmarks(landmarks_to_dict(case), "<synthetic>", model)
+    assert again.views["mirror"].mirror_of == "front"
