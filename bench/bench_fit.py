@@ -20,7 +20,6 @@ fits run; ``ru_maxrss``) and the peak of Python/numpy allocations during one ful
 
 import argparse
 import os
-import platform
 import sys
 from pathlib import Path
 
@@ -49,27 +48,16 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 import copy  # noqa: E402
-import resource  # noqa: E402
 import statistics  # noqa: E402
 import time  # noqa: E402
-import tracemalloc  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from bench.common import machine_description, max_rss_mb, peak_memory  # noqa: E402
 from solver.fit import FitOptions, fit_head, refit_landmarks  # noqa: E402
 from solver.model import load_model  # noqa: E402
 from solver.procrustes import similarity_procrustes  # noqa: E402
 from solver.synthetic import make_case  # noqa: E402
-
-
-def cpu_model():
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
 
 
 def skin_error_mm(model, local, truth_local):
@@ -81,9 +69,7 @@ def skin_error_mm(model, local, truth_local):
 
 def main(args):
     model = load_model()
-    print(f"machine: {cpu_model()}, {os.cpu_count()} logical cores, Python "
-          f"{platform.python_version()}, numpy {np.__version__}, BLAS threads "
-          f"{os.environ.get('OPENBLAS_NUM_THREADS', 'library default')}")
+    print(f"machine: {machine_description()}")
     print(f"cases: {args.cases} per noise level, rotation <= 5 deg, 1024-px photos, "
           "front + right with contour\n")
     methods = list(args.methods)
@@ -122,11 +108,8 @@ def main(args):
 
     # Memory of one full fit (numpy reports its buffers to tracemalloc).
     case, _ = make_case(model, 999, noise_px=1.0)
-    tracemalloc.start()
-    fit_head(model, case, FitOptions())
-    _, peak = tracemalloc.get_traced_memory()
-    tracemalloc.stop()
-    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # KiB on Linux
+    _, peak = peak_memory(lambda: fit_head(model, case, FitOptions()))
+    rss = max_rss_mb()
     print("\nspeed and memory")
     if fit_times:
         print(f"  full fit (combined): median {statistics.median(fit_times):.3f} s, "

@@ -80,11 +80,15 @@ def _fit(model, case):
     return t.result, t.wall[0], t.cpu[0]
 
 
-def _row(name, errs, walls, cpus, ref=None, extra=""):
+WIDTH = 46  # setup column
+
+
+def _row(name, errs, walls=None, cpus=None, ref=None, extra=""):
     med = float(np.median(errs))
     ratio = f"{med / ref:7.2f}" if ref else f"{'':>7}"
-    print(f"  {name:<34}{med:8.2f}{np.mean(errs):8.2f}{np.max(errs):8.2f}{ratio}"
-          f"{statistics.median(walls):9.2f}{max(walls):8.2f}{statistics.median(cpus):8.2f}"
+    times = (f"{statistics.median(walls):9.2f}{max(walls):8.2f}{statistics.median(cpus):8.2f}"
+             if walls else f"{'':>25}")
+    print(f"  {name:<{WIDTH}}{med:8.2f}{np.mean(errs):8.2f}{np.max(errs):8.2f}{ratio}{times}"
           f"{extra}")
 
 
@@ -128,9 +132,9 @@ def main(args):
 
     ref = float(np.median(ortho["err"]))
     print("RMS skin error after similarity alignment (mm), ratio of medians to (a), fit time")
-    print(f"  {'setup':<34}{'median':>8}{'mean':>8}{'max':>8}{'ratio':>7}"
+    print(f"  {'setup':<{WIDTH}}{'median':>8}{'mean':>8}{'max':>8}{'ratio':>7}"
           f"{'wall med':>9}{'max':>8}{'cpu med':>8}")
-    _row("mean head (no fit)", mean_head, [0.0], [0.0])
+    _row("mean head (no fit)", mean_head)
     _row("(a) orthographic front + profile", ortho["err"], ortho["wall"], ortho["cpu"])
     verdicts = []
     for cfg in configs:
@@ -147,7 +151,7 @@ def main(args):
     print(f"\ntargets: error median within 20 % of (a) ({1.2 * ref:.2f} mm), fit time median "
           "<= 1 s")
     for name, acc, fast in verdicts:
-        print(f"  {name:<48} accuracy {'met' if acc else 'NOT met'}, "
+        print(f"  {name:<{WIDTH}} accuracy {'met' if acc else 'NOT met'}, "
               f"time {'met' if fast else 'NOT met'}")
     print(f"\nload average at the end: {load_average()}")
 

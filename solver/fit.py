@@ -1,14 +1,18 @@
-"""Fit the head model to landmarks on a front and a profile photo (thesis §4.4, §9).
+"""Fit the head model to landmarks on photos (thesis §4.4, §9): a front and a profile
+photo as in the thesis, or any number of photos at any angle, orthographic or perspective
+(calibrated, from passpoints, or self-calibrated on the head), and mirror images.
 
-Every approach starts with the profile-line fit (§4.4.1): first the side camera's 2-D
-similarity alone (the similarity-only ICP: in a profile photo that is the head's scale,
-rotation in the sagittal plane and position), then with the shape, against the traced
-outline (the model's outline in the photo, found among vertices near its midsagittal
-``profile_chain``; closest points in the image, a distance threshold) and the side
-landmarks. Then:
+Every approach starts with the profile-line fit (§4.4.1) on the orthographic profile
+photos: first the side camera's 2-D similarity alone (the similarity-only ICP: in a
+profile photo that is the head's scale, rotation in the sagittal plane and position), then
+with the shape, against the traced outline (the model's outline in the photo, found among
+vertices near its midsagittal ``profile_chain``; closest points in the image, a distance
+threshold) and the side landmarks. Then:
 
 - approach 1 (§4.4.2): all landmarks as image rows through their cameras, so a front
-  landmark contributes its two known coordinates only, the front rows weighted;
+  landmark contributes its two known coordinates only, the front rows weighted; the
+  outline traced in any photo pulls the model's outline there (other photos than
+  orthographic profiles find it among the skin vertices seen edge-on, ``view_outline``);
 - approach 2 (§4.4.3): TPS-ICP: warp the fitted head with a thin-plate spline so its
   landmark vertices reach 3-D targets (each landmark moved within the image plane of every
   photo that shows it: the profile gives depth, the front x and z), fit the model to the
@@ -17,13 +21,22 @@ landmarks. Then:
   reproject better, the smaller shape prior breaking near ties. Approach 2 is the
   thesis' method for orthographic photos: its 3-D targets come from the photos' image
   planes, and it refines a head the profile stage has already shaped. With a perspective
-  camera (no profile stage) it measured 2-2.5 mm against 1.2 mm for approach 1
-  (``bench/bench_perspective.py``), so there combined is approach 1 alone.
+  camera (no profile stage) it measured 2.0-2.8 mm against 1.0-1.3 mm for approach 1 (8
+  synthetic cases of 2 and 3 photos, calibrated or not), so there combined is approach 1
+  alone.
 
 Cameras: no photo is assumed to share scale, tilt or framing with another. Each keeps its
-own camera, solved together with the head in every Gauss-Newton step and refitted through
-``Camera.refit`` (see ``solver/fit_engine.py``, also for the gauge: head scale 1 and
-translation 0 when every camera is free; the identity modes carry the head's size).
+own camera, solved together with the head in every Gauss-Newton step (its parameters as
+extra modes of the shape-ICP) and re-calibrated through ``Camera.refit`` (see
+``solver/fit_engine.py``, also for the gauge: head scale 1 and translation 0 when every
+camera is free, and the head's rotation too when they are all perspective; the identity
+modes carry the head's size). Self-calibrated perspective cameras alternate full
+re-calibrations with joint rounds until both settle (:func:`_approach1`). A mirror view's
+camera is its photo's camera reflected in a mirror plane the fit estimates
+(``Engine.initial_plane``, seed 001 ch. 3); ``info["mirror"]`` reports the plane and each
+landmark's gap between its direct and its mirrored ray. ``info["projection"]`` reports
+each photo's parallel-projection error (seed 001 ch. 2) and ``info["warnings"]`` what the
+user should know.
 
 Everything is least squares in pixels weighted by 1 / ``noise_px``^2 against the prior
 ``lambda2^2 |c|^2`` (c in standard deviations), so with ``lambda2 = 1`` the fit is the
@@ -496,15 +509,17 @@ def _approach1(eng, state, opts):
 
     With free perspective cameras or mirror planes (self-calibration) the joint rounds
     alternate with full re-calibrations of those cameras until both settle
-    (``Joint.settle``): a re-calibration that lowers the cost by less than 0.1 % (or
-    ``tolerance`` if larger; the choice of outline vertices alone moves the cost by about
-    that much) ends it, at most ``calibration_rounds``."""
+    (``Joint.settle``): joint rounds run until a round changes the cost by less than
+    0.1 % (or ``tolerance`` if larger; the choice of outline vertices alone moves the cost
+    by about that much), and a re-calibration that lowers the cost by less than that
+    ends the alternation, after at most ``calibration_rounds``."""
     joint = eng.joint(eng.views, front_weight=opts.front_weight)
-    state, hist = joint.run(state, max_outer=opts.max_iterations, tolerance=opts.tolerance)
+    selfcal = _self_calibrating(eng)
+    tol = max(opts.tolerance, _SETTLE_TOLERANCE) if selfcal else opts.tolerance
+    state, hist = joint.run(state, max_outer=opts.max_iterations, tolerance=tol)
     out = {"history": hist, "joint": joint}
-    if _self_calibrating(eng):
-        state, more, rounds = joint.settle(state, opts.calibration_rounds,
-                                           max(opts.tolerance, _SETTLE_TOLERANCE),
+    if selfcal:
+        state, more, rounds = joint.settle(state, opts.calibration_rounds, tol,
                                            max_outer=opts.max_iterations)
         out["history"] = hist + more
         out["calibration_rounds"] = rounds
@@ -924,12 +939,12 @@ def outline_candidates(model, max_x=0.05, max_normal_x=0.4):
 
 def view_outline(model, eng, state, view, max_normal=0.4, margin=3.0):
     """Outline candidates of a photo that is not an orthographic profile (a front or
-    three-quarter view, a perspective photo at any angle): skin vertices of the head at ``state`` whose (mean-head)
-    normals face across the camera's line of sight there (|n . t| < ``max_normal``, t the
-    unit vector toward the camera) and that project within ``margin`` times the contour
-    threshold of the traced outline (which leaves out the inner folds: the sides of the
-    nose, the eye sockets), with their mesh; ``ContourRows`` finds the outline among them
-    each round.
+    three-quarter view, a perspective photo at any angle): skin vertices of the head at
+    ``state`` whose (mean-head) normals face across the camera's line of sight there
+    (|n . t| < ``max_normal``, t the unit vector toward the camera) and that project within
+    ``margin`` times the contour threshold of the traced outline (which leaves out the
+    inner folds: the sides of the nose, the eye sockets), with their mesh;
+    ``ContourRows`` finds the outline among them each round.
 
     Returns
     -------

@@ -441,6 +441,7 @@ class ContourRows(CameraRows):
         self.targets = np.zeros((0, 2))
         self.row_normals = np.zeros((0, 2))
         self._updated = False
+        self._last = None  # (camera, world) of the last update
 
     def rim(self, world):
         """Indices of the candidates on the contour generator of the posed head."""
@@ -458,6 +459,13 @@ class ContourRows(CameraRows):
         return np.flatnonzero(mask)
 
     def update(self, world):
+        # The same head through the same camera again (a cost evaluation, then the next
+        # solve's first build): the outline found last time stands.
+        last = self._last
+        if last is not None and last[0] is self.camera and last[1].shape == world.shape \
+                and np.abs(last[1] - world).max(initial=0.0) < 1e-12:
+            return
+        self._last = (self.camera, world.copy())
         rim = self.rim(world)
         proj = self.camera.project(world[rim])
         dist, j = self.tree.query(proj, distance_upper_bound=self.max_distance)

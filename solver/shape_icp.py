@@ -703,6 +703,7 @@ class _Prepared:
         self.inactive_idx = np.flatnonzero(inactive)
         self.base = self.mean
         self._basis_vm = None
+        self.volatile = False
         self._gram_alpha = None
         self._gram = None
         self._gram_updates = 0
@@ -712,6 +713,15 @@ class _Prepared:
         if self._basis_vm is None:
             self._basis_vm = np.ascontiguousarray(self.basis.transpose(1, 2, 0))
         return self._basis_vm
+
+    def gather(self, idx):
+        """The basis at vertices ``idx`` as (m, 3, Ka). From the vertex-major copy, which
+        pays off over many solves; once modes are replaced between solves
+        (``ShapeProblem.replace_modes``) straight from the basis instead, as re-making that
+        copy every round would cost more than the gathers it saves."""
+        if self.volatile:
+            return self.basis[:, idx].transpose(1, 2, 0)
+        return self.basis_vm()[idx]
 
     def set_inactive(self, coeffs):
         """Fold the fixed (inactive) coefficients into the base shape, slicing only the
@@ -911,8 +921,8 @@ class ShapeProblem:
                 rows = b if pg.whole else b[:, v]
                 rows = rows if every else rows[src]
                 pg.basis[at] = rows
-                if pg._basis_vm is not None:
-                    pg._basis_vm[:, :, at] = rows.transpose(1, 2, 0)
+                pg._basis_vm = None
+                pg.volatile = True
                 pg._gram = None
             if mean is not None:
                 pg.mean = self.model.mean if pg.whole else self.model.mean[v]
@@ -1087,7 +1097,7 @@ class ShapeProblem:
                 n_mat[7:, 7:] += sr @ sr.T  # A^T W A as one symmetric product (syrk)
                 prod = (a_c * w) @ np.column_stack([a_s, r])
             else:  # few rows: gather contiguous (3, Ka) blocks per row
-                a_c = np.einsum("mi,mik->mk", h, pg.basis_vm()[idx])  # (m, Ka)
+                a_c = np.einsum("mi,mik->mk", h, pg.gather(idx))  # (m, Ka)
                 sr = a_c * np.sqrt(w)[:, None]
                 n_mat[7:, 7:] += sr.T @ sr
                 prod = (a_c * w[:, None]).T @ np.column_stack([a_s, r])

@@ -1,0 +1,297 @@
+"""The fit with photos from any camera (synthetic cases with known answers): perspective
+photos at any angle, calibrated and self-calibrated (pinhole, DLT), mixed with orthographic
+ones, one camera and a mirror (seed 001 ch. 3), the parallel-projection check (seed 001
+ch. 2); and triangulation through pinhole cameras."""
+
+import copy
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from camera_support import dlt_camera
+
+from solver.cameras import OrthographicCamera
+from solver.fit import FitOptions, fit_head, refit_landmarks
+from solver.landmarks_file import LandmarkCase, View, save_landmarks
+from solver.pinhole import PinholeCamera
+from solver.procrustes import similarity_procrustes
+from solver.synthetic import (
+    make_case,
+    make_mirror_case,
+    make_perspective_case,
+    visible_landmarks,
+)
+from solver.triangulate import projection_matrix, triangulate, viewing_rays
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def skin_error_mm(model, local, truth):
+    """RMS distance over the skin after similarity alignment, millimetres."""
+    a, b = local[model.skin], truth.local_vertices[model.skin]
+    sim = similarity_procrustes(a, b)
+    return 1000.0 * float(np.sqrt(((sim.apply(a) - b) ** 2).sum(axis=1).mean()))
+
+
+def normal_angle_deg(a, b):
+    return float(np.degrees(np.arccos(np.clip(abs(np.dot(a, b)), 0.0, 1.0))))
+
+
+def mirror_error_deg(model, res, truth):
+    """Angle between the fitted and the true mirror normal, seen from the head: with a
+    self-calibrated camera the fit's world is the head's own frame, so the fitted normal
+    is turned by the similarity that takes the fitted head onto the true one."""
+    sim = similarity_procrustes(res.world_vertices[model.skin],
+                                truth.world_vertices[model.skin])
+    normal = sim.rotation @ res.info["mirror"]["mirror"]["normal"]
+    return normal_angle_deg(normal, truth.planes["mirror"].normal)
+
+
+# ----------------------------------------------------------------------------- triangulation
+
+
+def test_triangulation_through_pinhole_cameras():
+    rng = np.random.default_rng(3)
+    x = rng.uniform(-0.1, 0.1, (40, 3))
+    size = (1500, 2000)
+    cams = [PinholeCamera.look_at([0.0, -1.2, 0.1], [0, 0, 0], size, lens_mm=50),
+            PinholeCamera.look_at([0.8, -0.9, 0.0], [0, 0, 0], size, lens_mm=70, k1=-0.08),
+            dlt_camera([-0.7, -0.8, 0.3])]
+    px = np.stack([c.project(x) for c in cams])
+    tri = triangulate(cams, px)
+    np.testing.assert_allclose(tri.points, x, atol=1e-9)
+    assert np.nanmax(np.abs(tri.residuals)) < 1e-6 and tri.ray_gap.max() < 1e-9
+    # two pinhole cameras alone, one with lens distortion, and a pinhole with an
+    # orthographic camera
+    np.testing.assert_allclose(triangulate(cams[:2], px[:2]).points, x, atol=1e-9)
+    ortho = OrthographicCamera.nominal("orthographic-right", (1000, 1000))
+    mixed = triangulate([cams[0], ortho], np.stack([px[0], ortho.project(x)]))
+    np.testing.assert_allclose(mixed.points, x, atol=1e-9)
+    # the matrix is K R [I | -C] in b-form; the rays leave the centre through the points
+    p = projection_matrix(cams[0])
+    np.testing.assert_allclose(p, cams[0].matrix / cams[0].matrix[2, 3], rtol=1e-12)
+    origins, dirs = viewing_rays(cams[1], px[1])
+    np.testing.assert_allclose(origins, np.broadcast_to(cams[1].centre, origins.shape))
+    along = ((x - origins) * dirs).sum(axis=1)
+    np.testing.assert_allclose(origins + along[:, None] * dirs, x, atol=1e-9)
+    # with noise the triangulated points are as good as two 1-px rays allow
+    noisy = px + rng.normal(size=px.shape)
+    err = np.linalg.norm(triangulate(cams, noisy).points - x, axis=1)
+    assert np.sqrt((err**2).mean()) < 1e-3
+    with pytest.raises(ValueError, match="DLT, pinhole or orthographic"):
+        projection_matrix(object())
+
+
+# ----------------------------------------------------------------------------- perspective
+
+
+def test_self_calibrated_photos_at_any_angle(model):
+    case, truth = make_perspective_case(model, 7, n_views=3)
+    res = fit_head(model, case)
+    err = skin_error_mm(model, res.local_vertices, truth)
+    assert err < 1.6 and err < 0.4 * skin_error_mm(model, model.vertices, truth)
+    for name in case.views:
+        cam = res.cameras[name]
+        assert isinstance(cam, PinholeCamera) and not cam.is_mirrored
+        # the stated lens is off by up to 5 % (sigma); the head fixes the rest
+        assert cam.focal_px == pytest.approx(truth.cameras[name].focal_px, rel=0.1)
+        assert res.info["rms_px"][name] < 2.0
+        chk = res.info["projection"][name]
+        assert chk["perspective"] and 0.0 < chk["epsilon"] < 0.5
+    # self-calibration alternated with the shape at least once; approach 2 (orthographic
+    # photos' method) is left out with perspective cameras
+    assert res.info["iterations"]["calibration_rounds"] >= 1
+    assert set(res.info["candidates"]) == {"approach1"}
+    assert res.info["warnings"] == []
+    # the gauge: the world is the head's frame, the cameras stand around it
+    assert res.scale == 1.0 and np.abs(res.translation).max() == 0.0
+    np.testing.assert_array_equal(res.rotation, np.eye(3))
+
+
+def test_calibrated_photos_with_outlines_on_any_view(model):
+    case, truth = make_perspective_case(model, 8, n_views=2, calibrated=True, contour=True)
+    res = fit_head(model, case)
+    for name, view in case.views.items():
+        assert res.cameras[name] is view.camera
+        assert res.info["contour_rms_px"][name] < 2.0  # every photo's outline was fitted
+    assert skin_error_mm(model, res.local_vertices, truth) < 1.6
+    # two calibrated cameras measure the head: placed and sized in their world
+    assert res.scale == pytest.approx(truth.scale, rel=0.05)
+    nose = model.landmarks["nose_tip"]
+    assert np.linalg.norm(res.world_vertices[nose] - truth.world_vertices[nose]) < 0.004
+
+
+def test_four_photos_of_mixed_kinds(model):
+    # two self-calibrated pinhole photos, a DLT self-calibrated on the head, and one
+    # calibrated pinhole photo (which places the head in its world, at the model's size)
+    case, truth = make_perspective_case(model, 12, n_views=4)
+    case.views["photo2"].camera_hints = {"kind": "dlt"}
+    kept = case.views["photo3"]
+    kept.camera, kept.calibrated, kept.camera_hints = truth.cameras["photo3"], True, {}
+    res = fit_head(model, case)
+    assert [res.cameras[n].kind for n in case.views] == ["pinhole", "pinhole", "dlt", "pinhole"]
+    assert res.cameras["photo3"] is kept.camera
+    assert skin_error_mm(model, res.local_vertices, truth) < 1.6
+    # one calibrated camera cannot tell size from distance: the model's size is kept
+    assert res.scale == 1.0
+    nose = model.landmarks["nose_tip"]
+    px = res.cameras["photo3"].project(res.world_vertices[[nose]])[0]
+    assert np.linalg.norm(px - truth.pixels["photo3"]["nose_tip"]) < 3.0
+
+
+def test_a_second_profile(model):
+    # front, right and left orthographic photos, both profiles with their outline
+    case, truth = make_case(model, 13, noise_px=1.0, views=("front", "right", "left"))
+    res = fit_head(model, case)
+    assert set(res.info["contour_rms_px"]) == {"right", "left"}
+    assert max(res.info["contour_rms_px"].values()) < 2.0
+    two, _ = make_case(model, 13, noise_px=1.0)
+    err = skin_error_mm(model, res.local_vertices, truth)
+    assert err < 1.2 and err < 1.1 * skin_error_mm(model, fit_head(model, two).local_vertices,
+                                                   truth)
+
+
+def test_orthographic_and_perspective_photos_together(model):
+    case, truth = make_case(model, 6, noise_px=1.0)
+    world = truth.world_vertices
+    cam = PinholeCamera.look_at([0.6, -1.0, 0.05], world[model.skin].mean(axis=0), (1500, 2000),
+                                lens_mm=70)
+    names = visible_landmarks(model, world, cam)
+    rng = np.random.default_rng(0)
+    px = cam.project(world[[model.landmarks[n] for n in names]]) + rng.normal(size=(len(names), 2))
+    views = dict(case.views)
+    views["three-quarter"] = View("three-quarter", None, cam.size, None,
+                                  dict(zip(names, px, strict=True)),
+                                  camera_hints={"kind": "pinhole", "lens_mm": 70.0})
+    res = fit_head(model, LandmarkCase(views))
+    assert [res.cameras[n].kind for n in views] == ["orthographic", "orthographic", "pinhole"]
+    assert skin_error_mm(model, res.local_vertices, truth) < 1.2
+    assert set(res.info["projection"]) == {"three-quarter"}  # no camera distance given
+
+
+# ----------------------------------------------------------------------------- mirror
+
+
+@pytest.fixture(scope="module")
+def mirror(model):
+    case, truth = make_mirror_case(model, 1)
+    return case, truth, fit_head(model, case)
+
+
+def test_one_camera_and_a_mirror(model, mirror):
+    case, truth, res = mirror
+    info = res.info["mirror"]["mirror"]
+    assert info["mirror_of"] == "front"
+    assert mirror_error_deg(model, res, truth) < 1.0
+    err = skin_error_mm(model, res.local_vertices, truth)
+    assert err < 2.0 and err < 0.4 * skin_error_mm(model, model.vertices, truth)
+    # the mirror view's camera is the real one reflected: same intrinsics, mirrored
+    real, virtual = res.cameras["front"], res.cameras["mirror"]
+    assert virtual.is_mirrored and not real.is_mirrored
+    assert virtual.focal_px == real.focal_px
+    assert real.focal_px == pytest.approx(truth.cameras["front"].focal_px, rel=0.1)
+    # every landmark seen both directly and in the mirror has a small ray gap
+    both = set(case.views["front"].points) & set(case.views["mirror"].points)
+    assert set(info["ray_gap_px"]) == both and len(both) >= 10
+    assert max(info["ray_gap_px"].values()) < 6.0 and info["flagged"] == []
+    assert res.info["warnings"] == []
+    assert res.info["rms_px"]["mirror"] < 2.0
+
+
+def test_a_misplaced_mirror_landmark_is_flagged(model, mirror):
+    case, truth, res = mirror
+    moved = copy.deepcopy(case)
+    both = [n for n in moved.views["mirror"].points if n in moved.views["front"].points]
+    name = both[len(both) // 2]
+    u, v = moved.views["mirror"].points[name]
+    moved.views["mirror"].points[name] = (u, v + 25.0)  # across the mirror's epipolar lines
+    bad = fit_head(model, moved)
+    assert bad.info["mirror"]["mirror"]["flagged"] == [name]
+    assert any(name in w and "mirror" in w for w in bad.info["warnings"])
+    # the fast refit and a restart keep the mirror's camera and plane
+    fast = refit_landmarks(model, moved, res)
+    assert fast.cameras["mirror"] is res.cameras["mirror"]
+    assert fast.info["refit_state"]["planes"]["mirror"]["offset"] == \
+        res.info["refit_state"]["planes"]["mirror"]["offset"]
+    again = fit_head(model, case, initial=res)
+    assert mirror_error_deg(model, again, truth) < 1.0
+
+
+def test_mirror_with_a_calibrated_camera(model):
+    case, truth = make_mirror_case(model, 2, calibrated=True)
+    res = fit_head(model, case)
+    assert res.cameras["front"] is case.views["front"].camera
+    plane = truth.planes["mirror"]
+    fitted = res.info["mirror"]["mirror"]
+    assert normal_angle_deg(fitted["normal"], plane.normal) < 0.5  # the camera's world
+    # one camera cannot tell the head's size from its distance: the head keeps the model's
+    # size (scale 1), and the mirror's distance from the camera scales with it
+    assert res.scale == 1.0
+    centre = truth.cameras["front"].centre
+    d_fit = float(np.dot(fitted["normal"], centre) - fitted["offset_m"])
+    d_true = float(plane.signed_distance(centre[None])[0])
+    assert d_fit / d_true == pytest.approx(1.0 / truth.scale, rel=0.03)
+    assert skin_error_mm(model, res.local_vertices, truth) < 2.0
+
+
+def test_bad_mirror_views_are_named(model):
+    case, _ = make_mirror_case(model, 1)
+    ortho = copy.deepcopy(case)
+    front = ortho.views["front"]
+    front.camera = OrthographicCamera.nominal("orthographic-front", front.size)
+    with pytest.raises(ValueError, match=r"view 'mirror' \(mirror of 'front'\).*perspective"):
+        fit_head(model, ortho)
+    lost = copy.deepcopy(case)
+    lost.views["mirror"].mirror_of = "side"
+    with pytest.raises(ValueError, match=r"view 'mirror': mirror_of names 'side'"):
+        fit_head(model, lost)
+    few = copy.deepcopy(case)
+    keep = [n for n in few.views["mirror"].points if n not in few.views["front"].points]
+    few.views["mirror"].points = {n: few.views["mirror"].points[n]
+                                  for n in keep + list(few.views["mirror"].points)[:1]}
+    assert len(few.views["mirror"].points) >= 3  # enough for a view, one pair only
+    with pytest.raises(ValueError, match=r"view 'mirror'.*1 landmark\(s\) seen both "
+                                         r"directly and in the mirror"):
+        fit_head(model, few)
+
+
+# ----------------------------------------------------------------------------- projection
+
+
+def test_orthographic_photos_taken_too_close_are_warned_about(model):
+    case, _ = make_case(model, 5, noise_px=1.0)
+    near = fit_head(model, case, FitOptions(method="approach1", camera_distance_m=1.0))
+    for name in case.views:
+        chk = near.info["projection"][name]
+        assert chk["exceeds"] and not chk["perspective"]
+        # a head about 0.2 m deep seen from 1 m: epsilon = dL / (L + dL), about 18 %
+        assert 0.05 < chk["epsilon"] < 0.3 and chk["min_distance_m"] > 10.0
+    assert len(near.info["warnings"]) == 2
+    assert all("parallel projection" in w for w in near.info["warnings"])
+    far = fit_head(model, case, FitOptions(method="approach1", camera_distance_m=1000.0))
+    assert not any(c["exceeds"] for c in far.info["projection"].values())
+    assert far.info["warnings"] == []
+    plain = fit_head(model, case, FitOptions(method="approach1"))
+    assert plain.info["projection"] == {} and plain.info["warnings"] == []
+    with pytest.raises(ValueError, match="options.camera_distance_m"):
+        fit_head(model, case, FitOptions(camera_distance_m=-1.0))
+
+
+def test_cli_prints_the_fit_warnings(tmp_path, model, mirror):
+    case = copy.deepcopy(mirror[0])
+    both = [n for n in case.views["mirror"].points if n in case.views["front"].points]
+    name = both[len(both) // 2]
+    u, v = case.views["mirror"].points[name]
+    case.views["mirror"].points[name] = (u, v + 25.0)
+    path = tmp_path / "mirror.json"
+    save_landmarks(case, path)
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.run([sys.executable, "-m", "solver", "fit", str(path), "--out",
+                           str(tmp_path / "head.obj"), "--quiet"], cwd=ROOT,
+                          capture_output=True, text=True, env=env, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if ln.startswith("warning:")]
+    assert len(lines) == 1 and name in lines[0]
