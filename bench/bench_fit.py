@@ -19,9 +19,10 @@ fits run; ``ru_maxrss``) and the peak of Python/numpy allocations during one ful
 """
 
 import argparse
-import os
 import sys
 from pathlib import Path
+
+from bench import blas_threads
 
 
 def _parse():
@@ -39,9 +40,8 @@ def _parse():
 
 
 ARGS = _parse() if __name__ == "__main__" else None
-if ARGS is not None and ARGS.blas_threads != "default":
-    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(var, ARGS.blas_threads)
+if ARGS is not None:
+    blas_threads.limit(ARGS.blas_threads)
 
 ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:

@@ -113,7 +113,7 @@ class Camera(ABC):
             A new camera of the same kind. This base version has no free parameters (a
             calibrated camera) and returns ``self`` after checking the input.
         """
-        _refit_input(points, pixels, weights, self.min_refit_points)
+        correspondences(points, pixels, weights, self.min_refit_points)
         return self
 
     def reprojection_error(self, points, pixels):
@@ -122,9 +122,26 @@ class Camera(ABC):
         return np.linalg.norm(self.project(points) - px, axis=1)
 
 
-def _refit_input(points, pixels, weights, min_count):
-    """Validated (points (n,3), pixels (n,2), weights (n,)) for ``Camera.refit``."""
-    x = as_points(points, "points", min_count=max(min_count, 1))
+def correspondences(points, pixels, weights=None, min_count=1, what="a camera refit",
+                    unit="weighted points"):
+    """Validated 3-D points and their pixels, for fitting a camera to them.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 3), metres
+    pixels : array_like, shape (n, 2), pixels
+    weights : array_like, shape (n,), optional
+        Non-negative; zero leaves a point out.
+    min_count : int
+        Fewest points with a non-zero weight.
+    what, unit : str
+        Name the fit and its points in the too-few message.
+
+    Returns
+    -------
+    (points (n, 3), pixels (n, 2), weights (n,)) as float64
+    """
+    x = as_points(points, "points")
     q = as_points(pixels, "pixels", dim=2)
     if len(q) != len(x):
         raise ValueError(f"pixels: {len(q)} rows for {len(x)} points")
@@ -137,8 +154,8 @@ def _refit_input(points, pixels, weights, min_count):
         if not np.isfinite(w).all() or (w < 0).any():
             raise ValueError("weights: must be finite and non-negative")
     if np.count_nonzero(w) < min_count:
-        raise ValueError(f"points: a camera refit needs at least {min_count} weighted "
-                         f"points, got {np.count_nonzero(w)}")
+        raise ValueError(f"points: {what} needs at least {min_count} {unit}, "
+                         f"got {np.count_nonzero(w)}")
     return x, q, w
 
 
@@ -235,7 +252,7 @@ class OrthographicCamera(Camera):
         """
         from .procrustes import similarity_procrustes
 
-        x, q, w = _refit_input(points, pixels, weights, self.min_refit_points)
+        x, q, w = correspondences(points, pixels, weights, self.min_refit_points)
         a = x @ self.rotation[:2].T  # image-plane coordinates in metres
         try:
             sim = similarity_procrustes(a, q, w)

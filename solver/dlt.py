@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 
-from .cameras import Camera, register
+from .cameras import Camera, correspondences, register
 from .errors import as_points
 
 #: fewest passpoints for the 11- and 16-parameter DLT (seed 000 §2)
@@ -591,26 +591,6 @@ class DLTCamera(Camera):
 # ----------------------------------------------------------------------------- calibration
 
 
-def _check_input(points, pixels, weights, n_min):
-    x = as_points(points, "points")
-    q = as_points(pixels, "pixels", dim=2)
-    if len(q) != len(x):
-        raise ValueError(f"pixels: {len(q)} rows for {len(x)} points")
-    if weights is None:
-        w = np.ones(len(x))
-    else:
-        w = np.asarray(weights, dtype=np.float64)
-        if w.shape != (len(x),):
-            raise ValueError(f"weights: expected shape ({len(x)},), got {w.shape}")
-        if not np.isfinite(w).all() or (w < 0).any():
-            raise ValueError("weights: must be finite and non-negative")
-    used = w > 0
-    if np.count_nonzero(used) < n_min:
-        raise ValueError(f"points: the DLT needs at least {n_min} passpoints (not all in "
-                         f"one plane), got {np.count_nonzero(used)}")
-    return x, q, w, used
-
-
 def _check_not_coplanar(x):
     centred = x - x.mean(axis=0)
     s = np.linalg.svd(centred, compute_uv=False)
@@ -756,7 +736,9 @@ def fit_dlt(points, pixels, size, n_params=11, weights=None, image_range=None,
     if distortion_centre not in ("principal", "eq8"):
         raise ValueError(f"distortion_centre: must be 'principal' or 'eq8', "
                          f"got {distortion_centre!r}")
-    x, q, w, used = _check_input(points, pixels, weights, MIN_POINTS[11])
+    x, q, w = correspondences(points, pixels, weights, MIN_POINTS[11], what="the DLT",
+                              unit="passpoints (not all in one plane)")
+    used = w > 0
     _check_not_coplanar(x[used])
     scaling = _scaling(x, q, used, image_range, centre_object)
     xs = (x - scaling.centroid) * scaling.object_scale

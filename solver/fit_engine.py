@@ -33,7 +33,7 @@ from .cameras import Camera, OrthographicCamera
 from .dlt import DLTCamera
 from .linear_model import LinearModel
 from .mirror import MirrorPlane, estimate_mirror
-from .pinhole import FREE_FOCAL_POINTS, PinholeCamera
+from .pinhole import FREE_FOCAL_POINTS, PinholeCamera, pixel_by_camera_point
 from .shape_icp import CameraRows, ImageRows, ScalarRows, ShapeProblem, rotation_from_vector, skew
 
 #: The fit refuses a view with fewer landmarks than this (its camera needs 2 for a 2-D
@@ -209,21 +209,9 @@ def pinhole_fields(camera, points, focal=True):
     x = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     rot = camera.rotation
     xc = (x - camera.centre) @ rot.T
-    z = xc[:, 2]
-    p = xc[:, :2] / z[:, None]
-    dp = np.zeros((len(x), 2, 3))  # d p / d x_c
-    dp[:, 0, 0] = 1.0 / z
-    dp[:, 1, 1] = 1.0 / z
-    dp[:, :, 2] = -p / z[:, None]
     f, k1 = camera.focal_px, camera.k1
+    g, p = pixel_by_camera_point(xc, f, k1)
     rho2 = (p * p).sum(axis=1)
-    if k1 == 0.0:
-        g = f * dp
-    else:
-        dd = (2.0 * f * k1) * p[:, :, None] * p[:, None, :]
-        dd[:, 0, 0] += f * (1.0 + k1 * rho2)
-        dd[:, 1, 1] += f * (1.0 + k1 * rho2)
-        g = np.einsum("nij,njk->nik", dd, dp)
     by_rot = -np.einsum("nij,njk->nik", g, skew(xc))  # x_c += w x x_c
     by_centre = -g @ rot
     out = [by_rot[:, :, i] for i in range(3)] + [by_centre[:, :, i] for i in range(3)]

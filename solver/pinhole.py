@@ -43,7 +43,7 @@ solver/mirror.py) is allowed everywhere except where Blender cannot represent it
 import numpy as np
 
 from .blender_camera import blender_to_krc, krc_to_blender
-from .cameras import Camera, _refit_input, register
+from .cameras import Camera, correspondences, register
 from .dlt import DLTCamera, fit_dlt
 from .errors import as_points
 
@@ -70,6 +70,37 @@ _MIN_DEPTH = 1e-6
 _COLLINEAR_RATIO = 1e-3
 # below this ratio of the 3rd to the 1st the weak-perspective start also tries a plane
 _PLANAR_RATIO = 0.1
+
+
+def pixel_by_camera_point(xc, focal_px, k1=0.0):
+    """d(pixel)/d(camera-frame point) of a pinhole camera with radial term k1.
+
+    Parameters
+    ----------
+    xc : ndarray, shape (n, 3), metres
+        Points in the camera frame (depth > 0).
+    focal_px : float
+    k1 : float
+
+    Returns
+    -------
+    g : ndarray, shape (n, 2, 3), pixels per metre
+    p : ndarray, shape (n, 2)
+        Normalised image coordinates x/z, y/z.
+    """
+    z = xc[:, 2]
+    p = xc[:, :2] / z[:, None]
+    dp = np.zeros((len(xc), 2, 3))  # d p / d x_c
+    dp[:, 0, 0] = 1.0 / z
+    dp[:, 1, 1] = 1.0 / z
+    dp[:, :, 2] = -p / z[:, None]
+    if k1 == 0.0:
+        return focal_px * dp, p
+    rho2 = (p * p).sum(axis=1)
+    dd = (2.0 * focal_px * k1) * p[:, :, None] * p[:, None, :]  # d pixel / d p
+    dd[:, 0, 0] += focal_px * (1.0 + k1 * rho2)
+    dd[:, 1, 1] += focal_px * (1.0 + k1 * rho2)
+    return np.einsum("nij,njk->nik", dd, dp), p
 
 
 def _skew(a):
@@ -346,28 +377,9 @@ class PinholeCamera(Camera):
         g = 1.0 + self.k1 * (p * p).sum(axis=1)
         return self.principal_point + self.focal_px * p * g[:, None]
 
-    def _pixel_by_camera_point(self, xc):
-        """d(pixel)/d(camera-frame point) at camera-frame points: (n, 3) -> (n, 2, 3), and
-        the normalised coordinates p (n, 2)."""
-        z = xc[:, 2]
-        p = xc[:, :2] / z[:, None]
-        dp = np.zeros((len(xc), 2, 3))  # d p / d x_c
-        dp[:, 0, 0] = 1.0 / z
-        dp[:, 1, 1] = 1.0 / z
-        dp[:, :, 2] = -p / z[:, None]
-        f = self.focal_px
-        if self.k1 == 0.0:
-            return f * dp, p
-        rho2 = (p * p).sum(axis=1)
-        dd = (2.0 * f * self.k1) * p[:, :, None] * p[:, None, :]  # d pixel / d p
-        dd[:, 0, 0] += f * (1.0 + self.k1 * rho2)
-        dd[:, 1, 1] += f * (1.0 + self.k1 * rho2)
-        return np.einsum("nij,njk->nik", dd, dp), p
-
     def jacobian(self, points):
         """d(pixel)/d(point), analytic: (n, 3) -> (n, 2, 3), pixels per metre."""
-        xc = self.to_camera(points)
-        g, _ = self._pixel_by_camera_point(xc)
+        g, _ = pixel_by_camera_point(self.to_camera(points), self.focal_px, self.k1)
         return g @ self.rotation
 
     def undistort(self, pixels):
@@ -643,7 +655,7 @@ class PinholeCamera(Camera):
             Too few weighted points, collinear points, mismatched shapes, NaN, or no camera
             found with every point in front of it.
         """
-        x, q, w = _refit_input(points, pixels, weights, self.min_refit_points)
+        x, q, w = correspondences(points, pixels, weights, self.min_refit_points)
         used = w > 0
         x, q, w = x[used], q[used], w[used]
         centred = x - np.average(x, axis=0, weights=w)
@@ -799,18 +811,7 @@ class _RefitProblem:
         if not with_jacobian:
             return r, None
         n = len(self.x)
-        # d pixel / d x_c = D(p) dp/dx_c (D: the distortion's 2x2 derivative, f I without k1)
-        dp = np.zeros((n, 2, 3))
-        dp[:, 0, 0] = 1.0 / z
-        dp[:, 1, 1] = 1.0 / z
-        dp[:, :, 2] = -p / z[:, None]
-        if k1 == 0.0:
-            g = f * dp
-        else:
-            dd = (2.0 * f * k1) * p[:, :, None] * p[:, None, :]
-            dd[:, 0, 0] += f * (1.0 + k1 * rho2)
-            dd[:, 1, 1] += f * (1.0 + k1 * rho2)
-            g = np.einsum("nij,njk->nik", dd, dp)
+        g, _ = pixel_by_camera_point(xc, f, k1)
         cols = [-np.einsum("nij,njk->nik", g, _skew(xc)),  # x_c += omega x x_c
                 -g @ rot]  # centre
         if self.free["f"]:
