@@ -349,7 +349,8 @@ def apply_result(scene, model, result, textures=None, head=None, name=None, cali
                  notes=None):
     """Write a FitResult into the scene: shape keys, transform, texture, uncertainty,
     residuals, landmark colours; photo planes lined up with the fitted cameras (a
-    perspective photo's Blender camera set to its fitted camera).
+    perspective photo's Blender camera set to its fitted camera, whose parameters become
+    the view's stored camera: exported, and the next fit's starting guess).
 
     Parameters
     ----------
@@ -406,6 +407,9 @@ def apply_result(scene, model, result, textures=None, head=None, name=None, cali
             shown = photos.place_plane(plane, cam, centre=centre)
         except ValueError as e:  # a camera Blender cannot show: the fit itself stands
             shown = [f"camera not shown: {e}"]
+        else:
+            if perspective:  # (kept only when shown: a re-import must show it too)
+                photos.store_fitted_camera(plane, cam)
         if notes is not None:
             notes += [f"view {view!r}: {w}" for w in shown]
     return head

@@ -435,6 +435,54 @@ def case_passpoints(scene):
     return dict(json.loads(props.case_json).get("passpoints", {})) if props.case_json else {}
 
 
+def set_case_passpoint(scene, name, xyz):
+    """Define (or move) the calibration object's passpoint ``name`` at ``xyz`` (metres,
+    Blender axes): the file's top-level ``passpoints``, written on export.
+
+    Raises
+    ------
+    ValueError
+        An empty name or a coordinate that is not a finite number (names the passpoint).
+    """
+    name = str(name).strip()
+    if not name:
+        raise ValueError("passpoint: give it a name")
+    xyz = np.asarray(xyz, dtype=np.float64).reshape(-1)
+    if xyz.shape != (3,) or not np.all(np.isfinite(xyz)):
+        raise ValueError(f"passpoint {name!r}: expected 3 finite coordinates (metres), got "
+                         f"{xyz.tolist()}")
+    _write_case_passpoints(scene, {**case_passpoints(scene), name: [float(c) for c in xyz]})
+
+
+def remove_case_passpoint(scene, name):
+    """Forget the calibration object's passpoint ``name``.
+
+    Raises
+    ------
+    ValueError
+        It is not defined, or a photo still has it placed (names the views).
+    """
+    points = case_passpoints(scene)
+    if name not in points:
+        raise ValueError(f"passpoint {name!r}: not defined")
+    used = [p.headrecon.view for p in photos.photo_planes(scene)
+            if name in passpoint_objects(p)]
+    if used:
+        raise ValueError(f"passpoint {name!r}: still placed on view(s) "
+                         f"{', '.join(map(repr, used))}; remove it there first")
+    del points[name]
+    _write_case_passpoints(scene, points)
+
+
+def _write_case_passpoints(scene, points):
+    props = scene.headrecon
+    rest = json.loads(props.case_json) if props.case_json else {}
+    rest.pop("passpoints", None)
+    if points:
+        rest["passpoints"] = points
+    props.case_json = json.dumps(rest) if rest else ""
+
+
 def placeholder_image(view, size):
     """A plain grey image standing in for a view whose file names no photo."""
     w, h = size
@@ -942,6 +990,39 @@ class HEADRECON_OT_export_landmarks(bpy.types.Operator, ExportHelper):
         return {"FINISHED"}
 
 
+class HEADRECON_OT_edit_passpoint(bpy.types.Operator):
+    """Define, move or remove a point of the calibration object: its name and its 3-D
+    position (metres), which the photos' passpoints refer to"""
+
+    bl_idname = "headrecon.edit_passpoint"
+    bl_label = "Calibration Passpoint"
+    bl_options = {"REGISTER", "UNDO"}
+
+    name: StringProperty(name="Name", options={"SKIP_SAVE"},
+                         description="The passpoint's name (as placed on the photos)")
+    location: bpy.props.FloatVectorProperty(
+        name="Position", size=3, subtype="TRANSLATION", unit="LENGTH", options={"SKIP_SAVE"},
+        description="Where the point is on the calibration object, metres (Blender axes)")
+    remove: bpy.props.BoolProperty(name="Remove", options={"SKIP_SAVE"},
+                                   description="Forget this passpoint")
+
+    def invoke(self, context, event):
+        if self.remove:
+            return self.execute(context)
+        return context.window_manager.invoke_props_dialog(self)
+
+    def execute(self, context):
+        try:
+            if self.remove:
+                remove_case_passpoint(context.scene, self.name)
+            else:
+                set_case_passpoint(context.scene, self.name, self.location)
+        except ValueError as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        return {"FINISHED"}
+
+
 class HEADRECON_OT_select_landmark(ObjectModeOperator, bpy.types.Operator):
     """Select this landmark"""
 
@@ -962,4 +1043,5 @@ class HEADRECON_OT_select_landmark(ObjectModeOperator, bpy.types.Operator):
 
 CLASSES = (HEADRECON_OT_place_landmarks, HEADRECON_OT_draw_contour,
            HEADRECON_OT_clear_landmarks, HEADRECON_OT_import_landmarks,
-           HEADRECON_OT_export_landmarks, HEADRECON_OT_select_landmark)
+           HEADRECON_OT_export_landmarks, HEADRECON_OT_edit_passpoint,
+           HEADRECON_OT_select_landmark)

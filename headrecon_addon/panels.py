@@ -63,12 +63,37 @@ class HEADRECON_PT_photos(_Panel, bpy.types.Panel):
                 # the nominal camera, or where a camera to compute starts (passpoints place
                 # theirs)
                 box.prop(props, "camera_view", text="Direction")
+            if len(planes) > 1 or photos.mirror_of(plane):
+                box.prop(props, "mirror_of")
         if "front" not in kinds:
             _load_photo(layout, "Load Front Photo...", "FILEBROWSER", "front", "ORTHOGRAPHIC")
         if "side" not in kinds:
             _load_photo(layout, "Load Profile Photo...", "FILEBROWSER", "side", "ORTHOGRAPHIC",
                         "orthographic-right")
         _load_photo(layout, "Add Photo (Any Camera)...", "ADD")
+
+
+class HEADRECON_PT_calibration(_Panel, bpy.types.Panel):
+    """The calibration object's points (3-D positions) that photos' passpoints refer to."""
+
+    bl_label = "Calibration Object"
+    bl_parent_id = "HEADRECON_PT_photos"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        points = landmarks.case_passpoints(context.scene)
+        if not points:
+            layout.label(text="No passpoints (3-D points of a calibration object)", icon="INFO")
+        col = layout.column(align=True)
+        for name, xyz in points.items():
+            row = col.row(align=True)
+            row.label(text=f"{name}: " + ", ".join(f"{c:.4f}" for c in xyz) + " m")
+            op = row.operator("headrecon.edit_passpoint", text="", icon="GREASEPENCIL")
+            op.name, op.location = name, xyz
+            op = row.operator("headrecon.edit_passpoint", text="", icon="X")
+            op.name, op.remove = name, True
+        layout.operator("headrecon.edit_passpoint", text="Add Passpoint...", icon="ADD")
 
 
 class HEADRECON_PT_landmarks(_Panel, bpy.types.Panel):
@@ -191,5 +216,6 @@ class HEADRECON_PT_result(_Panel, bpy.types.Panel):
                      icon="SHAPEKEY_DATA")
 
 
-CLASSES = (HEADRECON_PT_head, HEADRECON_PT_photos, HEADRECON_PT_landmarks, HEADRECON_PT_fit,
+CLASSES = (HEADRECON_PT_head, HEADRECON_PT_photos, HEADRECON_PT_calibration,
+           HEADRECON_PT_landmarks, HEADRECON_PT_fit,
            HEADRECON_UL_residuals, HEADRECON_PT_result)

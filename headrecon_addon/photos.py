@@ -191,6 +191,25 @@ def set_camera_hints(plane, hints):
     props.view_json = json.dumps(data) if data else ""
 
 
+def mirror_of(plane):
+    """The view whose photo this view is the mirror image in, or None."""
+    props = plane.headrecon
+    return json.loads(props.view_json).get("mirror_of") if props.view_json else None
+
+
+def set_mirror_of(plane, view):
+    """Make the plane's view the mirror image inside ``view``'s photo (None: seen
+    directly). Stored as the file's ``mirror_of``; whether the views agree (same photo, a
+    mirrored or to-compute camera) is checked where the case is read (export, fit)."""
+    props = plane.headrecon
+    data = json.loads(props.view_json) if props.view_json else {}
+    if view:
+        data["mirror_of"] = str(view)
+    else:
+        data.pop("mirror_of", None)
+    props.view_json = json.dumps(data) if data else ""
+
+
 def camera_kind(plane):
     """Kind of the view's camera ("orthographic", "dlt", "pinhole"), known or not."""
     props = plane.headrecon
@@ -234,6 +253,17 @@ def set_plane_camera(plane, camera):
     else:
         plane.headrecon.camera_json = json.dumps(as_json)
         plane.headrecon.camera_view = nearest_view(camera)
+
+
+def store_fitted_camera(plane, camera):
+    """Remember a fit's camera as the view's known parameters, so an export writes them and
+    a later fit starts from them. ``calibrated`` stays as the view had it (absent or false:
+    a starting guess the next fit refines); ``camera_view`` stays too (it names the
+    landmarks the view shows, which a fit does not change)."""
+    (w, h), _ = plane_size(plane)
+    as_json = camera_to_json(camera, (w, h))
+    if not isinstance(as_json, str):
+        plane.headrecon.camera_json = json.dumps(as_json)
 
 
 def nearest_view(camera, name=""):

@@ -63,6 +63,44 @@ def _on_camera_view(self, context):
         photos.on_camera_view(self.id_data, context.scene)
 
 
+NO_MIRROR = "NONE"
+_mirror_items_cache = []  # Blender needs a dynamic enum's strings kept alive in Python
+
+
+def _mirror_items(self, context):
+    from . import photos
+
+    scene = getattr(context, "scene", None) or bpy.context.scene
+    current = photos.mirror_of(self.id_data) if self.role == "PHOTO" else None
+    names = sorted({p.headrecon.view for p in photos.photo_planes(scene)} - {self.view})
+    if current and current not in names:  # (its view is gone: shown, flagged on export)
+        names.append(current)
+    items = [(NO_MIRROR, "None", "Not a mirror image: the photo is seen directly", 0)]
+    items += [(n, n, f"The mirror image of the subject inside the photo of view {n!r}", i + 1)
+              for i, n in enumerate(names)]
+    _mirror_items_cache[:] = items
+    return items
+
+
+def _get_mirror(self):
+    from . import photos
+
+    current = photos.mirror_of(self.id_data) if self.role == "PHOTO" else None
+    for ident, _, _, value in _mirror_items(self, bpy.context):
+        if ident == current:
+            return value
+    return 0
+
+
+def _set_mirror(self, value):
+    from . import photos
+
+    for ident, _, _, v in _mirror_items(self, bpy.context):
+        if v == value and self.role == "PHOTO":
+            photos.set_mirror_of(self.id_data, None if ident == NO_MIRROR else ident)
+            return
+
+
 class HEADRECON_PG_object(bpy.types.PropertyGroup):
     role: EnumProperty(name="Role", items=ROLES, default="NONE")
     view: StringProperty(name="View", description="Name of the photo's view, e.g. 'front'")
@@ -78,6 +116,11 @@ class HEADRECON_PG_object(bpy.types.PropertyGroup):
         description="What the landmarks file said about this view that the add-on does not "
                     "edit (calibration flags, mirror, passpoints, camera hints, x- keys), as "
                     "JSON, written back on export")
+    mirror_of: EnumProperty(
+        name="Mirror Of", items=_mirror_items, get=_get_mirror, set=_set_mirror,
+        description="This view is the subject's mirror image inside another view's photo "
+                    "(same photo; landmarks named as the subject's true side). Stored in "
+                    "the view's data (mirror_of), checked on export and fit")
     image_size: IntVectorProperty(name="Image Size", size=2, min=0)
     pixel_aspect: FloatVectorProperty(
         name="Pixel Aspect", size=2, default=(1.0, 1.0), min=1e-6,

@@ -53,7 +53,6 @@ from scipy.spatial import cKDTree
 
 from .cameras import Camera, OrthographicCamera
 from .fit_engine import (
-    MIN_VIEW_LANDMARKS,
     ContourRows,
     Engine,
     StackedModel,
@@ -64,7 +63,12 @@ from .fit_engine import (
     is_perspective,
     is_side_camera,
 )
-from .landmarks_file import LandmarkCase, LandmarkSet
+from .landmarks_file import (
+    MIN_LANDMARKS_PER_VIEW,
+    MIN_LANDMARKS_TOTAL,
+    LandmarkCase,
+    LandmarkSet,
+)
 from .mirror import MirrorPlane
 from .result import FitResult, ViewResidual
 from .shape_icp import ImageRows, PointRows
@@ -240,6 +244,20 @@ def _prepare_views(model, case, opts, cameras=None):
     A mirror view (``View.mirror_of``) whose camera is not kept is linked to the view it
     mirrors: its camera is that view's camera reflected in a mirror plane the fit
     estimates, so the file's camera for it (often just ``{"kind": "dlt"}``) is not used.
+
+    Landmarks per view follow the file's rule (``landmarks_file.check_case``): a view whose
+    camera is refitted on the head needs ``MIN_LANDMARKS_PER_VIEW`` and what its camera's
+    refit needs; a kept camera, or one the view's passpoints give, needs none. A
+    passpoint camera with too few landmarks to refine it is kept as computed. A view with
+    no usable landmark adds nothing to the head fit: it is returned in ``skipped`` (its
+    camera still goes into the result).
+
+    Returns
+    -------
+    views : list of ViewData
+        The views the head is fitted to.
+    skipped : list of ViewData
+        Views with a camera but no usable landmark.
     """
     if not isinstance(case, LandmarkCase):
         raise ValueError(f"case: expected a LandmarkCase, got {type(case).__name__}")
@@ -262,25 +280,12 @@ def _prepare_views(model, case, opts, cameras=None):
         raise ValueError(f"options.fixed_cameras: no view named {sorted(unknown)[0]!r} "
                          f"(views: {', '.join(case.views)})")
     n_vertices = model.n_vertices
-    views = []
+    views, skipped = [], []
+    exempt, total = False, 0
     for name, view in case.views.items():
         where = f"{case.source}: view {name!r}"
         kept = bool(getattr(view, "camera_fixed", False)) or name in fixed
         link = _mirror_link(case, view, kept, where)
-        if cameras is not None:
-            if name not in cameras:
-                raise ValueError(f"{where}: was not in that fit (views: "
-                                 f"{', '.join(cameras)})")
-            cam = cameras[name]
-        elif link is not None:
-            cam = None  # the real camera reflected, once that camera is placed
-        else:
-            cam = view.camera
-            if cam is None:
-                cam = _compute_camera(model, case, view, lms, where)
-        if cam is not None and not isinstance(cam, Camera):
-            raise ValueError(f"{where}: camera of unknown kind ({type(cam).__name__}); "
-                             "expected a solver.cameras.Camera")
         names, verts, px = [], [], []
         for key, uv in view.points.items():
             canon = lms.canonical(key)
@@ -300,10 +305,32 @@ def _prepare_views(model, case, opts, cameras=None):
         w = opts.landmark_weight * np.array([weights.get(n, 1.0) for n in names])
         used = int(np.count_nonzero(w))
         refit = not kept and link is None
-        need = max(MIN_VIEW_LANDMARKS, cam.min_refit_points if refit else 1)
-        if used < need:
-            raise ValueError(f"{where}: {used} usable landmark{'s' * (used != 1)}; the fit "
-                             f"needs at least {need} in this view ({need - used} more)")
+        if cameras is not None:
+            if name not in cameras:
+                raise ValueError(f"{where}: was not in that fit (views: "
+                                 f"{', '.join(cameras)})")
+            cam = cameras[name]
+        elif link is not None:
+            cam = None  # the real camera reflected, once that camera is placed
+        else:
+            cam = view.camera
+            if cam is None:
+                if refit and not view.passpoints:  # self-calibrated: the count first
+                    _check_count(where, used, MIN_LANDMARKS_PER_VIEW)
+                cam = _compute_camera(model, case, view, lms, where)
+        if cam is not None and not isinstance(cam, Camera):
+            raise ValueError(f"{where}: camera of unknown kind ({type(cam).__name__}); "
+                             "expected a solver.cameras.Camera")
+        need = MIN_LANDMARKS_PER_VIEW
+        if refit:
+            need = max(need, cam.min_refit_points)
+            if used < need and view.passpoints:
+                refit = False  # the passpoints give the camera; too few landmarks to refine it
+        if kept or (not refit and link is None):
+            need = 0
+        _check_count(where, used, need)
+        exempt = exempt or used < MIN_LANDMARKS_PER_VIEW
+        total += used
         contour = None
         if view.contour is not None and len(view.contour) >= 2:
             c = np.asarray(view.contour, dtype=np.float64)
@@ -311,10 +338,33 @@ def _prepare_views(model, case, opts, cameras=None):
                 raise ValueError(f"{where}: contour has a point that is not finite")
             contour = densify(c, 1.0)
         side = cam is not None and is_side_camera(cam)
-        views.append(ViewData(name, cam, names, np.array(verts, dtype=np.int64),
-                              np.array(px, dtype=np.float64).reshape(-1, 2), w, side,
-                              contour, refit, link))
-    return views
+        data = ViewData(name, cam, names, np.array(verts, dtype=np.int64),
+                        np.array(px, dtype=np.float64).reshape(-1, 2), w, side, contour,
+                        refit, link)
+        (views if used else skipped).append(data)
+    for v in views:
+        if v.mirror_of is not None and any(u.name == v.mirror_of for u in skipped):
+            raise ValueError(f"{case.source}: view {v.name!r} mirrors view {v.mirror_of!r}, "
+                             "which has no usable landmark; the mirror is found from "
+                             "landmarks placed in both")
+    # Views below the per-view floor (passpoint or kept cameras) rely on the others: then
+    # hold the case to the file's total as well.
+    if exempt and total < MIN_LANDMARKS_TOTAL:
+        raise ValueError(f"{case.source}: {total} usable landmark{'s' * (total != 1)} in "
+                         f"all; the fit needs at least {MIN_LANDMARKS_TOTAL}")
+    return views, skipped
+
+
+def _check_count(where, used, need):
+    if used < need:
+        raise ValueError(f"{where}: {used} usable landmark{'s' * (used != 1)}; the fit "
+                         f"needs at least {need} in this view ({need - used} more)")
+
+
+def _skip_warnings(skipped):
+    return [f"view {v.name!r}: no usable landmark, so it adds nothing to the head fit"
+            f"{' (its outline is not used)' if v.contour is not None else ''}; its camera is "
+            "kept as given or computed from its passpoints" for v in skipped]
 
 
 def _mirror_link(case, view, kept, where):
@@ -731,11 +781,17 @@ def flag_residuals(residuals, sigmas=3.0, min_px=5.0):
     return out
 
 
-def _residuals(eng, state, opts, local):
-    """Landmark residuals of the final head (``local`` includes any detail), flagged."""
+def _view_errors(camera, world, view):
+    if not len(view.vertices):
+        return np.zeros(0)
+    return np.linalg.norm(camera.project(world[view.vertices]) - view.pixels, axis=1)
+
+
+def _residuals(eng, state, opts, local, skipped=()):
+    """Landmark residuals of the final head (``local`` includes any detail), flagged; a
+    skipped view's (landmarks of weight 0 only, or none) unflagged."""
     world = state.scale * local @ state.rotation.T + state.translation
-    res = {v.name: np.linalg.norm(state.cameras[v.name].project(world[v.vertices])
-                                  - v.pixels, axis=1) for v in eng.views}
+    res = {v.name: _view_errors(state.cameras[v.name], world, v) for v in eng.views}
     flags = flag_residuals(res, opts.flag_sigmas, opts.flag_min_px)
     out = {}
     for v in eng.views:
@@ -743,6 +799,8 @@ def _residuals(eng, state, opts, local):
         out[v.name] = ViewResidual(list(v.names), r.copy(),
                                    [n for n, f in zip(v.names, flags[v.name], strict=True)
                                     if f])
+    for v in skipped:
+        out[v.name] = ViewResidual(list(v.names), _view_errors(v.camera, world, v), [])
     return out
 
 
@@ -836,7 +894,8 @@ def _exact_detail(eng, state, local):
     return tps.apply(local) - local
 
 
-def _make_result(model, eng, state, opts, method, info, uncertainty=None, detail=None):
+def _make_result(model, eng, state, opts, method, info, uncertainty=None, detail=None,
+                 skipped=()):
     ident, regc, disp, reg = _local_terms(model, eng, state, opts)
     if detail is None:
         detail = np.zeros_like(disp)
@@ -850,7 +909,8 @@ def _make_result(model, eng, state, opts, method, info, uncertainty=None, detail
         method=method, scale=float(state.scale), rotation=state.rotation.copy(),
         translation=state.translation.copy(), identity_coeffs=ident,
         regional_coeffs=regc, regional_names=names, detail=detail, local_vertices=local,
-        cameras=dict(state.cameras), residuals=_residuals(eng, state, opts, local),
+        cameras={**state.cameras, **{v.name: v.camera for v in skipped}},
+        residuals=_residuals(eng, state, opts, local, skipped),
         uncertainty=uncertainty, info=info)
 
 
@@ -1130,7 +1190,7 @@ def fit_head(model, case, options=None, initial=None):
     opts = _check_options(options, model)
     progress = _Progress(opts.progress)
     cams = None if initial is None else _previous_cameras(initial, "initial")
-    views = _prepare_views(model, case, opts, cameras=cams)
+    views, skipped = _prepare_views(model, case, opts, cameras=cams)
     eng = _engine(model, views, opts)
     timings = {}
     info_p = {}
@@ -1200,9 +1260,10 @@ def fit_head(model, case, options=None, initial=None):
     if "approach1" in candidates and "calibration_rounds" in candidates["approach1"][1]:
         info["iterations"]["calibration_rounds"] = \
             candidates["approach1"][1]["calibration_rounds"]
-    result = _make_result(model, eng, state, opts, opts.method, info, uncertainty=unc)
+    result = _make_result(model, eng, state, opts, opts.method, info, uncertainty=unc,
+                          skipped=skipped)
     info["rms_px"] = {n: _rms(r.pixels) for n, r in result.residuals.items()}
-    warnings = []
+    warnings = _skip_warnings(skipped)
     info["projection"], more = _projection_info(model, result, eng, opts)
     warnings += more
     if state.planes:
@@ -1252,7 +1313,8 @@ def refit_landmarks(model, case, previous, options=None):
     opts = _check_options(options, model)
     opts = FitOptions(**{**opts.__dict__, "n_identity": int(saved["n_identity"]),
                          "n_regional": int(saved["n_regional"]), "method": previous.method})
-    views = _prepare_views(model, case, opts, cameras=_previous_cameras(previous, "previous"))
+    views, skipped = _prepare_views(model, case, opts,
+                                    cameras=_previous_cameras(previous, "previous"))
     eng = _engine(model, views, opts)
     state, saved = _saved_state(previous, eng, views, "previous")
     eng.use(state)
@@ -1283,9 +1345,10 @@ def refit_landmarks(model, case, previous, options=None):
     info = {"approach": previous.info.get("approach", previous.method), "refit": True,
             "refit_state": {**saved, "coeffs": state.coeffs.copy()},
             "warnings": list(previous.info.get("warnings", []))}
+    info["warnings"] += [w for w in _skip_warnings(skipped) if w not in info["warnings"]]
     result = _make_result(model, eng, state, opts, previous.method, info,
                           uncertainty=np.asarray(previous.uncertainty).copy(),
-                          detail=np.asarray(previous.detail).copy())
+                          detail=np.asarray(previous.detail).copy(), skipped=skipped)
     info["rms_px"] = {n: _rms(r.pixels) for n, r in result.residuals.items()}
     info["timings"] = {"total": time.perf_counter() - t0}
     return result

@@ -392,3 +392,104 @@ def test_fit_places_the_mirror_view_camera(model, tmp_path):
     pts = result.world_vertices[model.skin[::700]]
     got = _photo_pixels(scene, cam_obj, plane, pts)
     assert np.abs(got - cam.project(pts)).max() < 0.05
+
+
+def _camera_pixels(scene, view, pts):
+    from headrecon_addon import photos
+
+    plane = photos.find_plane(scene, view)
+    return _photo_pixels(scene, photos.camera_object(plane), plane, pts)
+
+
+def test_export_after_fit_writes_the_fitted_cameras(model, tmp_path, monkeypatch):
+    from headrecon_addon import fit_ops, photos
+    from solver import landmarks_file, synthetic
+
+    addon()
+    case, truth = synthetic.make_perspective_case(model, 5, n_views=2, head_px=(300.0, 320.0))
+    path, case = save_case(case, tmp_path, "self_calib")
+    assert all(v.camera is None for v in case.views.values())
+    scene = empty_scene()
+    assert bpy.ops.headrecon.import_landmarks(filepath=str(path)) == {"FINISHED"}
+    scene.headrecon.bake_texture = False
+    scene.headrecon.n_identity = 10
+    stored = {v: photos.find_plane(scene, v).headrecon.camera_json for v in case.views}
+    assert stored == {v: "" for v in case.views}
+    # a failed fit changes no stored camera
+    monkeypatch.setattr(fit_ops, "fit_head", lambda *a, **k: (_ for _ in ()).throw(
+        ValueError("no fit today")))
+    with pytest.raises(RuntimeError, match="no fit today"):
+        bpy.ops.headrecon.fit()
+    assert {v: photos.find_plane(scene, v).headrecon.camera_json for v in case.views} == stored
+    monkeypatch.undo()
+    assert bpy.ops.headrecon.fit() == {"FINISHED"}
+    result = fit_ops.last_result()
+    pts = result.world_vertices[model.skin[::700]]
+    shown = {v: _camera_pixels(scene, v, pts) for v in case.views}
+    out = tmp_path / "after_fit.json"
+    assert bpy.ops.headrecon.export_landmarks(filepath=str(out)) == {"FINISHED"}
+    doc = json.loads(out.read_text())
+    again = landmarks_file.load_landmarks(out)
+    for v in case.views:
+        cam = result.cameras[v]
+        assert doc["views"][v]["camera"]["kind"] == cam.kind
+        assert again.views[v].camera is not None, v
+        assert not again.views[v].camera_fixed, v  # a starting guess, still refined
+        assert np.allclose(again.views[v].camera.project(pts), cam.project(pts), atol=1e-6)
+    # re-importing the export gives the same Blender cameras
+    scene = empty_scene()
+    assert bpy.ops.headrecon.import_landmarks(filepath=str(out)) == {"FINISHED"}
+    for v in case.views:
+        assert np.abs(_camera_pixels(scene, v, pts) - shown[v]).max() < 0.05, v
+
+
+def test_mirror_of_and_passpoints_from_the_ui(tmp_path):
+    from headrecon_addon import landmarks, photos, properties
+    from solver import landmarks_file
+
+    scene = empty_scene()
+    img = write_photo(tmp_path / "mirror.png", (400, 300))
+    assert bpy.ops.headrecon.load_photo(filepath=str(img), view="front", projection="PERSPECTIVE",
+                                        lens_mm=50.0) == {"FINISHED"}
+    assert bpy.ops.headrecon.load_photo(filepath=str(img), view="mirror",
+                                        projection="PERSPECTIVE", lens_mm=50.0) == {"FINISHED"}
+    front, mirror = photos.find_plane(scene, "front"), photos.find_plane(scene, "mirror")
+    props = mirror.headrecon
+    items = [i[0] for i in properties._mirror_items(props, bpy.context)]
+    assert items == [properties.NO_MIRROR, "front"]
+    assert props.mirror_of == properties.NO_MIRROR
+    props.mirror_of = "front"
+    assert props.mirror_of == "front" and photos.mirror_of(mirror) == "front"
+    assert "mirror of front" in photos.camera_label(mirror)
+    # passpoints of the calibration object: added, moved, removed through the operator
+    op = bpy.ops.headrecon.edit_passpoint
+    assert op(name="A", location=(0.1, 0.0, 0.0)) == {"FINISHED"}
+    assert op(name="B", location=(0.0, 0.2, 0.0)) == {"FINISHED"}
+    assert op(name="A", location=(0.1, 0.0, 0.05)) == {"FINISHED"}
+    assert op(name="C", location=(0.0, 0.0, 0.3)) == {"FINISHED"}
+    assert op(name="C", remove=True) == {"FINISHED"}
+    with pytest.raises(RuntimeError, match="give it a name"):
+        op(name="  ", location=(0.0, 0.0, 0.0))
+    landmarks.place_landmark(front, "nose_tip", (200.0, 150.0))
+    landmarks.place_landmark(mirror, "nose_tip", (120.0, 150.0))
+    landmarks.place_landmark(front, "A", (50.0, 60.0), "PASSPOINT")
+    with pytest.raises(RuntimeError, match="still placed on view"):
+        op(name="A", remove=True)
+    out = tmp_path / "ui.json"
+    assert bpy.ops.headrecon.export_landmarks(filepath=str(out)) == {"FINISHED"}
+    doc = json.loads(out.read_text())
+    assert doc["views"]["mirror"]["mirror_of"] == "front"
+    assert "mirror_of" not in doc["views"]["front"]
+    assert list(doc["passpoints"]) == ["A", "B"]
+    assert np.allclose([doc["passpoints"]["A"], doc["passpoints"]["B"]],
+                       [[0.1, 0.0, 0.05], [0.0, 0.2, 0.0]], atol=1e-7)
+    assert doc["views"]["front"]["passpoints"] == {"A": [50.0, 60.0]}
+    again = landmarks_file.load_landmarks(out, for_fit=False)
+    assert again.views["mirror"].mirror_of == "front"
+    assert np.allclose(again.passpoints["A"], (0.1, 0.0, 0.05))
+    # a mirror of a view that is itself a mirror is refused on export, naming the field
+    front.headrecon.mirror_of = "mirror"
+    with pytest.raises(RuntimeError, match="mirror_of"):
+        bpy.ops.headrecon.export_landmarks(filepath=str(tmp_path / "bad.json"))
+    front.headrecon.mirror_of = properties.NO_MIRROR
+    assert photos.mirror_of(front) is None

@@ -14,8 +14,9 @@ import pytest
 from camera_support import dlt_camera
 
 from solver.cameras import OrthographicCamera
+from solver.dlt import fit_dlt
 from solver.fit import FitOptions, fit_head, refit_landmarks
-from solver.landmarks_file import LandmarkCase, View, save_landmarks
+from solver.landmarks_file import LandmarkCase, View, check_case, save_landmarks
 from solver.pinhole import PinholeCamera
 from solver.procrustes import similarity_procrustes
 from solver.synthetic import (
@@ -295,3 +296,80 @@ def test_cli_prints_the_fit_warnings(tmp_path, model, mirror):
     assert proc.returncode == 0, proc.stderr
     lines = [ln for ln in proc.stderr.splitlines() if ln.startswith("warning:")]
     assert len(lines) == 1 and name in lines[0]
+
+
+
+# ----------------------------------------------------------------------------- passpoints
+
+
+def with_passpoints(model, case, truth, name, keep):
+    """``case`` with view ``name``'s camera to be computed (a DLT) from eight passpoints of
+    a box around the head, seen through its true camera, and only its first ``keep``
+    landmarks. Returns (case, the DLT the passpoints give)."""
+    case = copy.deepcopy(case)
+    view = case.views[name]
+    skin = truth.world_vertices[model.skin]
+    centre = 0.5 * (skin.min(axis=0) + skin.max(axis=0))
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)],
+                       dtype=np.float64)
+    xyz = centre + 0.06 * corners * np.array([1.0, 1.3, 0.8])
+    uv = truth.cameras[name].project(xyz)
+    names = [f"box_{i}" for i in range(len(xyz))]
+    case.passpoints = dict(zip(names, xyz, strict=True))
+    case.views[name] = View(name, None, view.size, None,
+                            dict(list(view.points.items())[:keep]),
+                            camera_hints={"kind": "dlt"},
+                            passpoints=dict(zip(names, uv, strict=True)))
+    return case, fit_dlt(xyz, uv, view.size).camera
+
+
+def test_a_passpoint_camera_needs_few_landmarks(model):
+    # the file exempts a view with passpoints from the per-view floor; so does the fit,
+    # and the camera stays the passpoints' DLT (too few landmarks to refine it)
+    case, truth = make_perspective_case(model, 7, n_views=2)
+    few, dlt = with_passpoints(model, case, truth, "photo1", 2)
+    assert check_case(few) == []
+    res = fit_head(model, few)
+    pts = truth.world_vertices[model.skin][::200]
+    np.testing.assert_allclose(res.cameras["photo1"].project(pts), dlt.project(pts),
+                               atol=1e-9)
+    assert len(res.residuals["photo1"].names) == 2
+    assert res.info["rms_px"]["photo1"] < 3.0 and res.info["warnings"] == []
+    assert skin_error_mm(model, res.local_vertices, truth) < \
+        0.7 * skin_error_mm(model, model.vertices, truth)
+
+
+def test_a_passpoint_view_without_landmarks_is_skipped_with_a_warning(model):
+    case, truth = make_perspective_case(model, 7, n_views=3)
+    none, dlt = with_passpoints(model, case, truth, "photo2", 0)
+    assert check_case(none) == []
+    res = fit_head(model, none)
+    pts = truth.world_vertices[model.skin][::200]
+    np.testing.assert_allclose(res.cameras["photo2"].project(pts), dlt.project(pts),
+                               atol=1e-9)
+    assert res.residuals["photo2"].names == [] and res.residuals["photo2"].pixels.size == 0
+    assert [w for w in res.info["warnings"] if "'photo2'" in w and "no usable" in w]
+    assert skin_error_mm(model, res.local_vertices, truth) < 1.6
+    # the fast path keeps the view out too, with its camera
+    again = refit_landmarks(model, none, res)
+    assert again.residuals["photo2"].names == [] and "photo2" in again.cameras
+
+
+def test_a_self_calibrated_view_keeps_its_minimum(model):
+    case, truth = make_perspective_case(model, 7, n_views=2)
+    for keep, need in ((2, 3), (3, 4)):  # the file's floor, then the pinhole refit's
+        few = copy.deepcopy(case)
+        few.views["photo1"].points = dict(list(few.views["photo1"].points.items())[:keep])
+        assert any(p[0] == "views.photo1.points" for p in check_case(few))
+        with pytest.raises(ValueError, match=rf"view 'photo1'.*at least {need}"):
+            fit_head(model, few)
+    # passpoints on another view do not lift it, nor does a total of too few
+    mixed, _ = with_passpoints(model, case, truth, "photo0", 2)
+    mixed.views["photo1"].points = dict(list(mixed.views["photo1"].points.items())[:2])
+    with pytest.raises(ValueError, match=r"view 'photo1'.*at least 3"):
+        fit_head(model, mixed)
+    both, _ = with_passpoints(model, case, truth, "photo0", 2)
+    both, _ = with_passpoints(model, both, truth, "photo1", 2)
+    with pytest.raises(ValueError, match=r"4 usable landmarks in all; the fit needs at "
+                                         r"least 6"):
+        fit_head(model, both)
