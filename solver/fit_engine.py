@@ -36,10 +36,6 @@ from .mirror import MirrorPlane, estimate_mirror
 from .pinhole import FREE_FOCAL_POINTS, PinholeCamera, pixel_by_camera_point
 from .shape_icp import CameraRows, ImageRows, ScalarRows, ShapeProblem, rotation_from_vector, skew
 
-#: The fit refuses a view with fewer landmarks than this (its camera needs 2 for a 2-D
-#: similarity, one more to say anything about the head).
-MIN_VIEW_LANDMARKS = 3
-
 # Pixels one unit of a camera mode's coefficient moves the photo (see Joint): large, so
 # the shape prior the shape-ICP puts on every coefficient hardly restrains the cameras
 # (a 10 px correction costs 0.01), yet it settles the split where a calibrated camera
