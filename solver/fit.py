@@ -1263,13 +1263,14 @@ def fit_head(model, case, options=None, initial=None):
     result = _make_result(model, eng, state, opts, opts.method, info, uncertainty=unc,
                           skipped=skipped)
     info["rms_px"] = {n: _rms(r.pixels) for n, r in result.residuals.items()}
-    warnings = _skip_warnings(skipped)
-    info["projection"], more = _projection_info(model, result, eng, opts)
-    warnings += more
+    info["projection"], fitted = _projection_info(model, result, eng, opts)
     if state.planes:
         info["mirror"], more = _mirror_info(eng, state, opts)
-        warnings += more
-    info["warnings"] = warnings
+        fitted += more
+    # The refit keeps what the full fit found about cameras and mirrors, but says anew
+    # which views it skipped: a dragged landmark can make a skipped view usable.
+    info["refit_state"]["warnings"] = list(fitted)
+    info["warnings"] = _skip_warnings(skipped) + fitted
     timings["result"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
     info["timings"] = timings
@@ -1344,8 +1345,7 @@ def refit_landmarks(model, case, previous, options=None):
     state.coeffs = fit.coeffs.copy()
     info = {"approach": previous.info.get("approach", previous.method), "refit": True,
             "refit_state": {**saved, "coeffs": state.coeffs.copy()},
-            "warnings": list(previous.info.get("warnings", []))}
-    info["warnings"] += [w for w in _skip_warnings(skipped) if w not in info["warnings"]]
+            "warnings": _skip_warnings(skipped) + list(saved.get("warnings", []))}
     result = _make_result(model, eng, state, opts, previous.method, info,
                           uncertainty=np.asarray(previous.uncertainty).copy(),
                           detail=np.asarray(previous.detail).copy(), skipped=skipped)

@@ -373,3 +373,20 @@ def test_a_self_calibrated_view_keeps_its_minimum(model):
     with pytest.raises(ValueError, match=r"4 usable landmarks in all; the fit needs at "
                                          r"least 6"):
         fit_head(model, both)
+
+
+
+def test_refit_says_anew_which_views_it_skips(model):
+    # a view the full fit skipped (no landmark) is no longer reported as skipped once a
+    # landmark is dragged onto it; the full fit's other warnings are kept
+    case, truth = make_perspective_case(model, 7, n_views=3)
+    none, _ = with_passpoints(model, case, truth, "photo2", 0)
+    res = fit_head(model, none)
+    skip = [w for w in res.info["warnings"] if "'photo2'" in w and "no usable" in w]
+    assert skip
+    res.info["refit_state"]["warnings"] = ["kept from the full fit"]
+    none.views["photo2"].points = dict(case.views["photo2"].points)
+    again = refit_landmarks(model, none, res)
+    assert not [w for w in again.info["warnings"] if "no usable" in w]
+    assert "kept from the full fit" in again.info["warnings"]
+    assert len(again.residuals["photo2"].names) == len(case.views["photo2"].points)
