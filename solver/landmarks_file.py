@@ -713,7 +713,7 @@ def check_case(case, known_names=None, for_fit=True):
         another mirror view, a different photo, a camera that is not mirrored), passpoints
         (undefined names, not finite, outside the image, on an orthographic view), and
         (``for_fit``) fewer landmarks than the fit needs (per view: only views without
-        passpoints) or passpoints that cannot give a camera.
+        passpoints, and mirror views) or passpoints that cannot give a camera.
     """
     return _check_case(case, _as_landmark_set(known_names), for_fit, frozenset())
 
@@ -734,10 +734,12 @@ def _check_case(case, lms, for_fit, bad_cameras):
         problems += _passpoint_problems(case, view, where, for_fit and vname not in bad_cameras)
         n = len(view.points)
         total += n
-        if for_fit and not view.passpoints:
+        # Passpoints give a view its camera, so it needs no landmarks of its own; not so a
+        # mirror view: the fit derives its camera from the real one through the mirror.
+        if for_fit and (not view.passpoints or view.mirror_of is not None):
             need = MIN_LANDMARKS_PER_VIEW
             what = "the fit needs"
-            if view.camera is None and vname not in bad_cameras:
+            if view.camera is None and view.mirror_of is None and vname not in bad_cameras:
                 cls = _camera_class(view.camera_kind)
                 if cls is not None and cls.min_refit_points > need:
                     need = cls.min_refit_points

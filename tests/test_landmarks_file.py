@@ -1065,6 +1065,10 @@ V2_INVALID = {
         lambda d: d["views"]["left"].update(points=dict(list(
             d["views"]["left"]["points"].items())[:2])),
         r"views\.left\.points: 2 landmarks; the fit needs at least 3 per view"),
+    "too few landmarks in a mirror view, even with passpoints": (
+        lambda d: d["views"]["left_mirror"].update(points=dict(list(
+            d["views"]["left_mirror"]["points"].items())[:2])),
+        r"views\.left_mirror\.points: 2 landmarks; the fit needs at least 3 per view"),
     "too few landmarks to self-calibrate a DLT": (
         lambda d: d["views"]["left"].update(camera={"kind": "dlt"}, points=dict(list(
             d["views"]["left"]["points"].items())[:5])),
@@ -1216,6 +1220,7 @@ _SEMANTIC = {"mirror_of a missing view", "mirror_of itself", "mirror_of a mirror
              "unknown pinhole of another size", "orthographic rotation not a rotation",
              "camera size differs", "calibrated nominal camera",
              "calibrated without parameters", "too few landmarks in a view without passpoints",
+             "too few landmarks in a mirror view, even with passpoints",
              "too few landmarks to self-calibrate a DLT",
              "camera without parameters in version 1"}
 
