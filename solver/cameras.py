@@ -12,7 +12,7 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
-from .errors import as_points
+from .errors import as_points, as_weights
 
 # kind -> class; filled by @register. Modules listed in _PLUGINS register further kinds
 # (e.g. "dlt") and are imported on first lookup, so this module needs no import of them.
@@ -145,14 +145,7 @@ def correspondences(points, pixels, weights=None, min_count=1, what="a camera re
     q = as_points(pixels, "pixels", dim=2)
     if len(q) != len(x):
         raise ValueError(f"pixels: {len(q)} rows for {len(x)} points")
-    if weights is None:
-        w = np.ones(len(x))
-    else:
-        w = np.asarray(weights, dtype=np.float64)
-        if w.shape != (len(x),):
-            raise ValueError(f"weights: expected shape ({len(x)},), got {w.shape}")
-        if not np.isfinite(w).all() or (w < 0).any():
-            raise ValueError("weights: must be finite and non-negative")
+    w = as_weights(weights, len(x))
     if np.count_nonzero(w) < min_count:
         raise ValueError(f"points: {what} needs at least {min_count} {unit}, "
                          f"got {np.count_nonzero(w)}")

@@ -26,3 +26,16 @@ def as_points(a, name, dim=3, min_count=1):
     if bad.any():
         raise ValueError(f"{name}: row {int(np.flatnonzero(bad)[0])} is not finite (NaN or inf)")
     return arr
+
+
+def as_weights(weights, n, name="weights"):
+    """Per-point weights as float64 of shape (n,): ones when ``weights`` is None, else
+    checked to be finite and non-negative; ValueError naming ``name`` otherwise."""
+    if weights is None:
+        return np.ones(n)
+    w = np.asarray(weights, dtype=np.float64)
+    if w.shape != (n,):
+        raise ValueError(f"{name}: expected shape ({n},), got {w.shape}")
+    if not np.isfinite(w).all() or (w < 0).any():
+        raise ValueError(f"{name}: must be finite and non-negative")
+    return w

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import as_points
+from .errors import as_points, as_weights
 
 
 @dataclass(frozen=True)
@@ -89,14 +89,7 @@ def similarity_procrustes(source, target, weights=None, with_scale=True):
     dst = as_points(target, "target", dim=d)
     if dst.shape != src.shape:
         raise ValueError(f"target: shape {dst.shape} does not match source {src.shape}")
-    if weights is None:
-        w = np.ones(len(src))
-    else:
-        w = np.asarray(weights, dtype=np.float64)
-        if w.shape != (len(src),):
-            raise ValueError(f"weights: expected shape ({len(src)},), got {w.shape}")
-        if not np.isfinite(w).all() or (w < 0).any():
-            raise ValueError("weights: must be finite and non-negative")
+    w = as_weights(weights, len(src))
     wsum = w.sum()
     if wsum <= 0:
         raise ValueError("weights: all zero")
