@@ -554,8 +554,16 @@ def _profile_fit(eng, state, opts):
     return state, info
 
 
-def _approach1(eng, state, opts):
+def _approach1(model, eng, state, opts):
     """Thesis §4.4.2: every landmark as image rows (front ones weighted), plus contour.
+
+    Photos whose traced outline is matched to the head's own outline (every outline but
+    an orthographic profile's, see :func:`view_outline`) are fitted in two stages: the
+    landmarks alone, then, with the outline candidates found anew on that head, landmarks
+    and outlines together. From the mean head the outline rows latch onto the wrong rim
+    (a cheek for a jaw, an ear for the skull) and the fit settles in a worse minimum:
+    on two perspective photos this halves the gap to a fit started from the true head
+    (``bench/bench_perspective.py``).
 
     With free perspective cameras or mirror planes (self-calibration) the joint rounds
     alternate with full re-calibrations of those cameras until both settle
@@ -563,16 +571,30 @@ def _approach1(eng, state, opts):
     0.1 % (or ``tolerance`` if larger; the choice of outline vertices alone moves the cost
     by about that much), and a re-calibration that lowers the cost by less than that
     ends the alternation, after at most ``calibration_rounds``."""
-    joint = eng.joint(eng.views, front_weight=opts.front_weight)
     selfcal = _self_calibrating(eng)
     tol = max(opts.tolerance, _SETTLE_TOLERANCE) if selfcal else opts.tolerance
-    state, hist = joint.run(state, max_outer=opts.max_iterations, tolerance=tol)
-    out = {"history": hist, "joint": joint}
-    if selfcal:
-        state, more, rounds = joint.settle(state, opts.calibration_rounds, tol,
-                                           max_outer=opts.max_iterations)
-        out["history"] = hist + more
-        out["calibration_rounds"] = rounds
+    out = {"history": [], "calibration_rounds": 0}
+
+    def stage(joint, state):
+        state, hist = joint.run(state, max_outer=opts.max_iterations, tolerance=tol)
+        out["history"] += hist
+        if selfcal:
+            state, more, rounds = joint.settle(state, opts.calibration_rounds, tol,
+                                               max_outer=opts.max_iterations)
+            out["history"] += more
+            out["calibration_rounds"] += rounds
+        return state
+
+    if any(v.outline is not None for v in eng.views) and \
+            any(len(v.vertices) for v in eng.views):
+        state = stage(eng.joint(eng.views, front_weight=opts.front_weight, contour=False),
+                      state)
+        _prepare_outlines(model, eng, state)
+    joint = eng.joint(eng.views, front_weight=opts.front_weight)
+    out["joint"] = joint
+    state = stage(joint, state)
+    if not selfcal:
+        del out["calibration_rounds"]
     return state, out
 
 
@@ -671,7 +693,7 @@ def _approach2(eng, model, state, opts):
         contour.append(ContourRows(np.arange(off, off + len(cand)), v.contour, v.camera,
                                    weights=eng.contour_weight * eng.inv_var, faces=faces,
                                    edges=edges, max_distance=eng.contour_threshold,
-                                   name=v.name))
+                                   keep_distance=eng.contour_keep, name=v.name))
         parts.append(cand)
         off += len(cand)
     # One problem for all rounds: only targets change, so the dense rows' Gram matrix
@@ -1214,7 +1236,7 @@ def fit_head(model, case, options=None, initial=None):
         progress(0.35, "approach 1: landmark ICP")
         t = time.perf_counter()
         eng.use(state_p)
-        candidates["approach1"] = _approach1(eng, state_p.copy(), opts)
+        candidates["approach1"] = _approach1(model, eng, state_p.copy(), opts)
         timings["approach1"] = time.perf_counter() - t
     if opts.method == "approach2" or (opts.method == "combined" and not any(
             is_perspective(eng.real_view(v).camera) for v in eng.views)):
