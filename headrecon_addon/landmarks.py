@@ -1,4 +1,4 @@
-"""Landmarks, passpoints and the profile contour on the photo planes; import and export of
+"""Landmarks, passpoints and the traced outline on the photo planes; import and export of
 the landmarks file; the place-landmarks and draw-contour tools.
 
 A landmark is a small sphere parented to its photo plane (so it moves with the plane, can
@@ -699,7 +699,7 @@ STATUS_CONTOUR = ("Click: add point   Backspace: remove last point   "
 
 
 class ContourSession:
-    """Trace the profile outline: every click adds a point to the plane's contour."""
+    """Trace the head's outline on a photo: every click adds a point to the plane's contour."""
 
     done = False  # a contour takes points until the artist ends the tool
 

@@ -397,7 +397,7 @@ class View:
         Landmark name (canonical or ``ibugNN``, as written) -> (u, v) pixels. In a mirror
         view (``mirror_of``) the names are the subject's true ones (already mapped).
     contour : ndarray, shape (n, 2), pixels, or None
-        Traced head outline of a profile photo (hair left out), in drawing order.
+        Traced head outline in this photo (any view; hair left out), in drawing order.
     extra : dict
         Keys starting with "x-" (tools' own data), kept on a round trip.
     calibrated : bool or None
