@@ -19,8 +19,6 @@ fits run; ``ru_maxrss``) and the peak of Python/numpy allocations during one ful
 """
 
 import argparse
-import sys
-from pathlib import Path
 
 from bench import blas_threads
 
@@ -39,13 +37,7 @@ def _parse():
     return p.parse_args()
 
 
-ARGS = _parse() if __name__ == "__main__" else None
-if ARGS is not None:
-    blas_threads.limit(ARGS.blas_threads)
-
-ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
+ARGS = blas_threads.script_args(_parse, __name__)
 
 import copy  # noqa: E402
 import statistics  # noqa: E402

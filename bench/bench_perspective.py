@@ -33,7 +33,6 @@ landmarks alone. Time: wall and CPU seconds of ``fit_head`` with default options
 
 import argparse
 import sys
-from pathlib import Path
 
 from bench import blas_threads
 
@@ -53,13 +52,7 @@ def _parse():
     return p.parse_args()
 
 
-ARGS = _parse() if __name__ == "__main__" else None
-if ARGS is not None:
-    blas_threads.limit(ARGS.blas_threads)
-
-ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
+ARGS = blas_threads.script_args(_parse, __name__)
 
 import statistics  # noqa: E402
 

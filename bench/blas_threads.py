@@ -16,3 +16,14 @@ def limit(threads):
     if threads != "default":
         for var in VARIABLES:
             os.environ.setdefault(var, threads)
+
+
+def script_args(parse, name):
+    """The benchmark's parsed command line when it runs as a script (``name`` is
+    ``"__main__"``), with its ``--blas-threads`` applied before numpy loads; else None
+    (imported, e.g. for a helper function)."""
+    if name != "__main__":
+        return None
+    args = parse()
+    limit(args.blas_threads)
+    return args
