@@ -106,6 +106,7 @@ def main(args):
     ortho = {"err": [], "wall": [], "cpu": [], "bound": []}
     ortho_lm = {"err": [], "wall": [], "cpu": []}
     mean_head = []
+    bound_noise = max(args.noise, 1e-3)  # the bound needs some noise (0 px: a tiny one)
     for i in range(args.cases):
         seed = SEED0 + i
         case, truth = make_case(model, seed, noise_px=args.noise)
@@ -115,7 +116,7 @@ def main(args):
         ortho["err"].append(skin_error_mm(model, r.local_vertices, truth.local_vertices))
         ortho["wall"].append(w)
         ortho["cpu"].append(c)
-        ortho["bound"].append(landmark_bound_mm(model, case, truth, max(args.noise, 1e-3)))
+        ortho["bound"].append(landmark_bound_mm(model, case, truth, bound_noise))
         case, truth = make_case(model, seed, noise_px=args.noise, contour=False)
         r, w, c = _fit(model, case)
         ortho_lm["err"].append(skin_error_mm(model, r.local_vertices, truth.local_vertices))
@@ -133,7 +134,7 @@ def main(args):
             d["wall"].append(w)
             d["cpu"].append(c)
             d["n_lm"].append(np.mean([len(v.points) for v in case.views.values()]))
-            d["bound"].append(landmark_bound_mm(model, case, truth, max(args.noise, 1e-3)))
+            d["bound"].append(landmark_bound_mm(model, case, truth, bound_noise))
             if not cal:
                 d["focal"] += [abs(r.cameras[k].focal_px / truth.cameras[k].focal_px - 1.0)
                                for k in case.views]

@@ -40,6 +40,23 @@ def similarity_projector(points):
     return q
 
 
+def landmark_rows(model, case, truth):
+    """The landmark pixels' linear dependence on the identity coefficients at the true
+    head and cameras: (2L, K) pixels per unit coefficient, L the landmarks of all views."""
+    basis = model.identity.basis  # (K, V, 3)
+    k = basis.shape[0]
+    world = truth.scale * truth.local_vertices @ truth.rotation.T + truth.translation
+    blocks = [np.zeros((0, k))]
+    for name, view in case.views.items():
+        verts = np.array([model.landmarks[n] for n in view.points], dtype=np.int64)
+        if len(verts) == 0:
+            continue
+        jac = np.asarray(truth.cameras[name].jacobian(world[verts]))  # (n, 2, 3)
+        moved = truth.scale * basis[:, verts, :] @ truth.rotation.T  # (K, n, 3)
+        blocks.append(np.einsum("nij,knj->nik", jac, moved).reshape(-1, k))
+    return np.vstack(blocks)
+
+
 def landmark_bound_mm(model, case, truth, noise_px=1.0):
     """Expected RMS skin error (mm) of the posterior mean given the case's landmarks.
 
@@ -61,17 +78,8 @@ def landmark_bound_mm(model, case, truth, noise_px=1.0):
         raise ValueError(f"noise_px: must be > 0, got {noise_px!r}")
     basis = model.identity.basis  # (K, V, 3)
     k = basis.shape[0]
-    world = truth.scale * truth.local_vertices @ truth.rotation.T + truth.translation
-    info = np.eye(k)
-    for name, view in case.views.items():
-        verts = np.array([model.landmarks[n] for n in view.points], dtype=np.int64)
-        if len(verts) == 0:
-            continue
-        jac = np.asarray(truth.cameras[name].jacobian(world[verts]))  # (n, 2, 3)
-        moved = truth.scale * basis[:, verts, :] @ truth.rotation.T  # (K, n, 3)
-        rows = np.einsum("nij,knj->nik", jac, moved).reshape(-1, k)
-        info += rows.T @ rows / noise_px**2
-    cov = np.linalg.inv(info)
+    rows = landmark_rows(model, case, truth)
+    cov = np.linalg.inv(np.eye(k) + rows.T @ rows / noise_px**2)
     # the benchmarks compare heads in the model's frame and size (truth.local_vertices)
     skin = basis[:, model.skin, :].reshape(k, -1)  # (K, 3N) metres
     q = similarity_projector(truth.local_vertices[model.skin])

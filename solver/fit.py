@@ -562,7 +562,7 @@ def _approach1(model, eng, state, opts):
     landmarks alone, then, with the outline candidates found anew on that head, landmarks
     and outlines together. From the mean head the outline rows latch onto the wrong rim
     (a cheek for a jaw, an ear for the skull) and the fit settles in a worse minimum:
-    on two perspective photos this halves the gap to a fit started from the true head
+    on two perspective photos this more than halves the gap to a fit started from the true head
     (``bench/bench_perspective.py``).
 
     With free perspective cameras or mirror planes (self-calibration) the joint rounds
@@ -573,7 +573,9 @@ def _approach1(model, eng, state, opts):
     ends the alternation, after at most ``calibration_rounds``."""
     selfcal = _self_calibrating(eng)
     tol = max(opts.tolerance, _SETTLE_TOLERANCE) if selfcal else opts.tolerance
-    out = {"history": [], "calibration_rounds": 0}
+    out = {"history": []}
+    if selfcal:
+        out["calibration_rounds"] = 0
 
     def stage(joint, state):
         state, hist = joint.run(state, max_outer=opts.max_iterations, tolerance=tol)
@@ -592,10 +594,7 @@ def _approach1(model, eng, state, opts):
         _prepare_outlines(model, eng, state)
     joint = eng.joint(eng.views, front_weight=opts.front_weight)
     out["joint"] = joint
-    state = stage(joint, state)
-    if not selfcal:
-        del out["calibration_rounds"]
-    return state, out
+    return stage(joint, state), out
 
 
 # Smallest relative gain of a re-calibration for another joint run (Joint.settle).

@@ -376,10 +376,11 @@ class ContourRows(CameraRows):
     Vertices whose nearest traced point is one of the outline's ends are left out (they
     lie beyond what was traced, e.g. the neck below where the tracing stopped), as are
     those farther than ``max_distance`` pixels, or than ``reject_factor`` times the median
-    (but never below ``keep_distance``). Near the end of a fit that trims the rows where the
-    mesh cannot follow the tracing (an ear's notch, a corner the tracing cut): kept, they
-    pull the head out of shape to close a gap that is not noise; trimmed to 3 sigma (and
-    3 x median), a fit from two perspective photos lands 8 % closer to the true head.
+    (but never below ``keep_distance``). Once the fit is close, that trims the rows where
+    the mesh cannot follow the tracing (an ear's notch, a corner the tracing cut): kept,
+    they pull the head out of shape to close a gap that is not noise; trimmed at 3 sigma
+    and 3 x the median, a fit from two perspective photos lands 8 % closer to the true
+    head.
 
     Parameters
     ----------

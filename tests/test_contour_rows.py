@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from solver.cameras import OrthographicCamera
-from solver.fit import fit_head
+from solver.fit import FitOptions, _engine, _prepare_views, fit_head
 from solver.fit_engine import CONTOUR_KEEP_SIGMAS, ContourRows, densify
 from solver.procrustes import similarity_procrustes
 from solver.synthetic import make_perspective_case
@@ -48,8 +48,6 @@ def test_a_row_the_mesh_cannot_follow_is_trimmed_at_three_sigma():
 
 
 def test_the_engine_keeps_rows_within_three_sigmas_of_its_noise(model):
-    from solver.fit import FitOptions, _engine, _prepare_views
-
     case, _ = make_perspective_case(model, 3, n_views=2, calibrated=True, contour=True)
     for noise in (0.5, 2.0):
         views, _ = _prepare_views(model, case, FitOptions(noise_px=noise))

@@ -5,7 +5,7 @@ problem, on heads drawn from the prior."""
 import numpy as np
 import pytest
 
-from bench.landmark_bound import landmark_bound_mm, similarity_projector
+from bench.landmark_bound import landmark_bound_mm, landmark_rows, similarity_projector
 from solver.landmarks_file import LandmarkCase, View
 from solver.synthetic import make_case, make_perspective_case
 
@@ -30,14 +30,7 @@ def test_bound_is_the_error_of_the_posterior_mean(model):
     bound = landmark_bound_mm(model, case, truth, noise)
     basis = model.identity.basis
     k = basis.shape[0]
-    world = truth.scale * truth.local_vertices @ truth.rotation.T + truth.translation
-    blocks = []
-    for name, view in case.views.items():
-        verts = np.array([model.landmarks[n] for n in view.points])
-        jac = truth.cameras[name].jacobian(world[verts])
-        moved = truth.scale * basis[:, verts, :] @ truth.rotation.T
-        blocks.append(np.einsum("nij,knj->nik", jac, moved).reshape(-1, k))
-    rows = np.vstack(blocks)
+    rows = landmark_rows(model, case, truth)
     post = np.linalg.solve(np.eye(k) + rows.T @ rows / noise**2, rows.T / noise**2)
     skin = basis[:, model.skin, :].reshape(k, -1)
     q = similarity_projector(truth.local_vertices[model.skin])
