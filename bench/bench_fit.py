@@ -18,22 +18,15 @@ fits run; ``ru_maxrss``) and the peak of Python/numpy allocations during one ful
 (``tracemalloc``). Target: <= 500 MB.
 """
 
-import argparse
-
 from bench import blas_threads
 
 
 def _parse():
-    p = argparse.ArgumentParser(prog="python -m bench.bench_fit", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = blas_threads.parser("python -m bench.bench_fit", __doc__)
     p.add_argument("--cases", type=int, default=20, help="synthetic heads per noise level")
     p.add_argument("--noise", type=float, nargs="+", default=[0.0, 1.0, 2.0],
                    help="landmark noise levels, pixels")
     p.add_argument("--methods", nargs="+", default=["approach1", "approach2", "combined"])
-    p.add_argument("--blas-threads", default="1",
-                   help="BLAS threads (OPENBLAS/OMP/MKL_NUM_THREADS) unless already set in "
-                        "the environment; the fit's matrices are small, so one thread is "
-                        "fastest and steadiest ('default' leaves the library's choice)")
     return p.parse_args()
 
 

@@ -5,6 +5,7 @@ busy multi-threaded BLAS makes tiny solves many times slower. This module import
 heavy, so a benchmark can call it before numpy loads.
 """
 
+import argparse
 import os
 
 VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
@@ -27,3 +28,15 @@ def script_args(parse, name):
     args = parse()
     limit(args.blas_threads)
     return args
+
+
+def parser(prog, description):
+    """An argument parser for a benchmark script, with ``--blas-threads`` (default one
+    thread unless the environment says otherwise)."""
+    p = argparse.ArgumentParser(prog=prog, description=description,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--blas-threads", default="1",
+                   help="BLAS threads (OPENBLAS/OMP/MKL_NUM_THREADS) unless already set in "
+                        "the environment; the fit's matrices are small, so one thread is "
+                        "fastest and steadiest ('default' leaves the library's choice)")
+    return p

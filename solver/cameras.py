@@ -122,6 +122,15 @@ class Camera(ABC):
         return np.linalg.norm(self.project(points) - px, axis=1)
 
 
+def toward_centre(centre, points):
+    """Unit vectors from each point toward a camera centre, what ``toward_camera`` is for
+    any camera with one (central projection): centre (3,), points (n, 3) metres -> (n, 3).
+    A point at the centre gets a zero vector rather than NaN."""
+    d = centre - as_points(points, "points")
+    n = np.linalg.norm(d, axis=1, keepdims=True)
+    return d / np.where(n > 0, n, 1.0)
+
+
 def correspondences(points, pixels, weights=None, min_count=1, what="a camera refit",
                     unit="weighted points"):
     """Validated 3-D points and their pixels, for fitting a camera to them.

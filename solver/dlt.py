@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 
-from .cameras import Camera, correspondences, register
+from .cameras import Camera, correspondences, register, toward_centre
 from .errors import as_points
 
 #: fewest passpoints for the 11- and 16-parameter DLT (seed 000 §2)
@@ -181,6 +181,16 @@ def _distortion_jacobian(pixels, coeffs, centre):
     j[:, 0, 1] = cross
     j[:, 1, 0] = cross
     j[:, 1, 1] = g + 2.0 * v * v * dg + 2.0 * p1 * u + 6.0 * p2 * v
+    return j
+
+
+def _correction_jacobian(pixels, coeffs, centre):
+    """d(x - d(x))/dx, the correction of eq. 15 differentiated at observed pixels:
+    (n, 2) -> (n, 2, 2), dimensionless. Its inverse maps ideal-pixel steps to observed ones
+    (Newton's step of ``distort``, the chain rule of ``jacobian``)."""
+    j = -_distortion_jacobian(pixels, coeffs, centre)
+    j[:, 0, 0] += 1.0
+    j[:, 1, 1] += 1.0
     return j
 
 
@@ -423,10 +433,7 @@ class DLTCamera(Camera):
             f = x - _distortion(x, self.distortion, self.distortion_centre) - q
             if np.abs(f).max(initial=0.0) <= tol:
                 break
-            j = -_distortion_jacobian(x, self.distortion, self.distortion_centre)
-            j[:, 0, 0] += 1.0
-            j[:, 1, 1] += 1.0
-            inv, _ = _inv2(j)
+            inv, _ = _inv2(_correction_jacobian(x, self.distortion, self.distortion_centre))
             x = x - np.einsum("nij,nj->ni", inv, f)
         return x
 
@@ -464,10 +471,7 @@ class DLTCamera(Camera):
         if not self.has_distortion:
             return jac
         obs = self.distort(q)
-        a = -_distortion_jacobian(obs, self.distortion, self.distortion_centre)
-        a[:, 0, 0] += 1.0
-        a[:, 1, 1] += 1.0
-        inv, _ = _inv2(a)
+        inv, _ = _inv2(_correction_jacobian(obs, self.distortion, self.distortion_centre))
         return np.einsum("nij,njk->nik", inv, jac)
 
     def to_camera(self, points):
@@ -478,10 +482,7 @@ class DLTCamera(Camera):
 
     def toward_camera(self, points):
         """Unit vectors from each point toward the camera centre: (n, 3) -> (n, 3)."""
-        x = as_points(points, "points")
-        d = self._centre - x
-        n = np.linalg.norm(d, axis=1, keepdims=True)
-        return d / np.where(n > 0, n, 1.0)
+        return toward_centre(self._centre, points)
 
     def back_project(self, pixels):
         """Viewing rays of pixels (after undistortion, eq. 15).

@@ -559,7 +559,7 @@ def _approach1(model, eng, state, opts):
 
     Photos whose traced outline is matched to the head's own outline (every outline but
     an orthographic profile's, see :func:`view_outline`) are fitted in two stages: the
-    landmarks alone, then, with the outline candidates found anew on that head, landmarks
+    landmarks alone, then, with the outline candidates found on that head, landmarks
     and outlines together. From the mean head the outline rows latch onto the wrong rim
     (a cheek for a jaw, an ear for the skull) and the fit settles in a worse minimum:
     on two perspective photos this more than halves the gap to a fit started from the true head
@@ -570,7 +570,11 @@ def _approach1(model, eng, state, opts):
     (``Joint.settle``): joint rounds run until a round changes the cost by less than
     0.1 % (or ``tolerance`` if larger; the choice of outline vertices alone moves the cost
     by about that much), and a re-calibration that lowers the cost by less than that
-    ends the alternation, after at most ``calibration_rounds``."""
+    ends the alternation, after at most ``calibration_rounds``.
+
+    Returns (state, info): ``info["joint"]`` is the last stage's problem and
+    ``info["outlines"]`` its outline candidates (view name -> (vertices, faces, edges)),
+    besides "history" (and "calibration_rounds")."""
     selfcal = _self_calibrating(eng)
     tol = max(opts.tolerance, _SETTLE_TOLERANCE) if selfcal else opts.tolerance
     out = {"history": []}
@@ -587,12 +591,11 @@ def _approach1(model, eng, state, opts):
             out["calibration_rounds"] += rounds
         return state
 
-    if any(v.outline is not None for v in eng.views) and \
-            any(len(v.vertices) for v in eng.views):
+    if _own_outline_views(eng, state) and any(len(v.vertices) for v in eng.views):
         state = stage(eng.joint(eng.views, front_weight=opts.front_weight, contour=False),
                       state)
-        _prepare_outlines(model, eng, state)
-    joint = eng.joint(eng.views, front_weight=opts.front_weight)
+    out["outlines"] = _view_outlines(model, eng, state)
+    joint = eng.joint(eng.views, front_weight=opts.front_weight, outlines=out["outlines"])
     out["joint"] = joint
     return stage(joint, state), out
 
@@ -667,6 +670,8 @@ def _approach2(eng, model, state, opts):
     to their 3-D targets (:func:`landmark_targets`), then fits the model to the warped
     skin (every 8th skin vertex) and to the targets themselves (weighted like the
     landmarks' pixels), with the profile contour as in approach 1; the cameras follow.
+    Outlines other than an orthographic profile's are matched to candidates found on the
+    head approach 2 starts from (``info["outlines"]``, as in :func:`_approach1`).
     """
     dense = _dense_vertices(model)
     # Metres to the image rows' weighted pixels: a landmark's 3-D row weighs what its
@@ -676,7 +681,8 @@ def _approach2(eng, model, state, opts):
     s2 = _pixels_per_metre_sq(eng, state)
     n_lm = sum(int((v.weights > 0).sum()) for v in eng.views)
     w_lm = s2 * eng.inv_var * opts.landmark_weight
-    joint = eng.joint(eng.views)
+    own = _view_outlines(model, eng, state)
+    joint = eng.joint(eng.views, outlines=own)
     verts, _, tgt = landmark_targets(eng, state)
     side = [v for v in eng.views if v.contour is not None]
     # The shape-ICP works on copies of the vertices used: dense skin, landmarks, then the
@@ -685,10 +691,9 @@ def _approach2(eng, model, state, opts):
     mesh_rows = PointRows(np.arange(nd), eng.world(state, dense),
                           weights=_DENSE_SHARE * w_lm * n_lm / nd, name="tps mesh")
     lm_rows = PointRows(np.arange(nd, nd + nl), tgt, weights=w_lm, name="tps landmarks")
-    outlines = [v.outline if v.outline is not None else
-                (eng.outline, eng.outline_faces, eng.outline_edges) for v in side]
     contour, parts, off = [], [], nd + nl
-    for v, (cand, faces, edges) in zip(side, outlines, strict=True):
+    for v in side:
+        cand, faces, edges = eng.outline_candidates(v, own)
         contour.append(ContourRows(np.arange(off, off + len(cand)), v.contour, v.camera,
                                    weights=eng.contour_weight * eng.inv_var, faces=faces,
                                    edges=edges, max_distance=eng.contour_threshold,
@@ -726,7 +731,7 @@ def _approach2(eng, model, state, opts):
         else:
             break
     eng.use(best[1])
-    return best[1], {"history": history}
+    return best[1], {"history": history, "outlines": own}
 
 
 def reprojection_rms(eng, joint, state):
@@ -1021,11 +1026,11 @@ def outline_candidates(model, max_x=0.05, max_normal_x=0.4):
 def view_outline(model, eng, state, view, max_normal=0.4, margin=3.0):
     """Outline candidates of a photo that is not an orthographic profile (a front or
     three-quarter view, a perspective photo at any angle): skin vertices of the head at
-    ``state`` whose (mean-head) normals face across the camera's line of sight there
-    (|n . t| < ``max_normal``, t the unit vector toward the camera) and that project within
-    ``margin`` times the contour threshold of the traced outline (which leaves out the
-    inner folds: the sides of the nose, the eye sockets), with their mesh;
-    ``ContourRows`` finds the outline among them each round.
+    ``state``, seen through the view's camera in ``state``, whose (mean-head) normals face
+    across the camera's line of sight there (|n . t| < ``max_normal``, t the unit vector
+    toward the camera) and that project within ``margin`` times the contour threshold of
+    the traced outline (which leaves out the inner folds: the sides of the nose, the eye
+    sockets), with their mesh; ``ContourRows`` finds the outline among them each round.
 
     Returns
     -------
@@ -1033,22 +1038,30 @@ def view_outline(model, eng, state, view, max_normal=0.4, margin=3.0):
     """
     skin = np.asarray(model.skin, dtype=np.int64)
     world = eng.world(state, skin)
-    toward = np.asarray(view.camera.toward_camera(world), dtype=np.float64)
+    camera = state.cameras[view.name]
+    toward = np.asarray(camera.toward_camera(world), dtype=np.float64)
     normal = _mean_normals(model)[skin] @ state.rotation.T
     keep = np.abs(np.einsum("ij,ij->i", normal, toward)) < max_normal
-    dist, _ = cKDTree(view.contour).query(view.camera.project(world[keep]))
+    dist, _ = cKDTree(view.contour).query(camera.project(world[keep]))
     verts = skin[keep][dist <= margin * eng.contour_threshold]
     return (verts, *_candidate_mesh(model, verts))
 
 
-def _prepare_outlines(model, eng, state):
-    """Give every view with a traced outline that is not an orthographic profile its own
-    outline candidates (a perspective photo from the side sees more than the midline: the
-    rays to the outline fan out over the head)."""
-    for v in eng.views:
-        v.outline = None
-        if v.contour is not None and not (v.side and not is_perspective(v.camera)):
-            v.outline = view_outline(model, eng, state, v)
+def _own_outline_views(eng, state):
+    """The views whose traced outline is matched to candidates of their own
+    (:func:`view_outline`): every outline but an orthographic profile's (a perspective
+    photo from the side sees more than the midline: the rays to the outline fan out over
+    the head)."""
+    return [v for v in eng.views if v.contour is not None
+            and not (v.side and not is_perspective(state.cameras[v.name]))]
+
+
+def _view_outlines(model, eng, state):
+    """Outline candidates found on the head of ``state`` for every view that does not use
+    the profile's (:func:`_own_outline_views`): view name -> (vertices, faces, edges),
+    for ``Engine.joint(..., outlines=)``. A value, not kept on the views: each approach
+    finds them on its own head, where it uses them."""
+    return {v.name: view_outline(model, eng, state, v) for v in _own_outline_views(eng, state)}
 
 
 def _engine(model, views, opts):
@@ -1221,7 +1234,6 @@ def fit_head(model, case, options=None, initial=None):
         _init_pose(eng, state)
         eng.init_cameras(state)
         eng.finish_views(state)
-        _prepare_outlines(model, eng, state)
         progress(0.05, "fitting the profile")
         t = time.perf_counter()
         state_p, info_p = _profile_fit(eng, state, opts)
@@ -1229,7 +1241,6 @@ def fit_head(model, case, options=None, initial=None):
     else:
         state_p, _ = _saved_state(initial, eng, views, "initial")
         eng.finish_views(state_p)
-        _prepare_outlines(model, eng, state_p)
     candidates = {}
     if opts.method in ("approach1", "combined"):
         progress(0.35, "approach 1: landmark ICP")
@@ -1245,10 +1256,11 @@ def fit_head(model, case, options=None, initial=None):
         candidates["approach2"] = _approach2(eng, model, state_p.copy(), opts)
         timings["approach2"] = time.perf_counter() - t
     # the result's problem over all views (approach 1's, already linearised, when it has
-    # the same weights)
-    joint = candidates["approach1"][1].pop("joint") if "approach1" in candidates else None
+    # the same weights), with the outline candidates of approach 1 (else approach 2)
+    source = candidates.get("approach1", candidates.get("approach2"))[1]
+    joint = source.pop("joint", None)
     if joint is None or opts.front_weight != 1.0:
-        joint = eng.joint(eng.views)
+        joint = eng.joint(eng.views, outlines=source["outlines"])
     chosen, scores = _choose(eng, joint, candidates)
     state = candidates[chosen][0]
     eng.use(state)

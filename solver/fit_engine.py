@@ -74,9 +74,9 @@ class ViewData:
         The view whose camera, reflected in a mirror plane the fit estimates, is this
         view's camera (None: an ordinary view, or a mirror view whose camera is given and
         kept).
-    outline : (ndarray, ndarray, ndarray) or None
-        Candidate outline vertices of this view's contour and their mesh (see
-        ContourRows); None: the engine's profile candidates.
+
+    A view's outline candidates are not stored here: they depend on the head they were
+    found on, so each stage passes its own to :meth:`Engine.joint` (``outlines``).
     """
 
     name: str
@@ -89,7 +89,6 @@ class ViewData:
     contour: np.ndarray | None = None
     refit: bool = True
     mirror_of: str | None = None
-    outline: tuple | None = None
 
 
 @dataclass
@@ -584,8 +583,9 @@ class Engine:
         The model the fit changes (global modes, possibly with regional ones after them).
     views : list of ViewData
     outline, outline_faces, outline_edges : ndarray
-        Candidate vertices of the head's outline in a profile photo and their mesh (see
-        ContourRows); a view with its own ``outline`` uses that instead.
+        Candidate vertices of the head's outline in an orthographic profile photo and their
+        mesh (see ContourRows): what a view's contour rows use unless the stage gives the
+        view candidates of its own (``outlines`` of :meth:`joint`).
     noise_px : float
         Landmark noise the weights assume (rows are weighted 1 / noise^2, so lambda2 = 1 is
         the Bayesian prior for standard-normal coefficients).
@@ -899,9 +899,20 @@ class Engine:
             raise ValueError(f"{where}: {e}") from None
         return fit.plane
 
-    def joint(self, views, front_weight=1.0, contour=True, landmarks=True):
-        """A :class:`Joint` problem over the landmarks and contours of ``views``."""
-        return Joint(self, views, front_weight, contour, landmarks)
+    def joint(self, views, front_weight=1.0, contour=True, landmarks=True, outlines=None):
+        """A :class:`Joint` problem over the landmarks and contours of ``views``;
+        ``outlines`` (view name -> (vertices, faces, edges)) are the outline candidates of
+        the views that do not use the profile's (:meth:`outline_candidates`)."""
+        return Joint(self, views, front_weight, contour, landmarks, outlines)
+
+    def outline_candidates(self, view, outlines=None):
+        """(vertices (n,), faces (F, 3), edges (E, 4)) the contour rows of ``view`` choose
+        the model's outline from: ``outlines[view.name]`` when given, else the engine's
+        profile candidates."""
+        own = None if outlines is None else outlines.get(view.name)
+        if own is not None:
+            return own
+        return self.outline, self.outline_faces, self.outline_edges
 
     # ------------------------------------------------------------------ errors
 
@@ -959,9 +970,12 @@ class Joint:
     from the prior, so the shape-ICP's ``lambda2^2 c^2`` is exactly the prior's cost.
     """
 
-    def __init__(self, eng, views, front_weight=1.0, contour=True, landmarks=True):
+    def __init__(self, eng, views, front_weight=1.0, contour=True, landmarks=True,
+                 outlines=None):
         self.eng = eng
         self.views = list(views)
+        # view name -> (vertices, faces, edges): candidates found for this problem's head
+        self.outlines = dict(outlines or {})
         self.groups = []  # (view, kind, rows)
         orig = []
         off = 0
@@ -975,8 +989,7 @@ class Joint:
                 orig.append(v.vertices)
                 off += n
             if contour and v.contour is not None:
-                cand, faces, edges = v.outline if v.outline is not None else \
-                    (eng.outline, eng.outline_faces, eng.outline_edges)
+                cand, faces, edges = eng.outline_candidates(v, self.outlines)
                 n = len(cand)
                 rows = ContourRows(np.arange(off, off + n), v.contour, v.camera,
                                    weights=eng.contour_weight * eng.inv_var,

@@ -43,7 +43,7 @@ solver/mirror.py) is allowed everywhere except where Blender cannot represent it
 import numpy as np
 
 from .blender_camera import blender_to_krc, krc_to_blender
-from .cameras import Camera, correspondences, register
+from .cameras import Camera, correspondences, register, toward_centre
 from .dlt import DLTCamera, fit_dlt
 from .errors import as_points
 
@@ -365,10 +365,7 @@ class PinholeCamera(Camera):
 
     def toward_camera(self, points):
         """Unit vectors from each point toward the camera centre: (n, 3) -> (n, 3)."""
-        x = as_points(points, "points")
-        d = self.centre - x
-        n = np.linalg.norm(d, axis=1, keepdims=True)
-        return d / np.where(n > 0, n, 1.0)
+        return toward_centre(self.centre, points)
 
     def project(self, points):
         """Pixel of each world point: (n, 3) metres -> (n, 2) pixels."""

@@ -137,6 +137,16 @@ def _check_camera(camera, name):
     return camera
 
 
+def _check_rejection(max_distance, reject_factor, name):
+    """The ICP rows' outlier limits checked (both > 0); returns ``max_distance`` as float."""
+    md = float(max_distance)
+    if not md > 0:
+        raise ValueError(f"{name}: max_distance must be > 0, got {max_distance!r}")
+    if reject_factor is not None and not float(reject_factor) > 0:
+        raise ValueError(f"{name}: reject_factor must be > 0, got {reject_factor!r}")
+    return md
+
+
 class Rows(ABC):
     """A group of residual rows tied to model vertices. Subclasses below.
 
@@ -161,6 +171,15 @@ class Rows(ABC):
     def block(self, world, jacobian=True):
         """Residuals (and, with ``jacobian``, their derivatives) at world positions (n, 3)."""
 
+    def _per_vertex(self, values, what, dim):
+        """``values`` as float64 of shape (n, dim), one row per vertex of the group, or a
+        ValueError naming the group and ``what``."""
+        n = len(self.vertices)
+        a = np.asarray(values, dtype=np.float64)
+        if a.shape != (n, dim):
+            raise ValueError(f"{self.name}: {what} must have shape ({n}, {dim}), got {a.shape}")
+        return a
+
 
 class CameraRows(Rows):
     """Rows whose residuals are pixels of a photo seen through ``camera``.
@@ -184,6 +203,19 @@ class CameraRows(Rows):
         if camera is not self.camera:
             self.camera = camera
             self._version += 1
+
+    def _pixel_block(self, world, targets, w, jacobian):
+        """Rows ``targets - camera.project(x)`` (pixels, (n, 2)) weighted ``w`` (n,) per
+        vertex, with the chain-rule derivatives through ``camera.jacobian``."""
+        r = targets - _projected(self.camera, world, self.name, self.vertices)
+        sq = float(w @ np.einsum("ij,ij->i", r, r))
+        n = len(w)
+        nrows = 2 * int((w > 0).sum())
+        if not jacobian:
+            return ScalarRows(None, None, None, None, sq, float(w.sum()), nrows)
+        jac = np.asarray(self.camera.jacobian(world), dtype=np.float64).reshape(n, 2, 3)
+        return ScalarRows(np.repeat(np.arange(n), 2), jac.reshape(2 * n, 3), r.reshape(-1),
+                          np.repeat(w, 2), sq, float(w.sum()), nrows)
 
 
 class PointRows(Rows):
@@ -219,11 +251,8 @@ class PointRows(Rows):
 
     def set_targets(self, targets):
         """Replace the targets (same shape), e.g. while a landmark is dragged."""
-        n = len(self.vertices)
-        t = np.asarray(targets, dtype=np.float64)
-        if t.shape != (n, 3):
-            raise ValueError(f"{self.name}: targets must have shape ({n}, 3), got {t.shape}")
-        used = np.ones((n, 3), bool) if self.mask is None else self.mask
+        t = self._per_vertex(targets, "targets", 3)
+        used = np.ones(t.shape, bool) if self.mask is None else self.mask
         bad = used & ~np.isfinite(t)
         if bad.any():
             raise ValueError(f"{self.name}: target row {int(np.flatnonzero(bad.any(1))[0])} "
@@ -272,23 +301,12 @@ class ImageRows(CameraRows):
 
     def set_pixels(self, pixels):
         """Replace the target pixels (same shape), e.g. while a landmark is dragged."""
-        n = len(self.vertices)
-        p = np.asarray(pixels, dtype=np.float64)
-        if p.shape != (n, 2):
-            raise ValueError(f"{self.name}: pixels must have shape ({n}, 2), got {p.shape}")
+        p = self._per_vertex(pixels, "pixels", 2)
         self.pixels = as_points(p, f"{self.name}: pixels", dim=2)
         self._version += 1
 
     def block(self, world, jacobian=True):
-        r = self.pixels - _projected(self.camera, world, self.name, self.vertices)
-        w = self.weights
-        sq = float(w @ np.einsum("ij,ij->i", r, r))
-        n = len(w)
-        if not jacobian:
-            return ScalarRows(None, None, None, None, sq, float(w.sum()), 2 * int((w > 0).sum()))
-        jac = np.asarray(self.camera.jacobian(world), dtype=np.float64).reshape(n, 2, 3)
-        return ScalarRows(np.repeat(np.arange(n), 2), jac.reshape(2 * n, 3), r.reshape(-1),
-                        np.repeat(w, 2), sq, float(w.sum()), 2 * int((w > 0).sum()))
+        return self._pixel_block(world, self.pixels, self.weights, jacobian)
 
 
 def _projected(camera, world, name, vertices):
@@ -364,11 +382,7 @@ class ClosestPointRows(Rows):
         if tree is not None and tree.n != len(self.cloud):
             raise ValueError(f"{name}: tree has {tree.n} points, cloud has {len(self.cloud)}")
         self.tree = cKDTree(self.cloud) if tree is None else tree
-        md = float(max_distance)
-        if not md > 0:
-            raise ValueError(f"{name}: max_distance must be > 0, got {max_distance!r}")
-        if reject_factor is not None and not float(reject_factor) > 0:
-            raise ValueError(f"{name}: reject_factor must be > 0, got {reject_factor!r}")
+        md = _check_rejection(max_distance, reject_factor, name)
         self.normals = None
         if normals is not None:
             nrm = as_points(normals, f"{name}: normals")
@@ -486,12 +500,7 @@ class ClosestPixelRows(CameraRows):
         self.camera = _check_camera(camera, name)
         self.weights = _weight_array(weights, len(self.vertices), name)
         self.pixels = as_points(pixels, f"{name}: pixels", dim=2)
-        md = float(max_distance)
-        if not md > 0:
-            raise ValueError(f"{name}: max_distance must be > 0, got {max_distance!r}")
-        if reject_factor is not None and not float(reject_factor) > 0:
-            raise ValueError(f"{name}: reject_factor must be > 0, got {reject_factor!r}")
-        self.max_distance = md
+        self.max_distance = _check_rejection(max_distance, reject_factor, name)
         self.reject_factor = reject_factor
         self.tree = cKDTree(self.pixels)
         self.targets = None
@@ -507,16 +516,8 @@ class ClosestPixelRows(CameraRows):
     def block(self, world, jacobian=True):
         if self.targets is None:
             self.update(world)
-        w = np.where(self.inliers, self.weights, 0.0)
-        r = self.targets - _projected(self.camera, world, self.name, self.vertices)
-        sq = float(w @ np.einsum("ij,ij->i", r, r))
-        n = len(w)
-        nrows = 2 * int((w > 0).sum())
-        if not jacobian:
-            return ScalarRows(None, None, None, None, sq, float(w.sum()), nrows)
-        jac = np.asarray(self.camera.jacobian(world), dtype=np.float64).reshape(n, 2, 3)
-        return ScalarRows(np.repeat(np.arange(n), 2), jac.reshape(2 * n, 3), r.reshape(-1),
-                        np.repeat(w, 2), sq, float(w.sum()), nrows)
+        return self._pixel_block(world, self.targets,
+                                 np.where(self.inliers, self.weights, 0.0), jacobian)
 
 
 # --------------------------------------------------------------------------- result

@@ -191,6 +191,34 @@ def _random_head(model, rng, coeffs, coeff_scale, rotation_deg):
     return c, local, rot, scale, trans
 
 
+def _pinhole_scene(model, rng, coeffs, coeff_scale, rotation_deg):
+    """A random posed head as the pinhole photos of ``make_perspective_case`` and
+    ``make_mirror_case`` see it (drawn by ``_random_head``: same draws, same seeds).
+
+    Returns
+    -------
+    head : tuple
+        (coefficients, local vertices, scale, rotation, translation): the first fields of
+        its SyntheticTruth, in their order.
+    world : ndarray, shape (V, 3), metres
+        The posed head.
+    normals : ndarray, shape (V, 3)
+        Its unit vertex normals (which landmarks a camera sees).
+    skin_tris : ndarray, shape (T, 3)
+        Skin triangles (occlusion, the traced silhouette).
+    skin : ndarray, shape (S, 3), metres
+        The posed skin (what the frames are fitted to).
+    centre : ndarray, shape (3,), metres
+        Middle of the skin's bounding box (where the cameras aim).
+    """
+    c, local, rot, scale, trans = _random_head(model, rng, coeffs, coeff_scale, rotation_deg)
+    world = scale * local @ rot.T + trans
+    skin = world[model.skin]
+    centre = 0.5 * (skin.min(axis=0) + skin.max(axis=0))
+    return ((c, local, scale, rot, trans), world, vertex_normals(model, world),
+            _skin_triangles(model), skin, centre)
+
+
 def vertex_normals(model, world):
     """Unit normals of the posed mesh's vertices (area-weighted face normals), (V, 3)."""
     tri, _, _ = model.triangles()
@@ -336,12 +364,8 @@ def make_perspective_case(model, rng=None, *, n_views=2, noise_px=1.0, lens_mm=(
         raise ValueError(f"n_views: at least 1, got {n_views}")
     if noise_px < 0 or rotation_deg < 0:
         raise ValueError("noise_px and rotation_deg: must be >= 0")
-    c, local, rot, scale, trans = _random_head(model, rng, coeffs, coeff_scale, rotation_deg)
-    world = scale * local @ rot.T + trans
-    normals = vertex_normals(model, world)
-    skin_tris = _skin_triangles(model)
-    skin = world[model.skin]
-    centre = 0.5 * (skin.min(axis=0) + skin.max(axis=0))
+    head, world, normals, skin_tris, skin, centre = _pinhole_scene(model, rng, coeffs,
+                                                                   coeff_scale, rotation_deg)
     cnoise = noise_px if contour_noise_px is None else contour_noise_px
     views, cams, clean, outlines = {}, {}, {}, {}
     for i, yaw in enumerate(perspective_yaws(rng, int(n_views), yaw_deg)):
@@ -392,7 +416,7 @@ def make_perspective_case(model, rng=None, *, n_views=2, noise_px=1.0, lens_mm=(
             view = View(name, None, size, None, dict(zip(names, noisy, strict=True)), outline,
                         camera_hints=hints)
         views[name] = view
-    truth = SyntheticTruth(c, local, scale, rot, trans, cams, clean, outlines)
+    truth = SyntheticTruth(*head, cams, clean, outlines)
     return LandmarkCase(views, "<synthetic>"), truth
 
 
@@ -423,12 +447,8 @@ def make_mirror_case(model, rng=None, *, noise_px=1.0, distance_m=(0.9, 1.4),
     from .fit_engine import mirror_camera
 
     rng = np.random.default_rng(rng)
-    c, local, rot, scale, trans = _random_head(model, rng, coeffs, coeff_scale, rotation_deg)
-    world = scale * local @ rot.T + trans
-    normals = vertex_normals(model, world)
-    skin_tris = _skin_triangles(model)
-    skin = world[model.skin]
-    centre = 0.5 * (skin.min(axis=0) + skin.max(axis=0))
+    head, world, normals, skin_tris, skin, centre = _pinhole_scene(model, rng, coeffs,
+                                                                   coeff_scale, rotation_deg)
     alpha = np.radians(rng.uniform(*mirror_angle_deg))
     normal = np.array([-np.cos(alpha), -np.sin(alpha), 0.0])
     plane = MirrorPlane.from_point_normal(centre + [rng.uniform(*mirror_gap_m), 0.0, 0.0],
@@ -465,7 +485,7 @@ def make_mirror_case(model, rng=None, *, noise_px=1.0, distance_m=(0.9, 1.4),
         else:
             views[name] = View(name, None, size, None, noisy, mirror_of="front",
                                camera_hints={"kind": "pinhole"})
-    truth = SyntheticTruth(c, local, scale, rot, trans, {"front": cam, "mirror": mcam}, clean,
+    truth = SyntheticTruth(*head, {"front": cam, "mirror": mcam}, clean,
                            planes={"mirror": plane})
     return LandmarkCase(views, "<synthetic>"), truth
 

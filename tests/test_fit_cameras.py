@@ -323,16 +323,23 @@ def with_passpoints(model, case, truth, name, keep):
     return case, fit_dlt(xyz, uv, view.size).camera
 
 
+def fit_with_passpoints(model, case, truth, name, keep):
+    """Fit ``with_passpoints(...)``'s case after checking the file accepts it; the fitted
+    camera of ``name`` must stay the passpoints' DLT (too few landmarks to refine it).
+    Returns (the case fitted, the FitResult)."""
+    case, dlt = with_passpoints(model, case, truth, name, keep)
+    assert check_case(case) == []
+    res = fit_head(model, case)
+    pts = truth.world_vertices[model.skin][::200]
+    np.testing.assert_allclose(res.cameras[name].project(pts), dlt.project(pts), atol=1e-9)
+    return case, res
+
+
 def test_a_passpoint_camera_needs_few_landmarks(model):
     # the file exempts a view with passpoints from the per-view floor; so does the fit,
     # and the camera stays the passpoints' DLT (too few landmarks to refine it)
     case, truth = make_perspective_case(model, 7, n_views=2)
-    few, dlt = with_passpoints(model, case, truth, "photo1", 2)
-    assert check_case(few) == []
-    res = fit_head(model, few)
-    pts = truth.world_vertices[model.skin][::200]
-    np.testing.assert_allclose(res.cameras["photo1"].project(pts), dlt.project(pts),
-                               atol=1e-9)
+    _, res = fit_with_passpoints(model, case, truth, "photo1", 2)
     assert len(res.residuals["photo1"].names) == 2
     assert res.info["rms_px"]["photo1"] < 3.0 and res.info["warnings"] == []
     assert skin_error_mm(model, res.local_vertices, truth) < \
@@ -341,12 +348,7 @@ def test_a_passpoint_camera_needs_few_landmarks(model):
 
 def test_a_passpoint_view_without_landmarks_is_skipped_with_a_warning(model):
     case, truth = make_perspective_case(model, 7, n_views=3)
-    none, dlt = with_passpoints(model, case, truth, "photo2", 0)
-    assert check_case(none) == []
-    res = fit_head(model, none)
-    pts = truth.world_vertices[model.skin][::200]
-    np.testing.assert_allclose(res.cameras["photo2"].project(pts), dlt.project(pts),
-                               atol=1e-9)
+    none, res = fit_with_passpoints(model, case, truth, "photo2", 0)
     assert res.residuals["photo2"].names == [] and res.residuals["photo2"].pixels.size == 0
     assert [w for w in res.info["warnings"] if "'photo2'" in w and "no usable" in w]
     assert skin_error_mm(model, res.local_vertices, truth) < 1.6
@@ -380,8 +382,7 @@ def test_refit_says_anew_which_views_it_skips(model):
     # a view the full fit skipped (no landmark) is no longer reported as skipped once a
     # landmark is dragged onto it; the full fit's other warnings are kept
     case, truth = make_perspective_case(model, 7, n_views=3)
-    none, _ = with_passpoints(model, case, truth, "photo2", 0)
-    res = fit_head(model, none)
+    none, res = fit_with_passpoints(model, case, truth, "photo2", 0)
     skip = [w for w in res.info["warnings"] if "'photo2'" in w and "no usable" in w]
     assert skip
     res.info["refit_state"]["warnings"] = ["kept from the full fit"]

@@ -84,6 +84,24 @@ def doc(names):
     return make_doc(names)
 
 
+def assert_rejected(doc, pattern):
+    """Parsing ``doc`` as case.json fails with a message matching ``pattern`` (re.search)."""
+    with pytest.raises(ValueError, match=pattern):
+        parse_landmarks(doc, "case.json")
+
+
+def load_written(path, doc):
+    """Write ``doc`` as JSON to ``path`` and load it as a case."""
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    return load_landmarks(path)
+
+
+def save_and_load(case, path):
+    """Save ``case`` to ``path`` and load it back."""
+    save_landmarks(case, path)
+    return load_landmarks(path)
+
+
 def parse_error(doc, source="case.json", **kw):
     with pytest.raises(ValueError) as info:
         parse_landmarks(doc, source, **kw)
@@ -201,8 +219,7 @@ def test_unknown_landmark_suggests_the_closest_name(doc, typo, name):
 
 def test_unknown_ibug_number(doc):
     doc["views"]["front"]["points"]["ibug99"] = [10.0, 10.0]
-    with pytest.raises(ValueError, match=r"case.json: views.front.points.ibug99: unknown "):
-        parse_landmarks(doc, "case.json")
+    assert_rejected(doc, r"case.json: views.front.points.ibug99: unknown ")
 
 
 @pytest.mark.parametrize("view,key,pattern", [
@@ -212,49 +229,42 @@ def test_unknown_ibug_number(doc):
 ])
 def test_missing_field(doc, view, key, pattern):
     del doc["views"][view][key]
-    with pytest.raises(ValueError, match=pattern):
-        parse_landmarks(doc, "case.json")
+    assert_rejected(doc, pattern)
 
 
 def test_missing_top_level_fields(doc):
     for key in ("views", "format", "version"):
         d = copy.deepcopy(doc)
         del d[key]
-        with pytest.raises(ValueError, match=rf"case\.json: .*{key}"):
-            parse_landmarks(d, "case.json")
+        assert_rejected(d, rf"case\.json: .*{key}")
 
 
-def test_wrong_types(doc, names):
-    d = copy.deepcopy(doc)
-    d["views"]["front"]["points"][names[1]] = [12.0, "540"]
-    with pytest.raises(ValueError, match=rf"case\.json: views\.front\.points\.{names[1]}\[1\]: "
-                                         r"expected a number, got string"):
-        parse_landmarks(d, "case.json")
-    d = copy.deepcopy(doc)
-    d["views"]["side"]["size"] = [768.5, 1024]
-    with pytest.raises(ValueError, match=r"views\.side\.size\[0\]: expected an integer"):
-        parse_landmarks(d, "case.json")
-    d = copy.deepcopy(doc)
-    d["views"]["side"]["points"][names[0]] = [1.0, 2.0, 3.0]
-    with pytest.raises(ValueError, match=rf"views\.side\.points\.{names[0]}: expected at most "
-                                         "2 items"):
-        parse_landmarks(d, "case.json")
-    d = copy.deepcopy(doc)
-    d["views"]["front"]["points"] = [[1, 2]]
-    with pytest.raises(ValueError, match=r"views\.front\.points: expected an object, got array"):
-        parse_landmarks(d, "case.json")
-    d = copy.deepcopy(doc)
-    d["views"]["front"]["size"] = [True, 1024]  # JSON true is not a number
-    with pytest.raises(ValueError, match=r"views\.front\.size\[0\]: expected an integer, "
-                                         "got boolean"):
-        parse_landmarks(d, "case.json")
+@pytest.mark.parametrize("view,key,landmark,value,pattern", [
+    ("front", "points", 1, [12.0, "540"],
+     r"case\.json: views\.front\.points\.<name>\[1\]: expected a number, got string"),
+    ("side", "size", None, [768.5, 1024], r"views\.side\.size\[0\]: expected an integer"),
+    ("side", "points", 0, [1.0, 2.0, 3.0],
+     r"views\.side\.points\.<name>: expected at most 2 items"),
+    ("front", "points", None, [[1, 2]], r"views\.front\.points: expected an object, got array"),
+    # JSON true is not a number
+    ("front", "size", None, [True, 1024],
+     r"views\.front\.size\[0\]: expected an integer, got boolean"),
+])
+def test_wrong_types(doc, names, view, key, landmark, value, pattern):
+    """A value of the wrong type, in a view's field or (``landmark``: index into ``names``)
+    one landmark of it; ``<name>`` in the pattern stands for that landmark."""
+    if landmark is None:
+        doc["views"][view][key] = value
+    else:
+        doc["views"][view][key][names[landmark]] = value
+        pattern = pattern.replace("<name>", names[landmark])
+    assert_rejected(doc, pattern)
 
 
 def test_unexpected_key_suggests_the_right_one(doc):
     doc["views"]["front"]["camrea"] = "orthographic-front"
-    with pytest.raises(ValueError, match=r"case\.json: views\.front\.camrea: unexpected key; "
-                                         r"did you mean 'camera'\?"):
-        parse_landmarks(doc, "case.json")
+    assert_rejected(doc, r"case\.json: views\.front\.camrea: unexpected key; "
+                         r"did you mean 'camera'\?")
 
 
 def test_x_keys_are_free_and_kept(doc):
@@ -269,9 +279,8 @@ def test_x_keys_are_free_and_kept(doc):
 @pytest.mark.parametrize("point,what", [([W + 0.5, 100.0], "u"), ([100.0, -0.01], "v")])
 def test_point_outside_the_image(doc, names, point, what):
     doc["views"]["front"]["points"][names[2]] = point
-    with pytest.raises(ValueError, match=rf"case\.json: views\.front\.points\.{names[2]}: "
-                                         rf"\(.*\) lies outside the {W}x{H} image"):
-        parse_landmarks(doc, "case.json")
+    assert_rejected(doc, rf"case\.json: views\.front\.points\.{names[2]}: "
+                         rf"\(.*\) lies outside the {W}x{H} image")
 
 
 def test_edges_of_the_image_are_inside(doc, names):
@@ -282,8 +291,7 @@ def test_edges_of_the_image_are_inside(doc, names):
 
 def test_contour_point_outside_the_image(doc):
     doc["views"]["side"]["contour"].append([10.0, H + 3.0])
-    with pytest.raises(ValueError, match=r"case\.json: views\.side\.contour\[3\]: .*outside"):
-        parse_landmarks(doc, "case.json")
+    assert_rejected(doc, r"case\.json: views\.side\.contour\[3\]: .*outside")
 
 
 def test_nan_and_infinity_are_rejected(tmp_path, doc, names):
@@ -296,26 +304,23 @@ def test_nan_and_infinity_are_rejected(tmp_path, doc, names):
                                          "not a finite number"):
         load_landmarks(path)
     doc["views"]["side"]["contour"][0] = [float("inf"), 1.0]
-    with pytest.raises(ValueError, match=r"views\.side\.contour\[0\]: not a finite number"):
-        parse_landmarks(doc, "case.json")
+    assert_rejected(doc, r"views\.side\.contour\[0\]: not a finite number")
 
 
 def test_duplicate_landmark_through_its_ibug_alias(doc, lms):
     number = sorted(lms.ibug)[0]
     canon = lms.ibug[number]
     doc["views"]["front"]["points"][f"ibug{number:02d}"] = [50.0, 60.0]
-    with pytest.raises(ValueError, match=rf"case\.json: views\.front\.points\.ibug{number:02d}: "
-                                         rf"the same landmark as '{canon}'"):
-        parse_landmarks(doc, "case.json")
+    assert_rejected(doc, rf"case\.json: views\.front\.points\.ibug{number:02d}: "
+                         rf"the same landmark as '{canon}'")
 
 
 def test_too_few_landmarks(doc, names):
     keep = names[:MIN_LANDMARKS_PER_VIEW - 1]
     doc["views"]["side"]["points"] = {n: doc["views"]["side"]["points"][n] for n in keep}
-    with pytest.raises(ValueError, match=rf"case\.json: views\.side\.points: {len(keep)} "
-                                         rf"landmarks; the fit needs at least "
-                                         rf"{MIN_LANDMARKS_PER_VIEW} per view"):
-        parse_landmarks(doc, "case.json")
+    assert_rejected(doc, rf"case\.json: views\.side\.points: {len(keep)} "
+                         rf"landmarks; the fit needs at least "
+                         rf"{MIN_LANDMARKS_PER_VIEW} per view")
     # work in progress is fine when not fitting
     assert parse_landmarks(doc, "case.json", for_fit=False).views["side"].points
 
@@ -324,46 +329,38 @@ def test_too_few_landmarks_in_all(doc):
     del doc["views"]["side"]
     pts = doc["views"]["front"]["points"]
     doc["views"]["front"]["points"] = dict(list(pts.items())[:MIN_LANDMARKS_TOTAL - 1])
-    with pytest.raises(ValueError, match=rf"case\.json: views: {MIN_LANDMARKS_TOTAL - 1} "
-                                         "landmarks in all; the fit needs at least"):
-        parse_landmarks(doc, "case.json")
+    assert_rejected(doc, rf"case\.json: views: {MIN_LANDMARKS_TOTAL - 1} "
+                         "landmarks in all; the fit needs at least")
 
 
 def test_bad_camera_string(doc):
     doc["views"]["side"]["camera"] = "orthographic-rigth"
-    with pytest.raises(ValueError, match=r"case\.json: views\.side\.camera: \"orthographic-rigth\""
-                                         r" is not one of .*did you mean 'orthographic-right'\?"):
-        parse_landmarks(doc, "case.json")
+    assert_rejected(doc, r"case\.json: views\.side\.camera: \"orthographic-rigth\""
+                         r" is not one of .*did you mean 'orthographic-right'\?")
     doc["views"]["side"]["camera"] = 3
-    with pytest.raises(ValueError, match=r"views\.side\.camera: 3 matches none of the allowed "
-                                         r"forms \(expected a string or an object\)"):
-        parse_landmarks(doc, "case.json")
+    assert_rejected(doc, r"views\.side\.camera: 3 matches none of the allowed "
+                         r"forms \(expected a string or an object\)")
 
 
 def test_bad_camera_object(doc):
     doc["views"]["front"]["camera"] = {"kind": "pinhole-from-mars"}
-    with pytest.raises(ValueError, match=r"case\.json: views\.front\.camera: unknown kind "
-                                         "'pinhole-from-mars'"):
-        parse_landmarks(doc, "case.json")
+    assert_rejected(doc, r"case\.json: views\.front\.camera: unknown kind "
+                         "'pinhole-from-mars'")
     doc["views"]["front"]["camera"] = {"kind": "orthographic", "scale": 1.0}
-    with pytest.raises(ValueError, match=r"views\.front\.camera: .*missing field"):
-        parse_landmarks(doc, "case.json")
+    assert_rejected(doc, r"views\.front\.camera: .*missing field")
     cam = OrthographicCamera.nominal("orthographic-front", (W + 2, H))
     doc["views"]["front"]["camera"] = cam.to_dict()
-    with pytest.raises(ValueError, match=r"views\.front\.camera: camera size \[770, 1024\] "
-                                         "differs from the view size"):
-        parse_landmarks(doc, "case.json")
+    assert_rejected(doc, r"views\.front\.camera: camera size \[770, 1024\] "
+                         "differs from the view size")
 
 
 def test_bad_version_and_format(doc):
     for version in (3, 0, "1", True, None):
         d = dict(doc, version=version)
-        with pytest.raises(ValueError, match=r"case\.json: version: unsupported version .*reads "
-                                             "versions 1 and 2"):
-            parse_landmarks(d, "case.json")
+        assert_rejected(d, r"case\.json: version: unsupported version .*reads "
+                           "versions 1 and 2")
     d = dict(doc, format="headrecon-landmark-set")
-    with pytest.raises(ValueError, match=r"case\.json: format: expected 'headrecon-landmarks'"):
-        parse_landmarks(d, "case.json")
+    assert_rejected(d, r"case\.json: format: expected 'headrecon-landmarks'")
     with pytest.raises(ValueError, match=r"case\.json: expected a JSON object"):
         parse_landmarks([doc], "case.json")
 
@@ -385,8 +382,7 @@ def test_all_problems_are_listed(doc, names):
 def test_view_names_with_spaces_are_quoted_in_paths(doc):
     doc["views"]["left side"] = doc["views"].pop("side")
     doc["views"]["left side"]["points"]["bogus"] = [1.0, 1.0]
-    with pytest.raises(ValueError, match=r'case\.json: views\["left side"\]\.points\.bogus: '):
-        parse_landmarks(doc, "case.json")
+    assert_rejected(doc, r'case\.json: views\["left side"\]\.points\.bogus: ')
 
 
 # --------------------------------------------------------------------------------------
@@ -421,12 +417,9 @@ def test_utf8_bom_and_unicode_view_names(tmp_path, doc):
 
 
 def test_round_trip(tmp_path, doc):
-    src = tmp_path / "case.json"
-    src.write_text(json.dumps(doc), encoding="utf-8")
-    a = load_landmarks(src)
+    a = load_written(tmp_path / "case.json", doc)
     out = tmp_path / "again.json"
-    save_landmarks(a, out)
-    b = load_landmarks(out)
+    b = save_and_load(a, out)
     assert a == b
     assert landmarks_to_dict(b) == doc
     assert json.loads(out.read_text(encoding="utf-8")) == doc
@@ -441,21 +434,17 @@ def test_round_trip(tmp_path, doc):
 
 def test_saving_elsewhere_keeps_images_pointing_at_the_photos(tmp_path, doc):
     (tmp_path / "shoot").mkdir()
-    src = tmp_path / "shoot" / "case.json"
-    src.write_text(json.dumps(doc), encoding="utf-8")
-    case = load_landmarks(src)
+    case = load_written(tmp_path / "shoot" / "case.json", doc)
     out = tmp_path / "work" / "copy.json"
     out.parent.mkdir()
-    save_landmarks(case, out)
-    again = load_landmarks(out)
+    again = save_and_load(case, out)
     assert again.views["front"].image == "../shoot/front.jpg"
     assert again.image_path("front").resolve() == (tmp_path / "shoot" / "front.jpg").resolve()
 
 
 def test_save_is_atomic_and_refuses_bad_cases(tmp_path, doc, monkeypatch):
     path = tmp_path / "case.json"
-    path.write_text(json.dumps(doc), encoding="utf-8")
-    case = load_landmarks(path)
+    case = load_written(path, doc)
     before = path.read_bytes()
     case.views["front"].points["not_a_landmark"] = (1.0, 1.0)
     with pytest.raises(ValueError, match=r"case\.json: views\.front\.points\.not_a_landmark"):
@@ -822,12 +811,9 @@ def test_version2_document_parses(doc2, names, lms):
 
 
 def test_version2_round_trip(tmp_path, doc2):
-    src = tmp_path / "case2.json"
-    src.write_text(json.dumps(doc2), encoding="utf-8")
-    a = load_landmarks(src)
+    a = load_written(tmp_path / "case2.json", doc2)
     out = tmp_path / "again.json"
-    save_landmarks(a, out)
-    b = load_landmarks(out)
+    b = save_and_load(a, out)
     assert a == b and b.version == 2
     # the file comes back as written: camera numbers are not recomputed (a DLT's b-form
     # would move by a rounding error), passpoints and v2 keys are kept
@@ -839,8 +825,7 @@ def test_version2_round_trip(tmp_path, doc2):
     uv = b.passpoint_arrays("left_mirror")
     b.views["left_mirror"].camera = fit_dlt(uv[1], uv[2], (W, H)).camera
     b.views["left_mirror"].calibrated = True
-    save_landmarks(b, out)
-    c = load_landmarks(out)
+    c = save_and_load(b, out)
     cam = c.views["left_mirror"].camera
     assert isinstance(cam, DLTCamera) and cam.is_mirrored and c.views["left_mirror"].camera_fixed
     np.testing.assert_allclose(cam.project(HEAD), b.views["left_mirror"].camera.project(HEAD),
@@ -852,8 +837,7 @@ def test_version2_round_trip(tmp_path, doc2):
 
 def test_version1_files_load_and_save_unchanged(tmp_path, doc):
     src = tmp_path / "case.json"
-    src.write_text(json.dumps(doc), encoding="utf-8")
-    case = load_landmarks(src)
+    case = load_written(src, doc)
     assert case.version == 1 and case.passpoints == {}
     for view in case.views.values():  # the version-2 fields keep their defaults
         assert view.calibrated is None and view.mirror_of is None and view.passpoints == {}
@@ -867,9 +851,7 @@ def test_version1_files_load_and_save_unchanged(tmp_path, doc):
     assert '"version": 1,' in out.read_text(encoding="utf-8")
     # camera objects were allowed in version 1 and keep the file at version 1
     doc["views"]["side"]["camera"] = v2_cameras()["three_quarter"].to_dict()
-    src.write_text(json.dumps(doc), encoding="utf-8")
-    case = load_landmarks(src)
-    save_landmarks(case, out)
+    save_landmarks(load_written(src, doc), out)
     assert json.loads(out.read_text(encoding="utf-8")) == doc
 
 

@@ -1,0 +1,165 @@
+"""Outline candidates in the fit (solver/fit.py, solver/fit_engine.py): a value each
+approach finds on its own head and hands to the problems it builds, never state left on
+the shared views."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from solver import fit
+from solver.fit import FitOptions, fit_head
+from solver.fit_engine import Engine, State, ViewData
+from solver.synthetic import make_case, make_perspective_case, resample_polyline, trace_silhouette
+
+
+@pytest.fixture
+def found(monkeypatch):
+    """Every call of ``fit.view_outline``: (view name, state it was given, candidates)."""
+    seen = []
+    real = fit.view_outline
+
+    def record(model, eng, state, view, *args, **kwargs):
+        out = real(model, eng, state, view, *args, **kwargs)
+        seen.append((view.name, state.copy(), out))
+        return out
+
+    monkeypatch.setattr(fit, "view_outline", record)
+    return seen
+
+
+@pytest.fixture
+def joints(monkeypatch):
+    """Every Joint the engine builds, in order."""
+    made = []
+    real = Engine.joint
+
+    def record(self, *args, **kwargs):
+        made.append(real(self, *args, **kwargs))
+        return made[-1]
+
+    monkeypatch.setattr(Engine, "joint", record)
+    return made
+
+
+def _contour_candidates(joint):
+    """view name -> candidate vertices of its contour rows in ``joint``."""
+    return {v.name: joint.orig[rows.vertices] for v, kind, rows in joint.groups
+            if kind == "contour"}
+
+
+def _start(model, case, opts):
+    """The engine and the state fit_head starts from (mean head, cameras placed)."""
+    views, _ = fit._prepare_views(model, case, opts)
+    eng = fit._engine(model, views, opts)
+    state = State(np.eye(3), np.zeros(eng.lin.n_coeffs), {v.name: v.camera for v in views})
+    fit._init_pose(eng, state)
+    eng.init_cameras(state)
+    eng.finish_views(state)
+    return eng, state
+
+
+def _front_outline_case(model, seed):
+    """Orthographic front and profile photos, both with a traced outline: the front's is
+    matched to candidates of its own, the profile's to the midline's."""
+    case, truth = make_case(model, seed, noise_px=1.0)
+    rng = np.random.default_rng(seed)
+    traced = trace_silhouette(model, truth.world_vertices, truth.cameras["front"])
+    c = resample_polyline(traced, 100)
+    case.views["front"].contour = c + rng.normal(size=c.shape)
+    return case
+
+
+def test_views_hold_no_outline_candidates():
+    assert "outline" not in {f.name for f in dataclasses.fields(ViewData)}
+
+
+def test_fit_finds_each_outline_once_on_the_staged_head_and_fits_with_it(model, found,
+                                                                         joints, monkeypatch):
+    engines = []
+    real_engine = fit._engine
+
+    def engine(*args):
+        engines.append(real_engine(*args))
+        return engines[-1]
+
+    monkeypatch.setattr(fit, "_engine", engine)
+    case, _ = make_perspective_case(model, 1000, n_views=2, calibrated=True, contour=True)
+    res = fit_head(model, case)
+    # Once per photo, where approach 1 uses them: after its landmarks-only stage, so on a
+    # head that is no longer the mean head (no set found on the mean head and dropped).
+    assert sorted(name for name, _, _ in found) == sorted(case.views)
+    staged = {name: (state, cand) for name, state, cand in found}
+    for state, _ in staged.values():
+        assert np.abs(state.coeffs).max() > 0.1
+    # The landmarks-only stage has no contour rows; the problem after it, the one the
+    # result is computed with, matches each outline among exactly those candidates.
+    assert _contour_candidates(joints[0]) == {}
+    last = _contour_candidates(joints[-1])
+    assert set(last) == set(case.views)
+    for name, (state, cand) in staged.items():
+        np.testing.assert_array_equal(last[name], cand[0])
+        used = res.info["refit_state"]["contour"][name]["vertices"]
+        assert len(used) and np.isin(used, cand[0]).all()
+        # ... which are not the mean head's (same pose and cameras, coefficients 0)
+        mean = State(state.rotation, np.zeros_like(state.coeffs), state.cameras,
+                     state.scale, state.translation)
+        on_mean = fit.view_outline(model, engines[0], mean, engines[0].view(name))[0]
+        assert not np.array_equal(on_mean, cand[0])
+    # Nothing about outlines is left on the engine's views.
+    assert len(engines) == 1
+    for v in engines[0].views:
+        assert not hasattr(v, "outline")
+
+
+def test_each_approach_finds_outlines_on_its_own_head(model, found):
+    case = _front_outline_case(model, 1000)
+    opts = FitOptions()
+    eng, state = _start(model, case, opts)
+    state_p, _ = fit._profile_fit(eng, state, opts)
+    eng.use(state_p)
+    _, out1 = fit._approach1(model, eng, state_p.copy(), opts)
+    # approach 1: the front's candidates (not the profile's: it keeps the midline's),
+    # found after its landmarks-only stage
+    assert [name for name, _, _ in found] == ["front"]
+    assert not np.array_equal(found[0][1].coeffs, state_p.coeffs)
+    assert out1["outlines"]["front"] is found[0][2]
+    np.testing.assert_array_equal(_contour_candidates(out1["joint"])["front"],
+                                  found[0][2][0])
+    np.testing.assert_array_equal(_contour_candidates(out1["joint"])["right"], eng.outline)
+    # approach 2 on the same engine does not inherit them: it finds its own on the head
+    # it starts from
+    found.clear()
+    eng.use(state_p)
+    _, out2 = fit._approach2(eng, model, state_p.copy(), opts)
+    assert [name for name, _, _ in found] == ["front"]
+    np.testing.assert_array_equal(found[0][1].coeffs, state_p.coeffs)
+    assert out2["outlines"]["front"] is found[0][2]
+    assert not np.array_equal(out2["outlines"]["front"][0], out1["outlines"]["front"][0])
+
+
+def test_a_problem_uses_the_outlines_it_is_given(model):
+    case, _ = make_perspective_case(model, 3, n_views=2, calibrated=True, contour=True)
+    opts = FitOptions()
+    views, _ = fit._prepare_views(model, case, opts)
+    eng = fit._engine(model, views, opts)
+    state = State(np.eye(3), np.zeros(eng.lin.n_coeffs), {v.name: v.camera for v in views})
+    own = fit.view_outline(model, eng, state, eng.view("photo0"))
+    assert 0 < len(own[0]) and not np.array_equal(own[0], eng.outline)
+    # without outlines every contour uses the profile's candidates
+    plain = _contour_candidates(eng.joint(eng.views))
+    assert set(plain) == {"photo0", "photo1"}
+    for cand in plain.values():
+        np.testing.assert_array_equal(cand, eng.outline)
+    given = eng.joint(eng.views, outlines={"photo0": own})
+    cands = _contour_candidates(given)
+    np.testing.assert_array_equal(cands["photo0"], own[0])
+    np.testing.assert_array_equal(cands["photo1"], eng.outline)
+    rows = {v.name: r for v, kind, r in given.groups if kind == "contour"}
+    np.testing.assert_array_equal(rows["photo0"].faces, own[1])
+    np.testing.assert_array_equal(rows["photo0"].edges, own[2])
+    # the problem keeps its own copy: changing the caller's dict changes nothing
+    outlines = {"photo0": own}
+    joint = eng.joint(eng.views, outlines=outlines)
+    outlines.clear()
+    assert set(joint.outlines) == {"photo0"}
