@@ -62,10 +62,6 @@ def similarity_projector(points):
     return q
 
 
-def _true_world(truth):
-    return truth.scale * truth.local_vertices @ truth.rotation.T + truth.translation
-
-
 def _landmark_vertices(model, view):
     return np.array([model.landmarks[n] for n in view.points], dtype=np.int64)
 
@@ -101,7 +97,7 @@ def outline_rows(model, case, truth, name, normals=None):
         near them are left out (where the outline crosses the neck's cut, say).
     """
     view, cam = case.views[name], truth.cameras[name]
-    world = _true_world(truth)
+    world = truth.world_vertices
     if normals is None:
         normals = vertex_normals(model, world)
     pts = resample_polyline(truth.contour[name], len(view.contour))
@@ -166,7 +162,7 @@ def information(model, case, truth, noise_px=1.0, *, outlines=True, pose=True,
     if not noise_px > 0:
         raise ValueError(f"noise_px: must be > 0, got {noise_px!r}")
     k = model.identity.basis.shape[0]
-    world = _true_world(truth)
+    world = truth.world_vertices
     centre = world[model.skin].mean(axis=0)
     normals = vertex_normals(model, world)
     columns = k + (7 if pose else 0)

@@ -97,7 +97,7 @@ def test_outline_rows_predict_the_traced_silhouette(model):
     rng = np.random.default_rng(2)
     step = 0.4 * rng.normal(size=k)
     moved_local = truth.local_vertices + np.einsum("k,kvj->vj", step, model.identity.basis)
-    world0 = truth.scale * truth.local_vertices @ truth.rotation.T + truth.translation
+    world0 = truth.world_vertices
     world1 = truth.scale * moved_local @ truth.rotation.T + truth.translation
     predicted = np.einsum("ni,ni->n", across, cam.project(world1[verts])
                           - cam.project(world0[verts]))
