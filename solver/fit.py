@@ -59,7 +59,6 @@ from .fit_engine import (
     State,
     ViewData,
     as_dlt,
-    densify,
     is_perspective,
     is_side_camera,
 )
@@ -113,8 +112,9 @@ class FitOptions:
     noise_px : float
         Standard deviation of landmark placement the weights assume, pixels.
     contour_weight : float
-        Weight of one contour row (one per 6 pixels of traced outline) relative to one
-        landmark.
+        Weight of one traced outline point relative to one landmark (a point that
+        stands for less than 6 pixels of outline weighs that much less; see
+        ``ContourRows``). 1: a point is placed as well as a landmark.
     contour_threshold_px : float
         Contour correspondences farther than this are dropped (thesis §4.4.1).
     landmark_weights : dict of str -> float, optional
@@ -154,7 +154,7 @@ class FitOptions:
     tolerance: float = 1e-4
     progress: Callable | None = None
     noise_px: float = 1.0
-    contour_weight: float = 0.3
+    contour_weight: float = 1.0
     contour_threshold_px: float = 20.0
     landmark_weights: dict | None = None
     fixed_cameras: tuple = ()
@@ -336,7 +336,9 @@ def _prepare_views(model, case, opts, cameras=None):
             c = np.asarray(view.contour, dtype=np.float64)
             if not np.isfinite(c).all():
                 raise ValueError(f"{where}: contour has a point that is not finite")
-            contour = densify(c, 1.0)
+            if len(np.unique(c.reshape(-1, 2), axis=0)) < 2:
+                raise ValueError(f"{where}: contour needs at least 2 distinct points")
+            contour = c.reshape(-1, 2)
         side = cam is not None and is_side_camera(cam)
         data = ViewData(name, cam, names, np.array(verts, dtype=np.int64),
                         np.array(px, dtype=np.float64).reshape(-1, 2), w, side, contour,
@@ -1023,7 +1025,7 @@ def outline_candidates(model, max_x=0.05, max_normal_x=0.4):
     return out
 
 
-def view_outline(model, eng, state, view, max_normal=0.4, margin=3.0):
+def view_outline(model, eng, state, view, max_normal=0.6, margin=3.0):
     """Outline candidates of a photo that is not an orthographic profile (a front or
     three-quarter view, a perspective photo at any angle): skin vertices of the head at
     ``state``, seen through the view's camera in ``state``, whose (mean-head) normals face
@@ -1031,6 +1033,9 @@ def view_outline(model, eng, state, view, max_normal=0.4, margin=3.0):
     toward the camera) and that project within ``margin`` times the contour threshold of
     the traced outline (which leaves out the inner folds: the sides of the nose, the eye
     sockets), with their mesh; ``ContourRows`` finds the outline among them each round.
+    The normals are the mean head's, turned with the head: a wide band (|n . t| < 0.6,
+    about 37 degrees either side of the rim) so that the true rim of another identity,
+    not only of the mean, is among the candidates.
 
     Returns
     -------

@@ -66,7 +66,7 @@ class ViewData:
     side : bool
         The camera looks along the head's left-right axis (a profile photo).
     contour : ndarray, shape (m, 2) or None
-        The traced outline densified to about one point per pixel.
+        The traced outline's points, as placed.
     refit : bool
         Whether the fit may change this camera (False for a mirror view: its camera
         follows the real camera and the mirror plane).
@@ -320,18 +320,6 @@ def refit_plane(real, plane, points, pixels, weights, iterations=10):
     return plane
 
 
-def densify(polyline, step=1.0):
-    """Points along a polyline about ``step`` pixels apart (vertices kept), (m, 2)."""
-    p = np.asarray(polyline, dtype=np.float64)
-    if len(p) < 2:
-        return p.copy()
-    seg = np.diff(p, axis=0)
-    n = np.maximum(np.ceil(np.linalg.norm(seg, axis=1) / step).astype(int), 1)
-    t = np.concatenate([np.arange(k) / k for k in n])
-    i = np.repeat(np.arange(len(seg)), n)
-    return np.vstack([p[i] + t[:, None] * seg[i], p[-1:]])
-
-
 _SLICES = {}
 
 
@@ -348,71 +336,81 @@ def _slice_cache(lin):
 
 # Outline rows are always kept within this many sigmas of the placement noise.
 CONTOUR_KEEP_SIGMAS = 3.0
+# An outline point's normal comes from the outline this many pixels either side of it.
+_NORMAL_SPAN_PX = 10.0
 
 
 class ContourRows(CameraRows):
-    """Profile-line rows (thesis §4.4.1): the model's outline in a photo pulled onto the
-    traced outline.
+    """Profile-line rows (thesis §4.4.1): each traced outline point pulled onto the model's
+    outline in the photo.
 
-    The model's outline is not a fixed set of vertices: the midsagittal profile is the
-    silhouette only of a symmetric head seen exactly from the side; the brows, the nose's
-    wings or the sides of the neck stick out beyond it, and a turned head shows other
-    vertices. So ``vertices`` are candidates (vertices near the midline whose normals face
-    roughly across the viewing direction), and every update finds the model's outline
-    among them:
+    The model's outline is the silhouette of the posed mesh: the projection of its rim,
+    the edges between a triangle facing the camera and one facing away. It is not a fixed
+    set of vertices (the brows, the nose's wings or the sides of the neck stick out beyond
+    the midsagittal profile, and a turned head shows other vertices), so ``vertices`` are
+    candidates (vertices whose normals face roughly across the viewing direction), and
+    every update finds the rim among their triangles anew.
 
-    1. the rim: candidates on an edge between a triangle facing the camera and one facing
-       away (the contour generator of the posed head);
-    2. the traced outline is cut into bins of ``bin_px`` pixels of arc length; each rim
-       vertex belongs to the bin of its nearest traced point, and per bin the one farthest
-       outward (along the outline's outward normal) is the model's outline there (a rim
-       hidden behind another, e.g. the midline under the brows, loses).
+    One row per traced point q (the data, not the model, gives the rows: a point the artist
+    placed is one measurement with its own error, while a line joining two of them cuts
+    every bend of the head's outline, by up to 2 px at the nose or the chin when they are
+    15 px apart). The line through q along the outline's outward normal n crosses the
+    projected rim edges; the outermost crossing is the silhouette there (a rim hidden
+    behind another, e.g. the midline under the brows, lies inside). It lies on an edge
+    (a, b) at a fraction t, and the row is ``w (n . (q - ((1 - t) P(x_a) + t P(x_b))))^2``:
+    across the outline is what one point measures; along it the silhouette may slide.
 
-    Each chosen vertex gives one point-to-line row ``w (n . (q - P(x)))^2`` with q its
-    nearest traced point and n the normal there: across the outline is what a nearest
-    point measures; along it the vertex may slide.
+    Points without a crossing within ``max_distance`` pixels get no row, nor do those
+    farther than ``reject_factor`` times the median distance (but never below
+    ``keep_distance``): once the fit is close, that trims the points the mesh cannot follow
+    (an ear's notch, hair, a tracing that cut a corner); kept, they pull the head out of
+    shape to close a gap that is not noise.
 
-    Vertices whose nearest traced point is one of the outline's ends are left out (they
-    lie beyond what was traced, e.g. the neck below where the tracing stopped), as are
-    those farther than ``max_distance`` pixels, or than ``reject_factor`` times the median
-    (but never below ``keep_distance``). Once the fit is close, that trims the rows where
-    the mesh cannot follow the tracing (an ear's notch, a corner the tracing cut): kept,
-    they pull the head out of shape to close a gap that is not noise; trimmed at 3 sigma
-    and 3 x the median, a fit from two perspective photos lands 8 % closer to the true
-    head.
+    A point weighs ``weights`` when it stands for at least ``spacing_px`` of outline (half
+    the way to each neighbour), less when the points are denser: a hand-drawn stroke
+    wobbles over a few pixels, so its many close points are not many measurements.
 
     Parameters
     ----------
     vertices : array_like of int, shape (n,)
     pixels : array_like, shape (m, 2)
-        The traced outline densified to about one point per pixel, in drawing order.
+        The traced outline's points in drawing order, as placed (not densified).
     camera : Camera
     weights : float
-        Weight of one row.
-    faces : ndarray, shape (F, 3), optional
+        Weight of one point.
+    faces : ndarray, shape (F, 3)
         Triangles among the candidates (indices into ``vertices``).
-    edges : ndarray, shape (E, 4), optional
+    edges : ndarray, shape (E, 4)
         Edges shared by two of those triangles: (vertex a, vertex b, face 1, face 2).
-        Without faces and edges every candidate counts as rim.
-    max_distance, reject_factor, keep_distance, end_margin, bin_px : float
+    max_distance, reject_factor, keep_distance, spacing_px : float
     name : str
     """
 
     def __init__(self, vertices, pixels, camera, weights=1.0, faces=None, edges=None,
-                 max_distance=20.0, reject_factor=3.0, keep_distance=3.0, end_margin=3.0,
-                 bin_px=6.0, name="contour"):
+                 max_distance=20.0, reject_factor=3.0, keep_distance=3.0, spacing_px=6.0,
+                 name="contour"):
         self.name = name
         self.vertices = np.asarray(vertices, dtype=np.intp)
         self.camera = camera
         self.weight = float(weights)
-        self.faces = None if faces is None else np.asarray(faces, dtype=np.intp)
-        self.edges = None if edges is None else np.asarray(edges, dtype=np.intp)
+        if faces is None or edges is None:
+            raise ValueError(f"{name}: the outline candidates need their faces and edges")
+        self.faces = np.asarray(faces, dtype=np.intp).reshape(-1, 3)
+        self.edges = np.asarray(edges, dtype=np.intp).reshape(-1, 4)
         p = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+        if len(p):  # a point placed twice is one point
+            p = p[np.concatenate([[True], np.any(np.diff(p, axis=0) != 0, axis=1)])]
         if len(p) < 2:
-            raise ValueError(f"{name}: the outline needs at least 2 points")
+            raise ValueError(f"{name}: the outline needs at least 2 distinct points")
         self.pixels = p
         self.tree = cKDTree(p)
-        tangent = np.gradient(p, axis=0)
+        seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        arc = np.concatenate([[0.0], np.cumsum(seg)])
+        # Normals from the outline 10 px either side: a dense stroke's neighbours are too
+        # close to give a direction through their placement noise.
+        ahead = np.stack([np.interp(arc + _NORMAL_SPAN_PX, arc, p[:, k]) for k in (0, 1)], 1)
+        behind = np.stack([np.interp(arc - _NORMAL_SPAN_PX, arc, p[:, k]) for k in (0, 1)], 1)
+        tangent = ahead - behind
         normal = np.stack([tangent[:, 1], -tangent[:, 0]], axis=1)
         normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
         # Outward: away from the middle of what the outline encloses (it runs around the
@@ -420,34 +418,33 @@ class ContourRows(CameraRows):
         if float(np.einsum("ij,ij->", normal, p - p.mean(axis=0))) < 0:
             normal = -normal
         self.normals = normal
-        d0 = np.linalg.norm(p - p[0], axis=1)
-        d1 = np.linalg.norm(p - p[-1], axis=1)
-        self._at_end = (d0 <= end_margin) | (d1 <= end_margin)
-        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
-        self._bin = (arc // float(bin_px)).astype(np.int64)
+        share = np.zeros(len(p))
+        share[:-1] += seg / 2.0
+        share[1:] += seg / 2.0
+        self.point_weights = self.weight * np.minimum(1.0, share / float(spacing_px))
         self.max_distance = float(max_distance)
         self.reject_factor = reject_factor
         self.keep_distance = float(keep_distance)
-        self.selected = np.zeros(0, np.intp)  # candidate indices of the rows
-        self.targets = np.zeros((0, 2))
-        self.row_normals = np.zeros((0, 2))
+        self.points = np.zeros(0, np.intp)  # traced point of each row
+        self.ends = np.zeros((0, 2), np.intp)  # candidate indices of its rim edge
+        self.fractions = np.zeros(0)  # t along that edge
         self._updated = False
         self._last = None  # (camera, world) of the last update
 
+    @property
+    def selected(self):
+        """The candidate nearer each row's silhouette point, (k,)."""
+        return np.where(self.fractions < 0.5, self.ends[:, 0], self.ends[:, 1])
+
     def rim(self, world):
-        """Indices of the candidates on the contour generator of the posed head."""
-        if self.faces is None or self.edges is None:
-            return np.arange(len(world))
+        """Edges (a, b) among the candidates on the contour generator of the posed head,
+        (E', 2) candidate indices."""
         f = self.faces
         a, b, c = world[f[:, 0]], world[f[:, 1]], world[f[:, 2]]
         normal = np.cross(b - a, c - a)
         toward = np.asarray(self.camera.toward_camera((a + b + c) / 3.0), dtype=np.float64)
         facing = np.einsum("ij,ij->i", normal, toward) > 0
-        e = self.edges[facing[self.edges[:, 2]] != facing[self.edges[:, 3]]]
-        mask = np.zeros(len(world), bool)
-        mask[e[:, 0]] = True
-        mask[e[:, 1]] = True
-        return np.flatnonzero(mask)
+        return self.edges[facing[self.edges[:, 2]] != facing[self.edges[:, 3]], :2]
 
     def update(self, world):
         # The same head through the same camera again (a cost evaluation, then the next
@@ -457,61 +454,88 @@ class ContourRows(CameraRows):
                 and np.abs(last[1] - world).max(initial=0.0) < 1e-12:
             return
         self._last = (self.camera, world.copy())
-        rim = self.rim(world)
-        proj = self.camera.project(world[rim])
-        dist, j = self.tree.query(proj, distance_upper_bound=self.max_distance)
-        ok = np.isfinite(dist)
-        j = np.where(ok, j, 0)
-        ok &= ~self._at_end[j]
-        cand = rim[ok]
-        jc = j[ok]
-        out = np.einsum("ij,ij->i", proj[ok] - self.pixels[jc], self.normals[jc])
-        # per bin the outermost candidate (ties: the first)
-        b = self._bin[jc]
-        top = np.full(int(self._bin[-1]) + 1, -np.inf)
-        np.maximum.at(top, b, out)
-        win = np.flatnonzero(out >= top[b])
-        _, first = np.unique(b[win], return_index=True)
-        pick = win[first]
-        sel, off = cand[pick], np.abs(out[pick])
-        if self.reject_factor is not None and len(off):
-            limit = max(self.reject_factor * float(np.median(off)), self.keep_distance)
-            keep = off <= limit
-            sel, pick = sel[keep], pick[keep]
-        self.selected = sel
-        self.targets = self.pixels[jc[pick]]
-        self.row_normals = self.normals[jc[pick]]
+        e = self.rim(world)
+        points, ends, frac = np.zeros(0, np.intp), np.zeros((0, 2), np.intp), np.zeros(0)
+        if len(e):
+            used, inv = np.unique(e, return_inverse=True)
+            proj = self.camera.project(world[used])
+            a, b = proj[inv.reshape(-1, 2)[:, 0]], proj[inv.reshape(-1, 2)[:, 1]]
+            d = b - a
+            # Edges whose middle is within reach of a point (max_distance plus the longest
+            # half edge), as flat (point, edge) pairs.
+            reach = self.max_distance + 0.5 * float(np.linalg.norm(d, axis=1).max())
+            near = self.tree.sparse_distance_matrix(cKDTree(a + 0.5 * d), reach,
+                                                    output_type="ndarray")
+            pi, ei = near["i"].astype(np.intp), near["j"].astype(np.intp)
+            q, n = self.pixels[pi], self.normals[pi]
+            # q + s n = a + t d  (2-D cross products)
+            den = d[ei, 0] * n[:, 1] - d[ei, 1] * n[:, 0]
+            ok = np.abs(den) > 1e-12
+            den = np.where(ok, den, 1.0)
+            qa = q - a[ei]
+            t = (qa[:, 0] * n[:, 1] - qa[:, 1] * n[:, 0]) / den
+            s = (qa[:, 0] * d[ei, 1] - qa[:, 1] * d[ei, 0]) / den
+            ok &= (t >= 0.0) & (t <= 1.0) & (np.abs(s) <= self.max_distance)
+            pi, ei, t, s = pi[ok], ei[ok], t[ok], s[ok]
+            # per point the outermost crossing (largest s)
+            order = np.lexsort((-s, pi))
+            first = order[np.concatenate([[True], pi[order][1:] != pi[order][:-1]])] \
+                if len(order) else order
+            points, ends, frac, off = pi[first], e[ei[first]], t[first], np.abs(s[first])
+            if self.reject_factor is not None and len(off):
+                limit = max(self.reject_factor * float(np.median(off)), self.keep_distance)
+                keep = off <= limit
+                points, ends, frac = points[keep], ends[keep], frac[keep]
+        self.points, self.ends, self.fractions = points, ends, frac
         self._updated = True
+
+    @property
+    def targets(self):
+        """The traced points of the rows, (k, 2) pixels."""
+        return self.pixels[self.points]
+
+    @property
+    def row_normals(self):
+        """The outline's outward normals at them, (k, 2)."""
+        return self.normals[self.points]
+
+    def _silhouette(self, world):
+        """The rows' silhouette points, (k, 2) pixels."""
+        if not len(self.points):
+            return np.zeros((0, 2))
+        t = self.fractions[:, None]
+        return (1.0 - t) * self.camera.project(world[self.ends[:, 0]]) \
+            + t * self.camera.project(world[self.ends[:, 1]])
 
     def block(self, world, jacobian=True):
         if not self._updated:
             self.update(world)
-        sel = self.selected
-        x = world[sel]
+        k = len(self.points)
         n = self.row_normals
-        r = np.einsum("ij,ij->i", self.targets - self.camera.project(x), n) if len(sel) \
-            else np.zeros(0)
-        w = np.full(len(sel), self.weight)
+        r = self.residuals(world)
+        w = self.point_weights[self.points]
         sq = float(w @ r**2)
         if not jacobian:
-            return ScalarRows(None, None, None, None, sq, float(w.sum()), len(sel))
-        jac = np.asarray(self.camera.jacobian(x), dtype=np.float64).reshape(len(sel), 2, 3)
-        g = np.einsum("ij,ijk->ik", n, jac)  # d(n . P(x)) / dx
-        return ScalarRows(sel, g, r, w, sq, float(w.sum()), len(sel))
+            return ScalarRows(None, None, None, None, sq, float(w.sum()), k)
+        t = self.fractions[:, None]
+        jac = np.asarray(self.camera.jacobian(world[self.ends.reshape(-1)]),
+                         dtype=np.float64).reshape(k, 2, 2, 3)
+        # d(n . silhouette point) / d(x_a, x_b)
+        g = np.einsum("ij,icjk->ick", n, jac) * np.concatenate([1.0 - t, t], axis=1)[..., None]
+        return ScalarRows(self.ends, g, r, w, sq, float(w.sum()), k)
 
     def residuals(self, world):
-        """Signed pixel distances across the outline of the current rows, (k,)."""
-        x = world[self.selected]
-        return np.einsum("ij,ij->i", self.targets - self.camera.project(x), self.row_normals)
+        """Signed pixel distances across the outline of the current rows, (k,): positive
+        where the traced point lies outside the model's silhouette."""
+        return np.einsum("ij,ij->i", self.targets - self._silhouette(world), self.row_normals)
 
     def pairs(self, world):
-        """(candidate indices, pixels) of the current rows, each pixel the foot of the
-        vertex's projection on the outline's tangent line (where the row pulls it), for a
-        camera refit consistent with this cost."""
-        x = world[self.selected]
-        proj = self.camera.project(x)
-        rn = np.einsum("ij,ij->i", self.targets - proj, self.row_normals)
-        return self.selected, proj + rn[:, None] * self.row_normals
+        """(candidate indices, pixels) of the current rows for a camera refit consistent
+        with this cost: each row's nearer edge end, and where the row pulls it (its
+        projection moved across the outline by the row's residual)."""
+        sel = self.selected
+        r = self.residuals(world)
+        return sel, self.camera.project(world[sel]) + r[:, None] * self.row_normals
 
 
 class StackedModel:

@@ -84,12 +84,13 @@ class ScalarRows:
 
     Attributes
     ----------
-    idx : ndarray of int, shape (m,), or None
-        Position of each row's vertex within the group; None: one row per vertex, in
-        order. None together with ``g``, ``r``, ``w`` when only the cost was asked for
-        (``block(..., jacobian=False)``).
-    g : ndarray, shape (m, 3) or None
-        Derivative of each row's prediction by its vertex's world position.
+    idx : ndarray of int, shape (m,) or (m, c), or None
+        Position of each row's vertex within the group, or of its ``c`` vertices when a
+        row's prediction depends on several (a point on an edge: ``c = 2``); None: one row
+        per vertex, in order. None together with ``g``, ``r``, ``w`` when only the cost
+        was asked for (``block(..., jacobian=False)``).
+    g : ndarray, shape (m, 3) or (m, c, 3), or None
+        Derivative of each row's prediction by its vertex's (vertices') world position.
     r : ndarray, shape (m,) or None
     w : ndarray, shape (m,) or None
     sq : float
@@ -1086,7 +1087,10 @@ class ShapeProblem:
             idx = blk.idx[keep]
             dense = False
         g, r, w = blk.g[keep], blk.r[keep], blk.w[keep]
-        a_s = np.einsum("mi,mij->mj", g, sj[idx])
+        if g.ndim == 3:  # rows on several vertices each (a point on an edge): terms summed
+            a_s = np.einsum("mci,mcij->mj", g, sj[idx])
+        else:
+            a_s = np.einsum("mi,mij->mj", g, sj[idx])
         a_sw = a_s * w[:, None]
         n_mat[:7, :7] += a_sw.T @ a_s
         b[:7] += a_sw.T @ r
@@ -1097,8 +1101,12 @@ class ShapeProblem:
                 sr = a_c * np.sqrt(w)
                 n_mat[7:, 7:] += sr @ sr.T  # A^T W A as one symmetric product (syrk)
                 prod = (a_c * w) @ np.column_stack([a_s, r])
-            else:  # few rows: gather contiguous (3, Ka) blocks per row
-                a_c = np.einsum("mi,mik->mk", h, pg.gather(idx))  # (m, Ka)
+            else:  # few rows: gather contiguous (3, Ka) blocks per row (and vertex)
+                if g.ndim == 2:
+                    h, idx = h[:, None], idx[:, None]
+                m, c = idx.shape
+                basis = pg.gather(idx.reshape(-1)).reshape(m, c, 3, -1)
+                a_c = np.einsum("mci,mcik->mk", h, basis)  # (m, Ka)
                 sr = a_c * np.sqrt(w)[:, None]
                 n_mat[7:, 7:] += sr.T @ sr
                 prod = (a_c * w[:, None]).T @ np.column_stack([a_s, r])

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from solver.cameras import OrthographicCamera
-from solver.fit import FitOptions, _engine, _prepare_views, fit_head
-from solver.fit_engine import CONTOUR_KEEP_SIGMAS, ContourRows, densify
+from solver.pinhole import PinholeCamera
+from solver.fit import FitOptions, _candidate_mesh, _engine, _prepare_views, fit_head
+from solver.fit_engine import CONTOUR_KEEP_SIGMAS, ContourRows
 from solver.procrustes import similarity_procrustes
 from solver.synthetic import make_perspective_case
 
@@ -15,36 +16,163 @@ from solver.synthetic import make_perspective_case
 CAMERA = OrthographicCamera(np.eye(3), 1000.0, (0.0, 0.0), (400, 400))
 
 
-def _line_rows(offsets_px, **kw):
-    """Rows of vertices one per 6-pixel bin along a traced horizontal line v = 100 (u from
-    0 to 300), each ``offsets_px`` below the line; returns (rows, world points)."""
-    u = 9.0 + 6.0 * np.arange(len(offsets_px))
-    world = np.stack([u, 100.0 + np.asarray(offsets_px, float), np.zeros_like(u)],
-                     axis=1) / 1000.0
-    line = densify(np.array([[0.0, 100.0], [300.0, 100.0]]), 1.0)
-    rows = ContourRows(np.arange(len(u)), line, CAMERA, **kw)
-    rows.update(world)
-    return rows, world
+def _tube(radius=0.05, around=16, rings=16, length=0.3, axis_y=0.05):
+    """A closed-around, open-ended tube along x (rings 20 px apart), its axis at
+    y = ``axis_y``: (vertices (V, 3), faces (F, 3), edges (E, 4)). Seen through CAMERA its
+    outline is the lines v = 1000 (axis_y +- radius), drawn by the edges along the top and
+    bottom vertex of each ring."""
+    th = 2 * np.pi * np.arange(around) / around
+    x = np.linspace(0.0, length, rings)
+    verts = np.stack([np.repeat(x, around), axis_y + radius * np.tile(np.cos(th), rings),
+                      radius * np.tile(np.sin(th), rings)], axis=1)
+    i, j = np.meshgrid(np.arange(rings - 1), np.arange(around), indexing="ij")
+    a, b = i * around + j, i * around + (j + 1) % around
+    c, d = a + around, b + around
+    faces = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3),
+                            np.stack([a, d, c], -1).reshape(-1, 3)])
+    return (verts, *_candidate_mesh_of(faces, len(verts)))
 
 
-def test_every_bin_gives_one_row_across_the_line():
-    rows, world = _line_rows([0.5, -0.4, 0.3, -0.6, 0.2])
-    np.testing.assert_array_equal(rows.selected, np.arange(5))
-    # signed distance across the line; the normal of a straight line is (0, -1)
-    np.testing.assert_allclose(np.abs(rows.residuals(world)), [0.5, 0.4, 0.3, 0.6, 0.2],
-                               atol=1e-9)
+def _candidate_mesh_of(faces, n):
+    half = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    owner = np.tile(np.arange(len(faces)), 3)
+    key = np.sort(half, axis=1) @ [n, 1]
+    order = np.argsort(key, kind="stable")
+    key, owner, half = key[order], owner[order], np.sort(half, axis=1)[order]
+    pair = np.flatnonzero(key[1:] == key[:-1])
+    edges = np.column_stack([half[pair], owner[pair], owner[pair + 1]])
+    return faces, edges
 
 
-def test_a_row_the_mesh_cannot_follow_is_trimmed_at_three_sigma():
+def _u_outline(top, bottom=(), u0=30.0, step=40.0):
+    """A traced outline running left along the tube's top (v = 100 + ``top`` offsets),
+    around its left end and right along its bottom (v = 0 - ``bottom`` offsets)."""
+    ut = u0 + step * np.arange(len(top))[::-1]
+    ub = u0 + step * np.arange(len(bottom))
+    top_pts = np.stack([ut, 100.0 + np.asarray(top, float)[::-1]], 1)
+    end = np.array([[5.0, 80.0], [0.0, 50.0], [5.0, 20.0]])
+    bottom_pts = np.stack([ub, 0.0 - np.asarray(bottom, float)], 1).reshape(-1, 2)
+    return np.vstack([top_pts, end, bottom_pts])
+
+
+def _rows(top, bottom=(), tube=None, camera=CAMERA, step=40.0, **kw):
+    verts, faces, edges = _tube() if tube is None else tube
+    rows = ContourRows(np.arange(len(verts)), _u_outline(top, bottom, step=step), camera,
+                       faces=faces,
+                       edges=edges, **kw)
+    rows.update(verts)
+    return rows, verts
+
+
+def test_every_traced_point_gives_one_row_across_the_silhouette():
+    top, bottom = [0.5, -0.4, 0.3, -0.6, 0.2], [0.7, -0.2]
+    rows, verts = _rows(top, bottom)
+    # the U's end crosses no rim (the tube is open there): rows for the top and bottom only
+    assert len(rows.points) == 7
+    # r = n . (q - X), X where the line from q along the outline's normal n meets the
+    # silhouette v = 100 (or 0): r = (q_v - 100) / n_v
+    q, n = rows.targets, rows.row_normals
+    line = np.where(q[:, 1] > 50.0, 100.0, 0.0)
+    np.testing.assert_allclose(rows.residuals(verts), (q[:, 1] - line) / n[:, 1], atol=1e-9)
+    # positive outside; away from the U's end the normal is across the tube
+    inner = np.abs(n[:, 1]) > 0.999
+    assert inner.sum() >= 4
+    expected = dict(zip(map(tuple, _u_outline(top, bottom)),
+                        list(top[::-1]) + [0, 0, 0] + list(bottom), strict=True))
+    np.testing.assert_allclose(rows.residuals(verts)[inner],
+                               [expected[tuple(p)] for p in q[inner]], atol=1e-3)
+    # each row sits on an edge along the tube, halfway between two rings (u = 30 + 40 k)
+    np.testing.assert_allclose(rows.fractions, 0.5, atol=0.02)
+    assert np.all(np.abs(verts[rows.ends[:, 0], 0] - verts[rows.ends[:, 1], 0]) > 0.019)
+
+
+def test_the_outermost_rim_is_the_silhouette():
+    # a second, thinner tube inside the first: its rim (v = 10 and 90) is hidden
+    outer = _tube()
+    inner = _tube(radius=0.04)
+    n = len(outer[0])
+    both = (np.vstack([outer[0], inner[0]]), np.vstack([outer[1], inner[1] + n]),
+            np.vstack([outer[2], inner[2] + [n, n, len(outer[1]), len(outer[1])]]))
+    rows, verts = _rows([0.5, -0.4, 0.3], [0.2], tube=both)
+    assert len(rows.points) == 4 and np.all(rows.ends < n)
+    q, nn = rows.targets, rows.row_normals
+    line = np.where(q[:, 1] > 50.0, 100.0, 0.0)
+    np.testing.assert_allclose(rows.residuals(verts), (q[:, 1] - line) / nn[:, 1], atol=1e-9)
+
+
+def test_a_point_the_mesh_cannot_follow_is_trimmed_at_three_sigma():
     offsets = [0.5, -0.4, 0.3, -0.6, 0.2, 0.5, -0.3, 4.0]
-    rows, _ = _line_rows(offsets)  # defaults: keep 3 px, 3 x median
-    assert 7 not in rows.selected and len(rows.selected) == 7
-    # within the keep distance a row stays, however small the median
-    rows, _ = _line_rows(offsets, keep_distance=5.0)
-    assert 7 in rows.selected
+    far = tuple(_u_outline(offsets, step=35.0)[0])  # the 4 px one (drawn first)
+    rows, _ = _rows(offsets, step=35.0)  # defaults: keep 3 px, 3 x median
+    assert far not in map(tuple, rows.targets) and len(rows.points) == 7
+    # within the keep distance a point stays, however small the median
+    rows, _ = _rows(offsets, step=35.0, keep_distance=5.0)
+    assert far in map(tuple, rows.targets)
     # beyond 3 x the median but within the keep distance: noise, kept
-    rows, _ = _line_rows([0.1, 0.1, 0.1, 0.1, 2.5])
-    assert 4 in rows.selected
+    rows, _ = _rows([2.5, 0.1, 0.1, 0.1, 0.1])
+    assert len(rows.points) == 5
+    # beyond max_distance: no crossing, no row
+    rows, _ = _rows([0.1, 0.1, 25.0], max_distance=20.0)
+    assert len(rows.points) == 2
+
+
+def test_dense_points_share_the_weight_of_the_outline_they_stand_for():
+    verts, faces, edges = _tube()
+    sparse = _u_outline([0.0] * 5)  # 40 px apart
+    dense = np.stack([np.arange(290.0, 9.0, -1.0), np.full(281, 100.0)], axis=1)
+    for pts, expected in ((sparse[1:4], 2.0), (dense[1:-1], 2.0 / 6.0)):
+        rows = ContourRows(np.arange(len(verts)), pts if expected == 2.0 else dense,
+                           CAMERA, weights=2.0, faces=faces, edges=edges)
+        w = rows.point_weights[1:-1] if expected == 2.0 else rows.point_weights[1:-1]
+        np.testing.assert_allclose(w, expected)
+    # the same point twice is one point; one distinct point is no outline
+    rows = ContourRows(np.arange(len(verts)), np.repeat(sparse, 2, axis=0), CAMERA,
+                       faces=faces, edges=edges)
+    assert len(rows.pixels) == len(sparse)
+    with pytest.raises(ValueError, match="at least 2 distinct points"):
+        ContourRows(np.arange(len(verts)), [[1.0, 2.0], [1.0, 2.0]], CAMERA, faces=faces,
+                    edges=edges)
+
+
+def test_row_derivatives_match_finite_differences():
+    # Through a perspective camera looking down the tube's side, with the rows fixed.
+    verts, faces, edges = _tube()
+    cam = PinholeCamera(800.0, [[1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]], [0.15, 0.05, 0.6],
+                        (400, 300))
+    outline = cam.project(np.stack([np.linspace(0.02, 0.28, 9), np.full(9, 0.1013),
+                                    np.zeros(9)], axis=1))
+    rows = ContourRows(np.arange(len(verts)), outline, cam, faces=faces, edges=edges)
+    rows.update(verts)
+    blk = rows.block(verts)
+    assert len(rows.points) >= 7 and blk.idx.shape == (len(rows.points), 2)
+    assert np.any((rows.fractions > 0.05) & (rows.fractions < 0.95))
+    eps = 1e-7
+    for k in range(len(rows.points)):
+        for c in range(2):
+            for axis in range(3):
+                moved = verts.copy()
+                moved[blk.idx[k, c], axis] += eps
+                fd = -(rows.residuals(moved)[k] - rows.residuals(verts)[k]) / eps
+                assert fd == pytest.approx(blk.g[k, c, axis], rel=1e-4, abs=1e-3)
+
+
+def test_at_the_true_head_the_rows_are_as_close_as_the_tracing(model):
+    """A traced point is at most half a pixel off the true silhouette (the photo's pixel
+    grid); a row measures that, not the chords between points (which cut the nose or the
+    chin by a few pixels)."""
+    skin = np.asarray(model.skin, dtype=np.int64)
+    faces, edges = _candidate_mesh(model, skin)
+    for seed in (1000, 1002):
+        case, truth = make_perspective_case(model, seed, n_views=2, noise_px=0.0,
+                                            calibrated=True, contour=True)
+        world = truth.world_vertices[skin]
+        for name, view in case.views.items():
+            rows = ContourRows(np.arange(len(skin)), view.contour, truth.cameras[name],
+                               faces=faces, edges=edges)
+            rows.update(world)
+            r = rows.residuals(world)
+            assert len(r) >= 0.9 * len(view.contour)
+            assert np.sqrt(np.mean(r**2)) < 0.35 and np.abs(r).max() < 1.0
 
 
 def test_the_engine_keeps_rows_within_three_sigmas_of_its_noise(model):

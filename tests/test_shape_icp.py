@@ -550,3 +550,45 @@ def test_rows_return_scalar_rows_blocks():
     assert full.g.shape == (20, 3) and full.r.shape == (20,) and full.idx.shape == (20,)
     masked = PointRows(v, model.mean[v], mask=np.tile([True, False, True], (10, 1)))
     assert isinstance(masked.block(model.mean[v]), ScalarRows)
+
+
+class _EdgePointRows(PointRows):
+    """3-D targets of points between two vertices, ``(1 - t) x_a + t x_b``, as scalar rows
+    on both vertices (ScalarRows with idx (m, 2) and g (m, 2, 3))."""
+
+    def __init__(self, vertices, ends, t, targets):
+        super().__init__(vertices, np.zeros((len(vertices), 3)), name="edge points")
+        self.ends, self.t, self.edge_targets = ends, t, targets
+
+    def block(self, world, jacobian=True):
+        t = self.t[:, None]
+        p = (1 - t) * world[self.ends[:, 0]] + t * world[self.ends[:, 1]]
+        r = (self.edge_targets - p).reshape(-1)  # x, y, z row per point
+        w = np.ones(len(r))
+        if not jacobian:
+            return ScalarRows(None, None, None, None, float(r @ r), float(w.sum()), len(r))
+        eye = np.tile(np.eye(3), (len(t), 1))  # (3m, 3)
+        tt = np.repeat(self.t, 3)[:, None]
+        g = np.stack([(1 - tt) * eye, tt * eye], axis=1)  # (3m, 2, 3)
+        idx = np.repeat(self.ends, 3, axis=0)
+        return ScalarRows(idx, g, r, w, float(r @ r), float(w.sum()), len(r))
+
+
+def test_rows_on_two_vertices_each_are_solved_exactly():
+    # Every row sees a point between two vertices only. With scale and rotation fixed the
+    # residual is linear, so one step must land on the head exactly: it would not with
+    # either vertex's part of a row left out of the system.
+    model = synthetic_model()
+    c = np.random.default_rng(13).standard_normal(model.n_coeffs)
+    x = model.instance(c) + [0.01, 0.02, 0.03]
+    v = np.arange(model.n_vertices)
+    ends = np.stack([v, np.roll(v, 1)], axis=1)
+    t = np.random.default_rng(4).uniform(0.1, 0.9, len(v))
+    target = (1 - t[:, None]) * x[ends[:, 0]] + t[:, None] * x[ends[:, 1]]
+    rows = _EdgePointRows(v, ends, t, target)
+    fit = ShapeProblem(model, rows, freeze=("scale", "rotation")).solve(max_iterations=1)
+    np.testing.assert_allclose(fit.coeffs, c, atol=1e-10)
+    np.testing.assert_allclose(fit.translation, [0.01, 0.02, 0.03], atol=1e-12)
+    # with similarity free, from afar, the full fit
+    fit = shape_icp(model, rows, translation=x.mean(0), tolerance=1e-14)
+    np.testing.assert_allclose(fit.world_vertices(model), x, atol=1e-10)
