@@ -982,19 +982,25 @@ def _candidate_mesh(model, verts):
     local[verts] = np.arange(len(verts))
     faces = local[tri]
     faces = faces[(faces >= 0).all(axis=1)]
+    return faces, shared_edges(faces, len(verts))
+
+
+def shared_edges(faces, n_vertices):
+    """Edges shared by exactly two of the triangles ``faces`` (F, 3) over ``n_vertices``
+    vertices: (E, 4) as (a, b, face 1, face 2), a < b."""
+    faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     # edges with their two faces: sort the 3F half-edges by their vertex pair
     half = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
     owner = np.tile(np.arange(len(faces)), 3)
     half = np.sort(half, axis=1)
-    key = half[:, 0] * len(verts) + half[:, 1]
+    key = half[:, 0] * n_vertices + half[:, 1]
     order = np.argsort(key, kind="stable")
     key, half, owner = key[order], half[order], owner[order]
     # exactly two faces per edge (an edge on three would be a defect; it is skipped)
     same = np.flatnonzero(key[1:] == key[:-1])
     two = same[(same + 2 >= len(key)) | (key[np.minimum(same + 2, len(key) - 1)] != key[same])]
     two = two[(two == 0) | (key[np.maximum(two - 1, 0)] != key[two])]
-    edges = np.column_stack([half[two, 0], half[two, 1], owner[two], owner[two + 1]])
-    return faces, edges
+    return np.column_stack([half[two, 0], half[two, 1], owner[two], owner[two + 1]])
 
 
 def outline_candidates(model, max_x=0.05, max_normal_x=0.4):

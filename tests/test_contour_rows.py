@@ -6,9 +6,16 @@ import numpy as np
 import pytest
 
 from solver.cameras import OrthographicCamera
-from solver.pinhole import PinholeCamera
-from solver.fit import FitOptions, _candidate_mesh, _engine, _prepare_views, fit_head
+from solver.fit import (
+    FitOptions,
+    _candidate_mesh,
+    _engine,
+    _prepare_views,
+    fit_head,
+    shared_edges,
+)
 from solver.fit_engine import CONTOUR_KEEP_SIGMAS, ContourRows
+from solver.pinhole import PinholeCamera
 from solver.procrustes import similarity_procrustes
 from solver.synthetic import make_perspective_case
 
@@ -30,18 +37,7 @@ def _tube(radius=0.05, around=16, rings=16, length=0.3, axis_y=0.05):
     c, d = a + around, b + around
     faces = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3),
                             np.stack([a, d, c], -1).reshape(-1, 3)])
-    return (verts, *_candidate_mesh_of(faces, len(verts)))
-
-
-def _candidate_mesh_of(faces, n):
-    half = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    owner = np.tile(np.arange(len(faces)), 3)
-    key = np.sort(half, axis=1) @ [n, 1]
-    order = np.argsort(key, kind="stable")
-    key, owner, half = key[order], owner[order], np.sort(half, axis=1)[order]
-    pair = np.flatnonzero(key[1:] == key[:-1])
-    edges = np.column_stack([half[pair], owner[pair], owner[pair + 1]])
-    return faces, edges
+    return verts, faces, shared_edges(faces, len(verts))
 
 
 def _u_outline(top, bottom=(), u0=30.0, step=40.0):
