@@ -458,9 +458,8 @@ class ContourRows(CameraRows):
         points, ends, frac = np.zeros(0, np.intp), np.zeros((0, 2), np.intp), np.zeros(0)
         if len(e):
             used, inv = np.unique(e, return_inverse=True)
-            proj = self.camera.project(world[used])
-            a, b = proj[inv.reshape(-1, 2)[:, 0]], proj[inv.reshape(-1, 2)[:, 1]]
-            d = b - a
+            ends = self.camera.project(world[used])[inv.reshape(-1, 2)]  # (E', 2, 2)
+            a, d = ends[:, 0], ends[:, 1] - ends[:, 0]
             # Edges whose middle is within reach of a point (max_distance plus the longest
             # half edge), as flat (point, edge) pairs.
             reach = self.max_distance + 0.5 * float(np.linalg.norm(d, axis=1).max())
@@ -517,6 +516,8 @@ class ContourRows(CameraRows):
         sq = float(w @ r**2)
         if not jacobian:
             return ScalarRows(None, None, None, None, sq, float(w.sum()), k)
+        if k == 0:  # no traced point meets the head's outline (yet)
+            return ScalarRows(self.ends, np.zeros((0, 2, 3)), r, w, 0.0, 0.0, 0)
         t = self.fractions[:, None]
         jac = np.asarray(self.camera.jacobian(world[self.ends.reshape(-1)]),
                          dtype=np.float64).reshape(k, 2, 2, 3)
@@ -534,6 +535,8 @@ class ContourRows(CameraRows):
         with this cost: each row's nearer edge end, and where the row pulls it (its
         projection moved across the outline by the row's residual)."""
         sel = self.selected
+        if not len(sel):
+            return sel, np.zeros((0, 2))
         r = self.residuals(world)
         return sel, self.camera.project(world[sel]) + r[:, None] * self.row_normals
 

@@ -1105,7 +1105,8 @@ class ShapeProblem:
                 if g.ndim == 2:
                     h, idx = h[:, None], idx[:, None]
                 m, c = idx.shape
-                basis = pg.gather(idx.reshape(-1)).reshape(m, c, 3, -1)
+                basis = pg.gather(idx.reshape(-1))
+                basis = basis.reshape(m, c, 3, basis.shape[-1])
                 a_c = np.einsum("mci,mcik->mk", h, basis)  # (m, Ka)
                 sr = a_c * np.sqrt(w)[:, None]
                 n_mat[7:, 7:] += sr.T @ sr

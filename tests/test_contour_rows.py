@@ -15,8 +15,10 @@ from solver.fit import (
     shared_edges,
 )
 from solver.fit_engine import CONTOUR_KEEP_SIGMAS, ContourRows
+from solver.linear_model import LinearModel
 from solver.pinhole import PinholeCamera
 from solver.procrustes import similarity_procrustes
+from solver.shape_icp import PointRows, ShapeProblem
 from solver.synthetic import make_perspective_case
 
 # Pixel = 1000 * (x, y) + (0, 0): a metre of x is 1000 pixels.
@@ -110,6 +112,25 @@ def test_a_point_the_mesh_cannot_follow_is_trimmed_at_three_sigma():
     # beyond max_distance: no crossing, no row
     rows, _ = _rows([0.1, 0.1, 25.0], max_distance=20.0)
     assert len(rows.points) == 2
+
+
+def test_an_outline_that_meets_no_rim_gives_an_empty_block():
+    # traced 60 px above the tube, through a perspective camera (whose projection of no
+    # points is an error): no rows, and a problem with other rows still solves
+    verts, faces, edges = _tube()
+    cam = PinholeCamera(800.0, [[1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]], [0.15, 0.05, 0.6],
+                        (400, 300))
+    far = cam.project(np.stack([np.linspace(0.02, 0.28, 9), np.full(9, 0.2), np.zeros(9)], 1))
+    rows = ContourRows(np.arange(len(verts)), far, cam, faces=faces, edges=edges)
+    rows.update(verts)
+    blk = rows.block(verts)
+    assert len(rows.points) == 0 and blk.nrows == 0 and blk.sq == 0.0
+    assert len(rows.residuals(verts)) == 0 and len(rows.pairs(verts)[1]) == 0
+    mode = 1e-3 * np.random.default_rng(0).standard_normal((1,) + verts.shape)
+    lin = LinearModel(verts, mode, np.ones(1), ("m",))
+    points = PointRows(np.arange(len(verts)), verts + [0.0, 0.0, 0.001])
+    fit = ShapeProblem(lin, [rows, points]).solve()
+    assert fit.translation[2] == pytest.approx(0.001, abs=1e-9)
 
 
 def test_dense_points_share_the_weight_of_the_outline_they_stand_for():

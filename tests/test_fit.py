@@ -211,6 +211,10 @@ def test_bad_input_is_named(model, noisy):
     with pytest.raises(ValueError, match=r"view 'front': unknown landmark 'nose_tipp'.*"
                                          r"nose_tip"):
         fit_head(model, unknown)
+    same = copy.deepcopy(case)
+    same.views["right"].contour = np.array([[300.0, 200.0]] * 4)
+    with pytest.raises(ValueError, match=r"view 'right'.*contour needs at least 2 distinct"):
+        fit_head(model, same)
     with pytest.raises(ValueError, match="options.method"):
         fit_head(model, case, FitOptions(method="approach3"))
     with pytest.raises(ValueError, match="options.n_identity"):
