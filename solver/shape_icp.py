@@ -1087,25 +1087,23 @@ class ShapeProblem:
             idx = blk.idx[keep]
             dense = False
         g, r, w = blk.g[keep], blk.r[keep], blk.w[keep]
-        if g.ndim == 3:  # rows on several vertices each (a point on an edge): terms summed
-            a_s = np.einsum("mci,mcij->mj", g, sj[idx])
-        else:
-            a_s = np.einsum("mi,mij->mj", g, sj[idx])
+        at = sj[idx]
+        if g.ndim == 2:  # one vertex per row: the case c = 1 of rows on c vertices
+            g, at = g[:, None], at[:, None]
+        a_s = np.einsum("mci,mcij->mj", g, at)  # a row's vertices' terms summed
         a_sw = a_s * w[:, None]
         n_mat[:7, :7] += a_sw.T @ a_s
         b[:7] += a_sw.T @ r
         if shape:
-            h = s * g @ rot  # row of s R B_i seen from the model frame
-            if dense:  # all vertices: contract the (Ka, n, 3) basis in place, no gather
-                a_c = np.einsum("kmi,mi->km", pg.basis, h)  # (Ka, m)
+            h = s * g @ rot  # row of s R B_i seen from the model frame, (m, c, 3)
+            if dense:  # all vertices, one each: contract the (Ka, n, 3) basis in place
+                a_c = np.einsum("kmi,mi->km", pg.basis, h[:, 0])  # (Ka, m)
                 sr = a_c * np.sqrt(w)
                 n_mat[7:, 7:] += sr @ sr.T  # A^T W A as one symmetric product (syrk)
                 prod = (a_c * w) @ np.column_stack([a_s, r])
-            else:  # few rows: gather contiguous (3, Ka) blocks per row (and vertex)
-                if g.ndim == 2:
-                    h, idx = h[:, None], idx[:, None]
-                m, c = idx.shape
-                basis = pg.gather(idx.reshape(-1))
+            else:  # few rows: gather contiguous (3, Ka) blocks per row and vertex
+                m, c = g.shape[:2]
+                basis = pg.gather(np.reshape(idx, -1))
                 basis = basis.reshape(m, c, 3, basis.shape[-1])
                 a_c = np.einsum("mci,mcik->mk", h, basis)  # (m, Ka)
                 sr = a_c * np.sqrt(w)[:, None]
