@@ -12,7 +12,8 @@ threshold) and the side landmarks. Then:
 - approach 1 (§4.4.2): all landmarks as image rows through their cameras, so a front
   landmark contributes its two known coordinates only, the front rows weighted; the
   outline traced in any photo pulls the model's outline there (other photos than
-  orthographic profiles find it among the skin vertices seen edge-on, ``view_outline``);
+  orthographic profiles find it among the skin vertices near the traced line,
+  ``view_outline``);
 - approach 2 (§4.4.3): TPS-ICP: warp the fitted head with a thin-plate spline so its
   landmark vertices reach 3-D targets (each landmark moved within the image plane of every
   photo that shows it: the profile gives depth, the front x and z), fit the model to the
@@ -1031,17 +1032,20 @@ def outline_candidates(model, max_x=0.05, max_normal_x=0.4):
     return out
 
 
-def view_outline(model, eng, state, view, max_normal=0.6, margin=3.0):
+def view_outline(model, eng, state, view, margin=1.5):
     """Outline candidates of a photo that is not an orthographic profile (a front or
-    three-quarter view, a perspective photo at any angle): skin vertices of the head at
-    ``state``, seen through the view's camera in ``state``, whose (mean-head) normals face
-    across the camera's line of sight there (|n . t| < ``max_normal``, t the unit vector
-    toward the camera) and that project within ``margin`` times the contour threshold of
-    the traced outline (which leaves out the inner folds: the sides of the nose, the eye
-    sockets), with their mesh; ``ContourRows`` finds the outline among them each round.
-    The normals are the mean head's, turned with the head: a wide band (|n . t| < 0.6,
-    about 37 degrees either side of the rim) so that the true rim of another identity,
-    not only of the mean, is among the candidates.
+    three-quarter view, a perspective photo at any angle): the skin vertices of the head at
+    ``state`` that the view's camera in ``state`` projects within ``margin`` times the
+    contour threshold of the traced outline, with their mesh; ``ContourRows`` finds the
+    outline among them each round (the outermost rim, so the inner folds near the outline,
+    the far side of the nose or an ear's inner rim, do no harm).
+
+    Every vertex near the outline, whatever way it faces: an ear is thin, and its outline
+    runs along edges between faces that turn from the camera to across it within a
+    millimetre or two, so a band of normals that face across the line of sight (on the
+    mean head) misses some of their corners, and a traced point there meets no rim even on
+    the true head. The margin (30 px by default) leaves room for the head to move during
+    a stage; rows form only within the contour threshold anyway.
 
     Returns
     -------
@@ -1050,11 +1054,8 @@ def view_outline(model, eng, state, view, max_normal=0.6, margin=3.0):
     skin = np.asarray(model.skin, dtype=np.int64)
     world = eng.world(state, skin)
     camera = state.cameras[view.name]
-    toward = np.asarray(camera.toward_camera(world), dtype=np.float64)
-    normal = _mean_normals(model)[skin] @ state.rotation.T
-    keep = np.abs(np.einsum("ij,ij->i", normal, toward)) < max_normal
-    dist, _ = cKDTree(view.contour).query(camera.project(world[keep]))
-    verts = skin[keep][dist <= margin * eng.contour_threshold]
+    dist, _ = cKDTree(view.contour).query(camera.project(world))
+    verts = skin[dist <= margin * eng.contour_threshold]
     return (verts, *_candidate_mesh(model, verts))
 
 
