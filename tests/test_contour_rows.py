@@ -14,7 +14,7 @@ from solver.fit import (
     fit_head,
     shared_edges,
 )
-from solver.fit_engine import CONTOUR_KEEP_SIGMAS, ContourRows
+from solver.fit_engine import CONTOUR_KEEP_SIGMAS, ContourRows, State
 from solver.linear_model import LinearModel
 from solver.pinhole import PinholeCamera
 from solver.procrustes import similarity_procrustes
@@ -112,6 +112,46 @@ def test_a_point_the_mesh_cannot_follow_is_trimmed_at_three_sigma():
     # beyond max_distance: no crossing, no row
     rows, _ = _rows([0.1, 0.1, 25.0], max_distance=20.0)
     assert len(rows.points) == 2
+
+
+def test_a_point_without_a_row_costs_the_cut_off():
+    """A truncated quadratic: a head cannot lower its cost by losing rows."""
+    offsets = [0.5, -0.4, 0.3, -0.6, 0.2, 0.5, -0.3, 4.0]
+    rows, verts = _rows(offsets, step=35.0)
+    # the 4 px point and the U's end (3 points, no rim there) have no row; the cut-off is
+    # the keep distance (3 x the median is less)
+    assert len(rows.pixels) - len(rows.points) == 4 and rows.cap == pytest.approx(3.0)
+    missing = np.setdiff1d(np.arange(len(rows.pixels)), rows.points)
+    assert rows.unmatched_cost() == pytest.approx(rows.point_weights[missing].sum() * 9.0)
+    # kept, the far point's own residual counts instead, and it is more than the cut-off
+    kept, _ = _rows(offsets, step=35.0, keep_distance=5.0)
+    assert kept.block(verts, jacobian=False).sq + kept.unmatched_cost() > \
+        rows.block(verts, jacobian=False).sq + rows.unmatched_cost()
+    # no rim within reach: every point at max_distance
+    verts2 = verts + [0.0, 0.5, 0.0]
+    rows.update(verts2)
+    assert len(rows.points) == 0 and rows.cap == 20.0
+    assert rows.unmatched_cost() == pytest.approx(rows.point_weights.sum() * 400.0)
+
+
+def test_the_joint_cost_counts_outline_points_without_rows(model):
+    case, truth = make_perspective_case(model, 3, n_views=2, calibrated=True, contour=True)
+    opts = FitOptions()
+    views, _ = _prepare_views(model, case, opts)
+    eng = _engine(model, views, opts)
+    joint = eng.joint(eng.views)
+    state = State(truth.rotation, truth.identity_coeffs.copy(), dict(truth.cameras),
+                  truth.scale, truth.translation.copy())
+    total = joint.cost(state)
+    x = joint.world(state)
+    data = extra = 0.0
+    for _, kind, rows in joint.groups:
+        data += rows.block(x[rows.vertices], jacobian=False).sq
+        if kind == "contour":
+            extra += rows.unmatched_cost()
+            assert len(rows.points) < len(rows.pixels)  # the ends at the neck's cut meet no rim
+    assert extra > 0.0
+    assert total == pytest.approx(data + extra + eng.prior_cost(state.coeffs))
 
 
 def test_an_outline_that_meets_no_rim_gives_an_empty_block():
