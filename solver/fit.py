@@ -566,10 +566,10 @@ def _approach1(model, eng, state, opts):
     and outlines together, first for _RELEASE_ROUNDS rounds (cameras not re-calibrated)
     keeping every outline row within _RELEASE_KEEP of the contour threshold (8 px), then,
     with candidates found anew, with the usual cut-off (3 sigmas of the noise,
-    ``ContourRows``). From the mean head the outline rows latch
-    onto the wrong rim (a cheek for a jaw, an ear for the skull) and the fit settles in a
-    worse minimum: on two perspective photos the landmarks-first stage more than halves
-    the gap to a fit started from the true head. And where the landmarks leave the head
+    ``ContourRows``). From the mean head the outline rows latch onto the wrong rim (a
+    cheek for a jaw, an ear for the skull) and the fit settles in a worse minimum: on two
+    perspective photos the landmarks-first stage more than halves the gap to a fit
+    started from the true head. And where the landmarks leave the head
     some 10 px off the tracing (the neck, which no landmark holds), the noise's cut-off
     trims those rows from the start, so they never pull it there: the wide stage does
     (2 photos, 40 heads of ``bench/bench_perspective.py``: 1.3 % less error on average,
@@ -591,8 +591,9 @@ def _approach1(model, eng, state, opts):
     if selfcal:
         out["calibration_rounds"] = 0
 
-    def stage(joint, state, settle=True, rounds=None):
-        state, hist = joint.run(state, max_outer=rounds or opts.max_iterations, tolerance=tol)
+    def stage(joint, state, settle=True, max_outer=None):
+        state, hist = joint.run(state, max_outer=max_outer or opts.max_iterations,
+                                tolerance=tol)
         out["history"] += hist
         if selfcal and settle:
             state, more, rounds = joint.settle(state, opts.calibration_rounds, tol,
@@ -607,7 +608,7 @@ def _approach1(model, eng, state, opts):
         state = stage(eng.joint(eng.views, front_weight=opts.front_weight,
                                 outlines=_view_outlines(model, eng, state),
                                 keep_distance=_RELEASE_KEEP * eng.contour_threshold), state,
-                      settle=False, rounds=_RELEASE_ROUNDS)
+                      settle=False, max_outer=_RELEASE_ROUNDS)
     out["outlines"] = _view_outlines(model, eng, state)
     joint = eng.joint(eng.views, front_weight=opts.front_weight, outlines=out["outlines"])
     out["joint"] = joint
