@@ -5,19 +5,12 @@ import copy
 
 import numpy as np
 import pytest
+from fit_support import skin_error_mm
 
 from solver.cameras import OrthographicCamera
 from solver.fit import FitOptions, fit_head, flag_residuals, refit_landmarks
 from solver.landmarks_file import LandmarkCase, View
-from solver.procrustes import similarity_procrustes
 from solver.synthetic import make_case
-
-
-def skin_error_mm(model, local, truth):
-    """RMS distance over the skin after similarity alignment, millimetres."""
-    a, b = local[model.skin], truth.local_vertices[model.skin]
-    sim = similarity_procrustes(a, b)
-    return 1000.0 * float(np.sqrt(((sim.apply(a) - b) ** 2).sum(axis=1).mean()))
 
 
 @pytest.fixture(scope="module")

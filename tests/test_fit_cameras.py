@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from camera_support import dlt_camera
+from fit_support import skin_error_mm
 
 from solver.cameras import OrthographicCamera
 from solver.dlt import fit_dlt
@@ -28,13 +29,6 @@ from solver.synthetic import (
 from solver.triangulate import projection_matrix, triangulate, viewing_rays
 
 ROOT = Path(__file__).resolve().parent.parent
-
-
-def skin_error_mm(model, local, truth):
-    """RMS distance over the skin after similarity alignment, millimetres."""
-    a, b = local[model.skin], truth.local_vertices[model.skin]
-    sim = similarity_procrustes(a, b)
-    return 1000.0 * float(np.sqrt(((sim.apply(a) - b) ** 2).sum(axis=1).mean()))
 
 
 def normal_angle_deg(a, b):

@@ -6,12 +6,12 @@ import dataclasses
 
 import numpy as np
 import pytest
+from fit_support import skin_error_mm
 from scipy.spatial import cKDTree
 
 from solver import fit
 from solver.fit import FitOptions, fit_head
 from solver.fit_engine import Engine, State, ViewData
-from solver.procrustes import similarity_procrustes
 from solver.synthetic import make_case, make_perspective_case, resample_polyline, trace_silhouette
 
 
@@ -139,9 +139,7 @@ def test_the_fit_keeps_the_whole_outline(model, joints, seed, calibrated):
         if kind == "contour":
             assert len(rows.points) >= 0.98 * len(rows.pixels), view.name
             assert rows.points.min() == 0, view.name
-    a, b = res.local_vertices[model.skin], truth.local_vertices[model.skin]
-    sim = similarity_procrustes(a, b)
-    assert 1000.0 * float(np.sqrt(((sim.apply(a) - b) ** 2).sum(axis=1).mean())) < 0.9
+    assert skin_error_mm(model, res.local_vertices, truth) < 0.9
 
 
 def test_each_approach_finds_outlines_on_its_own_head(model, found):
