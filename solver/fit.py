@@ -906,7 +906,9 @@ def _uncertainty(model, eng, cov):
     evals, evecs = np.linalg.eigh(0.5 * (cov + cov.T))
     f = (np.sqrt(np.clip(evals, 0.0, None))[:, None] * evecs.T).astype(np.float32)
     y = f @ b32
-    var = (y.astype(np.float64) ** 2).sum(axis=0).reshape(-1, 3).sum(axis=1)
+    # squares summed in float32 too: 100 terms lose ~1e-6 relative, and converting the
+    # (K, 3 S) product to float64 first cost as much as the product itself
+    var = np.einsum("ij,ij->j", y, y).reshape(-1, 3).sum(axis=1, dtype=np.float64)
     out = np.zeros(model.n_vertices)
     out[skin] = 1000.0 * np.sqrt(var)
     out[maps["other"]] = out[maps["nearest"]]

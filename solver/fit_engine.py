@@ -609,10 +609,9 @@ class StackedModel:
     def slice(self, vertices):
         """(mean (n, 3), basis (K, n, 3)) of a vertex subset."""
         v = np.asarray(vertices, dtype=np.int64)
-        basis = np.concatenate([p.basis[:, v] for p in self.parts])
-        # C order: fancy indexing along axis 1 leaves another layout, and every product
-        # with the slice would pay for it.
-        return self.mean[v], np.ascontiguousarray(basis)
+        # take, not basis[:, v]: fancy indexing along axis 1 leaves another layout, which
+        # every product with the slice would pay for (or a second copy to mend it).
+        return self.mean[v], np.concatenate([np.take(p.basis, v, axis=1) for p in self.parts])
 
 
 class Engine:

@@ -60,6 +60,9 @@ SIMILARITY_PARAMS = ("scale", "rotation x", "rotation y", "rotation z",
 _GROUPS = {"scale": [0], "rotation": [1, 2, 3], "translation": [4, 5, 6]}
 FREEZABLE = ("scale", "rotation", "translation", "shape")
 _RCOND = 1e-12  # smallest accepted eigenvalue ratio of the Jacobi-scaled normal matrix
+# Gathers a group serves straight from its basis before it makes the vertex-major copy
+# (a gather from the basis costs about 6x one from the copy, the copy about 100 gathers).
+_DIRECT_GATHERS = 16
 
 
 # --------------------------------------------------------------------------- rows
@@ -696,8 +699,9 @@ class _Prepared:
             b = np.zeros((0, len(v), 3))
         elif self.whole:  # no fancy-index copy when a group covers the whole model
             b = model.basis if full_active else model.basis[active]
-        else:
-            b = model.basis[:, v] if full_active else model.basis[active][:, v]
+        else:  # take: one C-ordered copy (basis[:, v] gives another layout, copied twice)
+            b = np.take(model.basis, v, axis=1)
+            b = b if full_active else b[active]
         self.basis = np.ascontiguousarray(b, dtype=np.float64)  # (Ka, n, 3)
         self.b2 = self.basis.reshape(self.basis.shape[0], 3 * len(v))  # (Ka, 3n), a view
         inactive = np.ones(model.basis.shape[0], bool)
@@ -705,6 +709,7 @@ class _Prepared:
         self.inactive_idx = np.flatnonzero(inactive)
         self.base = self.mean
         self._basis_vm = None
+        self._gathers = 0
         self.volatile = False
         self._gram_alpha = None
         self._gram = None
@@ -717,12 +722,14 @@ class _Prepared:
         return self._basis_vm
 
     def gather(self, idx):
-        """The basis at vertices ``idx`` as (m, 3, Ka). From the vertex-major copy, which
-        pays off over many solves; once modes are replaced between solves
-        (``ShapeProblem.replace_modes``) straight from the basis instead, as re-making that
-        copy every round would cost more than the gathers it saves."""
-        if self.volatile:
-            return self.basis[:, idx].transpose(1, 2, 0)
+        """The basis at vertices ``idx`` as (m, 3, Ka). From the vertex-major copy once a
+        group has been gathered from a few times (it pays off over many solves, but costs
+        as much as a hundred gathers to make); straight from the basis before that, and
+        always once modes are replaced between solves (``ShapeProblem.replace_modes``), as
+        re-making that copy every round would cost more than the gathers it saves."""
+        self._gathers += 1
+        if self.volatile or (self._basis_vm is None and self._gathers <= _DIRECT_GATHERS):
+            return np.take(self.basis, idx, axis=1).transpose(1, 2, 0)
         return self.basis_vm()[idx]
 
     def set_inactive(self, coeffs):
@@ -734,7 +741,7 @@ class _Prepared:
             return
         b = self.model.basis[idx]
         if not self.whole:
-            b = b[:, self.rows.vertices]
+            b = np.take(b, self.rows.vertices, axis=1)
         self.base = self.mean + np.tensordot(coeffs[idx], b, axes=1)
 
     def gram(self, alpha):
@@ -920,7 +927,7 @@ class ShapeProblem:
         for pg in self.groups:
             v = pg.rows.vertices
             if len(at):
-                rows = b if pg.whole else b[:, v]
+                rows = b if pg.whole else np.take(b, v, axis=1)
                 rows = rows if every else rows[src]
                 pg.basis[at] = rows
                 pg._basis_vm = None
