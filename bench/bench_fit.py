@@ -38,18 +38,10 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from bench.common import machine_description, max_rss_mb, peak_memory  # noqa: E402
+from bench.common import machine_description, max_rss_mb, peak_memory, skin_error_mm  # noqa: E402
 from solver.fit import FitOptions, fit_head, refit_landmarks  # noqa: E402
 from solver.model import load_model  # noqa: E402
-from solver.procrustes import similarity_procrustes  # noqa: E402
 from solver.synthetic import make_case  # noqa: E402
-
-
-def skin_error_mm(model, local, truth_local):
-    """RMS vertex distance over the skin after similarity alignment, millimetres."""
-    a, b = local[model.skin], truth_local[model.skin]
-    sim = similarity_procrustes(a, b)
-    return 1000.0 * float(np.sqrt(((sim.apply(a) - b) ** 2).sum(axis=1).mean()))
 
 
 def main(args):

@@ -57,21 +57,18 @@ import statistics  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from bench.common import load_average, machine_description, median_time  # noqa: E402
+from bench.common import (  # noqa: E402
+    load_average,
+    machine_description,
+    median_time,
+    skin_error_mm,
+)
 from bench.fit_bound import fit_bound_mm  # noqa: E402
 from solver.fit import fit_head  # noqa: E402
 from solver.model import load_model  # noqa: E402
-from solver.procrustes import similarity_procrustes  # noqa: E402
 from solver.synthetic import make_case, make_perspective_case  # noqa: E402
 
 SEED0 = 1000  # bench_fit's seeds: the same heads
-
-
-def skin_error_mm(model, local, truth_local):
-    """RMS vertex distance over the skin after similarity alignment, millimetres."""
-    a, b = local[model.skin], truth_local[model.skin]
-    sim = similarity_procrustes(a, b)
-    return 1000.0 * float(np.sqrt(((sim.apply(a) - b) ** 2).sum(axis=1).mean()))
 
 
 def _fit(model, case):

@@ -1,6 +1,8 @@
-"""What the benchmarks share: a line describing the machine, timing, and memory.
+"""What the benchmarks share: a line describing the machine, timing, memory, and the
+accuracy of a fitted head.
 
     from bench.common import machine_description, max_rss_mb, median_time, peak_memory
+    from bench.common import skin_error_mm
 
     print(f"machine: {machine_description()}")  # load_average() alone after a long run
     t = median_time(lambda: work(case), repeats=7, warmup=1)
@@ -22,6 +24,10 @@ import sys
 import time
 import tracemalloc
 from pathlib import Path
+
+import numpy as np
+
+from solver.procrustes import similarity_procrustes
 
 
 def cpu_model():
@@ -125,3 +131,12 @@ def max_rss_mb():
     """Peak resident memory of this process so far (everything it loaded), MB."""
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     return rss / (2**20 if sys.platform == "darwin" else 1024.0)  # bytes on macOS, else KiB
+
+
+def skin_error_mm(model, local, truth_local):
+    """RMS vertex distance over the skin, millimetres, between ``local`` and
+    ``truth_local`` (V, 3) in metres, after similarity alignment (photos cannot tell
+    size)."""
+    a, b = local[model.skin], truth_local[model.skin]
+    sim = similarity_procrustes(a, b)
+    return 1000.0 * float(np.sqrt(((sim.apply(a) - b) ** 2).sum(axis=1).mean()))
