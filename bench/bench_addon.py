@@ -32,8 +32,9 @@ SAMPLE = ROOT / "generated" / "sample" / "sample.json"
 def _synthetic_case(folder, perspective=False):
     from PIL import Image
 
-    from solver import landmarks_file, synthetic
-    from solver.model import load_model
+    from solver import synthetic
+    from solver.io import landmarks_file
+    from solver.model.head_model import load_model
 
     if perspective:
         case, _ = synthetic.make_perspective_case(load_model(), 0, n_views=3)
@@ -68,8 +69,8 @@ def warm_up(texture_size=1024):
     are loaded (fit_ops.warm_up): model load, the bake's UV rasters, the eyelash texture.
     Returns their seconds."""
     from headrecon_addon import material
-    from solver.model import load_model
-    from solver.texture import uv_raster, uv_tiles
+    from solver.model.head_model import load_model
+    from solver.texture.bake import uv_raster, uv_tiles
 
     t = time.perf_counter()
     model = load_model()

@@ -7,11 +7,11 @@ triangulation, passpoint checking, mirror estimation. Prints numbers; asserts no
 import numpy as np
 
 from bench.common import machine_description, median_time
-from solver.calib_errors import check_passpoints
-from solver.dlt import DLTCamera, fit_dlt
-from solver.mirror import MirrorPlane, estimate_mirror
-from solver.pinhole import PinholeCamera
-from solver.triangulate import triangulate
+from solver.cameras.calib_errors import check_passpoints
+from solver.cameras.dlt import DLTCamera, fit_dlt
+from solver.cameras.mirror import MirrorPlane, estimate_mirror
+from solver.cameras.pinhole import PinholeCamera
+from solver.cameras.triangulate import triangulate
 
 SIZE = (1920, 1080)
 F_PX = 1500.0  # focal length, pixels (principal point at the image centre)

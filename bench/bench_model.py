@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 from bench.common import machine_description, median_time
-from solver import model as model_module
+from solver.model import head_model as model_module
 from tools import build_model
 
 

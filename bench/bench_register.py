@@ -34,7 +34,7 @@ def make_case(model, coeff_scale, seed):
     """A sampled head as a noisy point cloud and its truth (world vertices, similarity)."""
     import numpy as np
 
-    from solver.shape_icp import rotation_from_vector
+    from solver.fitting.shape_icp import rotation_from_vector
 
     rng = np.random.default_rng(seed)
     coeffs = coeff_scale * rng.standard_normal(model.n_coeffs)
@@ -50,7 +50,7 @@ def make_case(model, coeff_scale, seed):
 def run_case(label, model, coeff_scale, repeat, seed=0):
     import numpy as np
 
-    from solver.register import register
+    from solver.fitting.register import register
 
     cloud, truth, rot, scale = make_case(model, coeff_scale, seed)
     t = median_time(lambda: register(model, cloud), repeat, warmup=1)
@@ -91,7 +91,7 @@ def main(argv=None):
         os.execve(sys.executable, [sys.executable, "-m", "bench.bench_register",
                                    "--repeat", str(args.repeat)], env)
 
-    from solver.model import load_model
+    from solver.model.head_model import load_model
 
     head = load_model()
     regional = head.regional(10).take(head.skin)

@@ -18,9 +18,9 @@ from bench.common import (
     median_time,
     peak_memory,
 )
-from solver.cameras import OrthographicCamera
-from solver.model import load_model
-from solver.texture import bake_texture, bake_tiles, clear_raster_cache, uv_raster, uv_tiles
+from solver.cameras.base import OrthographicCamera
+from solver.model.head_model import load_model
+from solver.texture.bake import bake_texture, bake_tiles, clear_raster_cache, uv_raster, uv_tiles
 
 
 def photos(width=768, height=1024, seed=0):

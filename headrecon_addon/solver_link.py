@@ -10,8 +10,9 @@ missing scipy, a broken solver module) is re-raised so it is not mistaken for th
 
 import importlib
 
-_MODULES = ("blender_camera", "calib_errors", "cameras", "dlt", "fit", "landmarks_file", "model",
-            "pinhole", "result", "texture")
+_MODULES = ("cameras.blender", "cameras.calib_errors", "cameras.base", "cameras.dlt",
+            "fitting.fit", "io.landmarks_file", "model.head_model", "cameras.pinhole",
+            "fitting.result", "texture.bake")
 
 
 try:
@@ -23,16 +24,16 @@ except ImportError as e:  # top-level headrecon_addon (a checkout): the solver i
 
 _mods = {name: importlib.import_module(f"{solver.__name__}.{name}") for name in _MODULES}
 
-blender_camera = _mods["blender_camera"]
-calib_errors = _mods["calib_errors"]
-cameras = _mods["cameras"]
-dlt = _mods["dlt"]
-fit = _mods["fit"]
-landmarks_file = _mods["landmarks_file"]
-model = _mods["model"]
-pinhole = _mods["pinhole"]
-result = _mods["result"]
-texture = _mods["texture"]
+blender_camera = _mods["cameras.blender"]
+calib_errors = _mods["cameras.calib_errors"]
+cameras = _mods["cameras.base"]
+dlt = _mods["cameras.dlt"]
+fit = _mods["fitting.fit"]
+landmarks_file = _mods["io.landmarks_file"]
+model = _mods["model.head_model"]
+pinhole = _mods["cameras.pinhole"]
+result = _mods["fitting.result"]
+texture = _mods["texture.bake"]
 
 # What the add-on uses, by name.
 ORTHO_VIEWS = cameras.ORTHO_VIEWS

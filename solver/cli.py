@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .landmarks_file import (
+from .io.landmarks_file import (
     MIN_LANDMARKS_PER_VIEW,
     MIN_LANDMARKS_TOTAL,
     LandmarksError,
@@ -139,7 +139,7 @@ def texture_atlas(model, tiles):
     textured : ndarray, shape (F,), bool
         Faces the atlas covers: parts the bake covers (the skin) whose UVs lie in a tile.
     """
-    from .texture import resolve_parts
+    from .texture.bake import resolve_parts
 
     order = sorted(tiles)
     n = len(order)
@@ -250,9 +250,9 @@ def _cmd_fit(args):
     t = time.perf_counter()
     # Imported here, after the input checks: a bad file fails fast, before numpy-heavy
     # modules load.
-    from .fit import FitOptions, fit_head
-    from .model import load_model
-    from .obj_export import write_obj
+    from .fitting.fit import FitOptions, fit_head
+    from .io.obj import write_obj
+    from .model.head_model import load_model
 
     model = load_model(args.model)
     timings["model"] = time.perf_counter() - t
@@ -280,7 +280,7 @@ def _cmd_fit(args):
     outputs = {}
     loop_uv, textured = model.loop_uv, None
     if texture_path is not None:
-        from .texture import bake_fit_texture
+        from .texture.bake import bake_fit_texture
 
         progress(1.0, f"baking the texture from {len(photos)} photo(s)")
         t = time.perf_counter()

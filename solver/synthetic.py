@@ -22,11 +22,11 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from .cameras import ORTHO_VIEWS, OrthographicCamera
-from .landmarks_file import LandmarkCase, View
-from .mirror import MirrorPlane
-from .pinhole import SENSOR_MM, PinholeCamera
-from .raster import depth_buffer, rasterize
+from .cameras.base import ORTHO_VIEWS, OrthographicCamera
+from .cameras.mirror import MirrorPlane
+from .cameras.pinhole import SENSOR_MM, PinholeCamera
+from .io.landmarks_file import LandmarkCase, View
+from .texture.raster import depth_buffer, rasterize
 
 # Moore neighbourhood in clockwise order on screen (rows run down): W, NW, N, NE, E, SE, S, SW.
 _MOORE = np.array([(0, -1), (-1, -1), (-1, 0), (-1, 1), (0, 1), (1, 1), (1, 0), (1, -1)])
@@ -444,7 +444,7 @@ def make_mirror_case(model, rng=None, *, noise_px=1.0, distance_m=(0.9, 1.4),
         ``cameras``: the real camera ("front") and the reflected one ("mirror");
         ``planes["mirror"]``: the mirror.
     """
-    from .fit_engine import mirror_camera
+    from .fitting.engine import mirror_camera
 
     rng = np.random.default_rng(rng)
     head, world, normals, skin_tris, skin, centre = _pinhole_scene(model, rng, coeffs,

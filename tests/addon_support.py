@@ -59,7 +59,8 @@ def write_photo(path, size, seed=0):
 def synthetic_files(model, folder, seed=1, photos=True, name="case", **kw):
     """A synthetic case (solver/synthetic.py) saved as ``folder/<name>.json`` with a photo
     per view. Returns (path, case, truth)."""
-    from solver import landmarks_file, synthetic
+    from solver import synthetic
+    from solver.io import landmarks_file
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -110,7 +111,7 @@ def add_passpoints(case, truth, view, rng, n=14, misplace=None, noise_px=0.3):
 def save_case(case, folder, name, photos=True, seed=0):
     """Write a case (photos named after its views, one photo per image when views share
     one) as ``folder/<name>.json``; returns (path, case as loaded)."""
-    from solver import landmarks_file
+    from solver.io import landmarks_file
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)

@@ -19,7 +19,7 @@ def mirror_file(model, tmp_path_factory):
     principal point, "mirror" (mirror_of front) by the mirrored pinhole camera, "side" by a
     calibrated pinhole; all cameras given. Returns (path, case, head points (n, 3))."""
     from solver import synthetic
-    from solver.dlt import DLTCamera
+    from solver.cameras.dlt import DLTCamera
 
     addon()
     case, truth = synthetic.make_mirror_case(model, 2, calibrated=True, head_px=300.0)
@@ -113,7 +113,7 @@ def test_click_through_camera_places_pixel(mirror_file, tmp_path):
     # a click = a ray from the camera through the photo: the landmark lands on the pixel
     # under the mouse, and the export says so
     from headrecon_addon import landmarks, photos
-    from solver import landmarks_file
+    from solver.io import landmarks_file
 
     path, case, _ = mirror_file
     scene = empty_scene()
@@ -137,7 +137,8 @@ def test_click_through_camera_places_pixel(mirror_file, tmp_path):
 
 def test_v2_round_trip(model, mirror_file, tmp_path):
     from headrecon_addon import landmarks, photo_cameras, photos
-    from solver import landmarks_file, synthetic
+    from solver import synthetic
+    from solver.io import landmarks_file
 
     path, _, _ = mirror_file
     data = json.loads(path.read_text())
@@ -346,7 +347,8 @@ def test_broken_camera_leaves_scene_unchanged(mirror_file, how, words):
 def test_headless_scene_has_fitted_cameras(model):
     # the batch path (headless.build_scene_from_fit) shows the same cameras and checks
     from headrecon_addon import fit_ops, headless, photo_cameras, photos
-    from solver import fit, synthetic
+    from solver import synthetic
+    from solver.fitting import fit
 
     addon()
     case, truth = synthetic.make_perspective_case(model, 2, n_views=2, head_px=(300.0, 320.0))
@@ -403,7 +405,8 @@ def _camera_pixels(scene, view, pts):
 
 def test_export_after_fit_writes_the_fitted_cameras(model, tmp_path, monkeypatch):
     from headrecon_addon import fit_ops, photos
-    from solver import landmarks_file, synthetic
+    from solver import synthetic
+    from solver.io import landmarks_file
 
     addon()
     case, truth = synthetic.make_perspective_case(model, 5, n_views=2, head_px=(300.0, 320.0))
@@ -445,7 +448,7 @@ def test_export_after_fit_writes_the_fitted_cameras(model, tmp_path, monkeypatch
 
 def test_mirror_of_and_passpoints_from_the_ui(tmp_path):
     from headrecon_addon import landmarks, photos, properties
-    from solver import landmarks_file
+    from solver.io import landmarks_file
 
     scene = empty_scene()
     img = write_photo(tmp_path / "mirror.png", (400, 300))

@@ -26,7 +26,7 @@ scene.headrecon.n_identity = 30
 assert bpy.ops.headrecon.import_landmarks(filepath=case_path) == {"FINISHED"}
 assert bpy.ops.headrecon.fit() == {"FINISHED"}
 head = scene.headrecon.head
-solver = sys.modules[mod + ".solver.fit"]
+solver = sys.modules[mod + ".solver.fitting.fit"]
 print("RESULT " + json.dumps({
     "keys": len(head.data.shape_keys.key_blocks),
     "solver_file": solver.__file__,

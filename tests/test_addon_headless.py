@@ -111,7 +111,7 @@ def test_summary_names_the_winning_approach(model, tmp_path, monkeypatch, capsys
 
 def test_given_textures_are_used_without_a_second_bake(model, tmp_path, monkeypatch):
     from headrecon_addon import headless, material, reference_head
-    from solver.fit import FitOptions, fit_head
+    from solver.fitting.fit import FitOptions, fit_head
 
     _, case, _ = synthetic_files(model, tmp_path, seed=14, name="dave")
     result = fit_head(model, case, FitOptions(n_identity=10))

@@ -150,7 +150,7 @@ def test_contour(files, scene):
 
 
 def test_import_export_round_trip(files, scene, tmp_path):
-    from solver import landmarks_file
+    from solver.io import landmarks_file
 
     path, case, _ = files
     # keys the add-on does not edit travel through the scene untouched
@@ -249,7 +249,7 @@ def _render_eyes(scene, head, model, lash_alpha=None):
     """A small Cycles render of the subject's right eye from the front (no photo planes,
     plain light): (h, w, 4) float32 and the camera. ``lash_alpha``: replace the lash
     shader's alpha by this constant (None keeps the shader)."""
-    from solver.cameras import ORTHO_VIEWS, OrthographicCamera
+    from solver.cameras.base import ORTHO_VIEWS, OrthographicCamera
     from tools import render_util as ru
 
     lashes = next(m for m in head.data.materials if m["headrecon_group"] == "Eyelashes")

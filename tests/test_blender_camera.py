@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from camera_support import dlt_camera, look_at
 
-from solver.blender_camera import (
+from solver.cameras.blender import (
     blender_to_dlt,
     blender_to_krc,
     dlt_to_blender,

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from camera_support import dlt_camera
 
-from solver.calib_errors import check_passpoints, error_norms
+from solver.cameras.calib_errors import check_passpoints, error_norms
 
 NAMES = [f"marker_{i:02d}" for i in range(20)]
 

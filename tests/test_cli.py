@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from solver.landmarks_file import load_landmark_set
-from solver.obj_export import obj_text, write_obj
+from solver.io.landmarks_file import load_landmark_set
+from solver.io.obj import obj_text, write_obj
 
 ROOT = Path(__file__).resolve().parent.parent
 W, H = 600, 800
@@ -290,7 +290,7 @@ def test_landmarks_listing():
 
 def test_texture_atlas_puts_tiles_side_by_side(model):
     from solver.cli import texture_atlas
-    from solver.texture import uv_tiles
+    from solver.texture.bake import uv_tiles
 
     tiles = uv_tiles(model)
     size = 16
@@ -321,7 +321,7 @@ def test_texture_atlas_puts_tiles_side_by_side(model):
 def test_fit_a_synthetic_case_writes_obj_texture_and_report(tmp_path, model):
     from PIL import Image
 
-    from solver.landmarks_file import save_landmarks
+    from solver.io.landmarks_file import save_landmarks
     from solver.synthetic import make_case
 
     case, truth = make_case(model, 11, noise_px=0.5, image_height=512)

@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 from fit_support import skin_error_mm
 
-from solver.cameras import OrthographicCamera
-from solver.fit import (
+from solver.cameras.base import OrthographicCamera
+from solver.cameras.pinhole import PinholeCamera
+from solver.fitting.engine import CONTOUR_KEEP_SIGMAS, ContourRows, State
+from solver.fitting.fit import (
     FitOptions,
     _candidate_mesh,
     _engine,
@@ -15,10 +17,8 @@ from solver.fit import (
     fit_head,
     shared_edges,
 )
-from solver.fit_engine import CONTOUR_KEEP_SIGMAS, ContourRows, State
-from solver.linear_model import LinearModel
-from solver.pinhole import PinholeCamera
-from solver.shape_icp import PointRows, ShapeProblem
+from solver.fitting.shape_icp import PointRows, ShapeProblem
+from solver.model.linear_model import LinearModel
 from solver.synthetic import make_perspective_case
 
 # Pixel = 1000 * (x, y) + (0, 0): a metre of x is 1000 pixels.

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from camera_support import SIZE, dlt_camera, look_at
 
-from solver.cameras import Camera, camera_from_dict, camera_kinds
-from solver.dlt import DLTCamera, fit_dlt
+from solver.cameras.base import Camera, camera_from_dict, camera_kinds
+from solver.cameras.dlt import DLTCamera, fit_dlt
 
 # off-centre principal point: the fit must not assume the image centre
 K = np.array([[1400.0, 0.0, 980.0], [0.0, 1400.0, 530.0], [0.0, 0.0, 1.0]])

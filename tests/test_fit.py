@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from fit_support import skin_error_mm
 
-from solver.cameras import OrthographicCamera
-from solver.fit import FitOptions, fit_head, flag_residuals, refit_landmarks
-from solver.landmarks_file import LandmarkCase, View
+from solver.cameras.base import OrthographicCamera
+from solver.fitting.fit import FitOptions, fit_head, flag_residuals, refit_landmarks
+from solver.io.landmarks_file import LandmarkCase, View
 from solver.synthetic import make_case
 
 
@@ -248,7 +248,7 @@ def test_fixed_camera_keeps_the_given_calibration(model):
 def _pinhole_case(model, seed, **view_kw):
     """A synthetic head photographed by two 85 mm pinhole cameras at 1.5 m (landmarks with
     1 px noise, the profile's outline traced), and the true cameras."""
-    from solver.pinhole import PinholeCamera
+    from solver.cameras.pinhole import PinholeCamera
     from solver.synthetic import resample_polyline, trace_silhouette
 
     case, truth = make_case(model, seed, noise_px=0.0)

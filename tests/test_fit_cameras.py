@@ -14,11 +14,12 @@ import pytest
 from camera_support import dlt_camera
 from fit_support import skin_error_mm
 
-from solver.cameras import OrthographicCamera
-from solver.dlt import fit_dlt
-from solver.fit import FitOptions, fit_head, refit_landmarks
-from solver.landmarks_file import LandmarkCase, View, check_case, save_landmarks
-from solver.pinhole import PinholeCamera
+from solver.cameras.base import OrthographicCamera
+from solver.cameras.dlt import fit_dlt
+from solver.cameras.pinhole import PinholeCamera
+from solver.cameras.triangulate import projection_matrix, triangulate, viewing_rays
+from solver.fitting.fit import FitOptions, fit_head, refit_landmarks
+from solver.io.landmarks_file import LandmarkCase, View, check_case, save_landmarks
 from solver.procrustes import similarity_procrustes
 from solver.synthetic import (
     make_case,
@@ -26,7 +27,6 @@ from solver.synthetic import (
     make_perspective_case,
     visible_landmarks,
 )
-from solver.triangulate import projection_matrix, triangulate, viewing_rays
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -9,9 +9,9 @@ import pytest
 from fit_support import skin_error_mm
 from scipy.spatial import cKDTree
 
-from solver import fit
-from solver.fit import FitOptions, fit_head
-from solver.fit_engine import Engine, State, ViewData
+from solver.fitting import fit
+from solver.fitting.engine import Engine, State, ViewData
+from solver.fitting.fit import FitOptions, fit_head
 from solver.synthetic import make_case, make_perspective_case, resample_polyline, trace_silhouette
 
 

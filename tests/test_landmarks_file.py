@@ -12,16 +12,18 @@ import jsonschema
 import numpy as np
 import pytest
 
-from solver.cameras import OrthographicCamera, camera_kinds
-from solver.dlt import DLTCamera, fit_dlt
-from solver.jsonschema_lite import (
+from solver.cameras.base import OrthographicCamera, camera_kinds
+from solver.cameras.dlt import DLTCamera, fit_dlt
+from solver.cameras.mirror import MirrorPlane, reflected_camera
+from solver.cameras.pinhole import PinholeCamera
+from solver.io.jsonschema_lite import (
     KEYWORDS,
     SchemaKeywordError,
     Validator,
     format_path,
     validate,
 )
-from solver.landmarks_file import (
+from solver.io.landmarks_file import (
     MIN_LANDMARKS_PER_VIEW,
     MIN_LANDMARKS_TOTAL,
     SCHEMA_PATH,
@@ -36,8 +38,6 @@ from solver.landmarks_file import (
     parse_landmarks,
     save_landmarks,
 )
-from solver.mirror import MirrorPlane, reflected_camera
-from solver.pinhole import PinholeCamera
 
 W, H = 768, 1024
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from camera_support import SIZE, K, dlt_camera
 
-from solver.cameras import camera_from_dict
-from solver.mirror import (
+from solver.cameras.base import camera_from_dict
+from solver.cameras.mirror import (
     IBUG_MIRROR,
     MirrorPlane,
     estimate_mirror,

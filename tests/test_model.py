@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from solver.model import DEFAULT_MODEL_PATH, fan_triangles, load_model, mesh_edges
+from solver.model.head_model import DEFAULT_MODEL_PATH, fan_triangles, load_model, mesh_edges
 from tools import build_model as bm
 from tools.obj_io import parse_obj, parse_obj_positions
 

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from solver.linear_model import LinearModel, concat
-from solver.pca import PCA, fit_pca
+from solver.model.linear_model import LinearModel, concat
+from solver.model.pca import PCA, fit_pca
 
 
 def _samples(m, d, rank=None, seed=0):

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from solver.cameras import OrthographicCamera
-from solver.dlt import DLTCamera
-from solver.projection_check import (
+from solver.cameras.base import OrthographicCamera
+from solver.cameras.dlt import DLTCamera
+from solver.cameras.projection_check import (
     check_projection,
     check_views,
     min_distance,

@@ -9,8 +9,13 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from solver.register import estimate_normals, initial_similarity, register, smallest_eigenvectors
-from solver.shape_icp import rotation_from_vector
+from solver.fitting.register import (
+    estimate_normals,
+    initial_similarity,
+    register,
+    smallest_eigenvectors,
+)
+from solver.fitting.shape_icp import rotation_from_vector
 
 
 def _case(lin, coeff_scale, seed, keep=1.0, noise=0.0005):

@@ -14,8 +14,8 @@ import pytest
 from PIL import Image
 from scipy import ndimage
 
-from solver.cameras import camera_from_dict
-from solver.landmarks_file import load_landmarks
+from solver.cameras.base import camera_from_dict
+from solver.io.landmarks_file import load_landmarks
 from tools.make_sample import make_sample
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -166,7 +166,7 @@ def test_demo_writes_everything_and_fits_the_truth(demo, model):
 def test_demo_refuses_without_a_fit(monkeypatch):
     import tools.demo as demo_mod
 
-    monkeypatch.setitem(sys.modules, "solver.fit", None)  # import fails like a missing fit
+    monkeypatch.setitem(sys.modules, "solver.fitting.fit", None)  # import fails like a missing fit
     with pytest.raises(demo_mod.DemoError, match="fit is not available"):
         demo_mod._fit_api()
 

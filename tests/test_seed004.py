@@ -4,9 +4,9 @@ reconstruction errors below are copied from the seed's text and are the test vec
 
 import numpy as np
 
-from solver.calib_errors import check_reconstruction
-from solver.dlt import fit_dlt
-from solver.triangulate import triangulate
+from solver.cameras.calib_errors import check_reconstruction
+from solver.cameras.dlt import fit_dlt
+from solver.cameras.triangulate import triangulate
 
 # pt: x y z (metres) | u_1 v_1 | u_2 v_2 | u_4 v_4 (pixels)
 DATA = np.array([

@@ -3,9 +3,8 @@
 import numpy as np
 import pytest
 
-from solver.cameras import OrthographicCamera
-from solver.linear_model import LinearModel
-from solver.shape_icp import (
+from solver.cameras.base import OrthographicCamera
+from solver.fitting.shape_icp import (
     ClosestPixelRows,
     ClosestPointRows,
     ImageRows,
@@ -18,6 +17,7 @@ from solver.shape_icp import (
     skew,
     vertex_std,
 )
+from solver.model.linear_model import LinearModel
 
 
 def _sphere(n):

@@ -4,11 +4,10 @@ synthetic meshes with coded photos, plus one check on the real head model."""
 import numpy as np
 import pytest
 
-from solver.cameras import OrthographicCamera
-from solver.model import fan_triangles
-from solver.raster import depth_buffer, first_per_pixel, rasterize
-from solver.result import FitResult
-from solver.texture import (
+from solver.cameras.base import OrthographicCamera
+from solver.fitting.result import FitResult
+from solver.model.head_model import fan_triangles
+from solver.texture.bake import (
     BakeOptions,
     bake_fit_texture,
     bake_texture,
@@ -19,6 +18,7 @@ from solver.texture import (
     uv_raster,
     uv_tiles,
 )
+from solver.texture.raster import depth_buffer, first_per_pixel, rasterize
 
 W, H = 96, 128  # photo size of the synthetic tests
 
@@ -124,7 +124,7 @@ def test_rasterize_square_covers_each_pixel_once_with_exact_barycentrics():
 
 
 def test_rasterize_batches_and_bands_do_not_change_the_result(monkeypatch):
-    import solver.raster as raster_mod
+    import solver.texture.raster as raster_mod
 
     tri = np.array([[[0, 0], [300, 0], [0, 300]], [[5, 5], [50, 5], [5, 80]],
                     [[10.3, 20.7], [11.1, 20.9], [10.6, 21.8]]], float)
@@ -195,7 +195,7 @@ def test_coded_photo_lands_on_the_right_texels():
 
 
 def test_perspective_camera_bakes_within_a_fraction_of_a_pixel():
-    from solver.dlt import DLTCamera
+    from solver.cameras.dlt import DLTCamera
 
     w, h = 192, 256
     k = np.array([[300.0, 0, w / 2], [0, 300.0, h / 2], [0, 0, 1]])

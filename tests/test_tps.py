@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
+from solver.fitting.shape_icp import rotation_from_vector
+from solver.fitting.tps import ThinPlateSpline, tps_warp
 from solver.procrustes import Similarity, similarity_procrustes
-from solver.shape_icp import rotation_from_vector
-from solver.tps import ThinPlateSpline, tps_warp
 
 
 def _cloud(n, seed=0, size=0.1):

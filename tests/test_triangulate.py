@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from camera_support import dlt_camera
 
-from solver.cameras import OrthographicCamera
-from solver.triangulate import ray_midpoint, triangulate
+from solver.cameras.base import OrthographicCamera
+from solver.cameras.triangulate import ray_midpoint, triangulate
 
 DIST = np.array([-3e-8, 1e-14, 0.0, 1e-6, -5e-7])
 

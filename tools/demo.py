@@ -3,7 +3,7 @@
     python -m tools.demo [--out out/demo] [--sample DIR] [--size WxH] [--samples N]
 
 Makes the sample case if it is missing (``tools/make_sample.py``), fits it with the
-combined method (``solver.fit.fit_head``), and writes into ``--out``:
+combined method (``solver.fitting.fit.fit_head``), and writes into ``--out``:
 
 - ``head.blend``: the add-on's scene (``headrecon_addon.headless``): the head with its
   identity in shape keys, the baked texture packed, the photo planes with the landmarks;
@@ -27,8 +27,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
-from solver.landmarks_file import load_landmarks, write_file_atomic
-from solver.model import load_model
+from solver.io.landmarks_file import load_landmarks, write_file_atomic
+from solver.model.head_model import load_model
 from solver.procrustes import similarity_procrustes
 from tools.make_sample import DEFAULT_OUT as DEFAULT_SAMPLE
 from tools.make_sample import (
@@ -56,9 +56,9 @@ class DemoError(RuntimeError):
 def _fit_api():
     """``fit_head`` and ``FitOptions``, or DemoError saying the fit is not available."""
     try:
-        from solver.fit import FitOptions, fit_head
+        from solver.fitting.fit import FitOptions, fit_head
     except ImportError as exc:
-        raise DemoError(f"the fit is not available in this checkout (solver.fit: {exc}); "
+        raise DemoError(f"the fit is not available in this checkout (solver.fitting.fit: {exc}); "
                         "the demo does not fake one") from None
     return fit_head, FitOptions
 
@@ -128,8 +128,8 @@ def write_obj_and_texture(model, result, photos, out, log):
     seconds : float
         Time of the bake.
     """
-    from solver.obj_export import write_obj
-    from solver.texture import bake_fit_texture, tile_atlas
+    from solver.io.obj import write_obj
+    from solver.texture.bake import bake_fit_texture, tile_atlas
     from tools.render_util import save_png
 
     t0 = time.perf_counter()
@@ -166,7 +166,7 @@ def write_blend(model, case, result, photo_paths, textures, out):
 
 def _scaled(camera, factor):
     """The same orthographic camera for an image ``factor`` times the size."""
-    from solver.cameras import OrthographicCamera
+    from solver.cameras.base import OrthographicCamera
 
     w, h = camera.size
     return OrthographicCamera(camera.rotation, camera.scale * factor, camera.offset * factor,
@@ -176,7 +176,7 @@ def _scaled(camera, factor):
 def _three_quarter(front, world_skin, yaw_deg=35.0):
     """A camera turned ``yaw_deg`` about the vertical from the front camera toward the
     subject's right, centred on the head."""
-    from solver.cameras import OrthographicCamera
+    from solver.cameras.base import OrthographicCamera
 
     a = np.radians(yaw_deg)
     rz = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0, 0, 1.0]])

@@ -2,7 +2,7 @@
 
 Everything here runs in background mode with Cycles on the CPU (Eevee needs a GPU
 context). Meshes come in as plain arrays (the head model's polygon layout), cameras as
-``solver.cameras.OrthographicCamera`` so the photos, the landmarks file and the fit agree
+``solver.cameras.base.OrthographicCamera`` so the photos, the landmarks file and the fit agree
 on one projection: pixel = scale * R[:2] @ X + offset, origin at the image's top-left
 corner, pixel (i, j) covering [i, i+1] x [j, j+1].
 """
@@ -124,7 +124,7 @@ def add_ortho_camera(camera, name="Camera", depth=2.0):
 
     Parameters
     ----------
-    camera : solver.cameras.OrthographicCamera
+    camera : solver.cameras.base.OrthographicCamera
         rotation rows (u, v, viewing direction), scale px/m, offset px, size (w, h).
     depth : float, metres
         Distance of the camera before the world origin along the viewing direction (the
@@ -161,7 +161,7 @@ def add_ortho_camera(camera, name="Camera", depth=2.0):
 def blender_project(cam_obj, points, size):
     """Pixel positions of world points as Blender's camera sees them: (n, 3) -> (n, 2).
 
-    Independent of ``solver.cameras`` (it goes through ``world_to_camera_view``), so
+    Independent of ``solver.cameras.base`` (it goes through ``world_to_camera_view``), so
     comparing the two checks the camera conversion.
     """
     scene = bpy.context.scene

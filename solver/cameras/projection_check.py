@@ -28,9 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cameras import OrthographicCamera
+from ..errors import as_points
+from .base import OrthographicCamera
 from .dlt import DLTCamera
-from .errors import as_points
 from .pinhole import PinholeCamera
 
 

@@ -50,14 +50,14 @@ from pathlib import Path
 
 import numpy as np
 
-from . import cameras as _cameras
-from .cameras import ORTHO_VIEWS, Camera, OrthographicCamera, camera_from_dict, camera_kinds
+from ..cameras import base as _cameras
+from ..cameras.base import ORTHO_VIEWS, Camera, OrthographicCamera, camera_from_dict, camera_kinds
+from ..paths import ASSETS_DIR
 from .jsonschema_lite import Validator, format_path
 
 FORMAT = "headrecon-landmarks"
 #: Newest version read and written. Writing picks the lowest version that holds the case.
 CURRENT_VERSION = 2
-ASSETS_DIR = Path(__file__).resolve().parent.parent / "assets"
 SCHEMA_PATH = ASSETS_DIR / "landmarks.schema.json"
 LANDMARK_SET_PATH = ASSETS_DIR / "landmarks.json"
 
@@ -933,7 +933,7 @@ def _passpoint_problems(case, view, where, for_fit):
     elif for_fit and view.camera is None and len(usable) == len(view.passpoints):
         # The camera is to be computed from them: make sure it can be (when every passpoint
         # is fine; a bad one is reported at the top level or above).
-        from .dlt import fit_dlt
+        from ..cameras.dlt import fit_dlt
 
         n = len(usable)
         at = format_path(where + ("passpoints",))

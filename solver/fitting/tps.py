@@ -13,7 +13,7 @@ would turn singular at some lambda; with the minus it stays regular for every la
 import numpy as np
 from scipy.spatial.distance import cdist
 
-from .errors import as_points
+from ..errors import as_points
 
 # apply() evaluates at most this many point-centre distances at once (8 bytes each).
 _CHUNK_ELEMENTS = 2_000_000

@@ -42,10 +42,10 @@ solver/mirror.py) is allowed everywhere except where Blender cannot represent it
 
 import numpy as np
 
-from .blender_camera import blender_to_krc, krc_to_blender
-from .cameras import Camera, correspondences, register, toward_centre
+from ..errors import as_points
+from .base import Camera, correspondences, register, toward_centre
+from .blender import blender_to_krc, krc_to_blender
 from .dlt import DLTCamera, fit_dlt
-from .errors import as_points
 
 #: sensor size (mm) across the longer image side that ``lens_mm`` refers to (full frame)
 SENSOR_MM = 36.0

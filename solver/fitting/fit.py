@@ -52,8 +52,15 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .cameras import Camera, OrthographicCamera
-from .fit_engine import (
+from ..cameras.base import Camera, OrthographicCamera
+from ..cameras.mirror import MirrorPlane
+from ..io.landmarks_file import (
+    MIN_LANDMARKS_PER_VIEW,
+    MIN_LANDMARKS_TOTAL,
+    LandmarkCase,
+    LandmarkSet,
+)
+from .engine import (
     ContourRows,
     Engine,
     StackedModel,
@@ -63,13 +70,6 @@ from .fit_engine import (
     is_perspective,
     is_side_camera,
 )
-from .landmarks_file import (
-    MIN_LANDMARKS_PER_VIEW,
-    MIN_LANDMARKS_TOTAL,
-    LandmarkCase,
-    LandmarkSet,
-)
-from .mirror import MirrorPlane
 from .result import FitResult, ViewResidual
 from .shape_icp import ImageRows, PointRows
 from .tps import ThinPlateSpline
@@ -408,8 +408,8 @@ def _compute_camera(model, case, view, lms, where):
     best of TRIAL_LENSES_MM. (A DLT or a free focal length fitted to the mean head would
     bend the camera to the mean head's shape: a head is shallow, so focal length and
     distance trade off.)"""
-    from .dlt import fit_dlt
-    from .pinhole import PinholeCamera
+    from ..cameras.dlt import fit_dlt
+    from ..cameras.pinhole import PinholeCamera
 
     hints = dict(getattr(view, "camera_hints", {}) or {})
     kind = hints.get("kind")
@@ -482,8 +482,8 @@ def _init_pose(eng, state):
 
 
 def _pose_by_triangulation(eng, state, fixed):
-    from .procrustes import similarity_procrustes
-    from .triangulate import triangulate
+    from ..cameras.triangulate import triangulate
+    from ..procrustes import similarity_procrustes
 
     verts = np.unique(np.concatenate([v.vertices for v in fixed]))
     pix = np.full((len(fixed), len(verts), 2), np.nan)
@@ -508,7 +508,7 @@ def _pose_by_resection(eng, state, view):
     """Pose the head (scale kept) from one calibrated perspective camera: the camera's pose
     relative to the mean head (a pinhole refit with its intrinsics kept) composed with
     its pose in the world."""
-    from .pinhole import PinholeCamera
+    from ..cameras.pinhole import PinholeCamera
 
     cam = view.camera
     try:
@@ -1150,7 +1150,7 @@ def _mirror_info(eng, state, opts):
     metres and in pixels at the landmark's depth (gap * f / depth). A gap that stands out
     (``flag_residuals`` with the options' sigmas and pixel floor) means a landmark placed
     on different points in the two images. Returns (info, warnings)."""
-    from .mirror import triangulate_mirror
+    from ..cameras.mirror import triangulate_mirror
 
     out, warnings = {}, []
     for m in eng.views:
@@ -1190,7 +1190,7 @@ def _projection_info(model, result, eng, opts):
     when ``camera_distance_m`` is given, with a warning when its epsilon exceeds what the
     landmarks can tell (reading error 2 noise_px over the head's image size). Returns
     (info, warnings)."""
-    from .projection_check import check_orthographic, check_projection
+    from ..cameras.projection_check import check_orthographic, check_projection
 
     pts = result.world_vertices[np.asarray(model.skin, dtype=np.int64)]
     out, warnings = {}, []

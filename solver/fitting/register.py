@@ -23,7 +23,7 @@ import time
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .errors import as_points
+from ..errors import as_points
 from .shape_icp import ClosestPointRows, ShapeProblem, _check_rotation
 
 

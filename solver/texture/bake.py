@@ -49,7 +49,7 @@ import scipy.ndimage as ndi
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .errors import as_points
+from ..errors import as_points
 from .raster import depth_buffer, first_per_pixel, rasterize
 
 SKIN_PARTS = ("Face", "Head and Neck")

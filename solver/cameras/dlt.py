@@ -47,8 +47,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 
-from .cameras import Camera, correspondences, register, toward_centre
-from .errors import as_points
+from ..errors import as_points
+from .base import Camera, correspondences, register, toward_centre
 
 #: fewest passpoints for the 11- and 16-parameter DLT (seed 000 §2)
 MIN_POINTS = {11: 6, 16: 8}

@@ -29,11 +29,11 @@ import numpy as np
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
-from .cameras import Camera, OrthographicCamera
-from .dlt import DLTCamera
-from .linear_model import LinearModel
-from .mirror import MirrorPlane, estimate_mirror
-from .pinhole import FREE_FOCAL_POINTS, PinholeCamera, pixel_by_camera_point
+from ..cameras.base import Camera, OrthographicCamera
+from ..cameras.dlt import DLTCamera
+from ..cameras.mirror import MirrorPlane, estimate_mirror
+from ..cameras.pinhole import FREE_FOCAL_POINTS, PinholeCamera, pixel_by_camera_point
+from ..model.linear_model import LinearModel
 from .shape_icp import CameraRows, ImageRows, ScalarRows, ShapeProblem, rotation_from_vector, skew
 
 # Pixels one unit of a camera mode's coefficient moves the photo (see Joint): large, so

@@ -41,8 +41,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import as_points
 from .dlt import DLTCamera
-from .errors import as_points
 from .triangulate import ray_midpoint
 
 # iBUG-68 numbers of left/right symmetric landmarks; the rest (9, 28-31, 34, 52, 58, 63,

@@ -12,7 +12,7 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
-from .errors import as_points, as_weights
+from ..errors import as_points, as_weights
 
 # kind -> class; filled by @register. Modules listed in _PLUGINS register further kinds
 # (e.g. "dlt") and are imported on first lookup, so this module needs no import of them.
@@ -252,7 +252,7 @@ class OrthographicCamera(Camera):
             Fewer than 2 (weighted) pairs, mismatched shapes, NaN, or points whose
             projections coincide (the similarity is undetermined).
         """
-        from .procrustes import similarity_procrustes
+        from ..procrustes import similarity_procrustes
 
         x, q, w = correspondences(points, pixels, weights, self.min_refit_points)
         a = x @ self.rotation[:2].T  # image-plane coordinates in metres

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .cameras import OrthographicCamera
+from .base import OrthographicCamera
 from .dlt import DLTCamera
 from .pinhole import PinholeCamera
 

@@ -27,8 +27,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import as_points
 from .dlt import MIN_POINTS, fit_dlt
-from .errors import as_points
 from .triangulate import triangulate
 
 #: leave-one-out needs this many degrees of freedom left (2 (n - 1) - p) to be meaningful

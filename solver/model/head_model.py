@@ -16,12 +16,11 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
+from ..paths import DEFAULT_MODEL_PATH
 from .linear_model import LinearModel
 
 MODEL_FORMAT = "headrecon-head-model"
 MODEL_FORMAT_VERSION = 1
-DEFAULT_MODEL_PATH = Path(__file__).resolve().parent.parent / "generated" / "model" / \
-    "head_model.npz"
 
 _cache = {}
 _cache_lock = threading.Lock()
