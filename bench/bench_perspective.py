@@ -61,12 +61,11 @@ from bench.common import (  # noqa: E402
     load_average,
     machine_description,
     median_time,
-    skin_error_mm,
 )
 from bench.fit_bound import fit_bound_mm  # noqa: E402
 from solver.fitting.fit import fit_head  # noqa: E402
 from solver.model.head_model import load_model  # noqa: E402
-from solver.synthetic import make_case, make_perspective_case  # noqa: E402
+from solver.synthetic import make_case, make_perspective_case, skin_error_mm  # noqa: E402
 
 SEED0 = 1000  # bench_fit's seeds: the same heads
 

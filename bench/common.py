@@ -1,8 +1,7 @@
-"""What the benchmarks share: a line describing the machine, timing, memory, and the
-accuracy of a fitted head.
+"""What the benchmarks share: a line describing the machine, timing and memory (the
+accuracy of a fitted head is ``solver.synthetic.skin_error_mm``, which the tests use too).
 
     from bench.common import machine_description, max_rss_mb, median_time, peak_memory
-    from bench.common import skin_error_mm
 
     print(f"machine: {machine_description()}")  # load_average() alone after a long run
     t = median_time(lambda: work(case), repeats=7, warmup=1)
@@ -27,8 +26,6 @@ from pathlib import Path
 
 import numpy as np
 
-from solver.procrustes import similarity_procrustes
-
 
 def cpu_model():
     """The CPU's model name (from /proc/cpuinfo on Linux)."""
@@ -51,7 +48,6 @@ def load_average():
 def machine_description():
     """One line: CPU, cores (logical and usable by this process), load average, Python,
     numpy and scipy versions, BLAS threads, and Blender's version when bpy is imported."""
-    import numpy as np
 
     parts = [cpu_model()]
     cores = f"{os.cpu_count()} logical cores"
@@ -131,12 +127,3 @@ def max_rss_mb():
     """Peak resident memory of this process so far (everything it loaded), MB."""
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     return rss / (2**20 if sys.platform == "darwin" else 1024.0)  # bytes on macOS, else KiB
-
-
-def skin_error_mm(model, local, truth_local):
-    """RMS vertex distance over the skin, millimetres, between ``local`` and
-    ``truth_local`` (V, 3) in metres, after similarity alignment (photos cannot tell
-    size)."""
-    a, b = local[model.skin], truth_local[model.skin]
-    sim = similarity_procrustes(a, b)
-    return 1000.0 * float(np.sqrt(((sim.apply(a) - b) ** 2).sum(axis=1).mean()))

@@ -26,6 +26,7 @@ from .cameras.base import ORTHO_VIEWS, OrthographicCamera
 from .cameras.mirror import MirrorPlane
 from .cameras.pinhole import SENSOR_MM, PinholeCamera
 from .io.landmarks_file import LandmarkCase, View
+from .procrustes import similarity_procrustes
 from .texture.raster import depth_buffer, rasterize
 
 # Moore neighbourhood in clockwise order on screen (rows run down): W, NW, N, NE, E, SE, S, SW.
@@ -663,3 +664,12 @@ def resample_polyline(points, n):
     s = np.concatenate([[0.0], np.cumsum(seg)])
     t = np.linspace(0.0, s[-1], int(n))
     return np.stack([np.interp(t, s, p[:, 0]), np.interp(t, s, p[:, 1])], axis=1)
+
+
+def skin_error_mm(model, local, truth_local):
+    """RMS vertex distance over the skin, millimetres, between ``local`` and
+    ``truth_local`` (V, 3) in metres, after similarity alignment (photos cannot tell
+    size): how the tests and the benchmarks measure a fitted head."""
+    a, b = local[model.skin], truth_local[model.skin]
+    sim = similarity_procrustes(a, b)
+    return 1000.0 * float(np.sqrt(((sim.apply(a) - b) ** 2).sum(axis=1).mean()))

@@ -2,10 +2,10 @@
 
 import numpy as np
 import pytest
-from camera_support import SIZE, dlt_camera, look_at
 
 from solver.cameras.base import Camera, camera_from_dict, camera_kinds
 from solver.cameras.dlt import DLTCamera, fit_dlt
+from tests.solver.cameras.support import SIZE, dlt_camera, look_at
 
 # off-centre principal point: the fit must not assume the image centre
 K = np.array([[1400.0, 0.0, 980.0], [0.0, 1400.0, 530.0], [0.0, 0.0, 1.0]])

@@ -8,9 +8,10 @@ import types
 import bpy
 import numpy as np
 import pytest
-from addon_support import add_passpoints, addon, empty_scene, save_case, snapshot, write_photo
 from bpy_extras.object_utils import world_to_camera_view
 from mathutils import Vector
+
+from tests.addon.support import add_passpoints, addon, empty_scene, save_case, snapshot, write_photo
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,8 @@ import types
 
 import bpy
 import pytest
-from addon_support import addon, empty_scene, synthetic_files
+
+from tests.addon.support import addon, empty_scene, synthetic_files
 
 ICONS = set(bpy.types.UILayout.bl_rna.functions["label"].parameters["icon"].enum_items.keys())
 
@@ -110,9 +111,9 @@ def test_panels_draw_perspective_photos(model, tmp_path):
     # any number of photos, each with its camera's description; passpoints can be placed;
     # the residual list and the result panel show the passpoint check
     import numpy as np
-    from addon_support import add_passpoints, save_case
 
     from solver import synthetic
+    from tests.addon.support import add_passpoints, save_case
 
     addon()
     case, truth = synthetic.make_perspective_case(model, 0, n_views=3, head_px=(300.0, 320.0))

@@ -4,7 +4,8 @@ residual list, re-fit, live refit, cancel (bpy module, background)."""
 import bpy
 import numpy as np
 import pytest
-from addon_support import addon, empty_scene, snapshot, synthetic_files
+
+from tests.addon.support import addon, empty_scene, snapshot, synthetic_files
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,7 @@ install runs in a subprocess.
 import json
 import zipfile
 
-from addon_support import run_python, synthetic_files
+from tests.addon.support import run_python, synthetic_files
 
 INSTALL_AND_FIT = r"""
 import json, sys

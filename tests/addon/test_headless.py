@@ -7,7 +7,8 @@ from pathlib import Path
 
 import bpy
 import numpy as np
-from addon_support import ROOT, addon, run_python, synthetic_files
+
+from tests.addon.support import ROOT, addon, run_python, synthetic_files
 
 
 def _open(path):

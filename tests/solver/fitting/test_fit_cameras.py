@@ -7,12 +7,9 @@ import copy
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
-from camera_support import dlt_camera
-from fit_support import skin_error_mm
 
 from solver.cameras.base import OrthographicCamera
 from solver.cameras.dlt import fit_dlt
@@ -25,10 +22,11 @@ from solver.synthetic import (
     make_case,
     make_mirror_case,
     make_perspective_case,
+    skin_error_mm,
     visible_landmarks,
 )
-
-ROOT = Path(__file__).resolve().parent.parent
+from tests import ROOT
+from tests.solver.cameras.support import dlt_camera
 
 
 def normal_angle_deg(a, b):
@@ -86,8 +84,8 @@ def test_triangulation_through_pinhole_cameras():
 def test_self_calibrated_photos_at_any_angle(model):
     case, truth = make_perspective_case(model, 7, n_views=3)
     res = fit_head(model, case)
-    err = skin_error_mm(model, res.local_vertices, truth)
-    assert err < 1.6 and err < 0.4 * skin_error_mm(model, model.vertices, truth)
+    err = skin_error_mm(model, res.local_vertices, truth.local_vertices)
+    assert err < 1.6 and err < 0.4 * skin_error_mm(model, model.vertices, truth.local_vertices)
     for name in case.views:
         cam = res.cameras[name]
         assert isinstance(cam, PinholeCamera) and not cam.is_mirrored
@@ -112,7 +110,7 @@ def test_calibrated_photos_with_outlines_on_any_view(model):
     for name, view in case.views.items():
         assert res.cameras[name] is view.camera
         assert res.info["contour_rms_px"][name] < 2.0  # every photo's outline was fitted
-    assert skin_error_mm(model, res.local_vertices, truth) < 1.6
+    assert skin_error_mm(model, res.local_vertices, truth.local_vertices) < 1.6
     # two calibrated cameras measure the head: placed and sized in their world
     assert res.scale == pytest.approx(truth.scale, rel=0.05)
     nose = model.landmarks["nose_tip"]
@@ -129,7 +127,7 @@ def test_four_photos_of_mixed_kinds(model):
     res = fit_head(model, case)
     assert [res.cameras[n].kind for n in case.views] == ["pinhole", "pinhole", "dlt", "pinhole"]
     assert res.cameras["photo3"] is kept.camera
-    assert skin_error_mm(model, res.local_vertices, truth) < 1.6
+    assert skin_error_mm(model, res.local_vertices, truth.local_vertices) < 1.6
     # one calibrated camera cannot tell size from distance: the model's size is kept
     assert res.scale == 1.0
     nose = model.landmarks["nose_tip"]
@@ -144,9 +142,9 @@ def test_a_second_profile(model):
     assert set(res.info["contour_rms_px"]) == {"right", "left"}
     assert max(res.info["contour_rms_px"].values()) < 2.0
     two, _ = make_case(model, 13, noise_px=1.0)
-    err = skin_error_mm(model, res.local_vertices, truth)
+    err = skin_error_mm(model, res.local_vertices, truth.local_vertices)
     assert err < 1.2 and err < 1.1 * skin_error_mm(model, fit_head(model, two).local_vertices,
-                                                   truth)
+                                                   truth.local_vertices)
 
 
 def test_orthographic_and_perspective_photos_together(model):
@@ -163,7 +161,7 @@ def test_orthographic_and_perspective_photos_together(model):
                                   camera_hints={"kind": "pinhole", "lens_mm": 70.0})
     res = fit_head(model, LandmarkCase(views))
     assert [res.cameras[n].kind for n in views] == ["orthographic", "orthographic", "pinhole"]
-    assert skin_error_mm(model, res.local_vertices, truth) < 1.2
+    assert skin_error_mm(model, res.local_vertices, truth.local_vertices) < 1.2
     assert set(res.info["projection"]) == {"three-quarter"}  # no camera distance given
 
 
@@ -181,8 +179,8 @@ def test_one_camera_and_a_mirror(model, mirror):
     info = res.info["mirror"]["mirror"]
     assert info["mirror_of"] == "front"
     assert mirror_error_deg(model, res, truth) < 1.0
-    err = skin_error_mm(model, res.local_vertices, truth)
-    assert err < 2.0 and err < 0.4 * skin_error_mm(model, model.vertices, truth)
+    err = skin_error_mm(model, res.local_vertices, truth.local_vertices)
+    assert err < 2.0 and err < 0.4 * skin_error_mm(model, model.vertices, truth.local_vertices)
     # the mirror view's camera is the real one reflected: same intrinsics, mirrored
     real, virtual = res.cameras["front"], res.cameras["mirror"]
     assert virtual.is_mirrored and not real.is_mirrored
@@ -229,7 +227,7 @@ def test_mirror_with_a_calibrated_camera(model):
     d_fit = float(np.dot(fitted["normal"], centre) - fitted["offset_m"])
     d_true = float(plane.signed_distance(centre[None])[0])
     assert d_fit / d_true == pytest.approx(1.0 / truth.scale, rel=0.03)
-    assert skin_error_mm(model, res.local_vertices, truth) < 2.0
+    assert skin_error_mm(model, res.local_vertices, truth.local_vertices) < 2.0
 
 
 def test_bad_mirror_views_are_named(model):
@@ -336,8 +334,8 @@ def test_a_passpoint_camera_needs_few_landmarks(model):
     _, res = fit_with_passpoints(model, case, truth, "photo1", 2)
     assert len(res.residuals["photo1"].names) == 2
     assert res.info["rms_px"]["photo1"] < 3.0 and res.info["warnings"] == []
-    assert skin_error_mm(model, res.local_vertices, truth) < \
-        0.7 * skin_error_mm(model, model.vertices, truth)
+    assert skin_error_mm(model, res.local_vertices, truth.local_vertices) < \
+        0.7 * skin_error_mm(model, model.vertices, truth.local_vertices)
 
 
 def test_a_passpoint_view_without_landmarks_is_skipped_with_a_warning(model):
@@ -345,7 +343,7 @@ def test_a_passpoint_view_without_landmarks_is_skipped_with_a_warning(model):
     none, res = fit_with_passpoints(model, case, truth, "photo2", 0)
     assert res.residuals["photo2"].names == [] and res.residuals["photo2"].pixels.size == 0
     assert [w for w in res.info["warnings"] if "'photo2'" in w and "no usable" in w]
-    assert skin_error_mm(model, res.local_vertices, truth) < 1.6
+    assert skin_error_mm(model, res.local_vertices, truth.local_vertices) < 1.6
     # the fast path keeps the view out too, with its camera
     again = refit_landmarks(model, none, res)
     assert again.residuals["photo2"].names == [] and "photo2" in again.cameras

@@ -6,8 +6,9 @@ import json
 import bpy
 import numpy as np
 import pytest
-from addon_support import addon, empty_scene, snapshot, synthetic_files, write_photo
 from mathutils import Vector
+
+from tests.addon.support import addon, empty_scene, snapshot, synthetic_files, write_photo
 
 
 @pytest.fixture(scope="module")

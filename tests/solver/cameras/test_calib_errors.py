@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
-from camera_support import dlt_camera
 
 from solver.cameras.calib_errors import check_passpoints, error_norms
+from tests.solver.cameras.support import dlt_camera
 
 NAMES = [f"marker_{i:02d}" for i in range(20)]
 

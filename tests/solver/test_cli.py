@@ -12,8 +12,8 @@ import pytest
 
 from solver.io.landmarks_file import load_landmark_set
 from solver.io.obj import obj_text, write_obj
+from tests import ROOT
 
-ROOT = Path(__file__).resolve().parent.parent
 W, H = 600, 800
 
 

@@ -3,10 +3,10 @@ eq. 3.5-3.7)."""
 
 import numpy as np
 import pytest
-from camera_support import dlt_camera
 
 from solver.cameras.base import OrthographicCamera
 from solver.cameras.triangulate import ray_midpoint, triangulate
+from tests.solver.cameras.support import dlt_camera
 
 DIST = np.array([-3e-8, 1e-14, 0.0, 1e-6, -5e-7])
 

@@ -4,12 +4,12 @@
 import json
 import shutil
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from solver.model.head_model import DEFAULT_MODEL_PATH, fan_triangles, load_model, mesh_edges
+from tests import ROOT as REPO
 from tools import build_model as bm
 from tools.obj_io import parse_obj, parse_obj_positions
 
@@ -17,9 +17,6 @@ ICT_DIR = bm.default_ict_dir()
 HAVE_ICT = (ICT_DIR / bm.SHAPES_NPZ).is_file() or (ICT_DIR / "FaceXModel" / "identity000.obj"
                                                    ).is_file()
 needs_ict = pytest.mark.skipif(not HAVE_ICT, reason=f"ICT-FaceKit not present in {ICT_DIR}")
-REPO = Path(__file__).resolve().parent.parent
-
-
 # --------------------------------------------------------------------------- loading, shapes
 
 def test_model_loads_with_expected_shapes(model):

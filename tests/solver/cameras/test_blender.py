@@ -4,7 +4,6 @@ import math
 
 import numpy as np
 import pytest
-from camera_support import dlt_camera, look_at
 
 from solver.cameras.blender import (
     blender_to_dlt,
@@ -14,6 +13,7 @@ from solver.cameras.blender import (
     krc_to_blender,
     matrix_from_euler_xyz,
 )
+from tests.solver.cameras.support import dlt_camera, look_at
 
 # 50 mm lens, 36 mm sensor, 1920 x 1080, shifted; at (0, -2, 0) rotated 90 deg about X,
 # i.e. looking along +Y with +Z up

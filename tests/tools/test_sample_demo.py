@@ -7,7 +7,6 @@ subprocesses, so Blender's global state never mixes with other tests.
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,9 +15,9 @@ from scipy import ndimage
 
 from solver.cameras.base import camera_from_dict
 from solver.io.landmarks_file import load_landmarks
+from tests import ROOT
 from tools.make_sample import make_sample
 
-ROOT = Path(__file__).resolve().parent.parent
 SIZE = (384, 512)
 ARGS = ["--size", f"{SIZE[0]}x{SIZE[1]}", "--samples", "4"]
 # The fitted head's RMS distance to the true one over the skin (after similarity

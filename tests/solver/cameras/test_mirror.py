@@ -1,11 +1,9 @@
 """One camera plus a flat mirror (seed 001, Hashimoto 1984, chapter 3)."""
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
-from camera_support import SIZE, K, dlt_camera
 
 from solver.cameras.base import camera_from_dict
 from solver.cameras.mirror import (
@@ -19,12 +17,15 @@ from solver.cameras.mirror import (
     reflected_camera,
     triangulate_mirror,
 )
+from solver.paths import ASSETS_DIR
+from tests.solver.cameras.support import SIZE, K, dlt_camera
 
 F1 = np.array([0.0, -1.0, 0.05])
 # mirror beside and a little behind the head, facing head and camera
 G = np.array([0.35, 0.05, 0.0])
 NORMAL = np.array([-1.0, -0.6, 0.1]) / np.linalg.norm([-1.0, -0.6, 0.1])
-LANDMARKS = Path(__file__).resolve().parents[1] / "assets" / "landmarks.json"
+LANDMARKS = ASSETS_DIR / "landmarks.json"
+
 
 
 def setup(rng, n=30):

@@ -1,7 +1,8 @@
 """The add-on registers and unregisters cleanly (bpy module, background)."""
 
 import bpy
-from addon_support import ROOT, run_python
+
+from tests.addon.support import ROOT, run_python
 
 
 def _state():
