@@ -39,3 +39,10 @@ def as_weights(weights, n, name="weights"):
     if not np.isfinite(w).all() or (w < 0).any():
         raise ValueError(f"{name}: must be finite and non-negative")
     return w
+
+
+def rms(values):
+    """Root mean square of ``values`` (any shape; each entry one number, e.g. pixel
+    residuals); 0.0 when empty."""
+    v = np.asarray(values, dtype=np.float64)
+    return float(np.sqrt((v * v).mean())) if v.size else 0.0

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import rms
+
 
 @dataclass
 class ViewResidual:
@@ -75,6 +77,13 @@ class FitResult:
     def world_vertices(self):
         """Whole head in world space, shape (V, 3), metres."""
         return self.scale * self.local_vertices @ self.rotation.T + self.translation
+
+    def rms_px(self, view=None):
+        """RMS landmark residual in pixels: of one view, or (``view`` None) of all views'
+        landmarks together; 0.0 where there are none."""
+        views = self.residuals.values() if view is None else [self.residuals[view]]
+        px = [np.asarray(r.pixels, dtype=np.float64).reshape(-1) for r in views]
+        return rms(np.concatenate(px) if px else np.zeros(0))
 
     def flagged(self):
         """(view, landmark) pairs whose residual stands out, worst first."""
