@@ -1,5 +1,5 @@
-"""Input checks shared by the solver: one place that turns bad input into a ValueError
-whose message names the argument at fault."""
+"""Errors, both kinds the solver deals in: bad input turned into a ValueError whose message
+names the argument at fault, and the size of a residual (``rms``)."""
 
 import numpy as np
 
