@@ -5,4 +5,52 @@ looks toward -Y, the subject's left is +X) so the Blender add-on, the command li
 the tests share one code path. Modules use relative imports only, so the package works
 both as the top-level ``solver`` of a checkout and as ``<extension>.solver`` inside
 Blender.
+
+What the add-on, the command line and the tools use is imported here, by name; the
+subpackages are ``cameras`` (one module per camera kind, and what is computed from
+cameras), ``model`` (the statistical head model), ``fitting`` (the fit), ``io`` (files) and
+``texture``.
 """
+
+from .cameras.base import ORTHO_VIEWS, Camera, OrthographicCamera, camera_from_dict
+from .cameras.blender import blender_to_krc, dlt_to_blender
+from .cameras.calib_errors import check_passpoints
+from .cameras.dlt import DLTCamera, fit_dlt
+from .cameras.pinhole import PinholeCamera
+from .fitting.fit import FitOptions, fit_head, refit_landmarks
+from .fitting.result import FitResult, ViewResidual
+from .io.landmark_counts import (
+    MIN_LANDMARKS_PER_VIEW,
+    MIN_LANDMARKS_TOTAL,
+    count_problems,
+    landmarks_needed,
+)
+from .io.landmarks_file import (
+    CURRENT_VERSION,
+    FORMAT,
+    MIN_PASSPOINTS,
+    LandmarkCase,
+    LandmarksError,
+    View,
+    camera_from_json,
+    camera_to_json,
+    check_case,
+    landmarks_to_dict,
+    load_landmark_set,
+    load_landmarks,
+    parse_landmarks,
+    save_landmarks,
+)
+from .model.head_model import HeadModel, load_model
+from .texture.bake import bake_fit_texture, bake_texture, orthographic_uvs, uv_raster, uv_tiles
+
+__all__ = [
+    "CURRENT_VERSION", "FORMAT", "MIN_LANDMARKS_PER_VIEW", "MIN_LANDMARKS_TOTAL",
+    "MIN_PASSPOINTS", "ORTHO_VIEWS", "Camera", "DLTCamera", "FitOptions", "FitResult",
+    "HeadModel", "LandmarkCase", "LandmarksError", "OrthographicCamera", "PinholeCamera", "View",
+    "ViewResidual", "bake_fit_texture", "bake_texture", "blender_to_krc", "camera_from_dict",
+    "camera_from_json", "camera_to_json", "check_case", "check_passpoints", "count_problems",
+    "dlt_to_blender", "fit_dlt", "fit_head", "landmarks_needed", "landmarks_to_dict",
+    "load_landmark_set", "load_landmarks", "load_model", "orthographic_uvs", "parse_landmarks",
+    "refit_landmarks", "save_landmarks", "uv_raster", "uv_tiles",
+]
