@@ -12,7 +12,7 @@ cameras), ``model`` (the statistical head model), ``fitting`` (the fit), ``io`` 
 ``texture``.
 """
 
-from .cameras.base import ORTHO_VIEWS, Camera, OrthographicCamera, camera_from_dict
+from .cameras import ORTHO_VIEWS, Camera, OrthographicCamera, camera_from_dict
 from .cameras.blender import blender_to_krc, dlt_to_blender
 from .cameras.calib_errors import check_passpoints
 from .cameras.dlt import DLTCamera, fit_dlt

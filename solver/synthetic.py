@@ -22,7 +22,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from .cameras.base import ORTHO_VIEWS, OrthographicCamera
+from .cameras import ORTHO_VIEWS, OrthographicCamera
 from .cameras.mirror import MirrorPlane
 from .cameras.pinhole import SENSOR_MM, PinholeCamera
 from .io.landmarks_file import LandmarkCase, View
@@ -445,8 +445,6 @@ def make_mirror_case(model, rng=None, *, noise_px=1.0, distance_m=(0.9, 1.4),
         ``cameras``: the real camera ("front") and the reflected one ("mirror");
         ``planes["mirror"]``: the mirror.
     """
-    from .fitting.engine import mirror_camera
-
     rng = np.random.default_rng(rng)
     head, world, normals, skin_tris, skin, centre = _pinhole_scene(model, rng, coeffs,
                                                                    coeff_scale, rotation_deg)
@@ -460,14 +458,14 @@ def make_mirror_case(model, rng=None, *, noise_px=1.0, distance_m=(0.9, 1.4),
     eye = centre + dist * np.array([np.sin(yaw), -np.cos(yaw), 0.0])
     aim = 0.5 * (centre + mirrored_centre)
     probe = _look(eye, aim, (4, 3), 1.0, 0.0)
-    both = np.vstack([probe.project(skin), mirror_camera(probe, plane).project(skin)])
+    both = np.vstack([probe.project(skin), probe.mirrored(plane).project(skin)])
     ext = np.ptp(both, axis=0)
     lens = 0.85 * SENSOR_MM / max(ext[0], ext[1] / 0.75)
     f_unit = np.ptp(probe.project(skin)[:, 1])
     width = int(round(SENSOR_MM * head_px / (f_unit * lens)))
     size = (width, int(round(0.75 * width)))
     cam = _look(eye, aim, size, lens * width / SENSOR_MM, 0.0)
-    mcam = mirror_camera(cam, plane)
+    mcam = cam.mirrored(plane)
     views, clean = {}, {}
     hints = {"kind": "pinhole"}
     if focal_prior is not None:

@@ -166,7 +166,7 @@ def write_blend(model, case, result, photo_paths, textures, out):
 
 def _scaled(camera, factor):
     """The same orthographic camera for an image ``factor`` times the size."""
-    from solver.cameras.base import OrthographicCamera
+    from solver.cameras import OrthographicCamera
 
     w, h = camera.size
     return OrthographicCamera(camera.rotation, camera.scale * factor, camera.offset * factor,
@@ -176,7 +176,7 @@ def _scaled(camera, factor):
 def _three_quarter(front, world_skin, yaw_deg=35.0):
     """A camera turned ``yaw_deg`` about the vertical from the front camera toward the
     subject's right, centred on the head."""
-    from solver.cameras.base import OrthographicCamera
+    from solver.cameras import OrthographicCamera
 
     a = np.radians(yaw_deg)
     rz = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0, 0, 1.0]])

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
-from solver.cameras.base import ORTHO_VIEWS, OrthographicCamera
+from solver.cameras import ORTHO_VIEWS, OrthographicCamera
 from solver.io.landmarks_file import LandmarkCase, View, load_landmarks, save_landmarks
 from solver.model.head_model import load_model
 from solver.synthetic import (

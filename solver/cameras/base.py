@@ -7,17 +7,15 @@ A camera's ``rotation`` is world -> camera with rows (u axis, v axis, viewing di
 the OpenCV convention, so 'depth' grows away from the camera.
 """
 
-import importlib
 from abc import ABC, abstractmethod
 
 import numpy as np
 
 from ..errors import as_points, as_weights
 
-# kind -> class; filled by @register. Modules listed in _PLUGINS register further kinds
-# (e.g. "dlt") and are imported on first lookup, so this module needs no import of them.
+# kind -> class; filled by @register as each kind's module is imported (the package's
+# __init__ imports them all).
 _KINDS = {}
-_PLUGINS = ("dlt", "pinhole")
 
 
 def register(kind):
@@ -32,27 +30,28 @@ def register(kind):
 
 
 def camera_kinds():
-    """All registered camera kinds (including plug-in modules that import cleanly)."""
-    _load_plugins()
+    """All registered camera kinds."""
     return sorted(_KINDS)
+
+
+def camera_class(kind):
+    """The Camera class registered for ``kind``, or None."""
+    return _KINDS.get(kind)
 
 
 def camera_from_dict(d):
     """Build a camera from its JSON form (``{"kind": ..., ...}``)."""
-    _load_plugins()
     kind = d.get("kind") if isinstance(d, dict) else None
     if kind not in _KINDS:
         raise ValueError(f"camera: unknown kind {kind!r}; known: {', '.join(sorted(_KINDS))}")
     return _KINDS[kind].from_dict(d)
 
 
-def _load_plugins():
-    for name in _PLUGINS:
-        try:
-            importlib.import_module(f"{__package__}.{name}")
-        except ModuleNotFoundError as e:  # plug-in not written yet in this checkout
-            if e.name != f"{__package__}.{name}":
-                raise
+def unit_scale(fields, mode_pixels):
+    """Units (P,) that make each pixel field (P, n, 2) move its points by ``mode_pixels``
+    pixels RMS per unit of coefficient, and zero starts (P,)."""
+    rms = np.sqrt((fields**2).sum(axis=2).mean(axis=1))
+    return mode_pixels / np.maximum(rms, 1e-12), np.zeros(len(fields))
 
 
 class Camera(ABC):
@@ -68,6 +67,8 @@ class Camera(ABC):
     kind = "abstract"
     #: fewest point/pixel pairs ``refit`` needs (0: the camera has no free parameters).
     min_refit_points = 0
+    #: a central projection (rays through one centre), as pinhole and DLT cameras are
+    perspective = False
 
     @abstractmethod
     def project(self, points):
@@ -121,6 +122,91 @@ class Camera(ABC):
         px = as_points(pixels, "pixels", dim=2)
         return np.linalg.norm(self.project(points) - px, axis=1)
 
+    # How the fit moves a camera inside one Gauss-Newton step of head and cameras
+    # (solver/fitting/joint.py): pixel fields of its free parameters become extra modes
+    # of the step, and after it the camera takes the step (``stepped``) or is refitted to
+    # what the step predicted.
+
+    def parameter_modes(self, points, centre_points, n_points, prior_weight, mode_pixels):
+        """The camera's free parameters as modes of the joint step.
+
+        Parameters
+        ----------
+        points : ndarray, shape (n, 3)
+            World points the camera sees (a mirror view's points reflected).
+        centre_points : ndarray, shape (m, 3)
+            Points whose projections' mean a 2-D similarity turns and scales about (the
+            view's landmarks).
+        n_points : int
+            Weighted landmarks the camera is seen through (decides a free focal length).
+        prior_weight : float
+            The shape prior's weight (lambda2): a mode with a real prior is scaled by it.
+        mode_pixels : float
+            Pixels one unit of a mode's coefficient should move the points.
+
+        Returns
+        -------
+        fields : ndarray, shape (P, n, 2)
+            Pixels per natural unit of each parameter.
+        units : ndarray, shape (P,)
+            Natural units per coefficient.
+        start : ndarray, shape (P,)
+            Coefficients now (non-zero only for a mode with a prior).
+        prior : ndarray of bool, shape (P,)
+            Modes whose prior is a real prior, not a negligible one.
+
+        This base version is the 2-D similarity of the photo (shifts in u and v, a rotation
+        and a scaling about the projection of ``centre_points``' mean, both one pixel at
+        their RMS radius), which any camera can be refitted to.
+        """
+        p = self.project(points)
+        d = p - self.project(centre_points).mean(axis=0)
+        radius = max(float(np.sqrt((d * d).sum(1).mean())), 1e-9)
+        fields = np.zeros((4, len(p), 2))
+        fields[0, :, 0] = 1.0
+        fields[1, :, 1] = 1.0
+        fields[2] = np.stack([-d[:, 1], d[:, 0]], axis=1) / radius
+        fields[3] = d / radius
+        return fields, np.full(4, float(mode_pixels)), np.zeros(4), np.zeros(4, bool)
+
+    def stepped(self, delta):
+        """The camera moved by ``delta`` (P,) natural units of :meth:`parameter_modes`, or
+        None: the fit then refits the camera to what the step predicted."""
+        return None
+
+    def log_focal_prior(self, n_points):
+        """(log f0 in pixels, relative sigma) of a focal length the fit moves and a prior
+        holds, seen through ``n_points`` landmarks; None for cameras without one."""
+        return None
+
+    def pose_only(self):
+        """A copy whose ``refit`` moves only what a start from the mean head should (a
+        pinhole camera's pose; other kinds: the camera itself)."""
+        return self
+
+    def mirrored(self, plane):
+        """This camera reflected in a mirror plane (seed 001 eq. 3.11-3.13): the camera of
+        the mirror image. Only a central projection can place a mirror."""
+        raise ValueError(f"a mirror view needs a perspective (pinhole or DLT) camera, got "
+                         f"{type(self).__name__}: a parallel projection cannot place a mirror")
+
+    def as_dlt(self):
+        """This camera as a DLTCamera (perspective cameras only)."""
+        raise ValueError(f"expected a perspective camera, got {type(self).__name__}")
+
+    def as_pinhole(self):
+        """This camera as a PinholeCamera with its intrinsics and pose (perspective cameras
+        whose rotation is a proper one)."""
+        raise ValueError(f"expected a perspective camera, got {type(self).__name__}")
+
+
+def is_side_camera(camera, at=None):
+    """True when ``camera`` looks along the world x axis (the head's left-right axis) at
+    the point ``at`` (3,) (default the origin)."""
+    p = np.zeros((1, 3)) if at is None else np.asarray(at, dtype=np.float64).reshape(1, 3)
+    d = np.asarray(camera.toward_camera(p), dtype=np.float64).reshape(3)
+    return abs(d[0]) > 0.7 * np.linalg.norm(d)
+
 
 def toward_centre(centre, points):
     """Unit vectors from each point toward a camera centre, what ``toward_camera`` is for
@@ -159,133 +245,3 @@ def correspondences(points, pixels, weights=None, min_count=1, what="a camera re
         raise ValueError(f"points: {what} needs at least {min_count} {unit}, "
                          f"got {np.count_nonzero(w)}")
     return x, q, w
-
-
-# Nominal orientations of the orthographic views (rows: u axis, v axis, viewing direction).
-ORTHO_VIEWS = {
-    # camera in front, looking at the face (+Y); subject's left (+X) on the image's right
-    "orthographic-front": np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]]),
-    # camera at the subject's right (-X) looking +X; the face (-Y) points to the image's right
-    "orthographic-right": np.array([[0, -1.0, 0], [0, 0, -1], [1, 0, 0]]),
-    # camera at the subject's left (+X) looking -X; the face points to the image's left
-    "orthographic-left": np.array([[0, 1.0, 0], [0, 0, -1], [-1, 0, 0]]),
-}
-
-
-class OrthographicCamera(Camera):
-    """Scaled orthographic (parallel) projection: pixel = scale * R[:2] @ X + offset.
-
-    Its free parameters are a 2-D similarity of the image: ``scale``, ``offset`` and a
-    rotation about the viewing direction (in-plane). ``refit`` re-estimates exactly these,
-    keeping the viewing direction, because a single parallel projection cannot tell an
-    out-of-plane turn of the camera from a turn of the head (the fit's head rotation owns
-    that).
-
-    Parameters
-    ----------
-    rotation : ndarray, shape (3, 3)
-        World -> camera rotation (rows u, v, viewing direction).
-    scale : float
-        Pixels per metre.
-    offset : ndarray, shape (2,)
-        Pixel position of the world origin.
-    size : (int, int)
-        Image width and height in pixels.
-    view : str
-        Name of the nominal view this camera started from (a key of ORTHO_VIEWS).
-    """
-
-    def __init__(self, rotation, scale, offset, size, view="orthographic-front"):
-        self.rotation = np.asarray(rotation, dtype=np.float64).reshape(3, 3)
-        self.scale = float(scale)
-        self.offset = np.asarray(offset, dtype=np.float64).reshape(2)
-        self.size = (int(size[0]), int(size[1]))
-        self.view = view
-
-    @classmethod
-    def nominal(cls, view, size, scale=None, offset=None):
-        """The ideal camera of an ``orthographic-*`` view: the head (about 0.3 m tall)
-        filling about 80 % of the image height, centred, unless scale/offset are given."""
-        if view not in ORTHO_VIEWS:
-            raise ValueError(f"camera: unknown view {view!r}; known: {', '.join(ORTHO_VIEWS)}")
-        w, h = size
-        if scale is None:
-            scale = 0.8 * h / 0.3
-        if offset is None:
-            offset = (w / 2.0, h / 2.0)
-        return cls(ORTHO_VIEWS[view], scale, offset, size, view)
-
-    min_refit_points = 2
-
-    def project(self, points):
-        x = as_points(points, "points")
-        return self.scale * x @ self.rotation[:2].T + self.offset
-
-    @property
-    def in_plane_angle(self):
-        """Rotation of the image about the viewing direction relative to the nominal view,
-        radians; positive turns the u axis toward +v (clockwise on screen, v points down)."""
-        base = ORTHO_VIEWS.get(self.view)
-        if base is None:
-            return 0.0
-        m = self.rotation[:2] @ base[:2].T  # 2x2 in-plane rotation (if the view axis agrees)
-        return float(np.arctan2(m[1, 0], m[0, 0]))
-
-    def refit(self, points, pixels, weights=None):
-        """Re-estimate scale, in-plane rotation and offset (a weighted 2-D similarity
-        between the points' current image-plane coordinates and ``pixels``).
-
-        Parameters
-        ----------
-        points : array_like, shape (n, 3), metres
-        pixels : array_like, shape (n, 2), pixels
-        weights : array_like, shape (n,), optional
-
-        Returns
-        -------
-        OrthographicCamera
-            Same viewing direction, new scale / in-plane rotation / offset.
-
-        Raises
-        ------
-        ValueError
-            Fewer than 2 (weighted) pairs, mismatched shapes, NaN, or points whose
-            projections coincide (the similarity is undetermined).
-        """
-        from ..procrustes import similarity_procrustes
-
-        x, q, w = correspondences(points, pixels, weights, self.min_refit_points)
-        a = x @ self.rotation[:2].T  # image-plane coordinates in metres
-        try:
-            sim = similarity_procrustes(a, q, w)
-        except ValueError as e:
-            raise ValueError(f"camera refit ({self.view}): {e}") from None
-        rot = self.rotation.copy()
-        rot[:2] = sim.rotation @ self.rotation[:2]
-        return OrthographicCamera(rot, sim.scale, sim.translation, self.size, self.view)
-
-    def jacobian(self, points):
-        n = np.asarray(points).shape[0]
-        return np.broadcast_to(self.scale * self.rotation[:2], (n, 2, 3)).copy()
-
-    def to_camera(self, points):
-        return as_points(points, "points") @ self.rotation.T
-
-    def toward_camera(self, points):
-        n = np.asarray(points).shape[0]
-        return np.broadcast_to(-self.rotation[2], (n, 3)).copy()
-
-    def to_dict(self):
-        return {"kind": self.kind, "view": self.view, "rotation": self.rotation.tolist(),
-                "scale": self.scale, "offset": self.offset.tolist(), "size": list(self.size)}
-
-    @classmethod
-    def from_dict(cls, d):
-        try:
-            return cls(d["rotation"], d["scale"], d["offset"], d["size"],
-                       d.get("view", "orthographic-front"))
-        except KeyError as e:
-            raise ValueError(f"camera ({cls.kind}): missing field {e.args[0]!r}") from None
-
-
-register("orthographic")(OrthographicCamera)

@@ -48,7 +48,7 @@ import numpy as np
 import scipy.linalg
 
 from ..errors import as_points
-from .base import Camera, correspondences, register, toward_centre
+from .base import Camera, correspondences, register, toward_centre, unit_scale
 
 #: fewest passpoints for the 11- and 16-parameter DLT (seed 000 §2)
 MIN_POINTS = {11: 6, 16: 8}
@@ -238,6 +238,7 @@ class DLTCamera(Camera):
     """
 
     min_refit_points = MIN_POINTS[11]
+    perspective = True
 
     def __init__(self, matrix, size, distortion=None, distortion_centre=None):
         p = np.asarray(matrix, dtype=np.float64)
@@ -519,6 +520,51 @@ class DLTCamera(Camera):
         """
         hm = np.asarray(h, dtype=np.float64).reshape(4, 4)
         return DLTCamera(self.matrix @ hm, self.size, self.distortion, self.distortion_centre)
+
+    # ---- the joint step of the fit (see Camera.parameter_modes)
+
+    def parameter_fields(self, points):
+        """Pixel fields (12, n, 2) of the 12 entries of the matrix (lens terms left out) at
+        world points (n, 3)."""
+        x = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        pm = self.matrix
+        xt = np.column_stack([x, np.ones(len(x))])
+        h = xt @ pm.T
+        w = h[:, 2]
+        q = h[:, :2] / w[:, None]
+        out = np.zeros((12, len(x), 2))
+        for j in range(4):
+            a = xt[:, j] / w
+            out[j, :, 0] = a
+            out[4 + j, :, 1] = a
+            out[8 + j] = -q * a[:, None]
+        return out
+
+    def parameter_modes(self, points, centre_points, n_points, prior_weight, mode_pixels):
+        """The directions of the matrix that move the points (the 11 of a DLT: the overall
+        scale is left out), refitted after the step."""
+        f = self.parameter_fields(points)
+        flat = f.reshape(len(f), -1)
+        _, sv, vt = np.linalg.svd(flat, full_matrices=False)
+        keep = sv > 1e-9 * sv[0]
+        f = vt[keep].reshape(-1, f.shape[1], 2)
+        return (f, *unit_scale(f, mode_pixels), np.zeros(len(f), bool))
+
+    def mirrored(self, plane):
+        return self.transformed(plane.homogeneous)
+
+    def as_dlt(self):
+        return self
+
+    def as_pinhole(self, **options):
+        """The nearest PinholeCamera (``PinholeCamera.from_krc`` with K's own principal
+        point; ``options`` as that class's); a mirrored DLT has none."""
+        from .pinhole import PinholeCamera
+
+        k, r, c = self.decompose()
+        if np.linalg.det(r) < 0:
+            raise ValueError("camera (dlt): a mirrored camera is not a pinhole camera")
+        return PinholeCamera.from_krc(k, r, c, self.size, principal_point="keep", **options)
 
     # ---- fitting
 

@@ -190,6 +190,83 @@ class MirrorPlane:
         """normal . X - offset: (n, 3) -> (n,) metres, positive on the camera's side."""
         return as_points(points, "points") @ self.normal - self.offset
 
+    # The fit moves a plane by three parameters: the tilt of its normal along two axes
+    # (radians) and its offset (metres).
+
+    def axes(self):
+        """Two unit vectors completing the normal to an orthonormal frame: the tilt axes."""
+        normal = self.normal
+        a = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        e1 = np.cross(normal, a)
+        e1 /= np.linalg.norm(e1)
+        return e1, np.cross(normal, e1)
+
+    def fields(self, real, points):
+        """Pixel fields (3, n, 2) of the mirror images of ``points`` (n, 3) seen by the real
+        camera ``real``, per unit tilt of the normal along :meth:`axes` (radians) and per
+        metre of offset (see :meth:`moved`)."""
+        x = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        n = self.normal
+        e1, e2 = self.axes()
+        dist = x @ n - self.offset
+        jac = np.asarray(real.jacobian(self.reflect_points(x)), dtype=np.float64)
+        d = np.empty((3, len(x), 3))  # d(reflected point) / d(parameter)
+        for j, e in enumerate((e1, e2)):
+            d[j] = -2.0 * ((x @ e)[:, None] * n + dist[:, None] * e)
+        d[2] = 2.0 * n
+        return np.einsum("kij,pkj->pki", jac.reshape(len(x), 2, 3), d)
+
+    def moved(self, step):
+        """The plane moved by ``step`` (3,): the normal tilted by step[0] along the first of
+        :meth:`axes` and step[1] along the second, offset + step[2] metres."""
+        n = self.normal
+        e1, e2 = self.axes()
+        m = n + step[0] * e1 + step[1] * e2
+        return MirrorPlane(m / np.linalg.norm(m), float(self.offset + step[2]))
+
+    def refit(self, real, points, pixels, weights, iterations=10):
+        """The plane that best maps ``points`` (n, 3) onto ``pixels`` (n, 2) through the
+        real camera, from this one (Gauss-Newton on tilt and offset, weighted squared
+        pixels; a step that does not lower the cost is halved).
+
+        Returns
+        -------
+        MirrorPlane
+        """
+        x = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        q = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+        w = np.asarray(weights, dtype=np.float64).reshape(-1)
+        plane = self
+        if np.count_nonzero(w) < 2:
+            return plane
+
+        def cost(pl):
+            r = q - real.project(pl.reflect_points(x))
+            return float(w @ (r * r).sum(axis=1)), r
+
+        c0, r = cost(plane)
+        for _ in range(iterations):
+            jac = plane.fields(real, x)  # (3, n, 2)
+            a = np.einsum("pni,qni,n->pq", jac, jac, w)
+            b = np.einsum("pni,ni,n->p", jac, r, w)
+            try:
+                step = np.linalg.solve(a + 1e-12 * np.trace(a) * np.eye(3), b)
+            except np.linalg.LinAlgError:
+                break
+            for _ in range(6):
+                cand = plane.moved(step)
+                c1, r1 = cost(cand)
+                if c1 < c0:
+                    break
+                step = 0.5 * step
+            else:
+                break
+            done = c0 - c1 <= 1e-10 * c0
+            plane, c0, r = cand, c1, r1
+            if done:
+                break
+        return plane
+
 
 def mirror_normal(direct_rays, mirrored_rays):
     """The mirror's unit normal from viewing rays of landmark pairs (eq. 3.8-3.10).

@@ -43,7 +43,7 @@ solver/mirror.py) is allowed everywhere except where Blender cannot represent it
 import numpy as np
 
 from ..errors import as_points
-from .base import Camera, correspondences, register, toward_centre
+from .base import Camera, correspondences, register, toward_centre, unit_scale
 from .blender import blender_to_krc, krc_to_blender
 from .dlt import DLTCamera, fit_dlt
 
@@ -193,6 +193,7 @@ class PinholeCamera(Camera):
 
     #: four non-collinear points fix the pose (with the focal length kept)
     min_refit_points = 4
+    perspective = True
 
     def __init__(self, focal_px, rotation, centre, size, principal_point=None, k1=0.0, *,
                  free_principal_point=False, free_k1=False,
@@ -615,6 +616,85 @@ class PinholeCamera(Camera):
                 f"size={self.size}, centre={np.round(self.centre, 4).tolist()})")
 
     # ---- self-calibration
+
+    # ---- the joint step of the fit (see Camera.parameter_modes)
+
+    def parameter_fields(self, points, focal=True):
+        """Pixel fields (6 or 7, n, 2) of the parameters at world points (n, 3): a rotation
+        increment in the camera frame (``R <- rot(w) R``, radians, 3), the centre (metres,
+        3) and, with ``focal``, the log focal length (k1 included)."""
+        x = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        rot = self.rotation
+        xc = (x - self.centre) @ rot.T
+        f, k1 = self.focal_px, self.k1
+        g, p = pixel_by_camera_point(xc, f, k1)
+        rho2 = (p * p).sum(axis=1)
+        by_rot = -np.einsum("nij,njk->nik", g, _skew(xc))  # x_c += w x x_c
+        by_centre = -g @ rot
+        out = [by_rot[:, :, i] for i in range(3)] + [by_centre[:, :, i] for i in range(3)]
+        if focal:
+            out.append(f * p * (1.0 + k1 * rho2)[:, None])
+        return np.stack(out)
+
+    def focal_free(self, n_points):
+        """Whether the fit moves the focal length (as ``refit`` does: ``free_focal`` and at
+        least FREE_FOCAL_POINTS points)."""
+        return bool(self.free_focal) and n_points >= FREE_FOCAL_POINTS
+
+    def log_focal_prior(self, n_points):
+        if not self.focal_free(n_points) or self.focal_prior is None:
+            return None
+        mm, sigma = self.focal_prior
+        return float(np.log(mm * self.px_per_mm(self.size))), float(sigma)
+
+    def parameter_modes(self, points, centre_points, n_points, prior_weight, mode_pixels):
+        """Rotation, centre and (when free) log focal length; a focal prior is the prior of
+        its mode: one unit is ``sigma * prior_weight`` in log f and the mode starts at the
+        camera's distance from the prior, so the shape-ICP's ``lambda2^2 c^2`` is exactly
+        the prior's cost."""
+        fields = self.parameter_fields(points, self.focal_free(n_points))
+        units, start = unit_scale(fields, mode_pixels)
+        prior = np.zeros(len(fields), bool)
+        focal = self.log_focal_prior(n_points)
+        if focal is not None and prior_weight > 0:
+            units[6] = focal[1] * prior_weight
+            start[6] = (np.log(self.focal_px) - focal[0]) / units[6]
+            prior[6] = True
+        return fields, units, start, prior
+
+    def stepped(self, delta):
+        """Moved by ``delta`` (6 or 7,) in the order of :meth:`parameter_fields`; the focal
+        length is kept inside ``focal_range_mm``."""
+        f = self.focal_px
+        if len(delta) > 6:
+            f = f * float(np.exp(np.clip(delta[6], -1.0, 1.0)))
+            if self.focal_range_mm is not None:
+                ppm = self.px_per_mm(self.size)
+                f = float(np.clip(f, self.focal_range_mm[0] * ppm,
+                                  self.focal_range_mm[1] * ppm))
+        return self.replaced(focal_px=f, rotation=rotation_from_vector(delta[:3]) @ self.rotation,
+                             centre=self.centre + delta[3:6])
+
+    def pose_only(self):
+        return self.as_pinhole(free_focal=False, focal_range_mm=None)
+
+    def mirrored(self, plane):
+        centre = plane.reflect_points(self.centre[None, :])[0]
+        return self.replaced(rotation=self.rotation @ plane.matrix, centre=centre)
+
+    def as_dlt(self):
+        """The DLT of this camera (a lens term the DLT cannot match is dropped)."""
+        try:
+            return self.to_dlt()
+        except ValueError:
+            return self.replaced(k1=0.0).to_dlt()
+
+    def as_pinhole(self, **options):
+        """Itself; with ``options`` (as the class's) a copy with them."""
+        if not options:
+            return self
+        return PinholeCamera(self.focal_px, self.rotation, self.centre, self.size,
+                             self.principal_point, self.k1, **options)
 
     def refit(self, points, pixels, weights=None):
         """Re-estimate focal length, rotation and centre from 3-D points and their pixels.

@@ -29,8 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import as_points
-from .base import OrthographicCamera
 from .dlt import DLTCamera
+from .orthographic import OrthographicCamera
 from .pinhole import PinholeCamera
 
 

@@ -26,8 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import OrthographicCamera
 from .dlt import DLTCamera
+from .orthographic import OrthographicCamera
 from .pinhole import PinholeCamera
 
 

@@ -52,7 +52,7 @@ import numpy as np
 from scipy.linalg import cho_solve
 from scipy.spatial import cKDTree
 
-from ..cameras.base import Camera
+from ..cameras import Camera
 from ..errors import as_points
 
 SIMILARITY_PARAMS = ("scale", "rotation x", "rotation y", "rotation z",

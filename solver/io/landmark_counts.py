@@ -36,8 +36,24 @@ def landmarks_needed(min_refit_points, *, kept=False, passpoints=False, mirror=F
     return max(MIN_LANDMARKS_PER_VIEW, int(min_refit_points))
 
 
+def too_few(used, need):
+    """The message for a view with ``used`` usable landmarks that needs ``need``, or None."""
+    if used >= need:
+        return None
+    return (f"{used} usable landmark{'s' * (used != 1)}; the fit needs at least {need} in "
+            f"this view ({need - used} more)")
+
+
+def too_few_in_all(total):
+    """The message for a case with ``total`` usable landmarks in all, or None."""
+    if total >= MIN_LANDMARKS_TOTAL:
+        return None
+    return (f"{total} usable landmark{'s' * (total != 1)} in all; the fit needs at least "
+            f"{MIN_LANDMARKS_TOTAL}")
+
+
 def count_problems(used, needed):
-    """The views with too few landmarks and a total below ``MIN_LANDMARKS_TOTAL``.
+    """The views with too few landmarks, and a total below ``MIN_LANDMARKS_TOTAL``.
 
     Parameters
     ----------
@@ -49,14 +65,8 @@ def count_problems(used, needed):
     list of (str or None, str)
         (view name, or None for the whole case; message), in view order.
     """
-    problems = []
-    for name, n in used.items():
-        need = needed.get(name, MIN_LANDMARKS_PER_VIEW)
-        if n < need:
-            problems.append((name, f"{n} usable landmark{'s' * (n != 1)}; the fit needs at "
-                                   f"least {need} in this view ({need - n} more)"))
-    total = sum(used.values())
-    if total < MIN_LANDMARKS_TOTAL:
-        problems.append((None, f"{total} usable landmark{'s' * (total != 1)} in all; the fit "
-                               f"needs at least {MIN_LANDMARKS_TOTAL}"))
-    return problems
+    problems = [(name, too_few(n, needed.get(name, MIN_LANDMARKS_PER_VIEW)))
+                for name, n in used.items()]
+    problems = [(name, msg) for name, msg in problems if msg is not None]
+    total = too_few_in_all(sum(used.values()))
+    return problems + ([(None, total)] if total is not None else [])

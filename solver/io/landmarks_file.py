@@ -50,8 +50,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..cameras import ORTHO_VIEWS, Camera, OrthographicCamera, camera_from_dict, camera_kinds
 from ..cameras import base as _cameras
-from ..cameras.base import ORTHO_VIEWS, Camera, OrthographicCamera, camera_from_dict, camera_kinds
 from ..paths import ASSETS_DIR
 from .jsonschema_lite import Validator, format_path
 

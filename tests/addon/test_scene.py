@@ -250,7 +250,7 @@ def _render_eyes(scene, head, model, lash_alpha=None):
     """A small Cycles render of the subject's right eye from the front (no photo planes,
     plain light): (h, w, 4) float32 and the camera. ``lash_alpha``: replace the lash
     shader's alpha by this constant (None keeps the shader)."""
-    from solver.cameras.base import ORTHO_VIEWS, OrthographicCamera
+    from solver.cameras import ORTHO_VIEWS, OrthographicCamera
     from tools import render_util as ru
 
     lashes = next(m for m in head.data.materials if m["headrecon_group"] == "Eyelashes")

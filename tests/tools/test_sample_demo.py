@@ -13,7 +13,7 @@ import pytest
 from PIL import Image
 from scipy import ndimage
 
-from solver.cameras.base import camera_from_dict
+from solver.cameras import camera_from_dict
 from solver.io.landmarks_file import load_landmarks
 from tests import ROOT
 from tools.make_sample import make_sample

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from solver.cameras.base import Camera, camera_from_dict, camera_kinds
+from solver.cameras import Camera, camera_from_dict, camera_kinds
 from solver.cameras.dlt import DLTCamera, fit_dlt
 from tests.solver.cameras.support import SIZE, dlt_camera, look_at
 

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from solver.cameras.base import camera_from_dict
+from solver.cameras import camera_from_dict
 from solver.cameras.mirror import (
     IBUG_MIRROR,
     MirrorPlane,

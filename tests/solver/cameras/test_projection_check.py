@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from solver.cameras.base import OrthographicCamera
+from solver.cameras import OrthographicCamera
 from solver.cameras.dlt import DLTCamera
 from solver.cameras.projection_check import (
     check_projection,

@@ -1,22 +1,17 @@
-"""Outline rows (solver/fit_engine.py ContourRows): which vertices become rows, and the
+"""Outline rows (solver/fitting/outline.py ContourRows): which vertices become rows, and the
 trimming of rows the mesh cannot follow; and the staged fit that keeps perspective
 outlines from latching onto the wrong rim."""
 
 import numpy as np
 import pytest
 
-from solver.cameras.base import OrthographicCamera
+from solver import FitOptions, fit_head
+from solver.cameras import OrthographicCamera
 from solver.cameras.pinhole import PinholeCamera
-from solver.fitting.engine import CONTOUR_KEEP_SIGMAS, ContourRows, State
-from solver.fitting.fit import (
-    FitOptions,
-    _candidate_mesh,
-    _engine,
-    _prepare_views,
-    fit_head,
-    shared_edges,
-)
+from solver.fitting.engine import Engine
+from solver.fitting.outline import CONTOUR_KEEP_SIGMAS, ContourRows, candidate_mesh, shared_edges
 from solver.fitting.shape_icp import PointRows, ShapeProblem
+from solver.fitting.views import State, prepare_views
 from solver.model.linear_model import LinearModel
 from solver.synthetic import make_perspective_case, skin_error_mm
 
@@ -136,8 +131,8 @@ def test_a_point_without_a_row_costs_the_cut_off():
 def test_the_joint_cost_counts_outline_points_without_rows(model):
     case, truth = make_perspective_case(model, 3, n_views=2, calibrated=True, contour=True)
     opts = FitOptions()
-    views, _ = _prepare_views(model, case, opts)
-    eng = _engine(model, views, opts)
+    views, _ = prepare_views(model, case, opts)
+    eng = Engine.for_fit(model, views, opts)
     joint = eng.joint(eng.views)
     state = State(truth.rotation, truth.identity_coeffs.copy(), dict(truth.cameras),
                   truth.scale, truth.translation.copy())
@@ -216,7 +211,7 @@ def test_at_the_true_head_the_rows_are_as_close_as_the_tracing(model):
     grid); a row measures that, not the chords between points (which cut the nose or the
     chin by a few pixels)."""
     skin = np.asarray(model.skin, dtype=np.int64)
-    faces, edges = _candidate_mesh(model, skin)
+    faces, edges = candidate_mesh(model, skin)
     for seed in (1000, 1002):
         case, truth = make_perspective_case(model, seed, n_views=2, noise_px=0.0,
                                             calibrated=True, contour=True)
@@ -233,8 +228,8 @@ def test_at_the_true_head_the_rows_are_as_close_as_the_tracing(model):
 def test_the_engine_keeps_rows_within_three_sigmas_of_its_noise(model):
     case, _ = make_perspective_case(model, 3, n_views=2, calibrated=True, contour=True)
     for noise in (0.5, 2.0):
-        views, _ = _prepare_views(model, case, FitOptions(noise_px=noise))
-        eng = _engine(model, views, FitOptions(noise_px=noise))
+        views, _ = prepare_views(model, case, FitOptions(noise_px=noise))
+        eng = Engine.for_fit(model, views, FitOptions(noise_px=noise))
         assert eng.contour_keep == pytest.approx(CONTOUR_KEEP_SIGMAS * noise)
         joint = eng.joint(eng.views)
         kept = [rows.keep_distance for _, kind, rows in joint.groups if kind == "contour"]

@@ -6,8 +6,9 @@ import copy
 import numpy as np
 import pytest
 
-from solver.cameras.base import OrthographicCamera
-from solver.fitting.fit import FitOptions, fit_head, flag_residuals, refit_landmarks
+from solver import FitOptions, fit_head, refit_landmarks
+from solver.cameras import OrthographicCamera
+from solver.fitting.outcome import flag_residuals
 from solver.io.landmarks_file import LandmarkCase, View
 from solver.synthetic import make_case, skin_error_mm
 

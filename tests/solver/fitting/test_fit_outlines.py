@@ -1,4 +1,4 @@
-"""Outline candidates in the fit (solver/fit.py, solver/fit_engine.py): a value each
+"""Outline candidates in the fit (solver/fitting/outline.py and the stages): a value each
 approach finds on its own head and hands to the problems it builds, never state left on
 the shared views."""
 
@@ -8,9 +8,14 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from solver.fitting import fit
-from solver.fitting.engine import Engine, State, ViewData
-from solver.fitting.fit import FitOptions, fit_head
+from solver import FitOptions, fit_head
+from solver.fitting import outline
+from solver.fitting.approach1 import RELEASE_KEEP, approach1, profile_fit
+from solver.fitting.approach2 import approach2
+from solver.fitting.engine import Engine
+from solver.fitting.outline import view_outlines
+from solver.fitting.pose import init_pose
+from solver.fitting.views import State, ViewData, prepare_views
 from solver.synthetic import (
     make_case,
     make_perspective_case,
@@ -22,16 +27,16 @@ from solver.synthetic import (
 
 @pytest.fixture
 def found(monkeypatch):
-    """Every call of ``fit.view_outline``: (view name, state it was given, candidates)."""
+    """Every call of ``outline.view_outline``: (view name, state it was given, candidates)."""
     seen = []
-    real = fit.view_outline
+    real = outline.view_outline
 
     def record(model, eng, state, view, *args, **kwargs):
         out = real(model, eng, state, view, *args, **kwargs)
         seen.append((view.name, state.copy(), out))
         return out
 
-    monkeypatch.setattr(fit, "view_outline", record)
+    monkeypatch.setattr(outline, "view_outline", record)
     return seen
 
 
@@ -57,10 +62,10 @@ def _contour_candidates(joint):
 
 def _start(model, case, opts):
     """The engine and the state fit_head starts from (mean head, cameras placed)."""
-    views, _ = fit._prepare_views(model, case, opts)
-    eng = fit._engine(model, views, opts)
+    views, _ = prepare_views(model, case, opts)
+    eng = Engine.for_fit(model, views, opts)
     state = State(np.eye(3), np.zeros(eng.lin.n_coeffs), {v.name: v.camera for v in views})
-    fit._init_pose(eng, state)
+    init_pose(eng, state)
     eng.init_cameras(state)
     eng.finish_views(state)
     return eng, state
@@ -84,13 +89,13 @@ def test_views_hold_no_outline_candidates():
 def test_fit_finds_outlines_on_each_staged_head_and_fits_with_them(model, found, joints,
                                                                    monkeypatch):
     engines = []
-    real_engine = fit._engine
+    real_engine = Engine.for_fit
 
     def engine(*args):
         engines.append(real_engine(*args))
         return engines[-1]
 
-    monkeypatch.setattr(fit, "_engine", engine)
+    monkeypatch.setattr(Engine, "for_fit", staticmethod(engine))
     case, _ = make_perspective_case(model, 1000, n_views=2, calibrated=True, contour=True)
     res = fit_head(model, case)
     eng = engines[0]
@@ -106,7 +111,7 @@ def test_fit_finds_outlines_on_each_staged_head_and_fits_with_them(model, found,
     # the wide cut-off; the second candidates, the engine's cut-off (the problem the
     # result is computed with).
     assert len(joints) == 3 and _contour_candidates(joints[0]) == {}
-    for stage, sets, keep in ((joints[1], first, fit._RELEASE_KEEP * eng.contour_threshold),
+    for stage, sets, keep in ((joints[1], first, RELEASE_KEEP * eng.contour_threshold),
                               (joints[2], second, eng.contour_keep)):
         cands = _contour_candidates(stage)
         assert set(cands) == set(case.views)
@@ -114,7 +119,7 @@ def test_fit_finds_outlines_on_each_staged_head_and_fits_with_them(model, found,
             np.testing.assert_array_equal(cands[name], cand[0])
         assert [rows.keep_distance for _, kind, rows in stage.groups
                 if kind == "contour"] == [pytest.approx(keep)] * 2
-    assert keep < fit._RELEASE_KEEP * eng.contour_threshold
+    assert keep < RELEASE_KEEP * eng.contour_threshold
     for name, (state, cand) in second.items():
         assert not np.array_equal(cand[0], first[name][1][0])
         used = res.info["refit_state"]["contour"][name]["vertices"]
@@ -122,7 +127,7 @@ def test_fit_finds_outlines_on_each_staged_head_and_fits_with_them(model, found,
         # ... which are not the mean head's (same pose and cameras, coefficients 0)
         mean = State(state.rotation, np.zeros_like(state.coeffs), state.cameras,
                      state.scale, state.translation)
-        on_mean = fit.view_outline(model, eng, mean, eng.view(name))[0]
+        on_mean = outline.view_outline(model, eng, mean, eng.view(name))[0]
         assert not np.array_equal(on_mean, cand[0])
     # Nothing about outlines is left on the engine's views.
     assert len(engines) == 1
@@ -151,9 +156,9 @@ def test_each_approach_finds_outlines_on_its_own_head(model, found):
     case = _front_outline_case(model, 1000)
     opts = FitOptions()
     eng, state = _start(model, case, opts)
-    state_p, _ = fit._profile_fit(eng, state, opts)
+    state_p, _ = profile_fit(eng, state, opts)
     eng.use(state_p)
-    _, out1 = fit._approach1(model, eng, state_p.copy(), opts)
+    _, out1 = approach1(model, eng, state_p.copy(), opts)
     # approach 1: the front's candidates (not the profile's: it keeps the midline's),
     # found after its landmarks-only stage and again after the wide outline stage
     assert [name for name, _, _ in found] == ["front", "front"]
@@ -166,7 +171,7 @@ def test_each_approach_finds_outlines_on_its_own_head(model, found):
     # it starts from
     found.clear()
     eng.use(state_p)
-    _, out2 = fit._approach2(eng, model, state_p.copy(), opts)
+    _, out2 = approach2(eng, model, state_p.copy(), opts)
     assert [name for name, _, _ in found] == ["front"]
     np.testing.assert_array_equal(found[0][1].coeffs, state_p.coeffs)
     assert out2["outlines"]["front"] is found[0][2]
@@ -176,10 +181,10 @@ def test_each_approach_finds_outlines_on_its_own_head(model, found):
 def test_a_problem_uses_the_outlines_it_is_given(model):
     case, _ = make_perspective_case(model, 3, n_views=2, calibrated=True, contour=True)
     opts = FitOptions()
-    views, _ = fit._prepare_views(model, case, opts)
-    eng = fit._engine(model, views, opts)
+    views, _ = prepare_views(model, case, opts)
+    eng = Engine.for_fit(model, views, opts)
     state = State(np.eye(3), np.zeros(eng.lin.n_coeffs), {v.name: v.camera for v in views})
-    own = fit.view_outline(model, eng, state, eng.view("photo0"))
+    own = outline.view_outline(model, eng, state, eng.view("photo0"))
     assert 0 < len(own[0]) and not np.array_equal(own[0], eng.outline)
     # without outlines every contour uses the profile's candidates
     plain = _contour_candidates(eng.joint(eng.views))
@@ -209,12 +214,12 @@ def test_every_traced_point_meets_the_true_heads_outline_ears_included(model, se
     case, truth = make_perspective_case(model, seed, n_views=2, noise_px=0.0,
                                         calibrated=True, contour=True)
     opts = FitOptions()
-    views, _ = fit._prepare_views(model, case, opts)
-    eng = fit._engine(model, views, opts)
+    views, _ = prepare_views(model, case, opts)
+    eng = Engine.for_fit(model, views, opts)
     state = State(truth.rotation, truth.identity_coeffs.copy(), dict(truth.cameras),
                   truth.scale, truth.translation.copy())
     eng.finish_views(state)
-    joint = eng.joint(eng.views, outlines=fit._view_outlines(model, eng, state))
+    joint = eng.joint(eng.views, outlines=view_outlines(model, eng, state))
     joint.cost(state)
     skin = np.asarray(model.skin)
     ears = np.asarray(model.region_label)[skin] == model.region_names.index("ears")

@@ -12,7 +12,7 @@ import jsonschema
 import numpy as np
 import pytest
 
-from solver.cameras.base import OrthographicCamera, camera_kinds
+from solver.cameras import OrthographicCamera, camera_kinds
 from solver.cameras.dlt import DLTCamera, fit_dlt
 from solver.cameras.mirror import MirrorPlane, reflected_camera
 from solver.cameras.pinhole import PinholeCamera

@@ -4,7 +4,7 @@ synthetic meshes with coded photos, plus one check on the real head model."""
 import numpy as np
 import pytest
 
-from solver.cameras.base import OrthographicCamera
+from solver.cameras import OrthographicCamera
 from solver.fitting.result import FitResult
 from solver.model.head_model import fan_triangles
 from solver.texture.bake import (

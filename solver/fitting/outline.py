@@ -1,0 +1,353 @@
+"""The head's outline in a photo: which vertices can form it (the candidates) and the rows
+that pull a traced outline onto the silhouette of the posed model (thesis §4.4.1)."""
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..memo import memo
+from .shape_icp import CameraRows, ScalarRows
+
+# Outline rows are always kept within this many sigmas of the placement noise.
+CONTOUR_KEEP_SIGMAS = 3.0
+
+
+# An outline point's normal comes from the outline this many pixels either side of it.
+_NORMAL_SPAN_PX = 10.0
+
+
+class ContourRows(CameraRows):
+    """Profile-line rows (thesis §4.4.1): each traced outline point pulled onto the model's
+    outline in the photo.
+
+    The model's outline is the silhouette of the posed mesh: the projection of its rim,
+    the edges between a triangle facing the camera and one facing away. It is not a fixed
+    set of vertices (the brows, the nose's wings or the sides of the neck stick out beyond
+    the midsagittal profile, and a turned head shows other vertices), so ``vertices`` are
+    candidates (vertices whose normals face roughly across the viewing direction), and
+    every update finds the rim among their triangles anew.
+
+    One row per traced point q (the data, not the model, gives the rows: a point the artist
+    placed is one measurement with its own error, while a line joining two of them cuts
+    every bend of the head's outline, by up to 2 px at the nose or the chin when they are
+    15 px apart). The line through q along the outline's outward normal n crosses the
+    projected rim edges; the outermost crossing is the silhouette there (a rim hidden
+    behind another, e.g. the midline under the brows, lies inside). It lies on an edge
+    (a, b) at a fraction t, and the row is ``w (n . (q - ((1 - t) P(x_a) + t P(x_b))))^2``:
+    across the outline is what one point measures; along it the silhouette may slide.
+
+    Points without a crossing within ``max_distance`` pixels get no row, nor do those
+    farther than ``reject_factor`` times the median distance (but never below
+    ``keep_distance``): once the fit is close, that trims the points the mesh cannot follow
+    (an ear's notch, hair, a tracing that cut a corner); kept, they pull the head out of
+    shape to close a gap that is not noise.
+
+    A point weighs ``weights`` when it stands for at least ``spacing_px`` of outline (half
+    the way to each neighbour), less when the points are denser: a hand-drawn stroke
+    wobbles over a few pixels, so its many close points are not many measurements.
+
+    Parameters
+    ----------
+    vertices : array_like of int, shape (n,)
+    pixels : array_like, shape (m, 2)
+        The traced outline's points in drawing order, as placed (not densified).
+    camera : Camera
+    weights : float
+        Weight of one point.
+    faces : ndarray, shape (F, 3)
+        Triangles among the candidates (indices into ``vertices``).
+    edges : ndarray, shape (E, 4)
+        Edges shared by two of those triangles: (vertex a, vertex b, face 1, face 2).
+    max_distance, reject_factor, keep_distance, spacing_px : float
+    name : str
+    """
+
+    def __init__(self, vertices, pixels, camera, weights=1.0, faces=None, edges=None,
+                 max_distance=20.0, reject_factor=3.0, keep_distance=3.0, spacing_px=6.0,
+                 name="contour"):
+        self.name = name
+        self.vertices = np.asarray(vertices, dtype=np.intp)
+        self.camera = camera
+        self.weight = float(weights)
+        if faces is None or edges is None:
+            raise ValueError(f"{name}: the outline candidates need their faces and edges")
+        self.faces = np.asarray(faces, dtype=np.intp).reshape(-1, 3)
+        self.edges = np.asarray(edges, dtype=np.intp).reshape(-1, 4)
+        p = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+        if len(p):  # a point placed twice is one point
+            p = p[np.concatenate([[True], np.any(np.diff(p, axis=0) != 0, axis=1)])]
+        if len(p) < 2:
+            raise ValueError(f"{name}: the outline needs at least 2 distinct points")
+        self.pixels = p
+        self.tree = cKDTree(p)
+        seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        arc = np.concatenate([[0.0], np.cumsum(seg)])
+        # Normals from the outline 10 px either side: a dense stroke's neighbours are too
+        # close to give a direction through their placement noise.
+        ahead = np.stack([np.interp(arc + _NORMAL_SPAN_PX, arc, p[:, k]) for k in (0, 1)], 1)
+        behind = np.stack([np.interp(arc - _NORMAL_SPAN_PX, arc, p[:, k]) for k in (0, 1)], 1)
+        tangent = ahead - behind
+        normal = np.stack([tangent[:, 1], -tangent[:, 0]], axis=1)
+        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+        # Outward: away from the middle of what the outline encloses (it runs around the
+        # head from neck to neck, so the mean of its points is inside).
+        if float(np.einsum("ij,ij->", normal, p - p.mean(axis=0))) < 0:
+            normal = -normal
+        self.normals = normal
+        share = np.zeros(len(p))
+        share[:-1] += seg / 2.0
+        share[1:] += seg / 2.0
+        self.point_weights = self.weight * np.minimum(1.0, share / float(spacing_px))
+        self.max_distance = float(max_distance)
+        self.reject_factor = reject_factor
+        self.keep_distance = float(keep_distance)
+        self.points = np.zeros(0, np.intp)  # traced point of each row
+        self.cap = self.max_distance  # residual a point without a row counts as (pixels)
+        self.ends = np.zeros((0, 2), np.intp)  # candidate indices of its rim edge
+        self.fractions = np.zeros(0)  # t along that edge
+        self._updated = False
+        self._last = None  # (camera, world) of the last update
+
+    @property
+    def selected(self):
+        """The candidate nearer each row's silhouette point, (k,)."""
+        return np.where(self.fractions < 0.5, self.ends[:, 0], self.ends[:, 1])
+
+    def rim(self, world):
+        """Edges (a, b) among the candidates on the contour generator of the posed head,
+        (E', 2) candidate indices."""
+        f = self.faces
+        a, b, c = world[f[:, 0]], world[f[:, 1]], world[f[:, 2]]
+        normal = np.cross(b - a, c - a)
+        toward = np.asarray(self.camera.toward_camera((a + b + c) / 3.0), dtype=np.float64)
+        facing = np.einsum("ij,ij->i", normal, toward) > 0
+        return self.edges[facing[self.edges[:, 2]] != facing[self.edges[:, 3]], :2]
+
+    def update(self, world):
+        # The same head through the same camera again (a cost evaluation, then the next
+        # solve's first build): the outline found last time stands.
+        last = self._last
+        if last is not None and last[0] is self.camera and last[1].shape == world.shape \
+                and np.abs(last[1] - world).max(initial=0.0) < 1e-12:
+            return
+        self._last = (self.camera, world.copy())
+        e = self.rim(world)
+        points, ends, frac = np.zeros(0, np.intp), np.zeros((0, 2), np.intp), np.zeros(0)
+        cap = self.max_distance
+        if len(e):
+            used, inv = np.unique(e, return_inverse=True)
+            ends = self.camera.project(world[used])[inv.reshape(-1, 2)]  # (E', 2, 2)
+            a, d = ends[:, 0], ends[:, 1] - ends[:, 0]
+            # Edges whose middle is within reach of a point (max_distance plus the longest
+            # half edge), as flat (point, edge) pairs.
+            reach = self.max_distance + 0.5 * float(np.linalg.norm(d, axis=1).max())
+            near = self.tree.sparse_distance_matrix(cKDTree(a + 0.5 * d), reach,
+                                                    output_type="ndarray")
+            pi, ei = near["i"].astype(np.intp), near["j"].astype(np.intp)
+            q, n = self.pixels[pi], self.normals[pi]
+            # q + s n = a + t d  (2-D cross products)
+            den = d[ei, 0] * n[:, 1] - d[ei, 1] * n[:, 0]
+            ok = np.abs(den) > 1e-12
+            den = np.where(ok, den, 1.0)
+            qa = q - a[ei]
+            t = (qa[:, 0] * n[:, 1] - qa[:, 1] * n[:, 0]) / den
+            s = (qa[:, 0] * d[ei, 1] - qa[:, 1] * d[ei, 0]) / den
+            ok &= (t >= 0.0) & (t <= 1.0) & (np.abs(s) <= self.max_distance)
+            pi, ei, t, s = pi[ok], ei[ok], t[ok], s[ok]
+            # per point the outermost crossing (largest s)
+            order = np.lexsort((-s, pi))
+            first = order[np.concatenate([[True], pi[order][1:] != pi[order][:-1]])] \
+                if len(order) else order
+            points, ends, frac, off = pi[first], e[ei[first]], t[first], np.abs(s[first])
+            if self.reject_factor is not None and len(off):
+                limit = max(self.reject_factor * float(np.median(off)), self.keep_distance)
+                keep = off <= limit
+                points, ends, frac = points[keep], ends[keep], frac[keep]
+                cap = min(limit, self.max_distance)
+        self.points, self.ends, self.fractions, self.cap = points, ends, frac, cap
+        self._updated = True
+
+    def unmatched_cost(self):
+        """What the traced points without a row add to the cost: ``w cap^2`` each, as if
+        they lay at the cut-off (a truncated quadratic). Without it a head that loses rows
+        lowers its cost by the rows it dropped, and the fit, which keeps the lowest cost,
+        drifts to heads whose outline misses awkward points: on two perspective photos such
+        heads cost less than the fit started from the true head but were 0.1-0.3 mm
+        further from it."""
+        missing = np.ones(len(self.pixels), bool)
+        missing[self.points] = False
+        return float(self.point_weights[missing].sum()) * self.cap**2
+
+    @property
+    def targets(self):
+        """The traced points of the rows, (k, 2) pixels."""
+        return self.pixels[self.points]
+
+    @property
+    def row_normals(self):
+        """The outline's outward normals at them, (k, 2)."""
+        return self.normals[self.points]
+
+    def _silhouette(self, world):
+        """The rows' silhouette points, (k, 2) pixels."""
+        if not len(self.points):
+            return np.zeros((0, 2))
+        t = self.fractions[:, None]
+        return (1.0 - t) * self.camera.project(world[self.ends[:, 0]]) \
+            + t * self.camera.project(world[self.ends[:, 1]])
+
+    def block(self, world, jacobian=True):
+        if not self._updated:
+            self.update(world)
+        k = len(self.points)
+        n = self.row_normals
+        r = self.residuals(world)
+        w = self.point_weights[self.points]
+        sq = float(w @ r**2)
+        if not jacobian:
+            return ScalarRows(None, None, None, None, sq, float(w.sum()), k)
+        if k == 0:  # no traced point meets the head's outline (yet)
+            return ScalarRows(self.ends, np.zeros((0, 2, 3)), r, w, 0.0, 0.0, 0)
+        t = self.fractions[:, None]
+        jac = np.asarray(self.camera.jacobian(world[self.ends.reshape(-1)]),
+                         dtype=np.float64).reshape(k, 2, 2, 3)
+        # d(n . silhouette point) / d(x_a, x_b)
+        g = np.einsum("ij,icjk->ick", n, jac) * np.concatenate([1.0 - t, t], axis=1)[..., None]
+        return ScalarRows(self.ends, g, r, w, sq, float(w.sum()), k)
+
+    def residuals(self, world):
+        """Signed pixel distances across the outline of the current rows, (k,): positive
+        where the traced point lies outside the model's silhouette."""
+        return np.einsum("ij,ij->i", self.targets - self._silhouette(world), self.row_normals)
+
+    def pairs(self, world):
+        """(candidate indices, pixels) of the current rows for a camera refit consistent
+        with this cost: each row's nearer edge end, and where the row pulls it (its
+        projection moved across the outline by the row's residual)."""
+        sel = self.selected
+        if not len(sel):
+            return sel, np.zeros((0, 2))
+        r = self.residuals(world)
+        return sel, self.camera.project(world[sel]) + r[:, None] * self.row_normals
+
+
+
+def mean_normals(model):
+    """Unit vertex normals of the mean head (area-weighted face normals), (V, 3), computed
+    once per model."""
+    def make():
+        v = model.vertices
+        tri, _, _ = model.triangles()
+        face = np.cross(v[tri[:, 1]] - v[tri[:, 0]], v[tri[:, 2]] - v[tri[:, 0]])
+        normal = np.zeros_like(v)
+        for k in range(3):
+            np.add.at(normal, tri[:, k], face)
+        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+        return normal
+
+    return memo(model, "mean_normals", make)
+
+
+def candidate_mesh(model, verts):
+    """Triangles among candidate vertices and the edges two of them share.
+
+    Returns
+    -------
+    faces : ndarray, shape (F, 3)
+        Triangles whose corners are all candidates, as indices into ``verts``.
+    edges : ndarray, shape (E, 4)
+        Edges shared by exactly two of those triangles: (a, b, face 1, face 2).
+    """
+    tri, _, _ = model.triangles()
+    local = np.full(model.n_vertices, -1, dtype=np.int64)
+    local[verts] = np.arange(len(verts))
+    faces = local[tri]
+    faces = faces[(faces >= 0).all(axis=1)]
+    return faces, shared_edges(faces, len(verts))
+
+
+def shared_edges(faces, n_vertices):
+    """Edges shared by exactly two of the triangles ``faces`` (F, 3) over ``n_vertices``
+    vertices: (E, 4) as (a, b, face 1, face 2), a < b."""
+    faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    # edges with their two faces: sort the 3F half-edges by their vertex pair
+    half = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    owner = np.tile(np.arange(len(faces)), 3)
+    half = np.sort(half, axis=1)
+    key = half[:, 0] * n_vertices + half[:, 1]
+    order = np.argsort(key, kind="stable")
+    key, half, owner = key[order], half[order], owner[order]
+    # exactly two faces per edge (an edge on three would be a defect; it is skipped)
+    same = np.flatnonzero(key[1:] == key[:-1])
+    two = same[(same + 2 >= len(key)) | (key[np.minimum(same + 2, len(key) - 1)] != key[same])]
+    two = two[(two == 0) | (key[np.maximum(two - 1, 0)] != key[two])]
+    return np.column_stack([half[two, 0], half[two, 1], owner[two], owner[two + 1]])
+
+
+def outline_candidates(model, max_x=0.05, max_normal_x=0.4):
+    """Vertices that can form the head's outline in a profile photo, with their mesh
+    (computed once per model): skin within ``max_x`` metres of the midsagittal plane whose
+    normals (of the mean head) face across the left-right axis (|n_x| < ``max_normal_x``:
+    about 24 degrees of margin for a turned head or another identity).
+
+    Returns
+    -------
+    vertices : ndarray, shape (n,)
+    faces : ndarray, shape (F, 3)
+        Triangles whose corners are all candidates, as indices into ``vertices``.
+    edges : ndarray, shape (E, 4)
+        Edges shared by exactly two of those triangles: (a, b, face 1, face 2).
+    """
+    def make():
+        v = model.vertices
+        normal = mean_normals(model)
+        skin = np.asarray(model.skin, dtype=np.int64)
+        keep = (np.abs(v[skin, 0]) < max_x) & (np.abs(normal[skin, 0]) < max_normal_x)
+        verts = np.union1d(skin[keep], np.asarray(model.profile_chain, dtype=np.int64))
+        return (verts, *candidate_mesh(model, verts))
+
+    return memo(model, ("outline_candidates", max_x, max_normal_x), make)
+
+
+def view_outline(model, eng, state, view, margin=1.5):
+    """Outline candidates of a photo that is not an orthographic profile (a front or
+    three-quarter view, a perspective photo at any angle): the skin vertices of the head at
+    ``state`` that the view's camera in ``state`` projects within ``margin`` times the
+    contour threshold of the traced outline, with their mesh; ``ContourRows`` finds the
+    outline among them each round (the outermost rim, so the inner folds near the outline,
+    the far side of the nose or an ear's inner rim, do no harm).
+
+    Every vertex near the outline, whatever way it faces: an ear is thin, and its outline
+    runs along edges between faces that turn from the camera to across it within a
+    millimetre or two, so a band of normals that face across the line of sight (on the
+    mean head) misses some of their corners, and a traced point there meets no rim even on
+    the true head. The margin (30 px by default) leaves room for the head to move during
+    a stage; rows form only within the contour threshold anyway.
+
+    Returns
+    -------
+    (vertices (n,), faces (F, 3), edges (E, 4))
+    """
+    skin = np.asarray(model.skin, dtype=np.int64)
+    world = eng.world(state, skin)
+    camera = state.cameras[view.name]
+    dist, _ = cKDTree(view.contour).query(camera.project(world))
+    verts = skin[dist <= margin * eng.contour_threshold]
+    return (verts, *candidate_mesh(model, verts))
+
+
+def own_outline_views(eng, state):
+    """The views whose traced outline is matched to candidates of their own
+    (:func:`view_outline`): every outline but an orthographic profile's (a perspective
+    photo from the side sees more than the midline: the rays to the outline fan out over
+    the head)."""
+    return [v for v in eng.views if v.contour is not None
+            and not (v.side and not state.cameras[v.name].perspective)]
+
+
+def view_outlines(model, eng, state):
+    """Outline candidates found on the head of ``state`` for every view that does not use
+    the profile's (:func:`own_outline_views`): view name -> (vertices, faces, edges),
+    for ``Engine.joint(..., outlines=)``. A value, not kept on the views: each approach
+    finds them on its own head, where it uses them."""
+    return {v.name: view_outline(model, eng, state, v) for v in own_outline_views(eng, state)}
+

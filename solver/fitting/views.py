@@ -1,0 +1,324 @@
+"""The views of a case as the fit uses them: landmarks as arrays with their model vertices
+and weights, the camera each starts from (given, computed from passpoints, or posed on the
+mean head), and the state a fit moves (head pose, coefficients, cameras, mirror planes)."""
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..cameras import Camera, PinholeCamera, camera_class, fit_dlt, is_side_camera
+from ..cameras.mirror import MirrorPlane
+from ..io.landmark_counts import landmarks_needed, too_few, too_few_in_all
+from ..io.landmarks_file import LandmarkCase, LandmarkSet
+
+
+@dataclass
+class ViewData:
+    """One photo of the case, as arrays.
+
+    Attributes
+    ----------
+    name : str
+    camera : Camera
+        Current camera (replaced as the fit refits it).
+    names : list of str
+        Canonical landmark names.
+    vertices : ndarray, shape (n,)
+        Model vertex of each landmark.
+    pixels : ndarray, shape (n, 2)
+    weights : ndarray, shape (n,)
+        Per-landmark weight (landmark weights of the options), before the view's weight
+        and the 1 / noise^2 factor.
+    side : bool
+        The camera looks along the head's left-right axis (a profile photo).
+    contour : ndarray, shape (m, 2) or None
+        The traced outline's points, as placed.
+    refit : bool
+        Whether the fit may change this camera (False for a mirror view: its camera
+        follows the real camera and the mirror plane).
+    mirror_of : str or None
+        The view whose camera, reflected in a mirror plane the fit estimates, is this
+        view's camera (None: an ordinary view, or a mirror view whose camera is given and
+        kept).
+
+    A view's outline candidates are not stored here: they depend on the head they were
+    found on, so each stage passes its own to :meth:`Engine.joint` (``outlines``).
+    """
+
+    name: str
+    camera: Camera | None
+    names: list
+    vertices: np.ndarray
+    pixels: np.ndarray
+    weights: np.ndarray
+    side: bool
+    contour: np.ndarray | None = None
+    refit: bool = True
+    mirror_of: str | None = None
+
+
+@dataclass
+class State:
+    """Head pose, coefficients, cameras and mirror planes (view name -> MirrorPlane of the
+    mirror views): ``world = scale * R (mean + B c) + t``."""
+
+    rotation: np.ndarray
+    coeffs: np.ndarray
+    cameras: dict
+    scale: float = 1.0
+    translation: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    planes: dict = field(default_factory=dict)
+
+    def copy(self):
+        return replace(self, rotation=self.rotation.copy(), coeffs=self.coeffs.copy(),
+                       cameras=dict(self.cameras), translation=self.translation.copy(),
+                       planes=dict(self.planes))
+
+
+
+def prepare_views(model, case, opts, cameras=None):
+    """The case's views as ``ViewData``; every problem is a ValueError naming the view or
+    landmark. ``cameras`` (view name -> Camera, e.g. a previous fit's) replaces the file's
+    cameras and nothing is computed.
+
+    A mirror view (``View.mirror_of``) whose camera is not kept is linked to the view it
+    mirrors: its camera is that view's camera reflected in a mirror plane the fit
+    estimates, so the file's camera for it (often just ``{"kind": "dlt"}``) is not used.
+
+    Landmarks per view and in all follow the one rule of ``io/landmark_counts.py``. A
+    passpoint camera with too few landmarks to refine it is kept as computed. A view with
+    no usable landmark adds nothing to the head fit: it is returned in ``skipped`` (its
+    camera still goes into the result).
+
+    Returns
+    -------
+    views : list of ViewData
+        The views the head is fitted to.
+    skipped : list of ViewData
+        Views with a camera but no usable landmark.
+    """
+    if not isinstance(case, LandmarkCase):
+        raise ValueError(f"case: expected a LandmarkCase, got {type(case).__name__}")
+    if not case.views:
+        raise ValueError(f"{case.source}: the case has no views")
+    lms = LandmarkSet.from_dict({"format": "headrecon-landmark-set",
+                                 "landmarks": list(model.landmark_info)}, "<model>")
+    weights = dict(opts.landmark_weights or {})
+    for key, val in weights.items():
+        if lms.canonical(key) is None:
+            raise ValueError(f"options.landmark_weights: unknown landmark {key!r}"
+                             f"{lms.suggestion(key)}")
+        if not isinstance(val, int | float) or not np.isfinite(val) or val < 0:
+            raise ValueError(f"options.landmark_weights[{key!r}]: must be a finite number "
+                             f">= 0, got {val!r}")
+    weights = {lms.canonical(k): float(v) for k, v in weights.items()}
+    fixed = set(opts.fixed_cameras)
+    unknown = fixed - set(case.views)
+    if unknown:
+        raise ValueError(f"options.fixed_cameras: no view named {sorted(unknown)[0]!r} "
+                         f"(views: {', '.join(case.views)})")
+    n_vertices = model.n_vertices
+    views, skipped = [], []
+    total = 0
+    for name, view in case.views.items():
+        where = f"{case.source}: view {name!r}"
+        kept = bool(getattr(view, "camera_fixed", False)) or name in fixed
+        link = mirror_link(case, view, kept, where)
+        names, verts, px = [], [], []
+        for key, uv in view.points.items():
+            canon = lms.canonical(key)
+            if canon is None:
+                raise ValueError(f"{where}: unknown landmark {key!r}{lms.suggestion(key)}")
+            uv = np.asarray(uv, dtype=np.float64).reshape(-1)
+            if uv.shape != (2,) or not np.isfinite(uv).all():
+                raise ValueError(f"{where}: landmark {key!r}: expected two finite pixel "
+                                 f"coordinates, got {uv.tolist()}")
+            vtx = lms.vertices[canon]
+            if not 0 <= vtx < n_vertices:
+                raise ValueError(f"{where}: landmark {key!r}: vertex {vtx} is not in the "
+                                 "model")
+            names.append(canon)
+            verts.append(vtx)
+            px.append(uv)
+        w = opts.landmark_weight * np.array([weights.get(n, 1.0) for n in names])
+        used = int(np.count_nonzero(w))
+        rule = {"kept": kept, "passpoints": bool(view.passpoints), "mirror": link is not None}
+        if cameras is not None:
+            if name not in cameras:
+                raise ValueError(f"{where}: was not in that fit (views: "
+                                 f"{', '.join(cameras)})")
+            cam = cameras[name]
+        elif link is not None:
+            cam = None  # the real camera reflected, once that camera is placed
+        else:
+            cam = view.camera
+            if cam is None:  # to be computed: the count first
+                kind = camera_class((getattr(view, "camera_hints", {}) or {}).get("kind"))
+                _check_count(where, used, landmarks_needed(
+                    0 if kind is None else kind.min_refit_points, **rule))
+                cam = compute_camera(model, case, view, lms, where)
+        if cam is not None and not isinstance(cam, Camera):
+            raise ValueError(f"{where}: camera of unknown kind ({type(cam).__name__}); "
+                             "expected a solver.cameras.Camera")
+        refit_points = 0 if cam is None else cam.min_refit_points
+        _check_count(where, used, landmarks_needed(refit_points, **rule))
+        # A camera is refitted on the head unless it is kept, follows a mirror, or comes
+        # from passpoints with too few landmarks to refine it.
+        refit = not kept and link is None and used >= landmarks_needed(refit_points)
+        total += used
+        contour = None
+        if view.contour is not None and len(view.contour) >= 2:
+            c = np.asarray(view.contour, dtype=np.float64)
+            if not np.isfinite(c).all():
+                raise ValueError(f"{where}: contour has a point that is not finite")
+            if len(np.unique(c.reshape(-1, 2), axis=0)) < 2:
+                raise ValueError(f"{where}: contour needs at least 2 distinct points")
+            contour = c.reshape(-1, 2)
+        side = cam is not None and is_side_camera(cam)
+        data = ViewData(name, cam, names, np.array(verts, dtype=np.int64),
+                        np.array(px, dtype=np.float64).reshape(-1, 2), w, side, contour,
+                        refit, link)
+        (views if used else skipped).append(data)
+    for v in views:
+        if v.mirror_of is not None and any(u.name == v.mirror_of for u in skipped):
+            raise ValueError(f"{case.source}: view {v.name!r} mirrors view {v.mirror_of!r}, "
+                             "which has no usable landmark; the mirror is found from "
+                             "landmarks placed in both")
+    problem = too_few_in_all(total)
+    if problem is not None:
+        raise ValueError(f"{case.source}: {problem}")
+    return views, skipped
+
+
+def _check_count(where, used, need):
+    problem = too_few(used, need)
+    if problem is not None:
+        raise ValueError(f"{where}: {problem}")
+
+
+def skip_warnings(skipped):
+    return [f"view {v.name!r}: no usable landmark, so it adds nothing to the head fit"
+            f"{' (its outline is not used)' if v.contour is not None else ''}; its camera is "
+            "kept as given or computed from its passpoints" for v in skipped]
+
+
+def mirror_link(case, view, kept, where):
+    """The view a mirror view's camera is derived from (None: not a mirror view, or one
+    whose camera is kept as given)."""
+    target = getattr(view, "mirror_of", None)
+    if target is None:
+        return None
+    if target not in case.views or target == view.name:
+        raise ValueError(f"{where}: mirror_of names {target!r}, not another view of the case "
+                         f"(views: {', '.join(case.views)})")
+    if getattr(case.views[target], "mirror_of", None) is not None:
+        raise ValueError(f"{where}: mirror_of names {target!r}, itself a mirror view; name "
+                         "the view seen directly")
+    if kept:
+        if view.camera is None:
+            raise ValueError(f"{where}: a mirror view whose camera is kept needs the camera's "
+                             "parameters (or leave it free: it is then the real camera "
+                             "reflected in the mirror)")
+        return None
+    return target
+
+
+#: Lenses (mm, 35 mm equivalent) a pinhole camera without a stated focal length is tried
+#: with; the one whose pose fits the mean head's landmarks best starts the fit.
+TRIAL_LENSES_MM = (24.0, 35.0, 50.0, 85.0, 135.0)
+
+
+#: Relative standard deviation of the focal prior a stated ``lens_mm`` gives (EXIF data of
+#: uncertain crop factor).
+LENS_PRIOR_SIGMA = 0.05
+
+
+def compute_camera(model, case, view, lms, where):
+    """A camera for a view whose file gives only its kind (``View.camera`` None): a DLT
+    from the view's passpoints when it has them (a "pinhole" kind: the nearest pinhole
+    camera). Else self-calibrated on the mean head's landmarks, a start the fit refines: a
+    DLT fitted to them; a pinhole camera posed on them with the file's focal length
+    (``lens_mm``, then also a prior of LENS_PRIOR_SIGMA on it) or, without one, with the
+    best of TRIAL_LENSES_MM. (A DLT or a free focal length fitted to the mean head would
+    bend the camera to the mean head's shape: a head is shallow, so focal length and
+    distance trade off.)"""
+    hints = dict(getattr(view, "camera_hints", {}) or {})
+    kind = hints.get("kind")
+    if kind not in ("dlt", "pinhole"):
+        raise ValueError(f"{where}: no camera parameters and no way to compute a camera of "
+                         f"kind {kind!r} (give the parameters, or a 'dlt'/'pinhole' kind)")
+    keys = [k for k in view.points if lms.canonical(k) is not None]
+    verts = [lms.vertices[lms.canonical(k)] for k in keys]
+    uv = np.array([view.points[k] for k in keys], dtype=np.float64).reshape(-1, 2)
+    options = {}
+    if "lens_mm" in hints:
+        options["focal_prior"] = (float(hints["lens_mm"]), LENS_PRIOR_SIGMA)
+    if hints.get("focal_prior") is not None:
+        options["focal_prior"] = tuple(float(x) for x in hints["focal_prior"])
+    if "free_focal" in hints:
+        options["free_focal"] = bool(hints["free_focal"])
+    try:
+        if view.passpoints:
+            _, xyz, pts = case.passpoint_arrays(view.name)
+            dlt = fit_dlt(xyz, pts, view.size).camera
+            return dlt if kind == "dlt" else PinholeCamera.from_dlt(dlt, **options)
+        if kind == "dlt":
+            return fit_dlt(model.vertices[verts], uv, view.size).camera
+        ppm = PinholeCamera.px_per_mm(view.size)
+        if "focal_px" in hints:
+            lenses = [float(hints["focal_px"]) / ppm]
+        elif "lens_mm" in hints:
+            lenses = [float(hints["lens_mm"])]
+        else:
+            lenses = list(TRIAL_LENSES_MM)
+        best = None
+        for lens in lenses:
+            probe = PinholeCamera(lens * ppm, np.eye(3), np.zeros(3), view.size,
+                                  free_focal=False, focal_range_mm=None)
+            cam = probe.refit(model.vertices[verts], uv)
+            err = float((cam.reprojection_error(model.vertices[verts], uv) ** 2).sum())
+            if best is None or err < best[0]:
+                best = (err, cam)
+        cam = best[1]
+        return PinholeCamera(cam.focal_px, cam.rotation, cam.centre, view.size, **options)
+    except ValueError as e:
+        raise ValueError(f"{where}: cannot compute the {kind} camera: {e}") from None
+
+
+def saved_state(previous, eng, views, where):
+    """The State a previous FitResult ended in (cameras of the views it had, mirror
+    planes)."""
+    saved = getattr(previous, "info", {}).get("refit_state") if previous is not None else None
+    if saved is None:
+        raise ValueError(f"{where}: expected a FitResult from fit_head (its info has no "
+                         "'refit_state')")
+    coeffs = np.asarray(saved["coeffs"], dtype=np.float64)
+    if coeffs.shape != (eng.lin.n_coeffs,):
+        raise ValueError(f"{where}: {coeffs.size} coefficients, but the model with these "
+                         f"options has {eng.lin.n_coeffs} (n_identity and n_regional must "
+                         "match)")
+    missing = [v.name for v in views if v.name not in previous.cameras]
+    if missing:
+        raise ValueError(f"{where}: view {missing[0]!r} was not in that fit (views: "
+                         f"{', '.join(previous.cameras)})")
+    planes = {}
+    for v in views:
+        if v.mirror_of is None:
+            continue
+        p = saved.get("planes", {}).get(v.name)
+        if p is None:
+            raise ValueError(f"{where}: view {v.name!r} was not a mirror view in that fit")
+        planes[v.name] = MirrorPlane(np.asarray(p["normal"], dtype=np.float64),
+                                     float(p["offset"]))
+    return State(np.asarray(previous.rotation, dtype=np.float64).copy(), coeffs.copy(),
+                 {v.name: previous.cameras[v.name] for v in views}, float(previous.scale),
+                 np.asarray(previous.translation, dtype=np.float64).copy(), planes), saved
+
+
+def previous_cameras(previous, where):
+    cams = getattr(previous, "cameras", None)
+    if not isinstance(cams, dict) or "refit_state" not in getattr(previous, "info", {}):
+        raise ValueError(f"{where}: expected a FitResult from fit_head (its info has no "
+                         "'refit_state')")
+    return cams
+
