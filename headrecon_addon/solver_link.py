@@ -10,7 +10,7 @@ missing scipy, a broken solver module) is re-raised so it is not mistaken for th
 
 import importlib
 
-_MODULES = ("cameras.blender", "cameras.calib_errors", "cameras.base", "cameras.dlt",
+_MODULES = ("cameras.blender", "cameras.calib_errors", "cameras", "cameras.dlt",
             "fitting.fit", "io.landmarks_file", "model.head_model", "cameras.pinhole",
             "fitting.result", "texture.bake")
 
@@ -26,7 +26,7 @@ _mods = {name: importlib.import_module(f"{solver.__name__}.{name}") for name in 
 
 blender_camera = _mods["cameras.blender"]
 calib_errors = _mods["cameras.calib_errors"]
-cameras = _mods["cameras.base"]
+cameras = _mods["cameras"]
 dlt = _mods["cameras.dlt"]
 fit = _mods["fitting.fit"]
 landmarks_file = _mods["io.landmarks_file"]

@@ -26,7 +26,7 @@ is explicit; the DLT's lens terms are written on observed pixels (seed 000 eq. 7
 What the constraints buy, and what they cannot (92 landmarks of the head model, 50 mm
 equivalent, 1 px noise): they remove the principal point / skew / aspect freedom, so the
 camera's pose across the viewing direction and its projection of points it was not fitted
-to improve (held-out skin vertices reproject about 25 % better than with a DLT-11). The
+to improve (docs/DECISIONS.md). The
 camera's *distance* is another matter: a head is shallow, so focal length and distance
 trade off (a dolly zoom changes the image of a head only through its depth variation of
 about 15 %). With the focal length free the distance is as uncertain as the DLT's

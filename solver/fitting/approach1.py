@@ -3,6 +3,15 @@
 
 from .outline import own_outline_views, view_outlines
 
+# Smallest relative gain of a re-calibration for another joint run (Joint.settle).
+SETTLE_TOLERANCE = 1e-3
+
+
+# The first outline stage of approach 1 keeps every contour row within this fraction of
+# the contour threshold (8 px at the default 20), for this many rounds: see approach1.
+RELEASE_KEEP = 0.4
+RELEASE_ROUNDS = 2
+
 
 def profile_fit(eng, state, opts):
     """Thesis §4.4.1 on the orthographic side views: the cameras alone (similarity-only
@@ -39,13 +48,10 @@ def approach1(model, eng, state, opts):
     keeping every outline row within RELEASE_KEEP of the contour threshold (8 px), then,
     with candidates found anew, with the usual cut-off (3 sigmas of the noise,
     ``ContourRows``). From the mean head the outline rows latch onto the wrong rim (a
-    cheek for a jaw, an ear for the skull) and the fit settles in a worse minimum: on two
-    perspective photos the landmarks-first stage more than halves the gap to a fit
-    started from the true head. And where the landmarks leave the head
-    some 10 px off the tracing (the neck, which no landmark holds), the noise's cut-off
-    trims those rows from the start, so they never pull it there: the wide stage does
-    (2 photos, 40 heads of ``bench/bench_perspective.py``: 1.3 % less error on average,
-    up to 0.17 mm on a head; the lost rows' points then all have rows).
+    cheek for a jaw, an ear for the skull) and the fit settles in a worse minimum. And
+    where the landmarks leave the head some 10 px off the tracing (the neck, which no
+    landmark holds), the noise's cut-off trims those rows from the start, so they never
+    pull it there: the wide stage does. (Measured: docs/DECISIONS.md.)
 
     With free perspective cameras or mirror planes (self-calibration) the joint rounds
     alternate with full re-calibrations of those cameras until both settle
@@ -85,19 +91,6 @@ def approach1(model, eng, state, opts):
     joint = eng.joint(eng.views, front_weight=opts.front_weight, outlines=out["outlines"])
     out["joint"] = joint
     return stage(joint, state), out
-
-
-# Smallest relative gain of a re-calibration for another joint run (Joint.settle).
-SETTLE_TOLERANCE = 1e-3
-
-
-# The first outline stage of approach 1 keeps every contour row within this fraction of
-# the contour threshold (8 px at the default 20), for this many rounds: see approach1.
-# (On 40 heads of two photos, 2 rounds do what a run to convergence does; 1 does not.)
-RELEASE_KEEP = 0.4
-
-
-RELEASE_ROUNDS = 2
 
 
 def self_calibrating(eng):

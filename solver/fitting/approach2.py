@@ -17,8 +17,7 @@ A2_PROGRESS = 0.01
 
 def dense_vertices(model, step=8):
     """Every ``step``-th skin vertex (about 1400): the dense 3-D rows of approach 2 (the
-    skin is regularly meshed, so a stride is an even subsample; the benchmark's accuracy
-    is the same with every 4th)."""
+    skin is regularly meshed, so a stride is an even subsample)."""
     return np.asarray(model.skin, dtype=np.int64)[::step]
 
 

@@ -1,4 +1,5 @@
-"""Fit the head model to landmarks on photos (thesis §4.4, §9): a front and a profile
+"""Fit the head model to landmarks on photos (thesis §4.4, §9), composed from the stages
+of this package: a front and a profile
 photo as in the thesis, or any number of photos at any angle, orthographic or perspective
 (calibrated, from passpoints, or self-calibrated on the head), and mirror images.
 
@@ -22,14 +23,13 @@ threshold) and the side landmarks. Then:
   reproject better, the smaller shape prior breaking near ties. Approach 2 is the
   thesis' method for orthographic photos: its 3-D targets come from the photos' image
   planes, and it refines a head the profile stage has already shaped. With a perspective
-  camera (no profile stage) it measured 2.0-2.8 mm against 1.0-1.3 mm for approach 1 (8
-  synthetic cases of 2 and 3 photos, calibrated or not), so there combined is approach 1
-  alone.
+  camera (no profile stage) it does worse than approach 1 (docs/DECISIONS.md), so there
+  combined is approach 1 alone.
 
 Cameras: no photo is assumed to share scale, tilt or framing with another. Each keeps its
 own camera, solved together with the head in every Gauss-Newton step (its parameters as
 extra modes of the shape-ICP) and re-calibrated through ``Camera.refit`` (see
-``solver/fit_engine.py``, also for the gauge: head scale 1 and translation 0 when every
+``joint.py``, and ``engine.py`` for the gauge: head scale 1 and translation 0 when every
 camera is free, and the head's rotation too when they are all perspective; the identity
 modes carry the head's size). Self-calibrated perspective cameras alternate full
 re-calibrations with joint rounds until both settle (:func:`approach1`). A mirror view's

@@ -170,9 +170,7 @@ class ContourRows(CameraRows):
         """What the traced points without a row add to the cost: ``w cap^2`` each, as if
         they lay at the cut-off (a truncated quadratic). Without it a head that loses rows
         lowers its cost by the rows it dropped, and the fit, which keeps the lowest cost,
-        drifts to heads whose outline misses awkward points: on two perspective photos such
-        heads cost less than the fit started from the true head but were 0.1-0.3 mm
-        further from it."""
+        drifts to heads whose outline misses awkward points."""
         missing = np.ones(len(self.pixels), bool)
         missing[self.points] = False
         return float(self.point_weights[missing].sum()) * self.cap**2
