@@ -193,20 +193,3 @@ def _check(view, near, extent, px, epsilon_max, reading_error_px, what):
                f"landmarks are good to {epsilon_max * 100:.2f} %; treat this photo as a "
                f"perspective (pinhole or DLT) camera, or shoot from at least {lmin:.1f} m")
     return ProjectionCheck(view, near, extent, eps, epsilon_max, lmin, exceeds, msg)
-
-
-def check_views(cameras, points, epsilon_max=None, reading_error_px=2.0):
-    """``check_projection`` for every photo.
-
-    Parameters
-    ----------
-    cameras : dict of str -> DLTCamera or PinholeCamera
-    points : array_like, shape (n, 3), metres
-    epsilon_max, reading_error_px : see ``check_projection``
-
-    Returns
-    -------
-    dict of str -> ProjectionCheck
-    """
-    return {name: check_projection(cam, points, epsilon_max, reading_error_px, name)
-            for name, cam in cameras.items()}
