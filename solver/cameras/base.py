@@ -194,11 +194,6 @@ class Camera(ABC):
         """This camera as a DLTCamera (perspective cameras only)."""
         raise ValueError(f"expected a perspective camera, got {type(self).__name__}")
 
-    def as_pinhole(self):
-        """This camera as a PinholeCamera with its intrinsics and pose (perspective cameras
-        whose rotation is a proper one)."""
-        raise ValueError(f"expected a perspective camera, got {type(self).__name__}")
-
 
 def is_side_camera(camera, at=None):
     """True when ``camera`` looks along the world x axis (the head's left-right axis) at

@@ -556,16 +556,6 @@ class DLTCamera(Camera):
     def as_dlt(self):
         return self
 
-    def as_pinhole(self, **options):
-        """The nearest PinholeCamera (``PinholeCamera.from_krc`` with K's own principal
-        point; ``options`` as that class's); a mirrored DLT has none."""
-        from .pinhole import PinholeCamera
-
-        k, r, c = self.decompose()
-        if np.linalg.det(r) < 0:
-            raise ValueError("camera (dlt): a mirrored camera is not a pinhole camera")
-        return PinholeCamera.from_krc(k, r, c, self.size, principal_point="keep", **options)
-
     # ---- fitting
 
     def refit(self, points, pixels, weights=None):

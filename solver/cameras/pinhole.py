@@ -676,7 +676,7 @@ class PinholeCamera(Camera):
                              centre=self.centre + delta[3:6])
 
     def pose_only(self):
-        return self.as_pinhole(free_focal=False, focal_range_mm=None)
+        return PinholeCamera.with_pose_of(self, free_focal=False, focal_range_mm=None)
 
     def mirrored(self, plane):
         centre = plane.reflect_points(self.centre[None, :])[0]
@@ -689,12 +689,26 @@ class PinholeCamera(Camera):
         except ValueError:
             return self.replaced(k1=0.0).to_dlt()
 
-    def as_pinhole(self, **options):
-        """Itself; with ``options`` (as the class's) a copy with them."""
-        if not options:
-            return self
-        return PinholeCamera(self.focal_px, self.rotation, self.centre, self.size,
-                             self.principal_point, self.k1, **options)
+    @classmethod
+    def with_pose_of(cls, camera, **options):
+        """A pinhole camera with the intrinsics and pose of the perspective ``camera`` and
+        ``options`` (as the class's): a pinhole camera's copy; a DLT's K R C with K's own
+        principal point (its lens terms dropped).
+
+        Raises
+        ------
+        ValueError
+            A mirrored DLT (no pinhole camera has its rotation), or another kind.
+        """
+        if isinstance(camera, PinholeCamera):
+            return cls(camera.focal_px, camera.rotation, camera.centre, camera.size,
+                       camera.principal_point, camera.k1, **options)
+        if isinstance(camera, DLTCamera):
+            k, r, c = camera.decompose()
+            if np.linalg.det(r) < 0:
+                raise ValueError("camera (dlt): a mirrored camera has no pinhole pose")
+            return cls.from_krc(k, r, c, camera.size, principal_point="keep", **options)
+        raise ValueError(f"expected a perspective camera, got {type(camera).__name__}")
 
     def refit(self, points, pixels, weights=None):
         """Re-estimate focal length, rotation and centre from 3-D points and their pixels.

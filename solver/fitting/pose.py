@@ -4,6 +4,7 @@ free cameras to come to."""
 
 import numpy as np
 
+from ..cameras import PinholeCamera
 from ..cameras.triangulate import triangulate
 from ..procrustes import similarity_procrustes
 
@@ -48,7 +49,7 @@ def pose_by_resection(eng, state, view):
     relative to the mean head (a pinhole refit with its intrinsics kept) composed with
     its pose in the world."""
     try:
-        probe = view.camera.as_pinhole(free_focal=False, focal_range_mm=None)
+        probe = PinholeCamera.with_pose_of(view.camera, free_focal=False, focal_range_mm=None)
         local = eng.local(state, view.vertices)
         rel = probe.refit(local, view.pixels, view.weights)
     except ValueError:
