@@ -1,0 +1,63 @@
+"""The scene read back as a landmarks file: an export keeps what the import brought
+(bpy module, background)."""
+
+import json
+
+import bpy
+import numpy as np
+import pytest
+
+from tests.addon.support import addon, synthetic_files
+
+
+@pytest.fixture(scope="module")
+def files(model, tmp_path_factory):
+    addon()
+    return synthetic_files(model, tmp_path_factory.mktemp("scene"), seed=3)
+
+
+def test_import_export_round_trip(files, scene, tmp_path):
+    from solver.io import landmarks_file
+
+    path, case, _ = files
+    # keys the add-on does not edit travel through the scene untouched
+    data = json.loads(path.read_text())
+    data["version"] = 2
+    data["x-tool"] = {"made by": "test"}
+    data["views"]["front"]["calibrated"] = False
+    data["views"]["front"]["x-note"] = "kept"
+    path = path.parent / "case_v2.json"
+    path.write_text(json.dumps(data))
+    case = landmarks_file.load_landmarks(path)
+    assert bpy.ops.headrecon.import_landmarks(filepath=str(path)) == {"FINISHED"}
+    planes = [o for o in scene.objects if o.headrecon.role == "PHOTO"]
+    assert sorted(p.headrecon.view for p in planes) == sorted(case.views)
+    n_lm = sum(1 for o in scene.objects if o.headrecon.role == "LANDMARK")
+    assert n_lm == case.n_points
+    out = tmp_path / "sub" / "exported.json"
+    out.parent.mkdir()
+    assert bpy.ops.headrecon.export_landmarks(filepath=str(out)) == {"FINISHED"}
+    again = landmarks_file.load_landmarks(out)
+    assert _same(again, case)
+    assert again.extra == {"x-tool": {"made by": "test"}}
+    assert again.views["front"].calibrated is False
+    assert again.views["front"].extra == {"x-note": "kept"}
+    # image paths are rewritten relative to the new file and still find the photos
+    for v in case.views:
+        assert again.image_path(v).resolve() == case.image_path(v).resolve()
+    # importing the export again replaces the planes (no duplicates) and keeps the points
+    assert bpy.ops.headrecon.import_landmarks(filepath=str(out)) == {"FINISHED"}
+    assert sum(1 for o in scene.objects if o.headrecon.role == "PHOTO") == len(case.views)
+    assert sum(1 for o in scene.objects if o.headrecon.role == "LANDMARK") == n_lm
+
+
+def _same(a, b):
+    for v in b.views:
+        pa, pb = a.views[v].points, b.views[v].points
+        assert list(pa) == list(pb)
+        assert np.allclose([pa[k] for k in pa], [pb[k] for k in pb], atol=1e-3)
+        if b.views[v].contour is not None:
+            assert np.allclose(a.views[v].contour, b.views[v].contour, atol=1e-3)
+        assert a.views[v].camera.to_dict() == b.views[v].camera.to_dict()
+    return True
+
