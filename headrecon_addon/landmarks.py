@@ -62,10 +62,6 @@ def _marker_mesh():
 MARKER_ROLES = ("LANDMARK", "PASSPOINT")
 
 
-def is_landmark(obj):
-    return obj is not None and obj.headrecon.role == "LANDMARK"
-
-
 def marker_objects(plane, role="LANDMARK"):
     """Markers of a photo plane with ``role`` ("LANDMARK" or "PASSPOINT"): dict name ->
     object (creation order)."""
@@ -121,11 +117,6 @@ def place_marker_local(plane, name, xy, role="LANDMARK"):
         _link_like(obj, plane)
     obj.location = (float(xy[0]), float(xy[1]), LIFT)
     return obj
-
-
-def place_landmark_local(plane, name, xy):
-    """Put landmark ``name`` at plane-space (x, y) (creates it or moves it). Returns it."""
-    return place_marker_local(plane, name, xy, "LANDMARK")
 
 
 def place_landmark(plane, name, uv, role="LANDMARK"):

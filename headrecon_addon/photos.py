@@ -38,7 +38,6 @@ from .warm_up import warm_up
 
 PLACEHOLDER = "headrecon_placeholder"  # custom property on stand-in images (no photo)
 PLANE_DEPTH = photo_cameras.PLANE_DEPTH  # metres behind the head's centre, along the view
-NOMINAL_PLANE_HEIGHT = 0.375  # H of a nominal orthographic plane (h / (0.8 h / 0.3 m))
 VIEW_KINDS = {"orthographic-front": "front", "orthographic-right": "right",
               "orthographic-left": "left"}
 
