@@ -16,9 +16,13 @@ from . import landmarks, photos
 from .solver_link import (
     CURRENT_VERSION,
     FORMAT,
-    MIN_LANDMARKS_PER_VIEW,
     MIN_LANDMARKS_TOTAL,
+    DLTCamera,
     FitOptions,
+    OrthographicCamera,
+    PinholeCamera,
+    count_problems,
+    landmarks_needed,
     parse_landmarks,
     save_landmarks,
 )
@@ -143,20 +147,48 @@ def photo_arrays(scene):
     return out
 
 
+_CAMERA_CLASSES = {cls.kind: cls for cls in (OrthographicCamera, DLTCamera, PinholeCamera)}
+
+
+def placed_and_needed(scene):
+    """Landmarks placed and landmarks needed per view, by the solver's rule
+    (``landmarks_needed``) on what the views of the scene's case say: the camera kind
+    (its ``min_refit_points``), ``calibrated`` (kept), passpoints and ``mirror_of``.
+
+    Returns
+    -------
+    used, needed : dict of str -> int
+        View name -> landmarks placed, and -> landmarks its fit needs.
+    """
+    used, needed = {}, {}
+    for plane in photos.photo_planes(scene):
+        view = plane.headrecon.view
+        cls = _CAMERA_CLASSES.get(photos.camera_kind(plane))
+        extra = json.loads(plane.headrecon.view_json) if plane.headrecon.view_json else {}
+        used[view] = len(landmarks.landmark_objects(plane))
+        needed[view] = landmarks_needed(
+            cls.min_refit_points if cls is not None else 0,
+            kept=extra.get("calibrated") is True,
+            passpoints=bool(landmarks.passpoint_objects(plane)),
+            mirror=photos.mirror_of(plane) is not None)
+    return used, needed
+
+
 def fit_problem(scene):
     """Why the scene cannot be fitted yet (a sentence for the artist), or None."""
-    planes = photos.photo_planes(scene)
-    if not planes:
+    if not photos.photo_planes(scene):
         return "Load a front and a profile photo first"
-    counts = {p.headrecon.view: len(landmarks.landmark_objects(p)) for p in planes}
-    need = MIN_LANDMARKS_PER_VIEW
-    # a view with passpoints gets its camera from them: its landmarks are optional
-    calibrated = {p.headrecon.view for p in planes if landmarks.passpoint_objects(p)}
-    few = [f"{v} ({n})" for v, n in counts.items() if n < need and v not in calibrated]
+    used, needed = placed_and_needed(scene)
+    problems = count_problems(used, needed)
+    few = [view for view, _ in problems if view is not None]
     if few:
-        return f"Too few landmarks on {', '.join(few)}: place at least {need} per photo"
-    total = sum(counts.values())
-    if total < MIN_LANDMARKS_TOTAL:
-        return (f"Too few landmarks ({total}): place at least "
+        counts = ", ".join(f"{v} ({used[v]})" for v in few)
+        needs = {needed[v] for v in few}
+        if len(needs) == 1:
+            return f"Too few landmarks on {counts}: place at least {needs.pop()} per photo"
+        return (f"Too few landmarks on {counts}: place at least "
+                + ", ".join(f"{needed[v]} on {v}" for v in few))
+    if problems:
+        return (f"Too few landmarks ({sum(used.values())}): place at least "
                 f"{MIN_LANDMARKS_TOTAL} in all")
     return None

@@ -1,5 +1,5 @@
-"""The scene read back as a landmarks file: an export keeps what the import brought
-(bpy module, background)."""
+"""The scene read back as a landmarks file (an export keeps what the import brought) and
+whether it has the landmarks a fit needs (bpy module, background)."""
 
 import json
 
@@ -7,7 +7,7 @@ import bpy
 import numpy as np
 import pytest
 
-from tests.addon.support import addon, synthetic_files
+from tests.addon.support import addon, synthetic_files, write_photo
 
 
 @pytest.fixture(scope="module")
@@ -61,3 +61,26 @@ def _same(a, b):
         assert a.views[v].camera.to_dict() == b.views[v].camera.to_dict()
     return True
 
+
+def test_fit_problem_follows_the_solver_count_rule(scene, tmp_path):
+    # the Fit button asks the solver's rule: an orthographic photo needs 3 landmarks, a
+    # pinhole camera still to compute 4 (what refitting it needs)
+    from headrecon_addon import landmarks, photos, scene_to_case
+
+    img = write_photo(tmp_path / "photo.png", (300, 400))
+    assert bpy.ops.headrecon.load_photo(filepath=str(img), view="front") == {"FINISHED"}
+    assert bpy.ops.headrecon.load_photo(filepath=str(img), view="photo",
+                                        projection="PERSPECTIVE") == {"FINISHED"}
+    front, photo = photos.find_plane(scene, "front"), photos.find_plane(scene, "photo")
+    names = [d["name"] for d in landmarks.landmark_definitions("front")]
+    for i, name in enumerate(names[:2]):
+        landmarks.place_landmark(front, name, (100.0 + 10 * i, 150.0))
+    for i, name in enumerate(names[:3]):
+        landmarks.place_landmark(photo, name, (100.0 + 10 * i, 150.0))
+    assert scene_to_case.fit_problem(scene) == \
+        "Too few landmarks on front (2), photo (3): place at least 3 on front, 4 on photo"
+    landmarks.place_landmark(front, names[2], (130.0, 150.0))
+    assert scene_to_case.fit_problem(scene) == \
+        "Too few landmarks on photo (3): place at least 4 per photo"
+    landmarks.place_landmark(photo, names[3], (130.0, 150.0))
+    assert scene_to_case.fit_problem(scene) is None
