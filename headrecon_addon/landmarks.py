@@ -153,9 +153,9 @@ def landmark_pixels(plane, role="LANDMARK"):
     order = {n: i for i, n in enumerate(landmark_set().names)} if role == "LANDMARK" else {}
     names = sorted(objs, key=lambda n: (order.get(n, len(order)), n))
     xy = np.array([_plane_xy(objs[n]) for n in names], dtype=np.float64)
-    # Locations are float32 (~2e-5 px here); rounding to 1/1000 px gives back exactly the
-    # coordinates a file had (import -> export round-trips) and loses nothing a hand or a
-    # detector can place.
+    # Locations are float32: rounding to 1/1000 px gives back exactly the coordinates a
+    # file had (import -> export round-trips) and loses nothing a hand or a detector can
+    # place.
     uv = np.round(photos.pixels_from_local(plane, xy), PIXEL_DECIMALS)
     return {n: (float(u), float(v)) for n, (u, v) in zip(names, uv, strict=True)}
 
