@@ -32,9 +32,7 @@ SAMPLE = ROOT / "generated" / "sample" / "sample.json"
 def _synthetic_case(folder, perspective=False):
     from PIL import Image
 
-    from solver import synthetic
-    from solver.io import landmarks_file
-    from solver.model.head_model import load_model
+    from solver import load_model, save_landmarks, synthetic
 
     if perspective:
         case, _ = synthetic.make_perspective_case(load_model(), 0, n_views=3)
@@ -50,7 +48,7 @@ def _synthetic_case(folder, perspective=False):
         view.image = f"{name}.png"
     path = Path(folder) / "synthetic.json"
     case.source = str(path)
-    landmarks_file.save_landmarks(case, path)
+    save_landmarks(case, path)
     return path
 
 
@@ -66,11 +64,10 @@ def _scene(case_path):
 
 def warm_up(texture_size=1024):
     """One-time costs of a session, paid in the UI by a background thread as soon as photos
-    are loaded (fit_ops.warm_up): model load, the bake's UV rasters, the eyelash texture.
+    are loaded (headrecon_addon.warm_up): model load, the bake's UV rasters, the eyelash texture.
     Returns their seconds."""
     from headrecon_addon import material
-    from solver.model.head_model import load_model
-    from solver.texture.bake import uv_raster, uv_tiles
+    from solver import load_model, uv_raster, uv_tiles
 
     t = time.perf_counter()
     model = load_model()
@@ -86,7 +83,7 @@ def warm_up(texture_size=1024):
 
 def bench_fit(case_path, repeat):
     """Seconds of the Fit operator: the first fit (makes the head) and re-fits."""
-    from headrecon_addon import fit_ops
+    from headrecon_addon import fit_job
 
     first, again, parts = [], [], []
     for _ in range(repeat):
@@ -95,7 +92,7 @@ def bench_fit(case_path, repeat):
         assert bpy.ops.headrecon.fit() == {"FINISHED"}
         first.append(time.perf_counter() - t)
         t = time.perf_counter()
-        head, job = fit_ops.run_fit(scene)
+        head, job = fit_job.run_fit(scene)
         again.append(time.perf_counter() - t)
         parts.append(job.timings)
     return first, again, parts, scene
@@ -104,7 +101,8 @@ def bench_fit(case_path, repeat):
 def bench_live(scene, moves):
     """Milliseconds of one live refit: a landmark moves, the depsgraph handler refits and
     updates the key values, the detail key and the transform."""
-    from headrecon_addon import fit_ops, landmarks, photos
+    from headrecon_addon import landmarks, photos
+    from headrecon_addon.live_refit import LIVE
 
     scene.headrecon.live_refit = True
     bpy.context.view_layer.update()
@@ -116,9 +114,9 @@ def bench_live(scene, moves):
         t = time.perf_counter()
         bpy.context.view_layer.update()  # runs the handler (and the depsgraph)
         times.append((time.perf_counter() - t) * 1000.0)
-        solver_ms.append(fit_ops.live_stats()["ms"])
-        if fit_ops.live_stats()["error"]:
-            raise RuntimeError(fit_ops.live_stats()["error"])
+        solver_ms.append(LIVE.ms)
+        if LIVE.error:
+            raise RuntimeError(LIVE.error)
     scene.headrecon.live_refit = False
     return times, solver_ms
 

@@ -6,10 +6,10 @@
 
 import bpy
 
-from . import fit_ops, landmarks, panels, photos, properties, reference_head
+from . import fit_ops, landmark_ops, live_refit, panels, photos, properties, reference_head
 
-CLASSES = (*properties.CLASSES, *reference_head.CLASSES, *photos.CLASSES, *landmarks.CLASSES,
-           *fit_ops.CLASSES, *panels.CLASSES)
+CLASSES = (*properties.CLASSES, *reference_head.CLASSES, *photos.CLASSES,
+           *landmark_ops.CLASSES, *fit_ops.CLASSES, *panels.CLASSES)
 
 _register_classes, _unregister_classes = bpy.utils.register_classes_factory(CLASSES)
 
@@ -21,10 +21,10 @@ def is_registered():
 def register():
     _register_classes()
     properties.register_properties()
-    fit_ops.register_handlers()
+    live_refit.register_handlers()
 
 
 def unregister():
-    fit_ops.unregister_handlers()
+    live_refit.unregister_handlers()
     properties.unregister_properties()
     _unregister_classes()

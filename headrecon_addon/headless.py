@@ -23,7 +23,7 @@ if __package__:
     import bpy
     import numpy as np
 
-    from . import fit_ops, landmarks, photos
+    from . import case_to_scene, photos, result_to_scene
     from .data import Transaction
     from .solver_link import (
         FitOptions,
@@ -56,7 +56,7 @@ def _images_for(case, images):
     for view in case.views:
         given = images.get(view)
         if given is None:
-            out.update(landmarks.load_case_images(_only(case, view)))
+            out.update(case_to_scene.load_case_images(_only(case, view)))
         elif isinstance(given, bpy.types.Image):
             out[view] = given
         elif isinstance(given, str | Path):
@@ -109,18 +109,18 @@ def build_scene_from_fit(model, case, result, images=None, scene=None, texture_s
     scene = scene or bpy.context.scene
     with Transaction():
         imgs = _images_for(case, images)
-        planes = landmarks.build_view_planes(case, imgs)
+        planes = case_to_scene.build_view_planes(case, imgs)
         for plane in planes:
             photos.link_object(photos.view_root(plane), scene.collection)
-        landmarks.store_case_level(scene, case)
+        case_to_scene.store_case_level(scene, case)
         if textures is None and bake:
             arrays = {v: photos.image_to_array(img) for v, img in imgs.items()
                       if not img.get(photos.PLACEHOLDER)}
             if arrays:
                 textures = bake_fit_texture(model, result, arrays, size=int(texture_size))
-        calibration, _ = fit_ops.calibration_checks(case)
-        head = fit_ops.apply_result(scene, model, result, textures, name=name,
-                                    calibration=calibration)
+        calibration, _ = result_to_scene.calibration_checks(case)
+        head = result_to_scene.apply_result(scene, model, result, textures, name=name,
+                                            calibration=calibration)
     return head
 
 
@@ -132,7 +132,7 @@ def save_blend(path):
     for img in bpy.data.images:
         if img.packed_file is None and img.source == "FILE" and img.has_data:
             img.pack()
-    fit_ops.pack_baked_textures()
+    result_to_scene.pack_baked_textures()
     prefs = bpy.context.preferences.filepaths
     versions = prefs.save_version
     prefs.save_version = 0  # no head.blend1 backups next to batch output
@@ -160,10 +160,6 @@ def export_glb(path, head):
     return path
 
 
-def rms_px(result):
-    return fit_ops.rms_residual(result)
-
-
 def fit_file(path, out, model, options=None, texture_size=1024, bake=True, glb=False):
     """Fit one landmarks file and write its .blend (and .glb). Returns a summary dict."""
     t0 = time.perf_counter()
@@ -176,8 +172,8 @@ def fit_file(path, out, model, options=None, texture_size=1024, bake=True, glb=F
     written = [save_blend(out)]
     if glb:
         written.append(export_glb(Path(out).with_suffix(".glb"), head))
-    return {"name": Path(path).stem, "method": fit_ops.fit_method(result),
-            "rms_px": rms_px(result), "flagged": len(result.flagged()),
+    return {"name": Path(path).stem, "method": result_to_scene.fit_method(result),
+            "rms_px": result.rms_px(), "flagged": len(result.flagged()),
             "seconds": time.perf_counter() - t0, "outputs": [str(p) for p in written]}
 
 

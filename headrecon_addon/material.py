@@ -346,8 +346,8 @@ _LASH_ALPHA = {}  # texture size -> eyelash_alpha(size)
 
 
 def cached_eyelash_alpha(size=LASH_TEXTURE_SIZE):
-    """``eyelash_alpha(size)``, computed once per session (~0.3 s at 1024; the UI's
-    warm-up thread pays it before the first fit)."""
+    """``eyelash_alpha(size)``, computed once per session (the UI's warm-up thread pays it
+    before the first fit)."""
     if size not in _LASH_ALPHA:
         _LASH_ALPHA[size] = eyelash_alpha(size)
     return _LASH_ALPHA[size]

@@ -3,7 +3,8 @@ flow (reference head, photos, landmarks, fit, result)."""
 
 import bpy
 
-from . import fit_ops, landmarks, photos, reference_head
+from . import calibration_object, landmarks, photos, reference_head
+from .live_refit import LIVE
 
 
 class _Panel:
@@ -82,7 +83,7 @@ class HEADRECON_PT_calibration(_Panel, bpy.types.Panel):
 
     def draw(self, context):
         layout = self.layout
-        points = landmarks.case_passpoints(context.scene)
+        points = calibration_object.case_passpoints(context.scene)
         if not points:
             layout.label(text="No passpoints (3-D points of a calibration object)", icon="INFO")
         col = layout.column(align=True)
@@ -102,7 +103,7 @@ class HEADRECON_PT_landmarks(_Panel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         planes = photos.photo_planes(context.scene)
-        case_passpoints = landmarks.case_passpoints(context.scene)
+        case_passpoints = calibration_object.case_passpoints(context.scene)
         if not planes:
             layout.label(text="Load the photos first", icon="INFO")
         for plane in planes:
@@ -156,7 +157,7 @@ class HEADRECON_PT_fit(_Panel, bpy.types.Panel):
         row = layout.row(align=True)
         row.prop(props, "live_refit", toggle=True, icon="PLAY")
         row.operator("headrecon.refit_landmarks", text="", icon="FILE_REFRESH")
-        stats = fit_ops.live_stats()
+        stats = LIVE.stats()
         if props.live_refit:
             if not stats["ready"]:
                 layout.label(text="Live refit starts after a Fit", icon="INFO")

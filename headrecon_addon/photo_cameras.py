@@ -1,7 +1,7 @@
 """Blender cameras of perspective photos (DLT and pinhole views): one camera object per
 photo, the photo as its background image, and the photo plane inside its frustum.
 
-Every Blender camera convention lives in ``solver/blender_camera.py``: a solver camera
+Every Blender camera convention lives in ``solver/cameras/blender.py``: a solver camera
 becomes a settings dict there (``lens``, sensor, shift, pixel aspect, ``matrix_world``,
 ``flip_x``), applied here as it is; reading a camera object back goes through the same
 module (``blender_to_krc``), so the plane follows whatever the camera object says, also
@@ -28,7 +28,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Vector
 
-from .solver_link import DLTCamera, PinholeCamera, blender_camera
+from .solver_link import DLTCamera, PinholeCamera, blender_to_krc, dlt_to_blender
 
 PLANE_DEPTH = 0.3  # metres behind the head's centre (as orthographic planes stand)
 MIN_DEPTH = 0.05  # metres: a plane never closer to its camera than this
@@ -44,7 +44,7 @@ def is_camera_object(obj):
 
 
 def blender_settings(camera):
-    """Blender camera settings of a perspective solver camera (``blender_camera``'s dict:
+    """Blender camera settings of a perspective solver camera (``dlt_to_blender``'s dict:
     a mirrored camera gives the left-right flipped photo's camera, ``flip_x`` True).
 
     Raises
@@ -53,7 +53,7 @@ def blender_settings(camera):
         Not a DLT or pinhole camera, or one Blender cannot show (non-positive focal).
     """
     if isinstance(camera, DLTCamera):
-        return blender_camera.dlt_to_blender(camera, allow_flip=True)
+        return dlt_to_blender(camera, allow_flip=True)
     if isinstance(camera, PinholeCamera):
         return camera.to_blender(allow_flip=True)
     raise ValueError(f"camera: a {getattr(camera, 'kind', type(camera).__name__)} camera "
@@ -72,7 +72,7 @@ def new_camera_object(name):
 
 
 def apply_settings(obj, params):
-    """Set a camera object from a ``blender_camera`` settings dict."""
+    """Set a camera object from a ``blender_settings`` dict."""
     data = obj.data
     data.type = "PERSP"
     data.lens_unit = "MILLIMETERS"
@@ -91,7 +91,7 @@ def apply_settings(obj, params):
 
 def settings_of(obj, size):
     """The settings dict of a camera object for a photo of ``size`` (w, h): what
-    ``blender_camera.blender_to_krc`` reads."""
+    ``blender_to_krc`` reads."""
     data = obj.data
     return {"lens": data.lens, "sensor_width": data.sensor_width,
             "sensor_height": data.sensor_height, "sensor_fit": data.sensor_fit,
@@ -137,8 +137,8 @@ def plane_local_matrix(obj, size, plane_height, depth):
         Distance of the plane in front of the camera.
     """
     w, h = float(size[0]), float(size[1])
-    k, _, _, _ = blender_camera.blender_to_krc({**settings_of(obj, size), "flip_x": False,
-                                                "matrix_world": np.eye(4).tolist()})
+    k, _, _, _ = blender_to_krc({**settings_of(obj, size), "flip_x": False,
+                                 "matrix_world": np.eye(4).tolist()})
     fx, cx, fy, cy = k[0, 0], k[0, 2], k[1, 1], k[1, 2]
     per = h / float(plane_height)  # pixels per plane unit
     sx, sy = per * depth / fx, per * depth / fy

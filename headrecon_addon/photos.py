@@ -34,10 +34,10 @@ from mathutils import Matrix
 from . import material, photo_cameras
 from .polls import ObjectModeOperator, poll_result, view3d_problem
 from .solver_link import ORTHO_VIEWS, OrthographicCamera, camera_from_json, camera_to_json
+from .warm_up import warm_up
 
 PLACEHOLDER = "headrecon_placeholder"  # custom property on stand-in images (no photo)
 PLANE_DEPTH = photo_cameras.PLANE_DEPTH  # metres behind the head's centre, along the view
-NOMINAL_PLANE_HEIGHT = 0.375  # H of a nominal orthographic plane (h / (0.8 h / 0.3 m))
 VIEW_KINDS = {"orthographic-front": "front", "orthographic-right": "right",
               "orthographic-left": "left"}
 
@@ -642,8 +642,6 @@ class HEADRECON_OT_load_photo(ObjectModeOperator, bpy.types.Operator):
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
         self.report({"INFO"}, f"{view}: {image.name} ({image.size[0]}x{image.size[1]})")
-        from .fit_ops import warm_up
-
         warm_up(scene.headrecon.texture_size)
         return {"FINISHED"}
 

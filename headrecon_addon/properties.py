@@ -165,9 +165,9 @@ def _on_residual_index(self, context):
 
 
 def _on_live_refit(self, context):
-    from .fit_ops import reset_live_state
+    from .live_refit import LIVE
 
-    reset_live_state()
+    LIVE.reset()
 
 
 METHODS = (

@@ -8,9 +8,9 @@ values set, the evaluated mesh is exactly FitResult.local_vertices (float32), th
 ``local = mean + identity + regional + detail``.
 
 Keys are written through ``ShapeKey.points`` (a raw-array view of ``ShapeKey.data``'s
-"co": the same memory, but foreach_set there is a memcpy instead of a per-point loop,
-~200x faster; 4.2 has it too) and the names written are remembered on the Key datablock,
-so a re-fit removes exactly those and nothing an artist added.
+"co": the same memory, but foreach_set there is a memcpy instead of a per-point loop; 4.2
+has it too) and the names written are remembered on the Key datablock, so a re-fit
+removes exactly those and nothing an artist added.
 """
 
 import numpy as np
@@ -189,9 +189,9 @@ def show_live_shape(obj, model, result):
     """Drag mode of the live refit: the whole refitted shape goes into the detail key and
     the coefficient keys are muted (their values still follow, so the sliders show them).
 
-    Blender re-evaluates every active shape key whenever one changes: ~100 keys over the
-    whole head cost ~30 ms per frame, one key well under 1 ms. ``settle_live_shape``
-    turns this back into the normal form (coefficients + detail) once the drag ends.
+    Blender re-evaluates every active shape key whenever one changes, so a drag keeps one
+    key active instead of about a hundred. ``settle_live_shape`` turns this back into the
+    normal form (coefficients + detail) once the drag ends.
 
     Returns False when the head's keys do not match the result (a full fit is needed).
     """

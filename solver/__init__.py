@@ -12,7 +12,7 @@ cameras), ``model`` (the statistical head model), ``fitting`` (the fit), ``io`` 
 ``texture``.
 """
 
-from .cameras import ORTHO_VIEWS, Camera, OrthographicCamera, camera_from_dict
+from .cameras import ORTHO_VIEWS, Camera, OrthographicCamera, camera_class, camera_from_dict
 from .cameras.blender import blender_to_krc, dlt_to_blender
 from .cameras.calib_errors import check_passpoints
 from .cameras.dlt import DLTCamera, fit_dlt
@@ -47,10 +47,11 @@ from .texture.bake import bake_fit_texture, bake_texture, orthographic_uvs, uv_r
 __all__ = [
     "CURRENT_VERSION", "FORMAT", "MIN_LANDMARKS_PER_VIEW", "MIN_LANDMARKS_TOTAL",
     "MIN_PASSPOINTS", "ORTHO_VIEWS", "Camera", "DLTCamera", "FitOptions", "FitResult",
-    "HeadModel", "LandmarkCase", "LandmarksError", "OrthographicCamera", "PinholeCamera", "View",
-    "ViewResidual", "bake_fit_texture", "bake_texture", "blender_to_krc", "camera_from_dict",
-    "camera_from_json", "camera_to_json", "check_case", "check_passpoints", "count_problems",
-    "dlt_to_blender", "fit_dlt", "fit_head", "landmarks_needed", "landmarks_to_dict",
-    "load_landmark_set", "load_landmarks", "load_model", "orthographic_uvs", "parse_landmarks",
-    "refit_landmarks", "save_landmarks", "uv_raster", "uv_tiles",
+    "HeadModel", "LandmarkCase", "LandmarksError", "OrthographicCamera", "PinholeCamera",
+    "View", "ViewResidual", "bake_fit_texture", "bake_texture", "blender_to_krc",
+    "camera_class", "camera_from_dict", "camera_from_json", "camera_to_json", "check_case",
+    "check_passpoints", "count_problems", "dlt_to_blender", "fit_dlt", "fit_head",
+    "landmarks_needed", "landmarks_to_dict", "load_landmark_set", "load_landmarks",
+    "load_model", "orthographic_uvs", "parse_landmarks", "refit_landmarks", "save_landmarks",
+    "uv_raster", "uv_tiles",
 ]

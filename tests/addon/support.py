@@ -1,6 +1,6 @@
-"""Helpers for the add-on tests (tests/test_addon*.py): the bpy module, an empty scene, a
-synthetic case written to disk with photos, and snapshots of bpy.data for "nothing
-changed" checks."""
+"""Helpers for the add-on tests (tests/addon/): the bpy module, an empty scene, a synthetic
+case written to disk with photos (and a scene it is imported into), and snapshots of
+bpy.data for "nothing changed" checks."""
 
 import os
 import subprocess
@@ -34,6 +34,14 @@ def empty_scene():
     bpy.ops.wm.read_factory_settings(use_empty=True)
     addon()
     return bpy.context.scene
+
+
+def imported_scene(path, texture_size="512"):
+    """An empty scene with the landmarks file ``path`` imported (Import Landmarks)."""
+    scene = empty_scene()
+    assert bpy.ops.headrecon.import_landmarks(filepath=str(path)) == {"FINISHED"}
+    scene.headrecon.texture_size = texture_size
+    return scene
 
 
 def snapshot():

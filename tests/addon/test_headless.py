@@ -1,5 +1,6 @@
 """The headless script writes .blend files that reopen with their shape keys and texture;
-a batch goes on past a bad file and says so in its exit code (subprocesses)."""
+a batch goes on past a bad file and says so in its exit code (subprocesses); a scene built
+from a finished fit shows the fitted cameras and the passpoint checks."""
 
 import json
 import struct
@@ -8,7 +9,14 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from tests.addon.support import ROOT, addon, run_python, synthetic_files
+from tests.addon.support import (
+    ROOT,
+    add_passpoints,
+    addon,
+    empty_scene,
+    run_python,
+    synthetic_files,
+)
 
 
 def _open(path):
@@ -132,3 +140,28 @@ def test_given_textures_are_used_without_a_second_bake(model, tmp_path, monkeypa
         img.pixels.foreach_get(px)
         got = px.reshape(48, 64, 4)[::-1, :, :3]  # Blender's rows run bottom-up
         np.testing.assert_allclose(got, given[tile], atol=1e-6)
+
+
+def test_headless_scene_has_fitted_cameras(model):
+    # the batch path (headless.build_scene_from_fit) shows the same cameras and checks
+    from headrecon_addon import headless, photo_cameras, photos, result_to_scene
+    from solver import synthetic
+    from solver.fitting import fit
+
+    addon()
+    case, truth = synthetic.make_perspective_case(model, 2, n_views=2, head_px=(300.0, 320.0))
+    names = add_passpoints(case, truth, "photo1", np.random.default_rng(3))
+    result = fit.fit_head(model, case, fit.FitOptions(n_identity=10))
+    scene = empty_scene()
+    headless.build_scene_from_fit(model, case, result, bake=False)
+    for v in case.views:
+        cam_obj = photos.camera_object(photos.find_plane(scene, v))
+        want = photo_cameras.blender_settings(result.cameras[v])
+        assert np.allclose(np.array(cam_obj.matrix_world), want["matrix_world"], atol=1e-5)
+        assert cam_obj.name in scene.objects
+    rows = result_to_scene.residual_rows(result, result_to_scene.calibration_checks(case)[0])
+    items = list(scene.headrecon.residuals)
+    assert [(it.view, it.landmark, it.kind) for it in items] == \
+        [(r[2], r[3], r[4]) for r in rows]
+    assert sorted(it.landmark for it in items if it.kind == "PASSPOINT") == sorted(names)
+    assert not any(it.flagged for it in items if it.kind == "PASSPOINT")

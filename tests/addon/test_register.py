@@ -47,7 +47,7 @@ def test_register_unregister_leaves_nothing_behind():
     headrecon_addon.unregister()
     after = _state()
     assert after == before
-    assert not bpy.app.timers.is_registered(headrecon_addon.fit_ops._settle_timer)
+    assert not bpy.app.timers.is_registered(headrecon_addon.live_refit.settle_timer)
 
     # and again: a second cycle works (no stale class or property left to clash with)
     headrecon_addon.register()

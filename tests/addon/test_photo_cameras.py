@@ -113,17 +113,17 @@ def test_cameras_match_the_solver(mirror_file):
 def test_click_through_camera_places_pixel(mirror_file, tmp_path):
     # a click = a ray from the camera through the photo: the landmark lands on the pixel
     # under the mouse, and the export says so
-    from headrecon_addon import landmarks, photos
+    from headrecon_addon import case_to_scene, landmark_ops, landmarks, photos, scene_to_case
     from solver.io import landmarks_file
 
     path, case, _ = mirror_file
     scene = empty_scene()
-    landmarks.import_landmarks(bpy.context, path)
+    case_to_scene.import_landmarks(bpy.context, path)
     plane = photos.find_plane(scene, "mirror")
     cam_obj = photos.camera_object(plane)
     for name in list(landmarks.landmark_objects(plane)):
         landmarks.remove_landmark(plane, name)
-    session = landmarks.PlacementSession(plane)
+    session = landmark_ops.PlacementSession(plane)
     first = session.current["name"]
     uv = (123.25, 201.5)
     target = Vector(_plane_world(plane, [uv])[0])
@@ -131,13 +131,20 @@ def test_click_through_camera_places_pixel(mirror_file, tmp_path):
     assert session.click(origin, (target - origin).normalized())
     assert np.allclose(landmarks.landmark_pixels(plane)[first], uv, atol=1e-3)
     out = tmp_path / "clicked.json"
-    landmarks.export_landmarks(scene, out)
+    scene_to_case.export_landmarks(scene, out)
     assert np.allclose(landmarks_file.load_landmarks(out, for_fit=False)
                        .views["mirror"].points[first], uv, atol=1e-3)
 
 
 def test_v2_round_trip(model, mirror_file, tmp_path):
-    from headrecon_addon import landmarks, photo_cameras, photos
+    from headrecon_addon import (
+        calibration_object,
+        case_to_scene,
+        landmark_ops,
+        landmarks,
+        photo_cameras,
+        photos,
+    )
     from solver import synthetic
     from solver.io import landmarks_file
 
@@ -161,18 +168,18 @@ def test_v2_round_trip(model, mirror_file, tmp_path):
     assert all("Passpoint" in o.material_slots[0].material.name for o in markers.values())
     # the camera to compute is shown as the passpoints' DLT until a fit (less its skew,
     # which Blender has not)
-    cam = landmarks.passpoint_camera(case, "calib")
+    cam = case_to_scene.passpoint_camera(case, "calib")
     skew = photo_cameras.blender_settings(cam)["dropped_skew_px"]
     pts = truth.world_vertices[::4000]
     got = _photo_pixels(scene, photos.camera_object(plane), plane, pts)
     assert np.abs(got - cam.project(pts)).max() < skew + 0.01
     # passpoints are placed with the landmark tool's session: a click through the camera
     cam_obj = photos.camera_object(plane)
-    xyz = landmarks.case_passpoints(scene)
+    xyz = calibration_object.case_passpoints(scene)
     assert list(xyz) == list(case.passpoints)
-    assert landmarks.PlacementSession(plane, role="PASSPOINT", passpoints=xyz).done
+    assert landmark_ops.PlacementSession(plane, role="PASSPOINT", passpoints=xyz).done
     assert landmarks.remove_landmark(plane, names[1], "PASSPOINT")
-    session = landmarks.PlacementSession(plane, role="PASSPOINT", passpoints=xyz)
+    session = landmark_ops.PlacementSession(plane, role="PASSPOINT", passpoints=xyz)
     assert session.current["name"] == names[1]
     assert session.header().startswith("Passpoint 2/") and ") m" in session.header()
     target = Vector(_plane_world(plane, [case.views["calib"].passpoints[names[1]]])[0])
@@ -207,7 +214,8 @@ def test_v2_round_trip(model, mirror_file, tmp_path):
 
 
 def test_fit_updates_cameras_and_lists_calibration(model, tmp_path):
-    from headrecon_addon import fit_ops, landmarks, photo_cameras, photos
+    from headrecon_addon import landmarks, photo_cameras, photos
+    from headrecon_addon.live_refit import LIVE
     from solver import synthetic
 
     addon()
@@ -221,7 +229,7 @@ def test_fit_updates_cameras_and_lists_calibration(model, tmp_path):
     scene.headrecon.bake_texture = False
     scene.headrecon.n_identity = 20
     assert bpy.ops.headrecon.fit() == {"FINISHED"}
-    result = fit_ops.last_result()
+    result = LIVE.result
     head = scene.headrecon.head
     keys = head.data.shape_keys.key_blocks
     assert keys["identity_000"].value == pytest.approx(result.identity_coeffs[0], abs=1e-6)
@@ -262,15 +270,15 @@ def test_fit_updates_cameras_and_lists_calibration(model, tmp_path):
     # a live refit keeps the cameras and the passpoint rows
     obj = next(iter(landmarks.landmark_objects(photos.find_plane(scene, "photo1")).values()))
     obj.location.x += 0.002
-    live = fit_ops.live_refit_step(scene, force=True, drag=False)
-    assert live is not None and fit_ops.live_stats()["error"] == ""
+    live = LIVE.step(scene, force=True, drag=False)
+    assert live is not None and LIVE.stats()["error"] == ""
     assert live.cameras["photo1"] is result.cameras["photo1"]
     assert [it.landmark for it in scene.headrecon.residuals if it.kind == "PASSPOINT"][0] \
         == names[3]
 
 
 def test_load_photo_with_any_camera(tmp_path):
-    from headrecon_addon import landmarks, photos
+    from headrecon_addon import landmarks, photos, scene_to_case
 
     scene = empty_scene()
     img = write_photo(tmp_path / "three_quarter.png", (300, 400))
@@ -282,7 +290,7 @@ def test_load_photo_with_any_camera(tmp_path):
     assert cam_obj.data.lens == pytest.approx(85.0, rel=1e-5)  # 36 mm equivalent
     assert "Pinhole 85 mm, to compute" in photos.camera_label(plane)
     landmarks.place_landmark(plane, "nose_tip", (150.0, 220.0))
-    doc = landmarks.case_dict_from_scene(scene)
+    doc = scene_to_case.case_dict_from_scene(scene)
     assert doc["views"]["photo"]["camera"] == {"kind": "pinhole", "lens_mm": 85.0}
     # turning a camera still to compute turns its stand-in camera (here: to the left side)
     plane.headrecon.camera_view = "orthographic-left"
@@ -298,7 +306,7 @@ def test_load_photo_with_any_camera(tmp_path):
                                         camera_view="orthographic-left") == {"FINISHED"}
     assert photos.camera_object(plane) is None and len(bpy.data.cameras) == n_cameras - 1
     assert plane.headrecon.camera_view == "orthographic-left"
-    assert landmarks.case_dict_from_scene(scene)["views"]["photo"]["camera"] == \
+    assert scene_to_case.case_dict_from_scene(scene)["views"]["photo"]["camera"] == \
         "orthographic-left"
     assert np.allclose(landmarks.landmark_pixels(plane)["nose_tip"], (150.0, 220.0),
                        atol=1e-3)
@@ -327,16 +335,16 @@ def _broken(path, how):
                                         ("mirror", "nowhere"),
                                         ("photo", "other_size.png")])
 def test_broken_camera_leaves_scene_unchanged(mirror_file, how, words):
-    from headrecon_addon import landmarks
+    from headrecon_addon import case_to_scene
 
     path, _, _ = mirror_file
     scene = empty_scene()
-    landmarks.import_landmarks(bpy.context, path)
+    case_to_scene.import_landmarks(bpy.context, path)
     cam_names = sorted(o.name for o in scene.objects if o.type == "CAMERA")
     before = snapshot()
     bad = _broken(path, how)
     with pytest.raises(ValueError) as err:
-        landmarks.import_landmarks(bpy.context, bad)
+        case_to_scene.import_landmarks(bpy.context, bad)
     assert words in str(err.value)
     assert snapshot() == before
     with pytest.raises(RuntimeError, match="Error"):
@@ -345,35 +353,11 @@ def test_broken_camera_leaves_scene_unchanged(mirror_file, how, words):
     assert sorted(o.name for o in scene.objects if o.type == "CAMERA") == cam_names
 
 
-def test_headless_scene_has_fitted_cameras(model):
-    # the batch path (headless.build_scene_from_fit) shows the same cameras and checks
-    from headrecon_addon import fit_ops, headless, photo_cameras, photos
-    from solver import synthetic
-    from solver.fitting import fit
-
-    addon()
-    case, truth = synthetic.make_perspective_case(model, 2, n_views=2, head_px=(300.0, 320.0))
-    names = add_passpoints(case, truth, "photo1", np.random.default_rng(3))
-    result = fit.fit_head(model, case, fit.FitOptions(n_identity=10))
-    scene = empty_scene()
-    headless.build_scene_from_fit(model, case, result, bake=False)
-    for v in case.views:
-        cam_obj = photos.camera_object(photos.find_plane(scene, v))
-        want = photo_cameras.blender_settings(result.cameras[v])
-        assert np.allclose(np.array(cam_obj.matrix_world), want["matrix_world"], atol=1e-5)
-        assert cam_obj.name in scene.objects
-    rows = fit_ops.residual_rows(result, fit_ops.calibration_checks(case)[0])
-    items = list(scene.headrecon.residuals)
-    assert [(it.view, it.landmark, it.kind) for it in items] == \
-        [(r[2], r[3], r[4]) for r in rows]
-    assert sorted(it.landmark for it in items if it.kind == "PASSPOINT") == sorted(names)
-    assert not any(it.flagged for it in items if it.kind == "PASSPOINT")
-
-
 def test_fit_places_the_mirror_view_camera(model, tmp_path):
     # one photo with a mirror beside the head: the mirror view's fitted camera is mirrored,
     # shown as the real camera seeing the flipped photo
-    from headrecon_addon import fit_ops, photos
+    from headrecon_addon import photos
+    from headrecon_addon.live_refit import LIVE
     from solver import synthetic
 
     addon()
@@ -387,7 +371,7 @@ def test_fit_places_the_mirror_view_camera(model, tmp_path):
     scene.headrecon.bake_texture = False
     scene.headrecon.n_identity = 10
     assert bpy.ops.headrecon.fit() == {"FINISHED"}
-    result = fit_ops.last_result()
+    result = LIVE.result
     cam = result.cameras["mirror"]
     assert cam.is_mirrored
     cam_obj = photos.camera_object(plane)
@@ -405,7 +389,8 @@ def _camera_pixels(scene, view, pts):
 
 
 def test_export_after_fit_writes_the_fitted_cameras(model, tmp_path, monkeypatch):
-    from headrecon_addon import fit_ops, photos
+    from headrecon_addon import fit_job, photos
+    from headrecon_addon.live_refit import LIVE
     from solver import synthetic
     from solver.io import landmarks_file
 
@@ -420,14 +405,14 @@ def test_export_after_fit_writes_the_fitted_cameras(model, tmp_path, monkeypatch
     stored = {v: photos.find_plane(scene, v).headrecon.camera_json for v in case.views}
     assert stored == {v: "" for v in case.views}
     # a failed fit changes no stored camera
-    monkeypatch.setattr(fit_ops, "fit_head", lambda *a, **k: (_ for _ in ()).throw(
+    monkeypatch.setattr(fit_job, "fit_head", lambda *a, **k: (_ for _ in ()).throw(
         ValueError("no fit today")))
     with pytest.raises(RuntimeError, match="no fit today"):
         bpy.ops.headrecon.fit()
     assert {v: photos.find_plane(scene, v).headrecon.camera_json for v in case.views} == stored
     monkeypatch.undo()
     assert bpy.ops.headrecon.fit() == {"FINISHED"}
-    result = fit_ops.last_result()
+    result = LIVE.result
     pts = result.world_vertices[model.skin[::700]]
     shown = {v: _camera_pixels(scene, v, pts) for v in case.views}
     out = tmp_path / "after_fit.json"
