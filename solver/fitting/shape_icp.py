@@ -22,8 +22,7 @@ Data come in groups of rows ("Rows") that a caller composes freely in one solve:
 - ``ImageRows``: vertex -> pixel through any ``Camera`` (residual pixel - project(x), the
   Jacobian by the chain rule through ``camera.jacobian``), so perspective cameras plug in;
 - ``ClosestPointRows``: ICP against a point cloud (KD-tree, distance threshold, optional
-  symmetric correspondences; thesis §4.3.3);
-- ``ClosestPixelRows``: ICP in an image against a contour, e.g. the profile line (§4.4.1).
+  symmetric correspondences; thesis §4.3.3).
 
 Image rows (``CameraRows``) take a new camera through ``set_camera`` between solves. A
 group's ``block`` returns ``ScalarRows`` (or a list of blocks) for anything but full 3-D
@@ -477,51 +476,6 @@ class ClosestPointRows(Rows):
         if not blocks:
             blocks.append(_Iso(a, np.zeros_like(world), 0.0, 0.0, 0))
         return blocks
-
-
-class ClosestPixelRows(CameraRows):
-    """ICP rows in a photo: each vertex's projection is pulled toward the nearest pixel of a
-    contour (e.g. the profile line, thesis §4.4.1). Residuals in pixels as ``ImageRows``.
-
-    Parameters
-    ----------
-    vertices : array_like of int, shape (n,)
-    pixels : array_like, shape (m, 2)
-        Contour pixels (densely sampled along the line).
-    camera : Camera
-    weights : float or array_like, shape (n,)
-    max_distance : float
-        Pixel distance beyond which a correspondence is dropped.
-    reject_factor : float, optional
-        Also drop correspondences beyond this many times the median pixel distance.
-    name : str
-    """
-
-    def __init__(self, vertices, pixels, camera, weights=1.0, max_distance=np.inf,
-                 reject_factor=None, name="contour"):
-        self.name = name
-        self.vertices = _vertex_array(vertices, name)
-        self.camera = _check_camera(camera, name)
-        self.weights = _weight_array(weights, len(self.vertices), name)
-        self.pixels = as_points(pixels, f"{name}: pixels", dim=2)
-        self.max_distance = _check_rejection(max_distance, reject_factor, name)
-        self.reject_factor = reject_factor
-        self.tree = cKDTree(self.pixels)
-        self.targets = None
-        self.inliers = None
-
-    def update(self, world):
-        proj = _projected(self.camera, world, self.name, self.vertices)
-        dist, idx = self.tree.query(proj, distance_upper_bound=self.max_distance)
-        ok = _reject(dist, np.isfinite(dist), self.max_distance, self.reject_factor)
-        self.inliers = ok
-        self.targets = self.pixels[np.where(ok, idx, 0)]
-
-    def block(self, world, jacobian=True):
-        if self.targets is None:
-            self.update(world)
-        return self._pixel_block(world, self.targets,
-                                 np.where(self.inliers, self.weights, 0.0), jacobian)
 
 
 # --------------------------------------------------------------------------- result

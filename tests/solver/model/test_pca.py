@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from solver.model.linear_model import LinearModel, concat
+from solver.model.linear_model import LinearModel
 from solver.model.pca import PCA, fit_pca
 
 
@@ -122,16 +122,3 @@ def test_linear_model_instance_take_first():
     with pytest.raises(ValueError, match="coeffs"):
         m.instance(np.zeros(2))
 
-
-def test_linear_model_concat():
-    a = _model(k=3, seed=1, gamma_rows=2)
-    b = _model(k=2, seed=2, gamma_rows=5)
-    b = LinearModel(a.mean, b.basis, b.stddev, ("n0", "n1"), b.gamma)
-    ab = concat(a, b)
-    assert ab.n_coeffs == 5 and ab.names == ("m0", "m1", "m2", "n0", "n1")
-    c = np.array([1.0, 2.0, -1.0, 0.5, 3.0])
-    np.testing.assert_allclose(ab.instance(c), a.instance(c[:3]) + b.instance(c[3:]) - a.mean)
-    assert ab.gamma.shape == (7, 5)
-    np.testing.assert_allclose(ab.gamma @ c, np.r_[a.gamma @ c[:3], b.gamma @ c[3:]])
-    with pytest.raises(ValueError, match="differ in vertices"):
-        concat(a, _model(v=8))
