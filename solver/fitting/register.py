@@ -24,7 +24,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import as_points
-from .shape_icp import ClosestPointRows, ShapeProblem, _check_rotation
+from .rows import ClosestPointRows
+from .shape_icp import ShapeProblem, _check_rotation
 
 
 def initial_similarity(model_points, cloud):
