@@ -24,8 +24,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import as_points
+from ..geometry import check_rotation
 from .rows import ClosestPointRows
-from .shape_icp import ShapeProblem, _check_rotation
+from .shape_icp import ShapeProblem
 
 
 def initial_similarity(model_points, cloud):
@@ -244,7 +245,7 @@ def register(model, cloud, *, scale=None, rotation=None, translation=None, coeff
         s, rot, t = initial_similarity(start, pts)
     else:
         s = 1.0 if scale is None else float(scale)
-        rot = np.eye(3) if rotation is None else _check_rotation(rotation)
+        rot = np.eye(3) if rotation is None else check_rotation(rotation)
         t = np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64)
     exclude = None
     if (point_to_plane and normals is None) or boundary_ratio is not None:

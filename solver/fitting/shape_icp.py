@@ -39,6 +39,7 @@ import numpy as np
 from scipy.linalg import cho_solve
 
 from ..errors import as_points
+from ..geometry import check_rotation, orthonormalize, rotation_from_vector, skew
 from .rows import IsotropicRows, Rows
 
 SIMILARITY_PARAMS = ("scale", "rotation x", "rotation y", "rotation z",
@@ -166,47 +167,6 @@ def vertex_std(basis, coeff_covariance):
     f = np.sqrt(np.clip(evals, 0.0, None))[:, None] * evecs.T  # f^T f = cov
     y = f @ b.reshape(k, -1)
     return np.sqrt((y * y).sum(axis=0).reshape(-1, 3).sum(axis=1))
-
-
-# --------------------------------------------------------------------------- helpers
-
-
-def skew(v):
-    """Cross-product matrices: (n, 3) -> (n, 3, 3) with ``skew(a) @ b == a x b``."""
-    v = np.asarray(v, dtype=np.float64)
-    out = np.zeros(v.shape[:-1] + (3, 3))
-    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
-    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
-    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
-    return out
-
-
-def rotation_from_vector(theta):
-    """Rotation matrix of the rotation vector ``theta`` (axis * angle, radians), shape (3, 3).
-    The exact form of the thesis' ``I + [theta]_x`` (eq. 14/25)."""
-    th = np.asarray(theta, dtype=np.float64).reshape(3)
-    a = float(np.linalg.norm(th))
-    k = skew(th)
-    if a < 1e-8:
-        return np.eye(3) + k + 0.5 * k @ k
-    return np.eye(3) + (np.sin(a) / a) * k + ((1 - np.cos(a)) / a**2) * (k @ k)
-
-
-def orthonormalize(r):
-    """Nearest proper rotation to a 3 x 3 matrix (polar decomposition by SVD)."""
-    u, _, vt = np.linalg.svd(r)
-    if np.linalg.det(u @ vt) < 0:
-        u[:, -1] *= -1
-    return u @ vt
-
-
-def _check_rotation(r, name="rotation"):
-    r = np.asarray(r, dtype=np.float64)
-    if r.shape != (3, 3) or not np.isfinite(r).all():
-        raise ValueError(f"{name}: expected a finite (3, 3) matrix, got shape {r.shape}")
-    if np.abs(r @ r.T - np.eye(3)).max() > 1e-6 or np.linalg.det(r) < 0:
-        raise ValueError(f"{name}: not a proper rotation (R R^T != I or det < 0)")
-    return orthonormalize(r)
 
 
 class _Prepared:
@@ -722,7 +682,7 @@ class ShapeProblem:
         s = float(scale)
         if not np.isfinite(s) or s <= 0:
             raise ValueError(f"scale: must be finite and > 0, got {scale!r}")
-        rot = np.eye(3) if rotation is None else _check_rotation(rotation)
+        rot = np.eye(3) if rotation is None else check_rotation(rotation)
         t = np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64)
         if t.shape != (3,) or not np.isfinite(t).all():
             raise ValueError(f"translation: expected 3 finite numbers, got shape {t.shape}")

@@ -50,6 +50,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..errors import as_points
+from ..geometry import vertex_normals
 from .raster import depth_buffer, first_per_pixel, rasterize
 
 SKIN_PARTS = ("Face", "Head and Neck")
@@ -641,20 +642,6 @@ def _plane(similarity):
     return trans, normal / norm
 
 
-def _vertex_normals(world, triangles):
-    """Area-weighted vertex normals (V, 3), unit length (zero where no triangle); the
-    triangles' winding (counter-clockwise seen from outside, as ICT's) decides the side."""
-    p = world[triangles]
-    fn = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    n = np.zeros_like(world)
-    for k in range(3):  # three corners, not a per-vertex loop
-        for d in range(3):
-            n[:, d] += np.bincount(triangles[:, k], fn[:, d], minlength=len(world))
-    length = np.linalg.norm(n, axis=1, keepdims=True)
-    n /= np.maximum(length, 1e-300)
-    return n
-
-
 class _ViewSampler:
     """One photo with its camera and a depth buffer of the head, ready to colour texels.
 
@@ -808,7 +795,7 @@ def _bake(model, world_vertices, views, rasters, parts, occluders, similarity, m
         occ_idx = set(resolve_parts(model, occluders)[0])
     occluders, _, _ = _selected_triangles(model, tuple(sorted(occ_idx | set(idx))))
 
-    normals = _vertex_normals(world, occluders)
+    normals = vertex_normals(world, occluders)
     used = np.unique(occluders)
     lo, hi = world[used].min(axis=0), world[used].max(axis=0)
     head_size = float(np.linalg.norm(hi - lo))

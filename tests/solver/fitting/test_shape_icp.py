@@ -5,14 +5,8 @@ import pytest
 
 from solver.cameras.base import OrthographicCamera
 from solver.fitting.rows import ClosestPointRows, ImageRows, PointRows, ScalarRows
-from solver.fitting.shape_icp import (
-    ShapeProblem,
-    orthonormalize,
-    rotation_from_vector,
-    shape_icp,
-    skew,
-    vertex_std,
-)
+from solver.fitting.shape_icp import ShapeProblem, shape_icp, vertex_std
+from solver.geometry import rotation_from_vector
 from solver.model.linear_model import LinearModel
 
 
@@ -78,15 +72,6 @@ def _truth(model, seed=3, scale=0.8):
 def _rot_err_deg(a, b):
     return np.degrees(np.arccos(np.clip((np.trace(a.T @ b) - 1) / 2, -1, 1)))
 
-
-def test_helpers():
-    a, b = np.random.default_rng(0).standard_normal((2, 5, 3))
-    np.testing.assert_allclose(skew(a) @ b[..., None], np.cross(a, b)[..., None], atol=1e-15)
-    r = rotation_from_vector([0.3, 0.2, -0.1])
-    np.testing.assert_allclose(r @ r.T, np.eye(3), atol=1e-15)
-    assert _rot_err_deg(r, np.eye(3)) == pytest.approx(np.degrees(np.sqrt(0.14)))
-    np.testing.assert_allclose(orthonormalize(r + 1e-4), r, atol=2e-4)
-    assert np.linalg.det(orthonormalize(-r)) == pytest.approx(1.0)
 
 
 def test_recovers_similarity_and_shape_noise_free():

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from solver.fitting.shape_icp import rotation_from_vector
 from solver.fitting.tps import ThinPlateSpline
+from solver.geometry import rotation_from_vector
 from solver.procrustes import Similarity, similarity_procrustes
 
 
