@@ -142,32 +142,6 @@ class ShapeFit:
         return self.transform(self.local_vertices(model))
 
 
-def vertex_std(basis, coeff_covariance):
-    """Posterior standard deviation of each vertex position from a coefficient covariance.
-
-    Parameters
-    ----------
-    basis : ndarray, shape (Ka, V, 3)
-        The basis rows of the active coefficients (``model.basis[fit.active]``), metres.
-    coeff_covariance : ndarray, shape (Ka, Ka)
-
-    Returns
-    -------
-    ndarray, shape (V,), metres
-        ``sqrt(trace(B_v Sigma B_v^T))``: the RMS length of the position error (the pose
-        uncertainty is not included; multiply by the fit's scale for world units).
-    """
-    b = np.asarray(basis, dtype=np.float64)
-    cov = np.asarray(coeff_covariance, dtype=np.float64)
-    k = b.shape[0]
-    if b.ndim != 3 or b.shape[2] != 3 or cov.shape != (k, k):
-        raise ValueError(f"vertex_std: basis (Ka, V, 3) and covariance (Ka, Ka) disagree: "
-                         f"{b.shape} vs {cov.shape}")
-    evals, evecs = np.linalg.eigh(0.5 * (cov + cov.T))
-    f = np.sqrt(np.clip(evals, 0.0, None))[:, None] * evecs.T  # f^T f = cov
-    y = f @ b.reshape(k, -1)
-    return np.sqrt((y * y).sum(axis=0).reshape(-1, 3).sum(axis=1))
-
 
 class _Prepared:
     """Per-group model slices, reused across iterations and solves."""
