@@ -11,11 +11,11 @@ shape-ICP (eq. 39/43). It runs in stages, each starting where the last one stopp
    step by step (annealing), then without it, to convergence;
 3. similarity + shape on all vertices, which only has to polish.
 
-Two departures from the thesis make it fast and robust (~0.25 s instead of ~10 s): the
-point-to-plane distance (plus a little point-to-point) converges in a handful of steps
-where point-to-point crawls along the surface, and the annealing keeps folds such as the
-under-chin from locking into wrong correspondences. Cloud points on the cloud's boundary
-are not used as targets, so a partial scan's edge does not drag the vertices beyond it.
+Two departures from the thesis make it fast and robust: the point-to-plane distance (plus
+a little point-to-point) converges in a handful of steps where point-to-point crawls along
+the surface, and the annealing keeps folds such as the under-chin from locking into wrong
+correspondences. Cloud points on the cloud's boundary are not used as targets, so a
+partial scan's edge does not drag the vertices beyond it.
 """
 
 import time

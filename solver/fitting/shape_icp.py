@@ -29,8 +29,8 @@ parameters it cannot determine. Why the assembly looks the way it does:
 - other rows (masked, image, point-to-plane) are contracted with the basis seen from the
   model frame (``s R B_i`` row = ``(s R^T g)^T B_i``) and multiplied as one symmetric
   product;
-- a group only slices the basis of its own vertices, so a landmark solve on a few hundred
-  vertices costs a few milliseconds whatever the size of the model.
+- a group only slices the basis of its own vertices, so what a landmark solve costs
+  depends on its few hundred vertices, not on the size of the model.
 """
 
 from dataclasses import dataclass, field
@@ -47,8 +47,8 @@ SIMILARITY_PARAMS = ("scale", "rotation x", "rotation y", "rotation z",
 _GROUPS = {"scale": [0], "rotation": [1, 2, 3], "translation": [4, 5, 6]}
 FREEZABLE = ("scale", "rotation", "translation", "shape")
 _RCOND = 1e-12  # smallest accepted eigenvalue ratio of the Jacobi-scaled normal matrix
-# Gathers a group serves straight from its basis before it makes the vertex-major copy
-# (a gather from the basis costs about 6x one from the copy, the copy about 100 gathers).
+# Gathers a group serves straight from its basis before it makes the vertex-major copy,
+# which only pays off for a group gathered from many times.
 _DIRECT_GATHERS = 16
 
 
@@ -184,10 +184,10 @@ class _Prepared:
 
     def gather(self, idx):
         """The basis at vertices ``idx`` as (m, 3, Ka). From the vertex-major copy once a
-        group has been gathered from a few times (it pays off over many solves, but costs
-        as much as a hundred gathers to make); straight from the basis before that, and
-        always once modes are replaced between solves (``ShapeProblem.replace_modes``), as
-        re-making that copy every round would cost more than the gathers it saves."""
+        group has been gathered from a few times (it pays off over many solves, but is
+        costly to make); straight from the basis before that, and always once modes are
+        replaced between solves (``ShapeProblem.replace_modes``), as re-making that copy
+        every round would cost more than the gathers it saves."""
         self._gathers += 1
         if self.volatile or (self._basis_vm is None and self._gathers <= _DIRECT_GATHERS):
             return np.take(self.basis, idx, axis=1).transpose(1, 2, 0)
