@@ -34,7 +34,7 @@ def make_case(model, coeff_scale, seed):
     """A sampled head as a noisy point cloud and its truth (world vertices, similarity)."""
     import numpy as np
 
-    from solver.fitting.shape_icp import rotation_from_vector
+    from solver.geometry import rotation_from_vector
 
     rng = np.random.default_rng(seed)
     coeffs = coeff_scale * rng.standard_normal(model.n_coeffs)

@@ -20,7 +20,8 @@ from bench.common import (
 )
 from solver.cameras import OrthographicCamera
 from solver.model.head_model import load_model
-from solver.texture.bake import bake_texture, bake_tiles, clear_raster_cache, uv_raster, uv_tiles
+from solver.texture.bake import bake_texture, bake_tiles
+from solver.texture.uvs import clear_raster_cache, uv_raster, uv_tiles
 
 
 def photos(width=768, height=1024, seed=0):
@@ -58,14 +59,14 @@ def main(argv=None):
           f"{args.size}x{args.size} per tile, tiles {', '.join(map(str, tiles))}")
 
     def cold():
-        clear_raster_cache()
+        clear_raster_cache(model)
         bake_tiles(model, world, views, args.size)
 
     def warm():
         bake_tiles(model, world, views, args.size)
 
     def raster_only():
-        clear_raster_cache()
+        clear_raster_cache(model)
         for t in tiles:
             uv_raster(model, args.size, tile=t)
 
@@ -85,7 +86,7 @@ def main(argv=None):
           "jobs; CPU time less so)")
 
     _, peak_warm = peak_memory(warm)
-    clear_raster_cache()
+    clear_raster_cache(model)
     _, peak_cold = peak_memory(warm)
     print(f"  peak traced memory: warm bake {peak_warm / 2**20:.0f} MiB, cold bake "
           f"{peak_cold / 2**20:.0f} MiB; process max RSS {max_rss_mb():.0f} MiB "

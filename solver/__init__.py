@@ -42,7 +42,8 @@ from .io.landmarks_file import (
     save_landmarks,
 )
 from .model.head_model import HeadModel, load_model
-from .texture.bake import bake_fit_texture, bake_texture, orthographic_uvs, uv_raster, uv_tiles
+from .texture.bake import bake_fit_texture, bake_texture
+from .texture.uvs import orthographic_uvs, uv_raster, uv_tiles
 
 __all__ = [
     "CURRENT_VERSION", "FORMAT", "MIN_LANDMARKS_PER_VIEW", "MIN_LANDMARKS_TOTAL",

@@ -22,6 +22,7 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from . import geometry
 from .cameras import ORTHO_VIEWS, OrthographicCamera
 from .cameras.mirror import MirrorPlane
 from .cameras.pinhole import SENSOR_MM, PinholeCamera
@@ -222,12 +223,7 @@ def _pinhole_scene(model, rng, coeffs, coeff_scale, rotation_deg):
 
 def vertex_normals(model, world):
     """Unit normals of the posed mesh's vertices (area-weighted face normals), (V, 3)."""
-    tri, _, _ = model.triangles()
-    face = np.cross(world[tri[:, 1]] - world[tri[:, 0]], world[tri[:, 2]] - world[tri[:, 0]])
-    normal = np.zeros_like(world)
-    for k in range(3):
-        np.add.at(normal, tri[:, k], face)
-    return normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+    return geometry.vertex_normals(world, model.triangles()[0])
 
 
 def visible_landmarks(model, world, camera, normals=None, min_cos=0.0, grid=1024,

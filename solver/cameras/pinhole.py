@@ -43,6 +43,7 @@ solver/mirror.py) is allowed everywhere except where Blender cannot represent it
 import numpy as np
 
 from ..errors import as_points
+from ..geometry import check_orthonormal, rotation_between, rotation_from_vector, skew
 from .base import Camera, correspondences, register, toward_centre, unit_scale
 from .blender import blender_to_krc, krc_to_blender
 from .dlt import DLTCamera, fit_dlt
@@ -101,57 +102,6 @@ def pixel_by_camera_point(xc, focal_px, k1=0.0):
     dd[:, 0, 0] += focal_px * (1.0 + k1 * rho2)
     dd[:, 1, 1] += focal_px * (1.0 + k1 * rho2)
     return np.einsum("nij,njk->nik", dd, dp), p
-
-
-def _skew(a):
-    """Cross-product matrices [a]x of vectors: (n, 3) -> (n, 3, 3)."""
-    s = np.zeros(a.shape[:-1] + (3, 3))
-    s[..., 0, 1] = -a[..., 2]
-    s[..., 0, 2] = a[..., 1]
-    s[..., 1, 0] = a[..., 2]
-    s[..., 1, 2] = -a[..., 0]
-    s[..., 2, 0] = -a[..., 1]
-    s[..., 2, 1] = a[..., 0]
-    return s
-
-
-def rotation_from_vector(omega):
-    """Rotation matrix of a rotation vector (Rodrigues), shape (3,) radians -> (3, 3)."""
-    w = np.asarray(omega, dtype=np.float64).reshape(3)
-    theta = float(np.linalg.norm(w))
-    k = _skew(w)
-    if theta < 1e-8:  # second-order series; exact to rounding at this size
-        return np.eye(3) + k + 0.5 * k @ k
-    return np.eye(3) + np.sin(theta) / theta * k + (1.0 - np.cos(theta)) / theta**2 * k @ k
-
-
-def _rotation_between(a, b):
-    """The smallest rotation taking unit vector ``a`` to unit vector ``b``, (3, 3)."""
-    axis = np.cross(a, b)
-    s = np.linalg.norm(axis)
-    c = float(np.clip(a @ b, -1.0, 1.0))
-    if s < 1e-15:
-        if c > 0:
-            return np.eye(3)
-        # opposite: half turn about any axis perpendicular to a
-        perp = np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 1.0, 0.0])
-        return rotation_from_vector(np.pi * perp / np.linalg.norm(perp))
-    return rotation_from_vector(axis / s * np.arctan2(s, c))
-
-
-def _orthonormal(rot, name):
-    """``rot`` as an exactly orthonormal float64 (3, 3) (nearest by SVD, same determinant),
-    or ValueError when it is not a rotation to 1e-6."""
-    r = np.asarray(rot, dtype=np.float64)
-    if r.shape != (3, 3) or not np.isfinite(r).all():
-        raise ValueError(f"{name}: must be a finite 3x3 matrix, got shape {r.shape}")
-    if not np.allclose(r @ r.T, np.eye(3), atol=1e-6):
-        raise ValueError(f"{name}: not orthonormal (R R^T differs from I by "
-                         f"{np.abs(r @ r.T - np.eye(3)).max():.3g})")
-    if np.abs(r @ r.T - np.eye(3)).max() <= 1e-13:  # keep exact values (JSON round trips)
-        return r.copy()
-    u, _, vt = np.linalg.svd(r)
-    return u @ vt
 
 
 @register("pinhole")
@@ -213,7 +163,7 @@ class PinholeCamera(Camera):
         if not (np.isfinite(f) and f > 0):
             raise ValueError(f"camera (pinhole): focal_px must be positive, got {focal_px!r}")
         self.focal_px = f
-        self.rotation = _orthonormal(rotation, "camera (pinhole): rotation")
+        self.rotation = check_orthonormal(rotation, "camera (pinhole): rotation")
         c = np.asarray(centre, dtype=np.float64).reshape(-1)
         if c.shape != (3,) or not np.isfinite(c).all():
             raise ValueError(f"camera (pinhole): centre must be 3 finite numbers, got {centre!r}")
@@ -496,7 +446,7 @@ class PinholeCamera(Camera):
         fx, fy = k[0, 0], k[1, 1]
         if not (fx > 0 and fy > 0):
             raise ValueError(f"K: focal lengths must be positive, got fx={fx}, fy={fy}")
-        r = _orthonormal(R, "R")
+        r = check_orthonormal(R, "R")
         if isinstance(principal_point, str):
             if principal_point == "keep":
                 target = k[:2, 2].copy()
@@ -510,7 +460,7 @@ class PinholeCamera(Camera):
         # the ray that K puts at the target pixel becomes the new viewing direction
         ray = np.linalg.solve(k, [target[0], target[1], 1.0])
         ray /= np.linalg.norm(ray)
-        rot = _rotation_between(ray, np.array([0.0, 0.0, 1.0])) @ r
+        rot = rotation_between(ray, np.array([0.0, 0.0, 1.0])) @ r
         return cls(np.sqrt(fx * fy), rot, C, size, target, k1, **options)
 
     @classmethod
@@ -629,7 +579,7 @@ class PinholeCamera(Camera):
         f, k1 = self.focal_px, self.k1
         g, p = pixel_by_camera_point(xc, f, k1)
         rho2 = (p * p).sum(axis=1)
-        by_rot = -np.einsum("nij,njk->nik", g, _skew(xc))  # x_c += w x x_c
+        by_rot = -np.einsum("nij,njk->nik", g, skew(xc))  # x_c += w x x_c
         by_centre = -g @ rot
         out = [by_rot[:, :, i] for i in range(3)] + [by_centre[:, :, i] for i in range(3)]
         if focal:
@@ -903,7 +853,7 @@ class _RefitProblem:
             return r, None
         n = len(self.x)
         g, _ = pixel_by_camera_point(xc, f, k1)
-        cols = [-np.einsum("nij,njk->nik", g, _skew(xc)),  # x_c += omega x x_c
+        cols = [-np.einsum("nij,njk->nik", g, skew(xc)),  # x_c += omega x x_c
                 -g @ rot]  # centre
         if self.free["f"]:
             cols.append((proj - pp)[:, :, None])  # d / d log f

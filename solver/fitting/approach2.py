@@ -4,7 +4,7 @@ landmark vertices to their 3-D targets, and the model is fitted to the warped sk
 import numpy as np
 
 from .outline import view_outlines
-from .shape_icp import PointRows
+from .rows import PointRows
 from .tps import ThinPlateSpline
 
 # Share of the TPS-warped skin in approach 2's cost, relative to all landmarks.

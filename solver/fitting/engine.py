@@ -19,7 +19,8 @@ from ..model.linear_model import LinearModel
 from ..model.stacked import StackedModel
 from .joint import Joint
 from .outline import CONTOUR_KEEP_SIGMAS, ContourRows, outline_candidates
-from .shape_icp import ImageRows, ShapeProblem
+from .rows import ImageRows
+from .shape_icp import ShapeProblem
 
 
 class Engine:

@@ -57,7 +57,7 @@ from .engine import Engine
 from .options import FitOptions, check_options
 from .outcome import choose, make_result, mirror_info, projection_info, vertex_uncertainty
 from .pose import init_pose
-from .shape_icp import ImageRows
+from .rows import ImageRows
 from .views import State, prepare_views, previous_cameras, saved_state, skip_warnings
 
 

@@ -21,9 +21,10 @@ from scipy.spatial.transform import Rotation
 
 from ..cameras.base import unit_scale
 from ..errors import rms
+from ..geometry import rotation_from_vector
 from ..model.linear_model import LinearModel
 from .outline import ContourRows
-from .shape_icp import ShapeProblem, rotation_from_vector
+from .shape_icp import ShapeProblem
 from .views import ViewData
 
 # Pixels one unit of a camera mode's coefficient moves the photo (see Joint): large, so

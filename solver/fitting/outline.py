@@ -4,8 +4,9 @@ that pull a traced outline onto the silhouette of the posed model (thesis §4.4.
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..geometry import vertex_normals
 from ..memo import memo
-from .shape_icp import CameraRows, ScalarRows
+from .rows import CameraRows, ScalarRows
 
 # Outline rows are always kept within this many sigmas of the placement noise.
 CONTOUR_KEEP_SIGMAS = 3.0
@@ -232,17 +233,8 @@ class ContourRows(CameraRows):
 def mean_normals(model):
     """Unit vertex normals of the mean head (area-weighted face normals), (V, 3), computed
     once per model."""
-    def make():
-        v = model.vertices
-        tri, _, _ = model.triangles()
-        face = np.cross(v[tri[:, 1]] - v[tri[:, 0]], v[tri[:, 2]] - v[tri[:, 0]])
-        normal = np.zeros_like(v)
-        for k in range(3):
-            np.add.at(normal, tri[:, k], face)
-        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
-        return normal
-
-    return memo(model, "mean_normals", make)
+    return memo(model, "mean normals",
+                lambda: vertex_normals(model.vertices, model.triangles()[0]))
 
 
 def candidate_mesh(model, verts):

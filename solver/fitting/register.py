@@ -11,11 +11,11 @@ shape-ICP (eq. 39/43). It runs in stages, each starting where the last one stopp
    step by step (annealing), then without it, to convergence;
 3. similarity + shape on all vertices, which only has to polish.
 
-Two departures from the thesis make it fast and robust (~0.25 s instead of ~10 s): the
-point-to-plane distance (plus a little point-to-point) converges in a handful of steps
-where point-to-point crawls along the surface, and the annealing keeps folds such as the
-under-chin from locking into wrong correspondences. Cloud points on the cloud's boundary
-are not used as targets, so a partial scan's edge does not drag the vertices beyond it.
+Two departures from the thesis make it fast and robust: the point-to-plane distance (plus
+a little point-to-point) converges in a handful of steps where point-to-point crawls along
+the surface, and the annealing keeps folds such as the under-chin from locking into wrong
+correspondences. Cloud points on the cloud's boundary are not used as targets, so a
+partial scan's edge does not drag the vertices beyond it.
 """
 
 import time
@@ -24,7 +24,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import as_points
-from .shape_icp import ClosestPointRows, ShapeProblem, _check_rotation
+from ..geometry import check_rotation
+from .rows import ClosestPointRows
+from .shape_icp import ShapeProblem
 
 
 def initial_similarity(model_points, cloud):
@@ -243,7 +245,7 @@ def register(model, cloud, *, scale=None, rotation=None, translation=None, coeff
         s, rot, t = initial_similarity(start, pts)
     else:
         s = 1.0 if scale is None else float(scale)
-        rot = np.eye(3) if rotation is None else _check_rotation(rotation)
+        rot = np.eye(3) if rotation is None else check_rotation(rotation)
         t = np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64)
     exclude = None
     if (point_to_plane and normals is None) or boundary_ratio is not None:

@@ -15,19 +15,7 @@ deformation prior lambda2 * Lambda (eq. 42) to the data (eq. 43):
 
     E = sum_rows w r^2 + lambda1^2 |Gamma c|^2 + lambda2^2 |Lambda c|^2
 
-Data come in groups of rows ("Rows") that a caller composes freely in one solve:
-
-- ``PointRows``: vertex -> 3-D target, all coordinates or a subset (``mask``; thesis
-  approach 1 uses the two known coordinates of front landmarks, eq. 47);
-- ``ImageRows``: vertex -> pixel through any ``Camera`` (residual pixel - project(x), the
-  Jacobian by the chain rule through ``camera.jacobian``), so perspective cameras plug in;
-- ``ClosestPointRows``: ICP against a point cloud (KD-tree, distance threshold, optional
-  symmetric correspondences; thesis §4.3.3);
-- ``ClosestPixelRows``: ICP in an image against a contour, e.g. the profile line (§4.4.1).
-
-Image rows (``CameraRows``) take a new camera through ``set_camera`` between solves. A
-group's ``block`` returns ``ScalarRows`` (or a list of blocks) for anything but full 3-D
-targets, so rows defined elsewhere (the fit's outline rows) plug in the same way.
+Data come in groups of rows (``rows.py``) that a caller composes freely in one solve.
 
 The solver forms the normal equations ``(J^T W J + priors) d = J^T W r`` of the 7 + K
 parameters directly (never the Jacobian of a 3-D registration, 33k rows by 7 + K columns),
@@ -41,487 +29,27 @@ parameters it cannot determine. Why the assembly looks the way it does:
 - other rows (masked, image, point-to-plane) are contracted with the basis seen from the
   model frame (``s R B_i`` row = ``(s R^T g)^T B_i``) and multiplied as one symmetric
   product;
-- a group only slices the basis of its own vertices, so a landmark solve on a few hundred
-  vertices costs a few milliseconds whatever the size of the model.
+- a group only slices the basis of its own vertices, so what a landmark solve costs
+  depends on its few hundred vertices, not on the size of the model.
 """
 
-from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import cho_solve
-from scipy.spatial import cKDTree
 
-from ..cameras import Camera
 from ..errors import as_points
+from ..geometry import check_rotation, orthonormalize, rotation_from_vector, skew
+from .rows import IsotropicRows, Rows
 
 SIMILARITY_PARAMS = ("scale", "rotation x", "rotation y", "rotation z",
                      "translation x", "translation y", "translation z")
 _GROUPS = {"scale": [0], "rotation": [1, 2, 3], "translation": [4, 5, 6]}
 FREEZABLE = ("scale", "rotation", "translation", "shape")
 _RCOND = 1e-12  # smallest accepted eigenvalue ratio of the Jacobi-scaled normal matrix
-# Gathers a group serves straight from its basis before it makes the vertex-major copy
-# (a gather from the basis costs about 6x one from the copy, the copy about 100 gathers).
+# Gathers a group serves straight from its basis before it makes the vertex-major copy,
+# which only pays off for a group gathered from many times.
 _DIRECT_GATHERS = 16
-
-
-# --------------------------------------------------------------------------- rows
-
-
-@dataclass
-class _Iso:
-    """Full 3-D rows: per-vertex weight and world residual (target - x)."""
-
-    alpha: np.ndarray  # (n,)
-    resid: np.ndarray  # (n, 3)
-    sq: float  # sum of w |r|^2 (the data cost of this group)
-    wsum: float  # sum of the weights of points used (eq. 46 denominator)
-    nrows: int  # scalar residual rows with positive weight
-
-
-@dataclass
-class ScalarRows:
-    """A block of explicit scalar rows, what ``Rows.block`` returns for anything but full
-    3-D targets: residual ``r_j = obs_j - pred_j`` with ``d pred_j / d x = g_j`` at the
-    row's vertex, weighted ``w_j``.
-
-    Attributes
-    ----------
-    idx : ndarray of int, shape (m,) or (m, c), or None
-        Position of each row's vertex within the group, or of its ``c`` vertices when a
-        row's prediction depends on several (a point on an edge: ``c = 2``); None: one row
-        per vertex, in order. None together with ``g``, ``r``, ``w`` when only the cost
-        was asked for (``block(..., jacobian=False)``).
-    g : ndarray, shape (m, 3) or (m, c, 3), or None
-        Derivative of each row's prediction by its vertex's (vertices') world position.
-    r : ndarray, shape (m,) or None
-    w : ndarray, shape (m,) or None
-    sq : float
-        Weighted sum of squared residuals of the block (its data cost).
-    wsum : float
-        Sum of the weights of the points used (eq. 46 denominator).
-    nrows : int
-        Scalar rows with positive weight.
-    """
-
-    idx: np.ndarray | None
-    g: np.ndarray | None
-    r: np.ndarray | None
-    w: np.ndarray | None
-    sq: float
-    wsum: float
-    nrows: int
-
-
-def _vertex_array(vertices, name):
-    v = np.asarray(vertices)
-    if v.ndim != 1 or v.size == 0:
-        raise ValueError(f"{name}: vertices must be a non-empty 1-D array, got shape {v.shape}")
-    if not np.issubdtype(v.dtype, np.integer):
-        raise ValueError(f"{name}: vertices must be integer indices, got dtype {v.dtype}")
-    return v.astype(np.intp)
-
-
-def _weight_array(weights, n, name):
-    w = np.asarray(weights, dtype=np.float64)
-    if w.ndim == 0:
-        w = np.full(n, float(w))
-    if w.shape != (n,):
-        raise ValueError(f"{name}: weights must be a scalar or shape ({n},), got {w.shape}")
-    if not np.isfinite(w).all() or (w < 0).any():
-        raise ValueError(f"{name}: weights must be finite and non-negative")
-    return w
-
-
-def _check_camera(camera, name):
-    if not isinstance(camera, Camera) and not (hasattr(camera, "project")
-                                               and hasattr(camera, "jacobian")):
-        raise ValueError(f"{name}: camera must be a Camera (with project and jacobian), "
-                         f"got {type(camera).__name__}")
-    return camera
-
-
-def _check_rejection(max_distance, reject_factor, name):
-    """The ICP rows' outlier limits checked (both > 0); returns ``max_distance`` as float."""
-    md = float(max_distance)
-    if not md > 0:
-        raise ValueError(f"{name}: max_distance must be > 0, got {max_distance!r}")
-    if reject_factor is not None and not float(reject_factor) > 0:
-        raise ValueError(f"{name}: reject_factor must be > 0, got {reject_factor!r}")
-    return md
-
-
-class Rows(ABC):
-    """A group of residual rows tied to model vertices. Subclasses below.
-
-    Attributes
-    ----------
-    vertices : ndarray, shape (n,)
-        Model vertex indices the rows use.
-    name : str
-        Used in error messages and in ``ShapeFit.info``.
-    """
-
-    vertices: np.ndarray
-    name: str
-    _version = 0  # bumped when targets or the camera change: a cached system is stale
-
-    def update(self, world):
-        """Refresh correspondences from the current world positions (n, 3) of ``vertices``.
-        Fixed-target groups do nothing."""
-        return None
-
-    @abstractmethod
-    def block(self, world, jacobian=True):
-        """Residuals (and, with ``jacobian``, their derivatives) at world positions (n, 3)."""
-
-    def _per_vertex(self, values, what, dim):
-        """``values`` as float64 of shape (n, dim), one row per vertex of the group, or a
-        ValueError naming the group and ``what``."""
-        n = len(self.vertices)
-        a = np.asarray(values, dtype=np.float64)
-        if a.shape != (n, dim):
-            raise ValueError(f"{self.name}: {what} must have shape ({n}, {dim}), got {a.shape}")
-        return a
-
-
-class CameraRows(Rows):
-    """Rows whose residuals are pixels of a photo seen through ``camera``.
-
-    ``set_camera`` is how a caller that refits the photo's camera between solves (the fit
-    alternating head and cameras) hands the new one over: it also tells a ``ShapeProblem``
-    that a system it cached for these rows is stale.
-    """
-
-    camera: Camera
-
-    def set_camera(self, camera):
-        """Use ``camera`` from now on (a no-op when it is the current one).
-
-        Raises
-        ------
-        ValueError
-            ``camera`` has no ``project`` and ``jacobian``.
-        """
-        camera = _check_camera(camera, self.name)
-        if camera is not self.camera:
-            self.camera = camera
-            self._version += 1
-
-    def _pixel_block(self, world, targets, w, jacobian):
-        """Rows ``targets - camera.project(x)`` (pixels, (n, 2)) weighted ``w`` (n,) per
-        vertex, with the chain-rule derivatives through ``camera.jacobian``."""
-        r = targets - _projected(self.camera, world, self.name, self.vertices)
-        sq = float(w @ np.einsum("ij,ij->i", r, r))
-        n = len(w)
-        nrows = 2 * int((w > 0).sum())
-        if not jacobian:
-            return ScalarRows(None, None, None, None, sq, float(w.sum()), nrows)
-        jac = np.asarray(self.camera.jacobian(world), dtype=np.float64).reshape(n, 2, 3)
-        return ScalarRows(np.repeat(np.arange(n), 2), jac.reshape(2 * n, 3), r.reshape(-1),
-                          np.repeat(w, 2), sq, float(w.sum()), nrows)
-
-
-class PointRows(Rows):
-    """Vertices pulled toward 3-D targets, in all coordinates or only the masked ones.
-
-    Parameters
-    ----------
-    vertices : array_like of int, shape (n,)
-    targets : array_like, shape (n, 3), metres (world)
-        Unused coordinates (mask False) may hold any finite value or NaN.
-    weights : float or array_like, shape (n,)
-        Multiplies each point's squared residual.
-    mask : array_like of bool, shape (n, 3), optional
-        Which world coordinates of each target are known (default: all). A front-view
-        landmark known in x and z only has mask ``[True, False, True]``.
-    name : str
-    """
-
-    def __init__(self, vertices, targets, weights=1.0, mask=None, name="points"):
-        self.name = name
-        self.vertices = _vertex_array(vertices, name)
-        n = len(self.vertices)
-        if mask is None:
-            self.mask = None
-        else:
-            m = np.asarray(mask)
-            if m.shape != (n, 3) or m.dtype != bool:
-                raise ValueError(f"{name}: mask must be a bool array of shape ({n}, 3), "
-                                 f"got {m.dtype} {m.shape}")
-            self.mask = None if m.all() else m
-        self.weights = _weight_array(weights, n, name)
-        self.set_targets(targets)
-
-    def set_targets(self, targets):
-        """Replace the targets (same shape), e.g. while a landmark is dragged."""
-        t = self._per_vertex(targets, "targets", 3)
-        used = np.ones(t.shape, bool) if self.mask is None else self.mask
-        bad = used & ~np.isfinite(t)
-        if bad.any():
-            raise ValueError(f"{self.name}: target row {int(np.flatnonzero(bad.any(1))[0])} "
-                             "is not finite (NaN or inf)")
-        self.targets = np.where(used, t, 0.0)
-        self._version += 1
-
-    def block(self, world, jacobian=True):
-        r = self.targets - world
-        w = self.weights
-        if self.mask is None:
-            sq = float(w @ np.einsum("ij,ij->i", r, r))
-            return _Iso(w, r, sq, float(w.sum()), 3 * int((w > 0).sum()))
-        pt, ax = np.nonzero(self.mask)
-        rr = r[pt, ax]
-        ww = w[pt]
-        g = np.zeros((len(pt), 3))
-        g[np.arange(len(pt)), ax] = 1.0
-        used = np.zeros(len(w), bool)
-        used[pt] = True
-        return ScalarRows(pt, g, rr, ww, float(ww @ rr**2), float(w[used].sum()),
-                        int((ww > 0).sum()))
-
-
-class ImageRows(CameraRows):
-    """Vertices pulled toward pixels of a photo through its camera.
-
-    The residual of point i is ``pixels[i] - camera.project(x_i)`` in pixels, so weights
-    convert pixels^2 to the cost's unit (e.g. ``(metres per pixel)^2`` to mix with 3-D rows).
-
-    Parameters
-    ----------
-    vertices : array_like of int, shape (n,)
-    pixels : array_like, shape (n, 2), pixels (origin top-left, v down)
-    camera : Camera
-    weights : float or array_like, shape (n,)
-    name : str
-    """
-
-    def __init__(self, vertices, pixels, camera, weights=1.0, name="image"):
-        self.name = name
-        self.vertices = _vertex_array(vertices, name)
-        self.camera = _check_camera(camera, name)
-        self.weights = _weight_array(weights, len(self.vertices), name)
-        self.set_pixels(pixels)
-
-    def set_pixels(self, pixels):
-        """Replace the target pixels (same shape), e.g. while a landmark is dragged."""
-        p = self._per_vertex(pixels, "pixels", 2)
-        self.pixels = as_points(p, f"{self.name}: pixels", dim=2)
-        self._version += 1
-
-    def block(self, world, jacobian=True):
-        return self._pixel_block(world, self.pixels, self.weights, jacobian)
-
-
-def _projected(camera, world, name, vertices):
-    """``camera.project(world)``, or a ValueError naming the first vertex that does not
-    project to a finite pixel (e.g. behind a perspective camera)."""
-    px = np.asarray(camera.project(world), dtype=np.float64)
-    bad = ~np.isfinite(px).all(axis=1)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise ValueError(f"{name}: vertex {int(vertices[i])} does not project to a finite "
-                         "pixel (behind the camera?)")
-    return px
-
-
-def _reject(dist, ok, max_distance, reject_factor, keep_distance=0.0):
-    """Inlier mask: within ``max_distance``, and within ``reject_factor`` x median unless
-    closer than ``keep_distance``."""
-    ok = ok & (dist <= max_distance)
-    if reject_factor is not None and ok.any():
-        ok &= dist <= max(reject_factor * np.median(dist[ok]), keep_distance)
-    return ok
-
-
-class ClosestPointRows(Rows):
-    """ICP rows: each vertex is pulled toward its nearest cloud point (thesis §4.3.3).
-
-    Without normals the cost of an inlier vertex is the thesis' point-to-point
-    ``w |q - x|^2``. With cloud normals it is point-to-plane plus a little point-to-point,
-    ``w ((n . (q - x))^2 + tangential |q - x|^2)``: the distance along the normal is what
-    the nearest point measures reliably, so ICP converges in a few steps instead of sliding
-    slowly along the surface, and the small tangential term keeps the shape from drifting
-    sideways.
-
-    Parameters
-    ----------
-    vertices : array_like of int, shape (n,)
-    cloud : array_like, shape (m, 3), metres (world)
-    weights : float or array_like, shape (n,)
-        Per-vertex weight of inliers.
-    max_distance : float
-        Correspondences farther than this (metres) are dropped (the thesis' threshold).
-    reject_factor : float, optional
-        Also drop correspondences farther than this many times the median distance...
-    keep_distance : float
-        ... unless they are closer than this (metres): early in a fit, true shape
-        differences of several millimetres must not be mistaken for outliers.
-    symmetric : bool
-        Also pull, for every cloud point, its nearest vertex toward it (reaches parts of
-        the cloud no vertex is nearest to; costs a tree on the vertices per iteration). Per
-        vertex these pulls average into one target.
-    normals : array_like, shape (m, 3), optional
-        Unit normals of the cloud (sign irrelevant) for the point-to-plane cost.
-    tangential : float
-        Weight of the point-to-point term when ``normals`` are given.
-    exclude : array_like of bool, shape (m,), optional
-        Cloud points that may not serve as targets (e.g. the cloud's boundary: a vertex
-        beyond the edge of a partial scan would otherwise be pulled onto the edge); a
-        vertex whose nearest point is excluded gets no row.
-    tree : scipy.spatial.cKDTree, optional
-        A tree already built on ``cloud`` (reused across solves).
-    workers : int
-        Threads for the KD-tree query (-1: all).
-    name : str
-    """
-
-    def __init__(self, vertices, cloud, weights=1.0, max_distance=np.inf, reject_factor=None,
-                 keep_distance=0.0, symmetric=False, normals=None, tangential=0.1,
-                 exclude=None, tree=None, workers=1, name="cloud"):
-        self.name = name
-        self.vertices = _vertex_array(vertices, name)
-        self.weights = _weight_array(weights, len(self.vertices), name)
-        self.cloud = as_points(cloud, f"{name}: cloud")
-        if tree is not None and tree.n != len(self.cloud):
-            raise ValueError(f"{name}: tree has {tree.n} points, cloud has {len(self.cloud)}")
-        self.tree = cKDTree(self.cloud) if tree is None else tree
-        md = _check_rejection(max_distance, reject_factor, name)
-        self.normals = None
-        if normals is not None:
-            nrm = as_points(normals, f"{name}: normals")
-            if nrm.shape != self.cloud.shape:
-                raise ValueError(f"{name}: normals must have the cloud's shape "
-                                 f"{self.cloud.shape}, got {nrm.shape}")
-            length = np.linalg.norm(nrm, axis=1)
-            if (length < 1e-12).any():
-                raise ValueError(f"{name}: normal {int(np.argmin(length))} has zero length")
-            self.normals = nrm / length[:, None]
-        if not np.isfinite(tangential) or tangential < 0:
-            raise ValueError(f"{name}: tangential must be finite and >= 0, got {tangential!r}")
-        self.tangential = float(tangential)
-        self.exclude = None
-        if exclude is not None:
-            ex = np.asarray(exclude)
-            if ex.shape != (len(self.cloud),) or ex.dtype != bool:
-                raise ValueError(f"{name}: exclude must be a bool array of shape "
-                                 f"({len(self.cloud)},), got {ex.dtype} {ex.shape}")
-            self.exclude = ex if ex.any() else None
-        self.max_distance = md
-        self.reject_factor = reject_factor
-        self.keep_distance = float(keep_distance)
-        self.symmetric = bool(symmetric)
-        self.workers = workers
-        self.targets = None
-        self.inliers = None
-        self.distances = None
-
-    def update(self, world):
-        dist, idx = self.tree.query(world, distance_upper_bound=self.max_distance,
-                                    workers=self.workers)
-        ok = np.isfinite(dist)
-        if self.exclude is not None:
-            ok &= ~self.exclude[np.where(ok, idx, 0)]
-        ok = _reject(dist, ok, self.max_distance, self.reject_factor, self.keep_distance)
-        idx = np.where(ok, idx, 0)
-        self.distances = dist
-        self.inliers = ok
-        alpha = np.where(ok, self.weights, 0.0)
-        tgt = self.cloud[idx]
-        self.targets = tgt
-        self._plane = None
-        if self.normals is not None:
-            self._plane = (self.normals[idx], alpha)
-            alpha = self.tangential * alpha
-        self._const = 0.0
-        if self.symmetric:
-            # Cloud -> model: each cloud point pulls its nearest vertex. For one vertex the
-            # sum of w |q_j - x|^2 equals (sum w) |mean q - x|^2 + const, so the pulls fold
-            # into one weighted target per vertex and the rows stay isotropic.
-            d2, v = cKDTree(world).query(self.cloud, workers=self.workers)
-            okr = _reject(d2, np.isfinite(d2), self.max_distance, self.reject_factor,
-                          self.keep_distance)
-            v, q = v[okr], self.cloud[okr]
-            wr = self.weights[v]
-            n = len(world)
-            cnt = np.bincount(v, wr, minlength=n)
-            acc = np.stack([np.bincount(v, wr * q[:, k], minlength=n) for k in range(3)], 1)
-            tot = alpha + cnt
-            use = tot > 0
-            folded = np.where(use[:, None], (alpha[:, None] * tgt + acc)
-                              / np.where(use, tot, 1.0)[:, None], tgt)
-            # The constant the folding drops, so the reported error (eq. 46) stays the sum
-            # of both directions' squared distances.
-            self._const = float(alpha @ (tgt**2).sum(1) + wr @ (q**2).sum(1)
-                                - tot @ (folded**2).sum(1))
-            tgt, alpha = folded, tot
-        self._iso_targets = tgt
-        self.alpha = alpha
-
-    def block(self, world, jacobian=True):
-        if self.targets is None:
-            self.update(world)
-        blocks = []
-        plane = self._plane
-        a = self.alpha
-        if a.any():
-            r = self._iso_targets - world
-            sq = max(float(a @ np.einsum("ij,ij->i", r, r)) + self._const, 0.0)
-            blocks.append(_Iso(a, r, sq, 0.0 if plane else float(a.sum()),
-                               3 * int((a > 0).sum())))
-        if plane is not None:
-            nq, w = plane
-            rp = np.einsum("ij,ij->i", self.targets - world, nq)
-            blocks.append(ScalarRows(None, nq, rp, w, float(w @ rp**2), float(w.sum()),
-                                   int((w > 0).sum())))
-        if not blocks:
-            blocks.append(_Iso(a, np.zeros_like(world), 0.0, 0.0, 0))
-        return blocks
-
-
-class ClosestPixelRows(CameraRows):
-    """ICP rows in a photo: each vertex's projection is pulled toward the nearest pixel of a
-    contour (e.g. the profile line, thesis §4.4.1). Residuals in pixels as ``ImageRows``.
-
-    Parameters
-    ----------
-    vertices : array_like of int, shape (n,)
-    pixels : array_like, shape (m, 2)
-        Contour pixels (densely sampled along the line).
-    camera : Camera
-    weights : float or array_like, shape (n,)
-    max_distance : float
-        Pixel distance beyond which a correspondence is dropped.
-    reject_factor : float, optional
-        Also drop correspondences beyond this many times the median pixel distance.
-    name : str
-    """
-
-    def __init__(self, vertices, pixels, camera, weights=1.0, max_distance=np.inf,
-                 reject_factor=None, name="contour"):
-        self.name = name
-        self.vertices = _vertex_array(vertices, name)
-        self.camera = _check_camera(camera, name)
-        self.weights = _weight_array(weights, len(self.vertices), name)
-        self.pixels = as_points(pixels, f"{name}: pixels", dim=2)
-        self.max_distance = _check_rejection(max_distance, reject_factor, name)
-        self.reject_factor = reject_factor
-        self.tree = cKDTree(self.pixels)
-        self.targets = None
-        self.inliers = None
-
-    def update(self, world):
-        proj = _projected(self.camera, world, self.name, self.vertices)
-        dist, idx = self.tree.query(proj, distance_upper_bound=self.max_distance)
-        ok = _reject(dist, np.isfinite(dist), self.max_distance, self.reject_factor)
-        self.inliers = ok
-        self.targets = self.pixels[np.where(ok, idx, 0)]
-
-    def block(self, world, jacobian=True):
-        if self.targets is None:
-            self.update(world)
-        return self._pixel_block(world, self.targets,
-                                 np.where(self.inliers, self.weights, 0.0), jacobian)
 
 
 # --------------------------------------------------------------------------- result
@@ -614,73 +142,6 @@ class ShapeFit:
         return self.transform(self.local_vertices(model))
 
 
-def vertex_std(basis, coeff_covariance):
-    """Posterior standard deviation of each vertex position from a coefficient covariance.
-
-    Parameters
-    ----------
-    basis : ndarray, shape (Ka, V, 3)
-        The basis rows of the active coefficients (``model.basis[fit.active]``), metres.
-    coeff_covariance : ndarray, shape (Ka, Ka)
-
-    Returns
-    -------
-    ndarray, shape (V,), metres
-        ``sqrt(trace(B_v Sigma B_v^T))``: the RMS length of the position error (the pose
-        uncertainty is not included; multiply by the fit's scale for world units).
-    """
-    b = np.asarray(basis, dtype=np.float64)
-    cov = np.asarray(coeff_covariance, dtype=np.float64)
-    k = b.shape[0]
-    if b.ndim != 3 or b.shape[2] != 3 or cov.shape != (k, k):
-        raise ValueError(f"vertex_std: basis (Ka, V, 3) and covariance (Ka, Ka) disagree: "
-                         f"{b.shape} vs {cov.shape}")
-    evals, evecs = np.linalg.eigh(0.5 * (cov + cov.T))
-    f = np.sqrt(np.clip(evals, 0.0, None))[:, None] * evecs.T  # f^T f = cov
-    y = f @ b.reshape(k, -1)
-    return np.sqrt((y * y).sum(axis=0).reshape(-1, 3).sum(axis=1))
-
-
-# --------------------------------------------------------------------------- helpers
-
-
-def skew(v):
-    """Cross-product matrices: (n, 3) -> (n, 3, 3) with ``skew(a) @ b == a x b``."""
-    v = np.asarray(v, dtype=np.float64)
-    out = np.zeros(v.shape[:-1] + (3, 3))
-    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
-    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
-    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
-    return out
-
-
-def rotation_from_vector(theta):
-    """Rotation matrix of the rotation vector ``theta`` (axis * angle, radians), shape (3, 3).
-    The exact form of the thesis' ``I + [theta]_x`` (eq. 14/25)."""
-    th = np.asarray(theta, dtype=np.float64).reshape(3)
-    a = float(np.linalg.norm(th))
-    k = skew(th)
-    if a < 1e-8:
-        return np.eye(3) + k + 0.5 * k @ k
-    return np.eye(3) + (np.sin(a) / a) * k + ((1 - np.cos(a)) / a**2) * (k @ k)
-
-
-def orthonormalize(r):
-    """Nearest proper rotation to a 3 x 3 matrix (polar decomposition by SVD)."""
-    u, _, vt = np.linalg.svd(r)
-    if np.linalg.det(u @ vt) < 0:
-        u[:, -1] *= -1
-    return u @ vt
-
-
-def _check_rotation(r, name="rotation"):
-    r = np.asarray(r, dtype=np.float64)
-    if r.shape != (3, 3) or not np.isfinite(r).all():
-        raise ValueError(f"{name}: expected a finite (3, 3) matrix, got shape {r.shape}")
-    if np.abs(r @ r.T - np.eye(3)).max() > 1e-6 or np.linalg.det(r) < 0:
-        raise ValueError(f"{name}: not a proper rotation (R R^T != I or det < 0)")
-    return orthonormalize(r)
-
 
 class _Prepared:
     """Per-group model slices, reused across iterations and solves."""
@@ -723,10 +184,10 @@ class _Prepared:
 
     def gather(self, idx):
         """The basis at vertices ``idx`` as (m, 3, Ka). From the vertex-major copy once a
-        group has been gathered from a few times (it pays off over many solves, but costs
-        as much as a hundred gathers to make); straight from the basis before that, and
-        always once modes are replaced between solves (``ShapeProblem.replace_modes``), as
-        re-making that copy every round would cost more than the gathers it saves."""
+        group has been gathered from a few times (it pays off over many solves, but is
+        costly to make); straight from the basis before that, and always once modes are
+        replaced between solves (``ShapeProblem.replace_modes``), as re-making that copy
+        every round would cost more than the gathers it saves."""
         self._gathers += 1
         if self.volatile or (self._basis_vm is None and self._gathers <= _DIRECT_GATHERS):
             return np.take(self.basis, idx, axis=1).transpose(1, 2, 0)
@@ -1026,7 +487,7 @@ class ShapeProblem:
             sj[:, :, 1:4] = -skew(pt)  # dtheta x p~ = -[p~]_x dtheta
             sj[:, 0, 4] = sj[:, 1, 5] = sj[:, 2, 6] = 1.0
             for blk in blocks:
-                if isinstance(blk, _Iso):
+                if isinstance(blk, IsotropicRows):
                     self._add_iso(n_mat, b, blk, sj, pg, s, rot, shape)
                 else:
                     self._add_general(n_mat, b, blk, sj, pg, s, rot, shape)
@@ -1195,7 +656,7 @@ class ShapeProblem:
         s = float(scale)
         if not np.isfinite(s) or s <= 0:
             raise ValueError(f"scale: must be finite and > 0, got {scale!r}")
-        rot = np.eye(3) if rotation is None else _check_rotation(rotation)
+        rot = np.eye(3) if rotation is None else check_rotation(rotation)
         t = np.zeros(3) if translation is None else np.asarray(translation, dtype=np.float64)
         if t.shape != (3,) or not np.isfinite(t).all():
             raise ValueError(f"translation: expected 3 finite numbers, got shape {t.shape}")
@@ -1288,3 +749,4 @@ def shape_icp(model, rows, *, scale=1.0, rotation=None, translation=None, coeffs
     return problem.solve(scale=scale, rotation=rotation, translation=translation,
                          coeffs=coeffs, max_iterations=max_iterations, tolerance=tolerance,
                          sigma=sigma)
+

@@ -140,7 +140,3 @@ class ThinPlateSpline:
         k = cdist(self.centers, self.centers)
         return float(-np.einsum("ij,ik,kj->", self.weights, k, self.weights))
 
-
-def tps_warp(source, target, points, regularization=0.0):
-    """Fit a spline ``source -> target`` and apply it to ``points`` (n, 3) -> (m, 3)."""
-    return ThinPlateSpline.fit(source, target, regularization).apply(points)

@@ -1,7 +1,7 @@
 """A linear shape model x(c) = mean + sum_k c_k * basis_k, the one form every fit works on.
 
-The global identity model, the regional model of thesis §3.4 (region bases blended at
-their borders, eq. 19) and their concatenation are all a LinearModel, so the shape-ICP
+The global identity model and the regional model of thesis §3.4 (region bases blended at
+their borders, eq. 19) are both a LinearModel, so the shape-ICP
 (§4.3) needs to know nothing about regions beyond the optional smoothness rows Gamma.
 """
 
@@ -62,19 +62,3 @@ class LinearModel:
         g = None if self.gamma is None else self.gamma[:, :k]
         return LinearModel(self.mean, self.basis[:k], self.stddev[:k], self.names[:k], g)
 
-
-def concat(a, b):
-    """Model whose coefficients are those of ``a`` followed by those of ``b``; both share
-    vertices. The mean is ``a``'s; ``b`` contributes offsets only."""
-    if a.mean.shape != b.mean.shape:
-        raise ValueError(f"models differ in vertices: {a.mean.shape} vs {b.mean.shape}")
-    ka, kb = a.n_coeffs, b.n_coeffs
-    rows = []
-    if a.gamma is not None:
-        rows.append(np.hstack([a.gamma, np.zeros((a.gamma.shape[0], kb))]))
-    if b.gamma is not None:
-        rows.append(np.hstack([np.zeros((b.gamma.shape[0], ka)), b.gamma]))
-    gamma = np.vstack(rows) if rows else None
-    return LinearModel(a.mean, np.concatenate([a.basis, b.basis]),
-                       np.concatenate([a.stddev, b.stddev]),
-                       tuple(a.names) + tuple(b.names), gamma)

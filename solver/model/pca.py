@@ -53,12 +53,6 @@ class PCA:
             c = c * sd
         return self.mean + c @ comps
 
-    def sample(self, n, rng, n_components=None):
-        """``n`` random samples drawn from the Gaussian the model describes, shape (n, D)."""
-        comps, sd = self._first(n_components)
-        c = rng.standard_normal((n, comps.shape[0])) * sd
-        return self.mean + c @ comps
-
     def _first(self, k):
         k = self.components.shape[0] if k is None else int(k)
         if not 0 < k <= self.components.shape[0]:

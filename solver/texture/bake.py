@@ -1,27 +1,12 @@
-"""Texturing the fitted head from its photos.
+"""The texture bake: a texture in the model's own UV layout (``model.loop_uv``, rasterised
+by ``uvs.py``) from all photos at once, which the thesis names as the missing piece (§9).
 
-Two ways, both from thesis §5 onward:
-
-* :func:`orthographic_uvs` is the thesis' own method (eq. 48-49): every vertex gets the
-  texture coordinate of its projection into one photo, so the photo itself is the texture.
-  Cheap and exact on the photo's side, but the far side of the head smears.
-* :func:`bake_tiles` / :func:`bake_texture` bake a texture in the model's own UV layout
-  (``model.loop_uv``) from all photos at once, which the thesis names as the missing piece
-  (§9): each texel's surface point is projected into every photo, sampled where the photo
-  sees it (depth-buffer occlusion test) and blended by how squarely the surface faces that
-  photo; a profile photo is also used mirrored across the head's mid-sagittal plane so the
-  far cheek gets the near cheek's colours; what no photo sees is filled smoothly over the
-  mesh, and the UV islands get a few texels of bleed so mipmapping shows no seams.
-
-Texture convention: ``texture[row, column]`` with row 0 at the top (v = 1), as written to a
-PNG; texel (r, c) is centred on UV ((c + 0.5) / size, 1 - (r + 0.5) / size) inside its UDIM
-tile. Blender's ``Image.pixels`` run bottom-up, so the add-on flips rows when it fills an
-image from memory (not when it saves a PNG and loads that).
-
-UV tiles: the ICT layout puts the parts "Face" in UDIM tile 1001 (u in [0, 1]) and
-"Head and Neck" in 1002 (u in [1, 2]); :func:`bake_tiles` returns one texture per tile.
-Blender maps either as a tiled (UDIM) image or, since an Image Texture node repeats by
-default, as one image per material (u in [1, 2] samples the second image at u - 1).
+Each texel's surface point is projected into every photo, sampled where the photo sees it
+(depth-buffer occlusion test) and blended by how squarely the surface faces that photo; a
+profile photo is also used mirrored across the head's mid-sagittal plane so the far cheek
+gets the near cheek's colours; what no photo sees is filled smoothly over the mesh, and the
+UV islands get a few texels of bleed so mipmapping shows no seams. :func:`bake_tiles`
+returns one texture per UDIM tile, :func:`bake_texture` one tile.
 
 Photo convention: pixel (u, v) with the origin at the image's top-left corner and the
 image spanning [0, W] x [0, H], so pixel (i, j) is centred on (i + 0.5, j + 0.5) (the
@@ -33,15 +18,13 @@ eye overlay meshes are not baked: they are hidden or transparent on the photos, 
 add-on gives them their own materials (``parts=["Eyeball left"]`` bakes one if wanted; the
 skin still occludes it).
 
-Typical use (the UV rasters are cached per model and size, so repeated bakes, e.g. in the
-live add-on, skip the rasterisation)::
+Typical use (the UV rasters are kept with the model, so repeated bakes skip the
+rasterisation)::
 
     tiles = bake_fit_texture(model, result, {"front": front_rgb, "right": side_rgb})
     atlas, uv_scale = tile_atlas(tiles)  # one image for OBJ / glTF: UVs * uv_scale
 """
 
-import threading
-import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,61 +33,10 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..errors import as_points
-from .raster import depth_buffer, first_per_pixel, rasterize
+from ..geometry import vertex_normals
+from .raster import depth_buffer
+from .uvs import BLEED, SKIN_PARTS, UVRaster, resolve_parts, selected_triangles, uv_raster, uv_tiles
 
-SKIN_PARTS = ("Face", "Head and Neck")
-
-
-# --------------------------------------------------------------------------------------
-# Per-vertex UVs into one photo (thesis §5)
-# --------------------------------------------------------------------------------------
-
-def orthographic_uvs(vertices, camera, image_size=None):
-    """Texture coordinates of each vertex in one photo (thesis §5, eq. 48-49).
-
-    The thesis maps the front photo orthographically: with the model in image-height
-    units centred on the nose tip, u = (U_n + Y h) / b and v = 1 - V_n / h + X, i.e. the
-    pixel the point projects to, divided by the image size, with v flipped because UVs
-    start at the bottom-left. With a fitted camera that is exactly
-    ``u = U / W, v = 1 - V / H`` for ``(U, V) = camera.project(vertex)``, which is what
-    this computes (so it also works for a fitted, rotated or DLT camera).
-
-    Parameters
-    ----------
-    vertices : ndarray, shape (V, 3), metres
-        World positions (the fitted head).
-    camera : Camera
-        The photo's camera; its ``size`` (W, H) gives the image size unless
-        ``image_size`` is given.
-    image_size : (int, int), optional
-        (width, height) in pixels of the photo the UVs index.
-
-    Returns
-    -------
-    ndarray, shape (V, 2)
-        UVs with (0, 0) at the photo's bottom-left and (1, 1) at its top-right (Blender's
-        convention); points outside the photo get UVs outside [0, 1]. Per face corner:
-        ``uv[model.loop_vertex]``.
-    """
-    x = as_points(vertices, "vertices")
-    w, h = _image_size(camera, image_size, "camera")
-    px = np.asarray(camera.project(x), dtype=np.float64)
-    return np.column_stack([px[:, 0] / w, 1.0 - px[:, 1] / h])
-
-
-def _image_size(camera, image_size, name):
-    size = image_size if image_size is not None else getattr(camera, "size", None)
-    if size is None:
-        raise ValueError(f"{name}: has no size; pass image_size=(width, height)")
-    w, h = (float(s) for s in size)
-    if not (w > 0 and h > 0):
-        raise ValueError(f"{name}: image size must be positive, got {tuple(size)}")
-    return w, h
-
-
-# --------------------------------------------------------------------------------------
-# Options and the cached UV raster
-# --------------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
 class BakeOptions:
@@ -147,7 +79,7 @@ class BakeOptions:
     depth_resolution: int = 512
     depth_tolerance: float = 0.01
     feather: float = 0.02
-    bleed: int = 4
+    bleed: int = BLEED
 
     def __post_init__(self):
         checks = {"power": self.power > 0, "mirror_weight": self.mirror_weight >= 0,
@@ -160,273 +92,6 @@ class BakeOptions:
             if not ok:
                 raise ValueError(f"BakeOptions.{name}: out of range ({getattr(self, name)!r})")
 
-
-@dataclass(frozen=True, eq=False)
-class UVRaster:
-    """Which surface point every texel of one UV tile shows: built once per (model, size,
-    parts, tile) because the UV layout never changes; reuse it for every bake.
-
-    Attributes
-    ----------
-    size : int
-        Texture width and height in texels.
-    tile : int
-        UDIM tile number (1001 + floor(u) + 10 floor(v)).
-    parts : tuple of str
-        Geometry parts rasterised.
-    n_vertices : int
-        Vertex count of the model.
-    triangles : ndarray, shape (T, 3)
-        Vertex indices of the tile's triangles.
-    texel : ndarray, shape (N,)
-        Flat index ``row * size + column`` of each covered texel (one triangle each).
-    interp : scipy.sparse.csr_matrix, shape (N, V)
-        Barycentric weights: ``interp @ vertex_values`` is the value at each texel.
-    vertices : ndarray, shape (M,)
-        Vertices of the tile's triangles (the hole fill's unknowns live among them).
-    gather : scipy.sparse.csr_matrix, shape (M, N)
-        ``interp`` transposed, rows ``vertices``: sums texel values onto vertices.
-    laplacian : scipy.sparse.csr_matrix, shape (M, M)
-        Cotangent Laplacian over ``vertices`` (the tile's triangles, mean shape).
-    bleed_to, bleed_from : ndarray, shape (B,)
-        Flat texel indices: uncovered texels within ``bleed`` of an island and the nearest
-        covered texel each copies.
-    """
-
-    size: int
-    tile: int
-    parts: tuple
-    n_vertices: int
-    triangles: np.ndarray
-    texel: np.ndarray
-    interp: sp.csr_matrix
-    vertices: np.ndarray
-    gather: sp.csr_matrix
-    laplacian: sp.csr_matrix
-    bleed_to: np.ndarray
-    bleed_from: np.ndarray
-
-    @property
-    def mask(self):
-        """Covered texels, shape (size, size), bool (row 0 = top)."""
-        m = np.zeros(self.size * self.size, dtype=bool)
-        m[self.texel] = True
-        return m.reshape(self.size, self.size)
-
-
-# (id(model), what, ...) -> (weakref to the model, value): UV rasters and triangle tables
-_raster_cache = {}
-_raster_lock = threading.Lock()
-_RASTER_CACHE_MAX = 12
-
-
-def resolve_parts(model, parts=None):
-    """Part indices and names to bake.
-
-    Parameters
-    ----------
-    model : HeadModel
-    parts : sequence of str or int, optional
-        Part names (as in ``model.part_names``, case-insensitive) or indices. Default: the
-        skin parts ("Face", "Head and Neck").
-
-    Returns
-    -------
-    tuple of int, tuple of str
-    """
-    names = tuple(model.part_names)
-    lower = {n.lower(): i for i, n in enumerate(names)}
-    if parts is None:
-        parts = [p for p in SKIN_PARTS if p.lower() in lower]
-        if not parts:
-            raise ValueError(f"parts: the model has none of the skin parts {SKIN_PARTS}; "
-                             f"pass parts= from {names}")
-    if isinstance(parts, str | int | np.integer):
-        parts = [parts]
-    idx = []
-    for p in parts:
-        if isinstance(p, str):
-            if p.lower() not in lower:
-                raise ValueError(f"parts: unknown part {p!r}; known: {', '.join(names)}")
-            idx.append(lower[p.lower()])
-        elif isinstance(p, int | np.integer) and 0 <= int(p) < len(names):
-            idx.append(int(p))
-        else:
-            raise ValueError(f"parts: {p!r} is neither a part name nor an index "
-                             f"0..{len(names) - 1}")
-    idx = tuple(sorted(set(idx)))
-    return idx, tuple(names[i] for i in idx)
-
-
-def _model_cached(model, key, build):
-    """``build()`` once per live model object and key (topology and UVs never change)."""
-    full = (id(model), *key)
-    with _raster_lock:
-        hit = _raster_cache.get(full)
-        if hit is not None and hit[0]() is model:
-            return hit[1]
-    value = build()
-    with _raster_lock:
-        try:
-            ref = weakref.ref(model)
-        except TypeError:  # a model class without weakref support: keep it alive instead
-            ref = (lambda m: (lambda: m))(model)
-        _raster_cache[full] = (ref, value)
-        while len(_raster_cache) > _RASTER_CACHE_MAX:
-            _raster_cache.pop(next(iter(_raster_cache)))
-    return value
-
-
-def _triangle_table(model):
-    """Every triangle's vertices (T, 3), corner UVs (T, 3, 2), part (T,) and UDIM tile."""
-    tri_vertex, tri_loop, tri_face = model.triangles()
-    uv = np.asarray(model.loop_uv, dtype=np.float64)[np.asarray(tri_loop)]
-    corner = np.floor(uv.mean(axis=1)).astype(np.int64)
-    tile = 1001 + corner[:, 0] + 10 * corner[:, 1]
-    part = np.asarray(model.face_part)[np.asarray(tri_face)]
-    return np.asarray(tri_vertex), uv, part, tile
-
-
-def _selected_triangles(model, part_idx):
-    """Triangles (vertex indices, corner UVs) of the chosen parts and the UDIM tile of each."""
-    tri_vertex, uv, part, tile = _model_cached(model, ("triangles",),
-                                               lambda: _triangle_table(model))
-    keep = np.isin(part, part_idx)
-    return tri_vertex[keep], uv[keep], tile[keep]
-
-
-def uv_tiles(model, parts=None):
-    """UDIM tiles the chosen parts' UVs occupy, sorted (e.g. (1001, 1002) for the skin)."""
-    idx, _ = resolve_parts(model, parts)
-    _, _, tile = _selected_triangles(model, idx)
-    return tuple(int(t) for t in np.unique(tile))
-
-
-def uv_raster(model, size=1024, *, parts=None, tile=None, bleed=BakeOptions.bleed):
-    """The (cached) UV raster of one tile of the chosen parts.
-
-    Parameters
-    ----------
-    model : HeadModel
-    size : int
-        Texture size in texels (square).
-    parts : sequence of str or int, optional
-        See :func:`resolve_parts`; default the skin.
-    tile : int, optional
-        UDIM tile; default the only tile the parts use (ValueError if they use several).
-    bleed : int
-        Texels of bleed around the islands.
-
-    Returns
-    -------
-    UVRaster
-    """
-    size = _check_size(size)
-    idx, names = resolve_parts(model, parts)
-    tile = _pick_tile(model, idx, names, tile)
-    bleed = int(bleed)
-    if bleed < 0:
-        raise ValueError(f"bleed: must be >= 0, got {bleed}")
-    return _model_cached(model, ("raster", size, idx, tile, bleed),
-                         lambda: _build_raster(model, size, idx, names, tile, bleed))
-
-
-def clear_raster_cache():
-    """Forget every cached UVRaster (e.g. after reloading a model, or to time a cold bake)."""
-    with _raster_lock:
-        _raster_cache.clear()
-
-
-def _check_size(size):
-    try:
-        s = int(size)
-    except (TypeError, ValueError):
-        raise ValueError(f"size: expected a positive integer, got {size!r}") from None
-    if s != size or not 8 <= s <= 16384:
-        raise ValueError(f"size: expected an integer in 8..16384, got {size!r}")
-    return s
-
-
-def _pick_tile(model, idx, names, tile):
-    _, _, tiles = _selected_triangles(model, idx)
-    present = sorted(int(t) for t in np.unique(tiles))
-    if not present:
-        raise ValueError(f"parts: {', '.join(names)} have no polygons")
-    if tile is None:
-        if len(present) > 1:
-            raise ValueError(f"parts: {', '.join(names)} use UV tiles "
-                             f"{', '.join(map(str, present))}; pass tile= or use bake_tiles()")
-        return present[0]
-    if int(tile) not in present:
-        raise ValueError(f"tile: {tile!r} is not used by parts {', '.join(names)} "
-                         f"(they use {', '.join(map(str, present))})")
-    return int(tile)
-
-
-def _build_raster(model, size, idx, names, tile, bleed):
-    n_vertices = int(np.asarray(model.vertices).shape[0])
-    tri_vertex, uv, tiles = _selected_triangles(model, idx)
-    sel = tiles == tile
-    tri_vertex, uv = tri_vertex[sel], uv[sel]
-    tu, tv = (tile - 1001) % 10, (tile - 1001) // 10
-    # UV -> texel grid with row 0 at the top (v = 1)
-    xy = np.stack([(uv[..., 0] - tu) * size, (1.0 - (uv[..., 1] - tv)) * size], axis=-1)
-    pixel, tri, bary = rasterize(xy, size, size)
-    texel, tri, bary = first_per_pixel(pixel, tri, bary)  # overlapping UVs: one wins
-
-    n = len(texel)
-    rows = np.repeat(np.arange(n), 3)
-    interp = sp.csr_matrix((bary.ravel().astype(np.float32), (rows, tri_vertex[tri].ravel())),
-                           shape=(n, n_vertices))
-    interp.sum_duplicates()
-
-    verts = np.unique(tri_vertex)
-    lap = _cotan_laplacian(np.asarray(model.vertices, dtype=np.float64)[verts],
-                           np.searchsorted(verts, tri_vertex))
-
-    covered = np.zeros((size, size), dtype=bool)
-    covered.flat[texel] = True
-    if bleed > 0 and n:
-        dist, (ri, ci) = ndi.distance_transform_edt(~covered, return_indices=True)
-        ring = (~covered) & (dist <= bleed)
-        bleed_to = np.flatnonzero(ring)
-        bleed_from = (ri * size + ci).ravel()[bleed_to]
-    else:
-        bleed_to = bleed_from = np.zeros(0, np.int64)
-    gather = interp.T.tocsr()[verts]
-    return UVRaster(size, tile, names, n_vertices, tri_vertex, texel, interp, verts, gather,
-                    lap, bleed_to, bleed_from)
-
-
-def _cotan_laplacian(points, triangles):
-    """Cotangent Laplacian (M, M) of a triangle mesh, weights clamped positive.
-
-    Geometric weights make the hole fill follow surface distance rather than mesh
-    density (ICT is dense on the face, coarse on the skull); clamping obtuse corners'
-    negative weights keeps the discrete maximum principle, so a fill never overshoots.
-    """
-    m = len(points)
-    p = points[triangles]
-    rows, cols, vals = [], [], []
-    for k in range(3):  # the corner opposite each of a triangle's three edges
-        i, j = (k + 1) % 3, (k + 2) % 3
-        a, b = p[:, i] - p[:, k], p[:, j] - p[:, k]
-        cross = np.linalg.norm(np.cross(a, b), axis=1)
-        cot = np.einsum("ij,ij->i", a, b) / np.maximum(cross, 1e-30)
-        rows.append(triangles[:, i])
-        cols.append(triangles[:, j])
-        vals.append(0.5 * np.clip(cot, -1e3, 1e3))
-    r, c, v = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
-    w = sp.coo_matrix((np.r_[v, v], (np.r_[r, c], np.r_[c, r])), shape=(m, m)).tocsr()
-    w.sum_duplicates()
-    floor = 1e-2 * np.abs(w.data).mean() if w.nnz else 0.0
-    w.data = np.maximum(w.data, floor)
-    return (sp.diags(np.asarray(w.sum(axis=1)).ravel()) - w).tocsr()
-
-
-# --------------------------------------------------------------------------------------
-# The bake
-# --------------------------------------------------------------------------------------
 
 def bake_texture(model, world_vertices, views, size=1024, *, parts=None, tile=None,
                  similarity=None, mirror=True, occluders=None, raster=None, options=None):
@@ -641,20 +306,6 @@ def _plane(similarity):
     return trans, normal / norm
 
 
-def _vertex_normals(world, triangles):
-    """Area-weighted vertex normals (V, 3), unit length (zero where no triangle); the
-    triangles' winding (counter-clockwise seen from outside, as ICT's) decides the side."""
-    p = world[triangles]
-    fn = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    n = np.zeros_like(world)
-    for k in range(3):  # three corners, not a per-vertex loop
-        for d in range(3):
-            n[:, d] += np.bincount(triangles[:, k], fn[:, d], minlength=len(world))
-    length = np.linalg.norm(n, axis=1, keepdims=True)
-    n /= np.maximum(length, 1e-300)
-    return n
-
-
 class _ViewSampler:
     """One photo with its camera and a depth buffer of the head, ready to colour texels.
 
@@ -806,9 +457,9 @@ def _bake(model, world_vertices, views, rasters, parts, occluders, similarity, m
         occ_idx = set(idx) | {i for i, n in enumerate(model.part_names) if n.lower() in skin}
     else:
         occ_idx = set(resolve_parts(model, occluders)[0])
-    occluders, _, _ = _selected_triangles(model, tuple(sorted(occ_idx | set(idx))))
+    occluders, _, _ = selected_triangles(model, tuple(sorted(occ_idx | set(idx))))
 
-    normals = _vertex_normals(world, occluders)
+    normals = vertex_normals(world, occluders)
     used = np.unique(occluders)
     lo, hi = world[used].min(axis=0), world[used].max(axis=0)
     head_size = float(np.linalg.norm(hi - lo))
@@ -920,3 +571,4 @@ def _smooth_fill(raster, acc, wsum, fill_weight):
     full = np.zeros((raster.n_vertices, 3), np.float32)
     full[verts] = value
     return raster.interp @ full
+

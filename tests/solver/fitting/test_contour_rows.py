@@ -10,7 +10,8 @@ from solver.cameras import OrthographicCamera
 from solver.cameras.pinhole import PinholeCamera
 from solver.fitting.engine import Engine
 from solver.fitting.outline import CONTOUR_KEEP_SIGMAS, ContourRows, candidate_mesh, shared_edges
-from solver.fitting.shape_icp import PointRows, ShapeProblem
+from solver.fitting.rows import PointRows
+from solver.fitting.shape_icp import ShapeProblem
 from solver.fitting.views import State, prepare_views
 from solver.model.linear_model import LinearModel
 from solver.synthetic import make_perspective_case, skin_error_mm

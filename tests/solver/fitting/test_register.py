@@ -15,7 +15,7 @@ from solver.fitting.register import (
     register,
     smallest_eigenvectors,
 )
-from solver.fitting.shape_icp import rotation_from_vector
+from solver.geometry import rotation_from_vector
 
 
 def _case(lin, coeff_scale, seed, keep=1.0, noise=0.0005):

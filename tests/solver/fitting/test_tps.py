@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from solver.fitting.shape_icp import rotation_from_vector
-from solver.fitting.tps import ThinPlateSpline, tps_warp
+from solver.fitting.tps import ThinPlateSpline
+from solver.geometry import rotation_from_vector
 from solver.procrustes import Similarity, similarity_procrustes
 
 
@@ -70,7 +70,6 @@ def test_tps_apply_chunked_equals_unchunked():
     whole = tps.apply(pts, chunk=len(pts))
     np.testing.assert_allclose(tps.apply(pts, chunk=997), whole, atol=1e-14)
     np.testing.assert_allclose(tps.apply(pts), whole, atol=1e-14)
-    np.testing.assert_allclose(tps_warp(src, dst, pts[:10]), whole[:10], atol=1e-14)
     assert tps.apply(np.zeros((0, 3))).shape == (0, 3)
 
 

@@ -1,178 +1,25 @@
-"""Texture: per-vertex UVs into a photo (thesis §5) and the multi-view bake, on small
-synthetic meshes with coded photos, plus one check on the real head model."""
+"""The multi-view texture bake (solver/texture/bake.py) on small synthetic meshes with coded
+photos, plus checks on the real head model."""
 
 import numpy as np
 import pytest
 
 from solver.cameras import OrthographicCamera
 from solver.fitting.result import FitResult
-from solver.model.head_model import fan_triangles
 from solver.texture.bake import (
     BakeOptions,
     bake_fit_texture,
     bake_texture,
     bake_tiles,
-    orthographic_uvs,
-    resolve_parts,
     tile_atlas,
-    uv_raster,
-    uv_tiles,
 )
-from solver.texture.raster import depth_buffer, first_per_pixel, rasterize
-
-W, H = 96, 128  # photo size of the synthetic tests
-
-
-class MeshModel:
-    """The parts of HeadModel the texture code reads, for a hand-built mesh."""
-
-    def __init__(self, vertices, faces, face_uvs, face_part, part_names):
-        self.vertices = np.asarray(vertices, dtype=np.float64)
-        self.face_loop_total = np.array([len(f) for f in faces])
-        self.face_loop_start = np.concatenate([[0], np.cumsum(self.face_loop_total)[:-1]])
-        self.loop_vertex = np.concatenate([np.asarray(f) for f in faces])
-        self.loop_uv = np.concatenate([np.asarray(u, dtype=np.float64) for u in face_uvs])
-        self.face_part = np.asarray(face_part)
-        self.part_names = tuple(part_names)
-        self.skin = np.arange(len(self.vertices))
-
-    def triangles(self):
-        tri_loop, tri_face = fan_triangles(self.face_loop_start, self.face_loop_total)
-        return self.loop_vertex[tri_loop], tri_loop, tri_face
-
-
-def uv_sphere(radius=0.1, n_lon=48, n_lat=24):
-    """Latitude-longitude sphere, outward winding, u = longitude / 2 pi, v = latitude."""
-    lat = np.linspace(-np.pi / 2, np.pi / 2, n_lat + 1)[1:-1]
-    lon = np.arange(n_lon) * 2 * np.pi / n_lon
-    la, lo = np.meshgrid(lat, lon, indexing="ij")
-    ring = np.stack([np.cos(la) * np.cos(lo), np.cos(la) * np.sin(lo), np.sin(la)], -1)
-    verts = np.vstack([ring.reshape(-1, 3), [[0, 0, -1], [0, 0, 1]]]) * radius
-    south, north = n_lon * (n_lat - 1), n_lon * (n_lat - 1) + 1
-
-    def vid(k, j):
-        return (k - 1) * n_lon + j % n_lon
-
-    faces, uvs = [], []
-    for k in range(n_lat):
-        for j in range(n_lon):
-            u0, u1, v0, v1 = j / n_lon, (j + 1) / n_lon, k / n_lat, (k + 1) / n_lat
-            if k == 0:
-                faces.append([south, vid(1, j + 1), vid(1, j)])
-                uvs.append([[(j + 0.5) / n_lon, 0], [u1, v1], [u0, v1]])
-            elif k == n_lat - 1:
-                faces.append([vid(k, j), vid(k, j + 1), north])
-                uvs.append([[u0, v0], [u1, v0], [(j + 0.5) / n_lon, 1]])
-            else:
-                faces.append([vid(k, j), vid(k, j + 1), vid(k + 1, j + 1), vid(k + 1, j)])
-                uvs.append([[u0, v0], [u1, v0], [u1, v1], [u0, v1]])
-    return MeshModel(verts, faces, uvs, [0] * len(faces), ["Face"])
-
-
-def grid_sheet(x0, x1, z0, z1, y, n, uv_box):
-    """An n x n quad sheet at depth y facing -Y (the front camera), UVs filling uv_box."""
-    s = np.linspace(0, 1, n + 1)
-    gx, gz = np.meshgrid(s, s, indexing="ij")
-    verts = np.stack([x0 + (x1 - x0) * gx, np.full_like(gx, y), z0 + (z1 - z0) * gz], -1)
-    uv = np.stack([uv_box[0] + (uv_box[2] - uv_box[0]) * gx,
-                   uv_box[1] + (uv_box[3] - uv_box[1]) * gz], -1)
-    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
-    faces, uvs = [], []
-    for i in range(n):
-        for k in range(n):
-            # (x, z) counter-clockwise seen from -Y: normal (x-step) x (z-step) = -Y
-            q = [idx[i, k], idx[i + 1, k], idx[i + 1, k + 1], idx[i, k + 1]]
-            faces.append(q)
-            uvs.append(uv.reshape(-1, 2)[q])
-    return verts.reshape(-1, 3), faces, uvs
-
-
-def two_sheets():
-    """A small sheet ("Face") 5 cm in front of a big one ("Head and Neck")."""
-    v1, f1, u1 = grid_sheet(-0.03, 0.03, -0.03, 0.03, -0.05, 6, (0.02, 0.02, 0.45, 0.45))
-    v2, f2, u2 = grid_sheet(-0.08, 0.08, -0.08, 0.08, 0.05, 16, (0.5, 0.02, 0.98, 0.98))
-    f2 = [[i + len(v1) for i in f] for f in f2]
-    return MeshModel(np.vstack([v1, v2]), f1 + f2, u1 + u2, [0] * len(f1) + [1] * len(f2),
-                     ["Face", "Head and Neck"])
-
-
-def coded_photo():
-    """Colour = (u / W, v / H, 0.5): a photo whose colour says where it was sampled."""
-    yy, xx = np.mgrid[0:H, 0:W] + 0.5
-    return np.stack([xx / W, yy / H, np.full_like(xx, 0.5)], -1).astype(np.float32)
+from solver.texture.uvs import resolve_parts, uv_raster, uv_tiles
+from tests.solver.texture.support import H, W, coded_photo, two_sheets, uv_sphere
 
 
 def texel_colours(model, tex, size, **kw):
     r = uv_raster(model, size, **kw)
     return r, tex.reshape(-1, 3)[r.texel]
-
-
-# ---------------------------------------------------------------------------------------
-# raster
-# ---------------------------------------------------------------------------------------
-
-def test_rasterize_square_covers_each_pixel_once_with_exact_barycentrics():
-    tri = np.array([[[0, 0], [10, 0], [10, 10]], [[0, 0], [10, 10], [0, 10]]], float) + 3.2
-    pixel, t, bary = rasterize(tri, 20, 20)
-    uniq, t1, b1 = first_per_pixel(pixel, t, bary)
-    # centres i + 0.5 in [3.2, 13.2]: columns/rows 3..12
-    assert len(uniq) == 100
-    assert set(uniq % 20) == set(range(3, 13)) and set(uniq // 20) == set(range(3, 13))
-    pos = np.einsum("nk,nkd->nd", b1, tri[t1])
-    np.testing.assert_allclose(pos, np.stack([uniq % 20 + 0.5, uniq // 20 + 0.5], 1),
-                               atol=1e-9)
-
-
-def test_rasterize_batches_and_bands_do_not_change_the_result(monkeypatch):
-    import solver.texture.raster as raster_mod
-
-    tri = np.array([[[0, 0], [300, 0], [0, 300]], [[5, 5], [50, 5], [5, 80]],
-                    [[10.3, 20.7], [11.1, 20.9], [10.6, 21.8]]], float)
-    p1, t1, b1 = rasterize(tri, 400, 400)
-    monkeypatch.setattr(raster_mod, "_CHUNK", 1000)  # forces row bands and small batches
-    p2, t2, b2 = rasterize(tri, 400, 400)
-    o1, o2 = np.lexsort((t1, p1)), np.lexsort((t2, p2))
-    np.testing.assert_array_equal(p1[o1], p2[o2])
-    np.testing.assert_array_equal(t1[o1], t2[o2])
-    np.testing.assert_allclose(b1[o1], b2[o2])
-    # each triangle covers about its area in pixel centres
-    counts = np.bincount(t1, minlength=3)
-    assert abs(counts[0] - 300 * 300 / 2) < 310 and abs(counts[1] - 45 * 75 / 2) < 80
-
-
-def test_depth_buffer_keeps_the_nearest_triangle():
-    tri = np.array([[[0, 0], [8, 0], [0, 8]], [[0, 0], [8, 0], [0, 8]]], float)
-    buf = depth_buffer(tri, np.array([[2.0, 2, 2], [1.0, 1, 1]]), 8, 8)
-    assert buf[0, 0] == 1.0 and np.isinf(buf[7, 7])
-
-
-# ---------------------------------------------------------------------------------------
-# orthographic UVs (thesis eq. 48-49)
-# ---------------------------------------------------------------------------------------
-
-def test_orthographic_uvs_match_thesis_formula():
-    w, h = 768, 1024
-    cam = OrthographicCamera.nominal("orthographic-front", (w, h))
-    pts = np.array([[0.0, 0.0, 0.0], [0.1, -0.05, 0.05], [-0.02, 0.3, -0.1]])
-    uv = orthographic_uvs(pts, cam)
-    np.testing.assert_allclose(uv[0], [0.5, 0.5])
-    # eq. 48-49 with the nose-tip origin at pixel (U_n, V_n) = (w/2, h/2) and model
-    # coordinates in image heights: Y = transverse (world x), X = up (world z).
-    un, vn = w / 2, h / 2
-    y_t = pts[:, 0] * cam.scale / h
-    x_t = pts[:, 2] * cam.scale / h
-    np.testing.assert_allclose(uv[:, 0], (un + y_t * h) / w)
-    np.testing.assert_allclose(uv[:, 1], 1 - vn / h + x_t)
-    # depth (world y) does not matter in a parallel projection
-    assert uv[2, 0] == pytest.approx(0.5 - 0.02 * cam.scale / w)
-
-
-def test_orthographic_uvs_rejects_bad_vertices():
-    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
-    with pytest.raises(ValueError, match="vertices"):
-        orthographic_uvs(np.array([[0.0, np.nan, 0.0]]), cam)
-    with pytest.raises(ValueError, match="vertices"):
-        orthographic_uvs(np.zeros((3, 2)), cam)
 
 
 # ---------------------------------------------------------------------------------------
@@ -430,21 +277,6 @@ def test_alpha_zero_pixels_are_ignored():
     tex = bake_texture(m, m.vertices, [(img, cam)], 64, mirror=False)
     got = tex.reshape(-1, 3)[uv_raster(m, 64).texel]
     np.testing.assert_allclose(got, 0.3, atol=1e-5)
-
-
-def test_raster_is_cached_and_reusable():
-    m = uv_sphere()
-    r1 = uv_raster(m, 64)
-    assert uv_raster(m, 64) is r1
-    assert uv_raster(m, 32) is not r1
-    # the sphere's UVs cover the unit square except half of each pole band
-    assert abs(len(r1.texel) / 64**2 - (1 - 1 / 24)) < 0.02
-    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
-    a = bake_texture(m, m.vertices, [(coded_photo(), cam)], 64, raster=r1)
-    b = bake_texture(m, m.vertices, [(coded_photo(), cam)], 64)
-    np.testing.assert_array_equal(a, b)
-    with pytest.raises(ValueError, match="raster"):
-        bake_texture(m, m.vertices, [(coded_photo(), cam)], 32, raster=r1)
 
 
 def test_tiles_and_parts():

@@ -1,0 +1,75 @@
+"""Texture coordinates (solver/texture/uvs.py): per-vertex UVs into a photo (thesis §5) and
+the UV raster kept with the model."""
+
+import gc
+import weakref
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import pytest
+
+from solver.cameras import OrthographicCamera
+from solver.texture.bake import bake_texture
+from solver.texture.uvs import clear_raster_cache, orthographic_uvs, uv_raster
+from tests.solver.texture.support import H, W, coded_photo, uv_sphere
+
+
+def test_orthographic_uvs_match_thesis_formula():
+    w, h = 768, 1024
+    cam = OrthographicCamera.nominal("orthographic-front", (w, h))
+    pts = np.array([[0.0, 0.0, 0.0], [0.1, -0.05, 0.05], [-0.02, 0.3, -0.1]])
+    uv = orthographic_uvs(pts, cam)
+    np.testing.assert_allclose(uv[0], [0.5, 0.5])
+    # eq. 48-49 with the nose-tip origin at pixel (U_n, V_n) = (w/2, h/2) and model
+    # coordinates in image heights: Y = transverse (world x), X = up (world z).
+    un, vn = w / 2, h / 2
+    y_t = pts[:, 0] * cam.scale / h
+    x_t = pts[:, 2] * cam.scale / h
+    np.testing.assert_allclose(uv[:, 0], (un + y_t * h) / w)
+    np.testing.assert_allclose(uv[:, 1], 1 - vn / h + x_t)
+    # depth (world y) does not matter in a parallel projection
+    assert uv[2, 0] == pytest.approx(0.5 - 0.02 * cam.scale / w)
+
+
+def test_orthographic_uvs_rejects_bad_vertices():
+    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
+    with pytest.raises(ValueError, match="vertices"):
+        orthographic_uvs(np.array([[0.0, np.nan, 0.0]]), cam)
+    with pytest.raises(ValueError, match="vertices"):
+        orthographic_uvs(np.zeros((3, 2)), cam)
+
+
+def test_raster_is_cached_and_reusable():
+    m = uv_sphere()
+    r1 = uv_raster(m, 64)
+    assert uv_raster(m, 64) is r1
+    assert uv_raster(m, 32) is not r1
+    # the sphere's UVs cover the unit square except half of each pole band
+    assert abs(len(r1.texel) / 64**2 - (1 - 1 / 24)) < 0.02
+    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
+    a = bake_texture(m, m.vertices, [(coded_photo(), cam)], 64, raster=r1)
+    b = bake_texture(m, m.vertices, [(coded_photo(), cam)], 64)
+    np.testing.assert_array_equal(a, b)
+    with pytest.raises(ValueError, match="raster"):
+        bake_texture(m, m.vertices, [(coded_photo(), cam)], 32, raster=r1)
+
+
+def test_raster_is_kept_with_its_model_and_freed_with_it():
+    m = uv_sphere()
+    first = uv_raster(m, 32)
+    clear_raster_cache(m)
+    again = uv_raster(m, 32)
+    assert again is not first
+    np.testing.assert_array_equal(again.texel, first.texel)
+    assert uv_raster(uv_sphere(), 32) is not again  # another model has rasters of its own
+    gone = weakref.ref(again)
+    del m, first, again
+    gc.collect()
+    assert gone() is None
+
+
+def test_threads_share_one_raster():
+    m = uv_sphere()
+    with ThreadPoolExecutor(4) as pool:
+        got = list(pool.map(lambda _: uv_raster(m, 48), range(8)))
+    assert all(r is got[0] for r in got)
