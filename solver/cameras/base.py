@@ -1,5 +1,5 @@
-"""Cameras: how a photo sees the world. One class per camera model, all with one interface,
-so the fit, the texture bake and the landmarks file never branch on the kind of camera.
+"""The camera interface every kind implements, the registry of kinds, and the checks their
+refits share, so the fit, the texture bake and the landmarks file never branch on a kind.
 
 Conventions (all cameras): world in metres, Blender axes (Z up, face toward -Y, subject's
 left +X). Pixels have their origin at the image's top-left corner, u to the right, v down.
