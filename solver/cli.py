@@ -22,7 +22,7 @@ from .io.landmark_set import load_landmark_set
 from .io.landmarks_file import LandmarksError, load_landmarks
 
 PROG = "python -m solver"
-EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
+EXIT_OK, EXIT_FAILED, EXIT_INTERRUPTED = 0, 1, 130  # argparse exits 2 on bad usage
 
 
 class CliError(Exception):
