@@ -34,7 +34,8 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from solver.cameras.base import ORTHO_VIEWS, OrthographicCamera
-from solver.io.landmarks_file import LandmarkCase, View, load_landmarks, save_landmarks
+from solver.io.case import LandmarkCase, View
+from solver.io.landmarks_file import load_landmarks, save_landmarks
 from solver.model.head_model import load_model
 from solver.synthetic import (
     _distance_to_segments,
