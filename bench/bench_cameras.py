@@ -7,10 +7,8 @@ triangulation, passpoint checking, mirror estimation. Prints numbers; asserts no
 import numpy as np
 
 from bench.common import machine_description, median_time
-from solver.cameras.calib_errors import check_passpoints
-from solver.cameras.dlt import DLTCamera, fit_dlt
+from solver import DLTCamera, PinholeCamera, check_passpoints, fit_dlt
 from solver.cameras.mirror import MirrorPlane, estimate_mirror
-from solver.cameras.pinhole import PinholeCamera
 from solver.cameras.triangulate import triangulate
 
 SIZE = (1920, 1080)

@@ -39,8 +39,7 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from bench.common import machine_description, max_rss_mb, peak_memory  # noqa: E402
-from solver import FitOptions, fit_head, refit_landmarks  # noqa: E402
-from solver.model.head_model import load_model  # noqa: E402
+from solver import FitOptions, fit_head, load_model, refit_landmarks  # noqa: E402
 from solver.synthetic import make_case, skin_error_mm  # noqa: E402
 
 

@@ -63,8 +63,7 @@ from bench.common import (  # noqa: E402
     median_time,
 )
 from bench.fit_bound import fit_bound_mm  # noqa: E402
-from solver import fit_head  # noqa: E402
-from solver.model.head_model import load_model  # noqa: E402
+from solver import fit_head, load_model  # noqa: E402
 from solver.synthetic import make_case, make_perspective_case, skin_error_mm  # noqa: E402
 
 SEED0 = 1000  # bench_fit's seeds: the same heads

@@ -18,8 +18,7 @@ from bench.common import (
     median_time,
     peak_memory,
 )
-from solver.cameras import OrthographicCamera
-from solver.model.head_model import load_model
+from solver import OrthographicCamera, load_model
 from solver.texture.bake import bake_texture, bake_tiles
 from solver.texture.uvs import clear_raster_cache, uv_raster, uv_tiles
 

@@ -29,7 +29,7 @@ the ratio of their errors under equally efficient fits.
 import numpy as np
 from scipy.spatial import cKDTree
 
-from solver.cameras import OrthographicCamera, PinholeCamera
+from solver import OrthographicCamera, PinholeCamera
 from solver.fitting.views import LENS_PRIOR_SIGMA
 from solver.geometry import rotation_from_vector
 from solver.synthetic import resample_polyline, vertex_normals

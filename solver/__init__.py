@@ -19,24 +19,21 @@ from .cameras.dlt import DLTCamera, fit_dlt
 from .cameras.pinhole import PinholeCamera
 from .fitting.fit import FitOptions, fit_head, refit_landmarks
 from .fitting.result import FitResult, ViewResidual
+from .io.camera_json import camera_from_json, camera_to_json
+from .io.case import LandmarkCase, View
+from .io.case_check import MIN_PASSPOINTS, check_case
 from .io.landmark_counts import (
     MIN_LANDMARKS_PER_VIEW,
     MIN_LANDMARKS_TOTAL,
     count_problems,
     landmarks_needed,
 )
+from .io.landmark_set import load_landmark_set
 from .io.landmarks_file import (
     CURRENT_VERSION,
     FORMAT,
-    MIN_PASSPOINTS,
-    LandmarkCase,
     LandmarksError,
-    View,
-    camera_from_json,
-    camera_to_json,
-    check_case,
     landmarks_to_dict,
-    load_landmark_set,
     load_landmarks,
     parse_landmarks,
     save_landmarks,

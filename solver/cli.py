@@ -8,7 +8,6 @@ reads images (with Pillow); the solver's texture functions take arrays.
 """
 
 import argparse
-import io
 import json
 import math
 import sys
@@ -17,19 +16,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .io.landmarks_file import (
-    MIN_LANDMARKS_PER_VIEW,
-    MIN_LANDMARKS_TOTAL,
-    LandmarksError,
-    camera_to_json,
-    load_landmark_set,
-    load_landmarks,
-    write_file_atomic,
-)
+from .io.camera_json import camera_to_json
+from .io.landmark_counts import MIN_LANDMARKS_PER_VIEW, MIN_LANDMARKS_TOTAL
+from .io.landmark_set import load_landmark_set
+from .io.landmarks_file import LandmarksError, load_landmarks
 
 PROG = "python -m solver"
-EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
-REPORT_FORMAT = "headrecon-fit-report"
+EXIT_OK, EXIT_FAILED, EXIT_INTERRUPTED = 0, 1, 130  # argparse exits 2 on bad usage
 
 
 class CliError(Exception):
@@ -62,25 +55,6 @@ def _one_line(text):
     return " ".join(str(text).split()) or "failed"
 
 
-def _jsonable(x):
-    """numpy / tuples / cameras -> plain JSON values (non-finite floats -> None)."""
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, np.generic):
-        return _jsonable(x.item())
-    if isinstance(x, bool | int | str) or x is None:
-        return x
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if hasattr(x, "to_dict"):
-        return _jsonable(x.to_dict())
-    return repr(x)
-
-
 def _read_photo(case, view_name):
     """A view's photo as float32 (H, W, 3|4) in [0, 1], checked against the file's size."""
     from PIL import Image, UnidentifiedImageError
@@ -107,64 +81,6 @@ def _read_photo(case, view_name):
     return arr / np.float32(255.0)
 
 
-def _png_bytes(image):
-    """float (H, W, 3|4) in [0, 1] -> PNG file contents."""
-    from PIL import Image
-
-    a = np.asarray(image, dtype=np.float64)
-    if a.ndim != 3 or a.shape[2] not in (3, 4):
-        raise ValueError(f"texture: expected (H, W, 3|4), got {a.shape}")
-    u8 = np.round(np.clip(np.nan_to_num(a), 0.0, 1.0) * 255.0).astype(np.uint8)
-    buf = io.BytesIO()
-    Image.fromarray(u8, "RGBA" if u8.shape[2] == 4 else "RGB").save(buf, format="PNG")
-    return buf.getvalue()
-
-
-def texture_atlas(model, tiles):
-    """Put baked UDIM tiles side by side in one image and remap the UVs to match, so an
-    OBJ needs a single texture (the ICT skin spans tiles 1001 and 1002).
-
-    Parameters
-    ----------
-    model : HeadModel
-    tiles : dict of int -> ndarray (size, size, C)
-        UDIM tile -> texture (``texture.bake_tiles``); row 0 at the top.
-
-    Returns
-    -------
-    atlas : ndarray, shape (size, n * size, C)
-        The tiles in increasing tile order, left to right.
-    loop_uv : ndarray, shape (L, 2)
-        UVs into the atlas for the faces of baked tiles, the model's UVs elsewhere.
-    textured : ndarray, shape (F,), bool
-        Faces the atlas covers: parts the bake covers (the skin) whose UVs lie in a tile.
-    """
-    from .texture.bake import resolve_parts
-
-    order = sorted(tiles)
-    n = len(order)
-    atlas = np.concatenate([np.asarray(tiles[t]) for t in order], axis=1)
-    start = np.asarray(model.face_loop_start)
-    total = np.asarray(model.face_loop_total)
-    uv = np.asarray(model.loop_uv, dtype=np.float64)
-    first = np.repeat(np.cumsum(total) - total, total)
-    loops = np.repeat(start, total) + np.arange(first.size) - first  # faces in order
-    face_mean = np.add.reduceat(uv[loops], np.cumsum(total) - total, axis=0) / total[:, None]
-    corner = np.floor(face_mean).astype(np.int64)
-    face_tile = 1001 + corner[:, 0] + 10 * corner[:, 1]  # same rule as the bake
-    part_idx, _ = resolve_parts(model)
-    textured = np.isin(np.asarray(model.face_part), part_idx) & np.isin(face_tile, order)
-    column = np.searchsorted(order, face_tile)  # tile's place in the atlas
-    face_of_loop = np.repeat(np.arange(total.size), total)
-    sel = textured[face_of_loop]
-    lp = loops[sel]
-    f = face_of_loop[sel]
-    out = uv.copy()
-    out[lp, 0] = (column[f] + uv[lp, 0] - corner[f, 0]) / n
-    out[lp, 1] = uv[lp, 1] - corner[f, 1]
-    return atlas, out, textured
-
-
 def _prepare_output(path, what):
     p = Path(path)
     if p.exists() and p.is_dir():
@@ -175,56 +91,6 @@ def _prepare_output(path, what):
 
 # --------------------------------------------------------------------------------------
 # fit
-
-
-def _fit_report(args, case, model, result, outputs, timings):
-    skin = getattr(model, "skin", None)
-    unc = np.asarray(result.uncertainty, dtype=np.float64)
-    unc_skin = unc[skin] if skin is not None and unc.size == model.n_vertices else unc
-    residuals = {}
-    for view, r in result.residuals.items():
-        px = np.asarray(r.pixels, dtype=np.float64)
-        residuals[view] = {
-            "landmarks": dict(zip(r.names, px.tolist(), strict=True)),
-            "mean_px": float(px.mean()) if px.size else None,
-            "rms_px": float(np.sqrt((px ** 2).mean())) if px.size else None,
-            "max_px": float(px.max()) if px.size else None,
-            "flagged": list(r.flagged),
-        }
-    landmark_unc = {}
-    for name, vertex in getattr(model, "landmarks", {}).items():
-        if 0 <= vertex < unc.size:
-            landmark_unc[name] = float(unc[vertex])
-    # refit_state is the add-on's live-drag cache (large arrays), not a result
-    info = {k: v for k, v in result.info.items() if k != "refit_state"}
-    return _jsonable({
-        "format": REPORT_FORMAT,
-        "version": 1,
-        "landmarks_file": str(Path(case.source).resolve()),
-        "method": result.method,
-        "options": {k: v for k, v in vars(args).items() if k not in ("func", "debug")},
-        "similarity": {"scale": result.scale, "rotation": result.rotation,
-                       "translation_m": result.translation},
-        "coefficients": {
-            "identity": result.identity_coeffs,
-            "regional": dict(zip(result.regional_names,
-                                 np.asarray(result.regional_coeffs).tolist(), strict=True)),
-        },
-        "residuals": residuals,
-        "flagged": [list(x) for x in result.flagged()],
-        "cameras": result.cameras,
-        "uncertainty_mm": {
-            "over": "skin" if unc_skin is not unc else "all vertices",
-            "mean": float(unc_skin.mean()) if unc_skin.size else None,
-            "median": float(np.median(unc_skin)) if unc_skin.size else None,
-            "p95": float(np.percentile(unc_skin, 95)) if unc_skin.size else None,
-            "max": float(unc_skin.max()) if unc_skin.size else None,
-            "landmarks": landmark_unc,
-        },
-        "timings_s": timings,
-        "outputs": {k: str(Path(v).resolve()) for k, v in outputs.items()},
-        "info": info,
-    })
 
 
 def _cmd_fit(args):
@@ -251,7 +117,8 @@ def _cmd_fit(args):
     # Imported here, after the input checks: a bad file fails fast, before numpy-heavy
     # modules load.
     from .fitting.fit import FitOptions, fit_head
-    from .io.obj import write_obj
+    from .io.export import write_head_obj
+    from .io.report import fit_report, write_fit_report
     from .model.head_model import load_model
 
     model = load_model(args.model)
@@ -277,35 +144,28 @@ def _cmd_fit(args):
     for message in result.info.get("warnings", ()):
         print(f"warning: {message}", file=sys.stderr)
 
-    outputs = {}
-    loop_uv, textured = model.loop_uv, None
+    tiles = None
     if texture_path is not None:
         from .texture.bake import bake_fit_texture
 
         progress(1.0, f"baking the texture from {len(photos)} photo(s)")
         t = time.perf_counter()
         tiles = bake_fit_texture(model, result, photos, size=args.texture_size)
-        atlas, loop_uv, textured = texture_atlas(model, tiles)
-        write_file_atomic(texture_path, _png_bytes(atlas))
-        outputs["texture"] = texture_path
         timings["texture"] = time.perf_counter() - t
 
     progress(1.0, f"writing {out}")
     t = time.perf_counter()
     vertices = result.world_vertices if args.frame == "world" else result.local_vertices
-    written = write_obj(out, vertices, model.loop_vertex, model.face_loop_start,
-                        model.face_loop_total, loop_uv, mtl_texture=texture_path,
-                        textured_faces=textured)
-    outputs["obj"] = written[0]
-    if len(written) > 1:
-        outputs["mtl"] = written[1]
+    written = write_head_obj(out, model, vertices, tiles, texture_path)
+    outputs = {key: written[key] for key in ("texture", "obj", "mtl") if key in written}
     timings["write"] = time.perf_counter() - t
 
     if report_path is not None:
         outputs["report"] = report_path
         timings["total"] = time.perf_counter() - t_start
-        report = _fit_report(args, case, model, result, outputs, timings)
-        write_file_atomic(report_path, json.dumps(report, indent=1, allow_nan=False) + "\n")
+        options = {k: v for k, v in vars(args).items() if k not in ("func", "debug")}
+        write_fit_report(report_path, fit_report(case, model, result, options, outputs,
+                                                 timings))
 
     if not args.quiet:
         for view, r in result.residuals.items():

@@ -26,7 +26,7 @@ from . import geometry
 from .cameras import ORTHO_VIEWS, OrthographicCamera
 from .cameras.mirror import MirrorPlane
 from .cameras.pinhole import SENSOR_MM, PinholeCamera
-from .io.landmarks_file import LandmarkCase, View
+from .io.case import LandmarkCase, View
 from .procrustes import similarity_procrustes
 from .texture.raster import depth_buffer, rasterize
 

@@ -5,7 +5,7 @@ import sys
 
 import pytest
 
-from solver.model.head_model import load_model
+from solver import load_model
 
 
 @pytest.fixture(scope="session")

@@ -36,9 +36,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from solver.io.obj import read_obj, read_obj_positions
 from solver.model.head_model import MODEL_FORMAT, MODEL_FORMAT_VERSION, mesh_edges, vertex_adjacency
 from solver.model.pca import fit_pca
-from tools.obj_io import read_obj, read_obj_positions
 
 # Bump when the builder's output changes for the same inputs (forces a rebuild).
 BUILD_VERSION = 1

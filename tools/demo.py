@@ -27,15 +27,14 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
-from solver.io.landmarks_file import load_landmarks, write_file_atomic
-from solver.model.head_model import load_model
+from solver import load_landmarks, load_model
+from solver.io.atomic import write_file_atomic
 from solver.procrustes import similarity_procrustes
 from tools.make_sample import DEFAULT_OUT as DEFAULT_SAMPLE
 from tools.make_sample import (
     DEFAULT_SAMPLES,
     DEFAULT_SEED,
     DEFAULT_SIZE,
-    face_subset,
     make_sample,
     parse_size,
 )
@@ -102,11 +101,7 @@ def vertex_errors(fitted_local, true_local, skin):
 
 def residual_summary(result):
     """RMS landmark residual in pixels per view and over all views."""
-    per_view = {v: float(np.sqrt(np.mean(np.square(r.pixels)))) if len(r.pixels) else 0.0
-                for v, r in result.residuals.items()}
-    allpx = np.concatenate([np.asarray(r.pixels, dtype=np.float64)
-                            for r in result.residuals.values()])
-    return float(np.sqrt(np.mean(allpx ** 2))), per_view
+    return result.rms_px(), {v: result.rms_px(v) for v in result.residuals}
 
 
 def read_photo(path):
@@ -128,23 +123,16 @@ def write_obj_and_texture(model, result, photos, out, log):
     seconds : float
         Time of the bake.
     """
-    from solver.io.obj import write_obj
-    from solver.texture.bake import bake_fit_texture, tile_atlas
-    from tools.render_util import save_png
+    from solver.io.export import write_head_obj
+    from solver.texture.bake import bake_fit_texture
 
     t0 = time.perf_counter()
     tiles = bake_fit_texture(model, result, photos, size=TEXTURE_SIZE)
-    atlas, uv_scale = tile_atlas(tiles)
     t_bake = time.perf_counter() - t0
-    save_png(out / "head_texture.png", atlas)
     skip = [i for i, n in enumerate(model.part_names)
             if any(w in n.lower() for w in OBJ_SKIP_PART_WORDS)]
-    keep = ~np.isin(model.face_part, skip)
-    loops, start, total = face_subset(model, keep)
-    skin_parts = [model.part_names.index(p) for p in ("Face", "Head and Neck")]
-    write_obj(out / "head.obj", result.local_vertices, model.loop_vertex[loops], start, total,
-              loop_uv=model.loop_uv[loops] * uv_scale, mtl_texture=out / "head_texture.png",
-              textured_faces=np.isin(model.face_part[keep], skin_parts))
+    write_head_obj(out / "head.obj", model, result.local_vertices, tiles,
+                   out / "head_texture.png", faces=~np.isin(model.face_part, skip))
     log(f"  texture baked in {t_bake:.1f} s ({len(tiles)} UDIM tiles), OBJ written")
     return tiles, t_bake
 

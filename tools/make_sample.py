@@ -33,9 +33,15 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
-from solver.cameras import ORTHO_VIEWS, OrthographicCamera
-from solver.io.landmarks_file import LandmarkCase, View, load_landmarks, save_landmarks
-from solver.model.head_model import load_model
+from solver import (
+    ORTHO_VIEWS,
+    LandmarkCase,
+    OrthographicCamera,
+    View,
+    load_landmarks,
+    load_model,
+    save_landmarks,
+)
 from solver.synthetic import (
     _distance_to_segments,
     _longest_cyclic_run,

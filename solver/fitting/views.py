@@ -8,8 +8,9 @@ import numpy as np
 
 from ..cameras import Camera, PinholeCamera, camera_class, fit_dlt, is_side_camera
 from ..cameras.mirror import MirrorPlane
+from ..io.case import LandmarkCase
 from ..io.landmark_counts import landmarks_needed, too_few, too_few_in_all
-from ..io.landmarks_file import LandmarkCase, LandmarkSet
+from ..io.landmark_set import as_landmark_set
 
 
 @dataclass
@@ -101,8 +102,7 @@ def prepare_views(model, case, opts, cameras=None):
         raise ValueError(f"case: expected a LandmarkCase, got {type(case).__name__}")
     if not case.views:
         raise ValueError(f"{case.source}: the case has no views")
-    lms = LandmarkSet.from_dict({"format": "headrecon-landmark-set",
-                                 "landmarks": list(model.landmark_info)}, "<model>")
+    lms = as_landmark_set(model)
     weights = dict(opts.landmark_weights or {})
     for key, val in weights.items():
         if lms.canonical(key) is None:

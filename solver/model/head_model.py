@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
+from ..io.landmark_set import LandmarkSet
 from ..paths import DEFAULT_MODEL_PATH
 from .linear_model import LinearModel
 
@@ -115,6 +116,8 @@ class HeadModel:
     landmark_info : list of dict
         The entries of ``assets/landmarks.json`` (name, description, vertex, views, ibug,
         thesis) as they were when the model was built.
+    landmark_set : LandmarkSet
+        Those entries as a landmark set: resolves names and their ``ibugNN`` aliases.
     profile_chain : ndarray, shape (P,)
         Midsagittal skin vertices ordered front of neck, chin, lips, nose, forehead, over
         the skull, back of neck.
@@ -172,9 +175,8 @@ class HeadModel:
         self._regional_lock = threading.Lock()
 
         self.landmark_info = json.loads(str(a["landmarks_json"]))["landmarks"]
-        self.landmarks = {e["name"]: int(e["vertex"]) for e in self.landmark_info}
-        self._ibug = {int(e["ibug"]): int(e["vertex"]) for e in self.landmark_info
-                      if e.get("ibug") is not None}
+        self.landmark_set = LandmarkSet.from_entries(self.landmark_info, self.path)
+        self.landmarks = dict(self.landmark_set.vertices)
         self.profile_chain = a["profile_chain"].astype(np.int64)
 
     @property
@@ -212,18 +214,12 @@ class HeadModel:
         return mesh_edges(self.loop_vertex, self.face_loop_start, self.face_loop_total)
 
     def landmark_vertex(self, name):
-        """Vertex index of landmark ``name``; ``ibug01`` ... ``ibug68`` are accepted too.
+        """Vertex index of landmark ``name``; ``ibug01`` ... ``ibug68`` are accepted too
+        (``landmark_set`` resolves them).
 
         Raises ValueError naming the landmark when it is unknown.
         """
-        if name in self.landmarks:
-            return self.landmarks[name]
-        if isinstance(name, str) and name.startswith("ibug") and name[4:].isdigit():
-            number = int(name[4:])
-            if number in self._ibug:
-                return self._ibug[number]
-        raise ValueError(f"landmark {name!r}: unknown (use a name from assets/landmarks.json "
-                         "or ibug01..ibug68)")
+        return self.landmark_set.vertex(name)
 
     def regional(self, n_per_region=10):
         """The seven-region model (thesis §3.4) as one LinearModel over all V vertices.

@@ -14,7 +14,7 @@ from bench.fit_bound import (
     similarity_projector,
     skin_error_mm,
 )
-from solver.io.landmarks_file import LandmarkCase, View
+from solver import LandmarkCase, View
 from solver.synthetic import make_case, make_perspective_case, trace_silhouette
 
 

@@ -3,8 +3,7 @@
 import numpy as np
 import pytest
 
-from solver.cameras.pinhole import PinholeCamera
-from solver.io.landmarks_file import landmarks_to_dict, parse_landmarks
+from solver import PinholeCamera, landmarks_to_dict, parse_landmarks
 from solver.synthetic import (
     make_case,
     make_mirror_case,

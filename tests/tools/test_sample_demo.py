@@ -13,8 +13,8 @@ import pytest
 from PIL import Image
 from scipy import ndimage
 
-from solver.cameras import camera_from_dict
-from solver.io.landmarks_file import load_landmarks
+from solver import camera_from_dict, load_landmarks
+from solver.io.obj import read_obj
 from tests import ROOT
 from tools.make_sample import make_sample
 
@@ -155,8 +155,6 @@ def test_demo_writes_everything_and_fits_the_truth(demo, model):
         assert im.width == 3 * 192 and im.height > 2 * 256  # 3 columns, 2 rows + caption
     with Image.open(out / "head_texture.png") as im:
         assert im.size == (2048, 1024)  # two UDIM tiles side by side
-    from tools.obj_io import read_obj
-
     obj = read_obj(out / "head.obj")
     assert obj.positions.shape == (model.n_vertices, 3)
     assert "map_Kd head_texture.png" in (out / "head.mtl").read_text()

@@ -7,8 +7,7 @@ solver agree on one convention: rows (u right, v down, viewing direction).
 
 import numpy as np
 
-from solver.cameras.dlt import DLTCamera
-from solver.cameras.pinhole import PinholeCamera
+from solver import DLTCamera, PinholeCamera
 
 SIZE = (1920, 1080)
 # 1500 px focal length (a 28 mm lens on full frame), principal point at the image centre

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from solver.cameras import ORTHO_VIEWS, Camera, OrthographicCamera, camera_from_dict
+from solver import ORTHO_VIEWS, Camera, OrthographicCamera, camera_from_dict
 
 
 def _tilted(view, angle, scale, offset, size=(768, 1024)):

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
+from solver import DLTCamera, fit_dlt
 from solver.cameras import Camera, camera_from_dict, camera_kinds
-from solver.cameras.dlt import DLTCamera, fit_dlt
 from tests.solver.cameras.support import SIZE, dlt_camera, look_at
 
 # off-centre principal point: the fit must not assume the image centre

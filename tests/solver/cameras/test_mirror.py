@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from solver.cameras import camera_from_dict
+from solver import camera_from_dict
 from solver.cameras.mirror import (
     IBUG_MIRROR,
     MirrorPlane,

@@ -6,9 +6,8 @@ import numpy as np
 import pytest
 
 import solver.cameras.pinhole  # noqa: F401  (registers "pinhole" until cameras._PLUGINS lists it)
-from solver.cameras import Camera, PinholeCamera, camera_from_dict
+from solver import Camera, DLTCamera, PinholeCamera, camera_from_dict, fit_dlt
 from solver.cameras.blender import krc_to_blender
-from solver.cameras.dlt import DLTCamera, fit_dlt
 from solver.geometry import rotation_from_vector
 
 SIZE = (1920, 1080)

@@ -3,8 +3,7 @@
 import numpy as np
 import pytest
 
-from solver.cameras import OrthographicCamera
-from solver.cameras.dlt import DLTCamera
+from solver import DLTCamera, OrthographicCamera
 from solver.cameras.projection_check import (
     check_projection,
     min_distance,

@@ -4,8 +4,8 @@ reconstruction errors below are copied from the seed's text and are the test vec
 
 import numpy as np
 
+from solver import fit_dlt
 from solver.cameras.calib_errors import check_reconstruction
-from solver.cameras.dlt import fit_dlt
 from solver.cameras.triangulate import triangulate
 
 # pt: x y z (metres) | u_1 v_1 | u_2 v_2 | u_4 v_4 (pixels)

@@ -4,7 +4,7 @@ eq. 3.5-3.7)."""
 import numpy as np
 import pytest
 
-from solver.cameras import OrthographicCamera
+from solver import OrthographicCamera
 from solver.cameras.triangulate import ray_midpoint, triangulate
 from tests.solver.cameras.support import dlt_camera
 

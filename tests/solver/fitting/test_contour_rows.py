@@ -5,9 +5,7 @@ outlines from latching onto the wrong rim."""
 import numpy as np
 import pytest
 
-from solver import FitOptions, fit_head
-from solver.cameras import OrthographicCamera
-from solver.cameras.pinhole import PinholeCamera
+from solver import FitOptions, OrthographicCamera, PinholeCamera, fit_head
 from solver.fitting.engine import Engine
 from solver.fitting.outline import CONTOUR_KEEP_SIGMAS, ContourRows, candidate_mesh, shared_edges
 from solver.fitting.rows import PointRows

@@ -6,10 +6,8 @@ import copy
 import numpy as np
 import pytest
 
-from solver import FitOptions, fit_head, refit_landmarks
-from solver.cameras import OrthographicCamera
+from solver import FitOptions, LandmarkCase, OrthographicCamera, View, fit_head, refit_landmarks
 from solver.fitting.outcome import flag_residuals
-from solver.io.landmarks_file import LandmarkCase, View
 from solver.synthetic import make_case, skin_error_mm
 
 

@@ -11,12 +11,19 @@ import sys
 import numpy as np
 import pytest
 
-from solver import FitOptions, fit_head, refit_landmarks
-from solver.cameras import OrthographicCamera
-from solver.cameras.dlt import fit_dlt
-from solver.cameras.pinhole import PinholeCamera
+from solver import (
+    FitOptions,
+    LandmarkCase,
+    OrthographicCamera,
+    PinholeCamera,
+    View,
+    check_case,
+    fit_dlt,
+    fit_head,
+    refit_landmarks,
+    save_landmarks,
+)
 from solver.cameras.triangulate import projection_matrix, triangulate, viewing_rays
-from solver.io.landmarks_file import LandmarkCase, View, check_case, save_landmarks
 from solver.procrustes import similarity_procrustes
 from solver.synthetic import (
     make_case,

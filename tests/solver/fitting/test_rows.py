@@ -4,7 +4,7 @@ return."""
 import numpy as np
 import pytest
 
-from solver.cameras import OrthographicCamera
+from solver import OrthographicCamera
 from solver.fitting.rows import ClosestPointRows, ImageRows, PointRows, ScalarRows
 from tests.solver.fitting.test_shape_icp import _rows, synthetic_model
 

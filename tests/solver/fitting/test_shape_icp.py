@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from solver.cameras import OrthographicCamera
+from solver import OrthographicCamera
 from solver.fitting.rows import ClosestPointRows, ImageRows, PointRows, ScalarRows
 from solver.fitting.shape_icp import ShapeProblem, shape_icp
 from solver.geometry import rotation_from_vector

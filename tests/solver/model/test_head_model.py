@@ -1,5 +1,5 @@
-"""The head model: the builder (tools/build_model.py, tools/obj_io.py), the loader
-(solver/model.py) and our landmark and region assets."""
+"""The head model: the builder (tools/build_model.py), the loader
+(solver/model/head_model.py) and our landmark and region assets."""
 
 import json
 import shutil
@@ -11,7 +11,6 @@ import pytest
 from solver.model.head_model import DEFAULT_MODEL_PATH, fan_triangles, load_model, mesh_edges
 from tests import ROOT as REPO
 from tools import build_model as bm
-from tools.obj_io import parse_obj, parse_obj_positions
 
 ICT_DIR = bm.default_ict_dir()
 HAVE_ICT = (ICT_DIR / bm.SHAPES_NPZ).is_file() or (ICT_DIR / "FaceXModel" / "identity000.obj"
@@ -404,44 +403,7 @@ def test_profile_chain_is_a_clean_midline_path(model):
     assert not hit.any()
 
 
-# --------------------------------------------------------------------------- OBJ and ICT readers
-
-OBJ_TEXT = """# tiny
-v 0 0 0
-v 1 0 0
-v 1 1 0
-v 0 1 0
-v 2 0.5 0
-vt 0 0
-vt 1 0
-vt 1 1
-vt 0 1
-vn 0 0 1
-f 1/1/1 2/2/1 3/3/1 4/4/1
-f 2/2 5/3 3/3
-"""
-
-
-def test_parse_obj_quads_triangles_and_uvs():
-    m = parse_obj(OBJ_TEXT)
-    assert m.positions.shape == (5, 3) and m.uvs.shape == (4, 2)
-    np.testing.assert_array_equal(m.loop_vertex, [0, 1, 2, 3, 1, 4, 2])
-    np.testing.assert_array_equal(m.loop_uv, [0, 1, 2, 3, 1, 2, 2])
-    np.testing.assert_array_equal(m.face_loop_start, [0, 4])
-    np.testing.assert_array_equal(m.face_loop_total, [4, 3])
-    m2 = parse_obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1//1 2//1 3//1\n")
-    np.testing.assert_array_equal(m2.loop_uv, [-1, -1, -1])
-    np.testing.assert_allclose(parse_obj_positions(OBJ_TEXT)[4], [2, 0.5, 0])
-
-
-def test_parse_obj_rejects_bad_indices():
-    with pytest.raises(ValueError, match="vertex 9"):
-        parse_obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n", "bad.obj")
-    with pytest.raises(ValueError, match="negative"):
-        parse_obj("v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -3\n", "rel.obj")
-    with pytest.raises(ValueError, match="no faces"):
-        parse_obj("v 0 0 0\n", "empty.obj")
-
+# --------------------------------------------------------------------------- ICT readers
 
 def _write_obj(path, positions, with_faces=True):
     lines = [f"v {x} {y} {z}" for x, y, z in positions]

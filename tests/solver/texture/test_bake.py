@@ -4,8 +4,7 @@ photos, plus checks on the real head model."""
 import numpy as np
 import pytest
 
-from solver.cameras import OrthographicCamera
-from solver.fitting.result import FitResult
+from solver import FitResult, OrthographicCamera
 from solver.texture.bake import (
     BakeOptions,
     bake_fit_texture,

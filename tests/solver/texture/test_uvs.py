@@ -8,8 +8,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import pytest
 
-from solver.cameras import OrthographicCamera
-from solver.texture.bake import bake_texture
+from solver import OrthographicCamera, bake_texture
 from solver.texture.uvs import clear_raster_cache, orthographic_uvs, uv_raster
 from tests.solver.texture.support import H, W, coded_photo, uv_sphere
 
