@@ -22,7 +22,6 @@ Typical use (the UV rasters are kept with the model, so repeated bakes skip the
 rasterisation)::
 
     tiles = bake_fit_texture(model, result, {"front": front_rgb, "right": side_rgb})
-    atlas, uv_scale = tile_atlas(tiles)  # one image for OBJ / glTF: UVs * uv_scale
 """
 
 from dataclasses import dataclass
@@ -189,41 +188,6 @@ def bake_fit_texture(model, result, images, size=1024, *, parts=None, mirror=Tru
     return bake_tiles(model, result.world_vertices, views, size, parts=parts,
                       similarity=(result.scale, result.rotation, result.translation),
                       mirror=mirror, occluders=occluders, options=options)
-
-
-def tile_atlas(tiles):
-    """Put UDIM tiles side by side in one image, for formats without UDIM (OBJ, glTF).
-
-    Parameters
-    ----------
-    tiles : dict of int -> ndarray (S, S, C)
-        From :func:`bake_tiles`; tiles of the first row only (1001 ... 1010).
-
-    Returns
-    -------
-    image : ndarray, shape (S, k * S, C)
-        Tile 1001 + j in columns [j S, (j + 1) S); a tile the dict lacks is its mean.
-    uv_scale : ndarray, shape (2,)
-        Multiply ``model.loop_uv`` by this to address the atlas: (1 / k, 1).
-    """
-    if not tiles:
-        raise ValueError("tiles: empty")
-    numbers = sorted(int(t) for t in tiles)
-    if numbers[0] < 1001 or numbers[-1] > 1010:
-        raise ValueError(f"tiles: only UDIM tiles 1001..1010 (one row) fit an atlas, got "
-                         f"{numbers}")
-    first = np.asarray(tiles[numbers[0]])
-    k = numbers[-1] - 1000
-    shapes = {np.asarray(t).shape for t in tiles.values()}
-    if len(shapes) != 1 or first.ndim != 3 or first.shape[0] != first.shape[1]:
-        raise ValueError(f"tiles: expected square tiles of one shape, got {sorted(shapes)}")
-    size = first.shape[0]
-    mean = np.mean([np.asarray(t).reshape(-1, first.shape[2]).mean(0) for t in tiles.values()],
-                   axis=0)
-    image = np.empty((size, k * size, first.shape[2]), first.dtype)
-    for j in range(k):  # a handful of tiles, not pixels
-        image[:, j * size:(j + 1) * size] = tiles.get(1001 + j, mean)
-    return image, np.array([1.0 / k, 1.0])
 
 
 def _options(options):

@@ -5,12 +5,12 @@ import numpy as np
 import pytest
 
 from solver import FitResult, OrthographicCamera
+from solver.io.export import texture_atlas
 from solver.texture.bake import (
     BakeOptions,
     bake_fit_texture,
     bake_texture,
     bake_tiles,
-    tile_atlas,
 )
 from solver.texture.uvs import resolve_parts, uv_raster, uv_tiles
 from tests.solver.texture.support import H, W, coded_photo, two_sheets, uv_sphere
@@ -288,11 +288,12 @@ def test_tiles_and_parts():
     assert sorted(tiles) == [1001, 1002]
     one = bake_texture(m, m.vertices, [(coded_photo(), cam)], 64, tile=1002)
     np.testing.assert_allclose(one, tiles[1002], atol=1e-6)
-    atlas, uv_scale = tile_atlas(tiles)
+    atlas, loop_uv, textured = texture_atlas(m, tiles)  # the OBJ's one image
     assert atlas.shape == (64, 128, 3)
     np.testing.assert_array_equal(atlas[:, :64], tiles[1001])
     np.testing.assert_array_equal(atlas[:, 64:], tiles[1002])
-    np.testing.assert_array_equal(uv_scale, [0.5, 1.0])
+    assert textured.all()
+    np.testing.assert_allclose(loop_uv, m.loop_uv * [0.5, 1.0])
     with pytest.raises(ValueError, match="tile"):
         bake_texture(m, m.vertices, [(coded_photo(), cam)], 64)
     with pytest.raises(ValueError, match="parts"):
