@@ -135,3 +135,8 @@ def save_case(case, folder, name, photos=True, seed=0):
     case.source = str(path)
     landmarks_file.save_landmarks(case, path)
     return path, landmarks_file.load_landmarks(path, for_fit=False)
+
+
+def key_blocks(head):
+    """The shape keys of the head object."""
+    return head.data.shape_keys.key_blocks

@@ -6,13 +6,7 @@ import json
 import bpy
 import pytest
 
-from tests.addon.support import addon, snapshot, synthetic_files
-
-
-@pytest.fixture(scope="module")
-def files(model, tmp_path_factory):
-    addon()
-    return synthetic_files(model, tmp_path_factory.mktemp("scene"), seed=3)
+from tests.addon.support import snapshot
 
 
 def _bad_files(folder, good):

@@ -4,17 +4,9 @@ the scene as it was (bpy module, background)."""
 import bpy
 import pytest
 
-from tests.addon.support import addon, imported_scene, snapshot, synthetic_files
+from tests.addon.support import imported_scene, key_blocks, snapshot
 
-
-@pytest.fixture(scope="module")
-def files(model, tmp_path_factory):
-    addon()
-    return synthetic_files(model, tmp_path_factory.mktemp("fit"), seed=5)
-
-
-def _keys(head):
-    return head.data.shape_keys.key_blocks
+FILES_SEED = 5  # the head of the ``files`` fixture (tests/addon/conftest.py)
 
 
 def test_refit_replaces_keys_cleanly(model, files):
@@ -31,12 +23,12 @@ def test_refit_replaces_keys_cleanly(model, files):
     head.shape_key_add(name="artist_key", from_mix=False)
     result = LIVE.result
     assert len(result.regional_names) == 2 * len(model.region_names)
-    assert all(n in _keys(head) for n in result.regional_names)
+    assert all(n in key_blocks(head) for n in result.regional_names)
     objects = snapshot()["objects"]
     props.n_regional = 0
     props.n_identity = 10
     assert bpy.ops.headrecon.fit() == {"FINISHED"}
-    names = [kb.name for kb in _keys(head)]
+    names = [kb.name for kb in key_blocks(head)]
     assert len(names) == len(set(names))
     assert "artist_key" in names
     assert not any(n.startswith(model.region_names[0] + "_") for n in names)

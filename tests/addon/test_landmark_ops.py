@@ -2,16 +2,9 @@
 
 import bpy
 import numpy as np
-import pytest
 from mathutils import Vector
 
-from tests.addon.support import addon, synthetic_files, write_photo
-
-
-@pytest.fixture(scope="module")
-def files(model, tmp_path_factory):
-    addon()
-    return synthetic_files(model, tmp_path_factory.mktemp("scene"), seed=3)
+from tests.addon.support import write_photo
 
 
 def test_place_landmarks_session_and_swap(files, scene, tmp_path):

@@ -5,17 +5,9 @@ import bpy
 import numpy as np
 import pytest
 
-from tests.addon.support import addon, imported_scene, synthetic_files
+from tests.addon.support import imported_scene, key_blocks
 
-
-@pytest.fixture(scope="module")
-def files(model, tmp_path_factory):
-    addon()
-    return synthetic_files(model, tmp_path_factory.mktemp("fit"), seed=5)
-
-
-def _keys(head):
-    return head.data.shape_keys.key_blocks
+FILES_SEED = 5  # the head of the ``files`` fixture (tests/addon/conftest.py)
 
 
 def test_live_refit_follows_a_moved_landmark(model, files):
@@ -39,20 +31,20 @@ def test_live_refit_follows_a_moved_landmark(model, files):
     result = LIVE.result
     assert result is not base
     assert not np.allclose(result.identity_coeffs, base.identity_coeffs)
-    assert _keys(head)["identity_000"].value == pytest.approx(result.identity_coeffs[0],
+    assert key_blocks(head)["identity_000"].value == pytest.approx(result.identity_coeffs[0],
                                                                abs=1e-6)
     # while dragging, the coefficient keys are muted and the detail key shows the shape
-    assert _keys(head)["identity_000"].mute and shape_keys.in_live_shape(head)
+    assert key_blocks(head)["identity_000"].mute and shape_keys.in_live_shape(head)
     local = shape_keys.evaluated_vertices(head, bpy.context.evaluated_depsgraph_get())
     assert np.abs(local - result.local_vertices).max() < 1e-5
     # nothing moved: no refit
     assert LIVE.step(scene) is None
     # the drag ends (the timer does this in the UI): keys back to coefficients + detail
     assert LIVE.finish_drag()
-    assert not _keys(head)["identity_000"].mute and not shape_keys.in_live_shape(head)
+    assert not key_blocks(head)["identity_000"].mute and not shape_keys.in_live_shape(head)
     local = shape_keys.evaluated_vertices(head, bpy.context.evaluated_depsgraph_get())
     assert np.abs(local - result.local_vertices).max() < 1e-5
-    detail = shape_keys.get_key_co(_keys(head)["fit_detail"])
+    detail = shape_keys.get_key_co(key_blocks(head)["fit_detail"])
     assert np.abs(detail - (model.vertices + result.detail)).max() < 1e-5
     # Quick Refit writes the settled form directly
     obj.location.x -= 0.004

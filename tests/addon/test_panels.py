@@ -6,9 +6,8 @@ against Blender's RNA."""
 import types
 
 import bpy
-import pytest
 
-from tests.addon.support import addon, empty_scene, synthetic_files
+from tests.addon.support import addon, empty_scene
 
 ICONS = set(bpy.types.UILayout.bl_rna.functions["label"].parameters["icon"].enum_items.keys())
 
@@ -75,10 +74,7 @@ def _draw_all():
     return log
 
 
-@pytest.fixture(scope="module")
-def files(model, tmp_path_factory):
-    addon()
-    return synthetic_files(model, tmp_path_factory.mktemp("ui"), seed=21)
+FILES_SEED = 21  # the head of the ``files`` fixture (tests/addon/conftest.py)
 
 
 def test_panels_draw_through_the_flow(files):

@@ -1,16 +1,7 @@
 """A photo plane lines up with its camera (bpy module, background)."""
 
 import numpy as np
-import pytest
 from mathutils import Vector
-
-from tests.addon.support import addon, synthetic_files
-
-
-@pytest.fixture(scope="module")
-def files(model, tmp_path_factory):
-    addon()
-    return synthetic_files(model, tmp_path_factory.mktemp("scene"), seed=3)
 
 
 def test_photo_plane_lines_up_with_its_camera(files, scene):

@@ -5,13 +5,9 @@ import bpy
 import numpy as np
 import pytest
 
-from tests.addon.support import addon, imported_scene, synthetic_files
+from tests.addon.support import imported_scene, key_blocks
 
-
-@pytest.fixture(scope="module")
-def files(model, tmp_path_factory):
-    addon()
-    return synthetic_files(model, tmp_path_factory.mktemp("fit"), seed=5)
+FILES_SEED = 5  # the head of the ``files`` fixture (tests/addon/conftest.py)
 
 
 @pytest.fixture(scope="module")
@@ -24,15 +20,11 @@ def fitted(files):
     return scene, scene.headrecon.head, LIVE.result
 
 
-def _keys(head):
-    return head.data.shape_keys.key_blocks
-
-
-def test_shape_keys(model, fitted):
+def test_shapekey_blocks(model, fitted):
     from headrecon_addon import shape_keys
 
     scene, head, result = fitted
-    keys = _keys(head)
+    keys = key_blocks(head)
     k = len(result.identity_coeffs)
     expected = (["Basis"] + [f"identity_{i:03d}" for i in range(k)]
                 + list(result.regional_names) + ["fit_detail"] + list(model.expression_names))
@@ -67,9 +59,9 @@ def test_sliders_reproduce_the_solver(model, fitted):
     world = local @ m[:3, :3].T + m[:3, 3]
     assert np.abs(world - result.world_vertices).max() < 1e-5
     # an expression key moves the head when dialled in (ready to animate)
-    _keys(head)["jawOpen"].value = 1.0
+    key_blocks(head)["jawOpen"].value = 1.0
     moved = shape_keys.evaluated_vertices(head, bpy.context.evaluated_depsgraph_get())
-    _keys(head)["jawOpen"].value = 0.0
+    key_blocks(head)["jawOpen"].value = 0.0
     assert np.abs(moved - local).max() > 1e-3
 
 

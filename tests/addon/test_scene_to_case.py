@@ -5,15 +5,8 @@ import json
 
 import bpy
 import numpy as np
-import pytest
 
-from tests.addon.support import addon, synthetic_files, write_photo
-
-
-@pytest.fixture(scope="module")
-def files(model, tmp_path_factory):
-    addon()
-    return synthetic_files(model, tmp_path_factory.mktemp("scene"), seed=3)
+from tests.addon.support import write_photo
 
 
 def test_import_export_round_trip(files, scene, tmp_path):
