@@ -28,6 +28,7 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 from solver import load_landmarks, load_model
+from solver.errors import rms
 from solver.io.atomic import write_file_atomic
 from solver.procrustes import similarity_procrustes
 from tools.make_sample import DEFAULT_OUT as DEFAULT_SAMPLE
@@ -93,8 +94,7 @@ def vertex_errors(fitted_local, true_local, skin):
     d_rigid = np.linalg.norm(rigid.apply(fitted_local[skin]) - true_local[skin], axis=1)
     per_vertex = np.zeros(len(true_local))
     per_vertex[skin] = d[skin]
-    return {"rms_mm": float(np.sqrt(np.mean(d[skin] ** 2))),
-            "rigid_rms_mm": float(np.sqrt(np.mean(d_rigid ** 2)) * 1000.0),
+    return {"rms_mm": rms(d[skin]), "rigid_rms_mm": rms(d_rigid) * 1000.0,
             "max_mm": float(d[skin].max()), "scale": float(sim.scale),
             "per_vertex_mm": per_vertex}
 

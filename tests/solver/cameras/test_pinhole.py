@@ -5,7 +5,6 @@ import json
 import numpy as np
 import pytest
 
-import solver.cameras.pinhole  # noqa: F401  (registers "pinhole" until cameras._PLUGINS lists it)
 from solver import Camera, DLTCamera, PinholeCamera, camera_from_dict, fit_dlt
 from solver.cameras.blender import krc_to_blender
 from solver.geometry import rotation_from_vector
