@@ -105,7 +105,7 @@ def apply_job(scene, job, textures=True):
     """Main-thread half of a fit: write the job's result (and its baked texture unless
     ``textures`` is False); remember the result for live refits."""
     t = time.perf_counter()
-    job.notes = list(job.calibration_notes)
+    job.notes = list(job.calibration_notes) + list(job.result.info.get("warnings", ()))
     head = result_to_scene.apply_result(scene, job.model, job.result,
                                         job.textures if textures else None,
                                         calibration=job.calibration, notes=job.notes)

@@ -167,6 +167,8 @@ def fit_file(path, out, model, options=None, texture_size=1024, bake=True, glb=F
     reset_scene()
     imgs = _images_for(case, None)  # fails fast on a missing photo, before the fit
     result = fit_head(model, case, options or FitOptions())
+    for message in result.info.get("warnings", ()):
+        print(f"{Path(path).stem}: warning: {message}", file=sys.stderr, flush=True)
     head = build_scene_from_fit(model, case, result, imgs, texture_size=texture_size,
                                 bake=bake, name=Path(path).stem)
     written = [save_blend(out)]

@@ -55,7 +55,14 @@ from .approach1 import approach1, profile_fit
 from .approach2 import approach2
 from .engine import Engine
 from .options import FitOptions, check_options
-from .outcome import choose, make_result, mirror_info, projection_info, vertex_uncertainty
+from .outcome import (
+    choose,
+    make_result,
+    mirror_info,
+    plausibility,
+    projection_info,
+    vertex_uncertainty,
+)
 from .pose import init_pose
 from .rows import ImageRows
 from .views import State, prepare_views, previous_cameras, saved_state, skip_warnings
@@ -93,7 +100,9 @@ def fit_head(model, case, options=None, initial=None):
         ("calibration_rounds": re-calibrations of self-calibrated cameras in approach 1),
         "timings" (seconds), "rms_px" per view and "contour_rms_px", "projection" (per
         photo the parallel-projection error epsilon, see :func:`projection_info`),
-        "mirror" (per mirror view the plane and the landmarks' ray gaps), "warnings"
+        "mirror" (per mirror view the plane and the landmarks' ray gaps),
+        "plausibility" (the identity's Mahalanobis norm and its percentile under the
+        model, ``outcome.plausibility``), "warnings"
         (messages for the user) and "refit_state" (what :func:`refit_landmarks`
         continues from).
 
@@ -187,7 +196,8 @@ def fit_head(model, case, options=None, initial=None):
     # The refit keeps what the full fit found about cameras and mirrors, but says anew
     # which views it skipped: a dragged landmark can make a skipped view usable.
     info["refit_state"]["warnings"] = list(fitted)
-    info["warnings"] = skip_warnings(skipped) + fitted
+    info["plausibility"], implausible = plausibility(result.identity_coeffs)
+    info["warnings"] = skip_warnings(skipped) + fitted + implausible
     timings["result"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
     info["timings"] = timings
@@ -260,6 +270,8 @@ def refit_landmarks(model, case, previous, options=None):
     info = {"approach": previous.info.get("approach", previous.method), "refit": True,
             "refit_state": {**saved, "coeffs": state.coeffs.copy()},
             "warnings": skip_warnings(skipped) + list(saved.get("warnings", []))}
+    info["plausibility"], implausible = plausibility(state.coeffs[:int(opts.n_identity)])
+    info["warnings"] += implausible
     result = make_result(model, eng, state, opts, previous.method, info,
                           uncertainty=np.asarray(previous.uncertainty).copy(),
                           detail=np.asarray(previous.detail).copy(), skipped=skipped)

@@ -4,6 +4,7 @@ on each photo's projection, assembled into a ``FitResult``."""
 
 import numpy as np
 from scipy.spatial import cKDTree
+from scipy.stats import chi2
 
 from ..cameras import OrthographicCamera
 from ..cameras.mirror import triangulate_mirror
@@ -11,6 +12,9 @@ from ..cameras.projection_check import check_orthographic, check_projection
 from ..memo import memo
 from .result import FitResult, ViewResidual
 from .tps import ThinPlateSpline
+
+#: Identity coefficients beyond this percentile of the model's own heads are warned about.
+PLAUSIBLE_PERCENTILE = 99.0
 
 
 def choose(eng, joint, candidates, tie=0.05):
@@ -258,3 +262,22 @@ def projection_info(model, result, eng, opts):
                        "perspective": cam.perspective}
     return out, warnings
 
+
+def plausibility(coeffs):
+    """How typical a head is under the model: the Mahalanobis norm of its identity
+    coefficients (standard deviations) and the percentile of the model's own heads with a
+    smaller norm (the squared norm of K standard-normal coefficients is chi-square with K
+    degrees of freedom). Returns (info, warnings): a warning above PLAUSIBLE_PERCENTILE."""
+    c = np.asarray(coeffs, dtype=np.float64).reshape(-1)
+    norm = float(np.sqrt(c @ c))
+    percentile = 100.0 * float(chi2.cdf(norm * norm, len(c))) if len(c) else 0.0
+    info = {"mahalanobis": norm, "percentile": percentile, "n_coeffs": len(c),
+            "largest_sigma": float(np.abs(c).max()) if len(c) else 0.0}
+    warnings = []
+    if percentile > PLAUSIBLE_PERCENTILE:
+        warnings.append(f"the fitted head is implausible: its identity lies {norm:.1f} "
+                        f"standard deviations from the mean head, beyond {percentile:.2f} % "
+                        f"of the model's heads (one coefficient at "
+                        f"{info['largest_sigma']:.1f} sigma); check misplaced or mislabelled "
+                        "landmarks, swapped views, or raise the landmark noise (noise_px)")
+    return info, warnings

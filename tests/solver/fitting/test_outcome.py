@@ -1,0 +1,44 @@
+"""What a fit ends with (solver/fitting/outcome.py): the plausibility of the fitted head."""
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from solver import fit_head, refit_landmarks
+from solver.fitting.outcome import PLAUSIBLE_PERCENTILE, plausibility
+from solver.synthetic import make_case
+
+
+def test_plausibility_is_the_chi_square_percentile_of_the_norm():
+    info, warnings = plausibility(np.zeros(100))
+    assert info["mahalanobis"] == 0.0 and info["percentile"] == 0.0 and not warnings
+    # a head whose squared norm is the median of chi-square(100) lies at the 50th percentile
+    c = np.full(100, np.sqrt(chi2.median(100) / 100))
+    info, warnings = plausibility(c)
+    assert info["percentile"] == pytest.approx(50.0, abs=1e-6) and not warnings
+    assert info["mahalanobis"] == pytest.approx(np.sqrt(chi2.median(100)))
+
+
+def test_a_head_beyond_the_99th_percentile_is_warned():
+    k = 100
+    just_in = np.full(k, np.sqrt(chi2.ppf(0.985, k) / k))
+    beyond = np.full(k, np.sqrt(chi2.ppf(0.995, k) / k))
+    assert not plausibility(just_in)[1]
+    info, warnings = plausibility(beyond)
+    assert info["percentile"] > PLAUSIBLE_PERCENTILE
+    assert len(warnings) == 1 and "implausible" in warnings[0] and "noise_px" in warnings[0]
+
+
+def test_fits_report_plausibility_and_warn_of_implausible_heads(model):
+    case, truth = make_case(model, 1003, noise_px=1.0)
+    res = fit_head(model, case)
+    p = res.info["plausibility"]
+    assert p["n_coeffs"] == 100 and p["percentile"] < PLAUSIBLE_PERCENTILE
+    assert not [w for w in res.info["warnings"] if "implausible" in w]
+    assert refit_landmarks(model, case, res).info["plausibility"]["mahalanobis"] == \
+        pytest.approx(p["mahalanobis"], rel=0.01)  # the same landmarks: about the same head
+    # a head four times as far from the mean as the model's own heads
+    odd, _ = make_case(model, 1003, noise_px=1.0, coeff_scale=4.0)
+    res = fit_head(model, odd)
+    assert res.info["plausibility"]["percentile"] > PLAUSIBLE_PERCENTILE
+    assert [w for w in res.info["warnings"] if "implausible" in w]
