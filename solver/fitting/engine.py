@@ -207,6 +207,19 @@ class Engine:
             cost += self.lambda1**2 * float(gc @ gc)
         return cost
 
+    def effective_parameters(self, cov):
+        """The number of coefficients the data, not the prior, decide: K - tr(P Sigma), with
+        P the prior's precision as :meth:`prior_cost` counts it and ``cov`` (K, K) the
+        posterior covariance of the coefficients."""
+        k = cov.shape[0]
+        if self.prior == "identity":
+            prec = np.diag(self.lambda2**2 * np.asarray(self.lin.stddev[:k]) ** 2)
+        else:
+            prec = self.lambda2**2 * np.eye(k)
+        if self.gamma is not None:
+            prec = prec + self.lambda1**2 * (self.gamma.T @ self.gamma)[:k, :k]
+        return float(k - np.trace(prec @ cov))
+
     def camera_prior_cost(self, state, views=None):
         """The focal-length priors of the free pinhole cameras (of ``views``' real cameras,
         default all): sum of ((log f - log f0) / sigma)^2, the cost ``PinholeCamera.refit``
@@ -401,7 +414,8 @@ class Engine:
         trimmed. Returns (rows, candidate vertices)."""
         cand, faces, edges = self.outline_candidates(view, outlines)
         rows = ContourRows(np.arange(start, start + len(cand)), view.contour, view.camera,
-                           weights=self.contour_weight * self.inv_var, faces=faces,
+                           weights=self.contour_weight * self.inv_var * view.contour_scale,
+                           faces=faces,
                            edges=edges, max_distance=self.contour_threshold,
                            keep_distance=self.contour_keep if keep_distance is None
                            else keep_distance, name=f"contour {view.name}")

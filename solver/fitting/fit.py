@@ -54,6 +54,7 @@ from ..errors import rms
 from .approach1 import approach1, profile_fit
 from .approach2 import approach2
 from .engine import Engine
+from .noise import MAX_ROUNDS, Noise, estimate_noise
 from .options import FitOptions, check_options
 from .outcome import (
     choose,
@@ -69,12 +70,21 @@ from .views import State, prepare_views, previous_cameras, saved_state, skip_war
 
 
 class Progress:
-    def __init__(self, callback):
-        self.callback = callback
+    """The options' progress callback, given fractions of the part ``lo`` .. ``hi`` of
+    the whole fit."""
+
+    def __init__(self, callback, lo=0.0, hi=1.0):
+        self.callback, self.lo, self.hi = callback, lo, hi
 
     def __call__(self, fraction, message):
         if self.callback is not None:
-            self.callback(float(min(max(fraction, 0.0), 1.0)), message)
+            f = self.lo + (self.hi - self.lo) * float(min(max(fraction, 0.0), 1.0))
+            self.callback(f, message)
+
+    def part(self, lo, hi):
+        """The progress of a part: ``lo`` .. ``hi`` of this one."""
+        span = self.hi - self.lo
+        return Progress(self.callback, self.lo + span * lo, self.lo + span * hi)
 
 
 def fit_head(model, case, options=None, initial=None):
@@ -116,8 +126,42 @@ def fit_head(model, case, options=None, initial=None):
     t0 = time.perf_counter()
     opts = check_options(options, model)
     progress = Progress(opts.progress)
+    if opts.noise == "fixed":
+        return _fit(model, case, opts, initial, None, progress, t0)[0]
+    # The noise from the fit's residuals, the fit again with it, until the estimate
+    # settles (noise.py); each fit after the first starts where the last one ended.
+    result, contour, effective = _fit(model, case, opts, initial, None,
+                                      progress.part(0.0, 0.55), t0)
+    noise, rounds = None, 1
+    timings = dict(result.info["timings"])
+    while rounds < MAX_ROUNDS:
+        estimate = estimate_noise({n: (r.names, r.pixels) for n, r in result.residuals.items()},
+                                  contour, effective, opts.noise_px)
+        if noise is not None and noise.settled(estimate):
+            break
+        noise = estimate
+        part = 0.55 + 0.15 * (rounds - 1)
+        result, contour, effective = _fit(model, case, opts, result, noise,
+                                          progress.part(part, part + 0.15), t0)
+        rounds += 1
+        for stage, seconds in result.info["timings"].items():
+            timings[stage] = seconds if stage == "total" else timings.get(stage, 0.0) + seconds
+    result.info["noise"] = {**(noise or Noise(floor_px=opts.noise_px)).report(),
+                            "fits": rounds}
+    result.info["refit_state"]["noise"] = noise
+    result.info["timings"] = timings
+    progress(1.0, f"done ({result.info['approach']}, {rounds} fits)")
+    return result
+
+
+def _fit(model, case, opts, initial, noise, progress, t0):
+    """One fit of the case with landmark and outline weights from ``noise`` (None: all
+    placed with ``noise_px``), from ``initial``'s state when given. Returns (result,
+    contour residuals per view, effective number of fitted parameters)."""
+
+
     cams = None if initial is None else previous_cameras(initial, "initial")
-    views, skipped = prepare_views(model, case, opts, cameras=cams)
+    views, skipped = prepare_views(model, case, opts, cameras=cams, noise=noise)
     eng = Engine.for_fit(model, views, opts)
     timings = {}
     info_p = {}
@@ -154,7 +198,7 @@ def fit_head(model, case, options=None, initial=None):
     joint = source.pop("joint", None)
     if joint is None or opts.front_weight != 1.0:
         joint = eng.joint(eng.views, outlines=source["outlines"])
-    chosen, scores = choose(eng, joint, candidates)
+    chosen, scores = choose(eng, joint, candidates, by_cost=noise is not None)
     state = candidates[chosen][0]
     eng.use(state)
     progress(0.85, "uncertainty and result")
@@ -202,7 +246,7 @@ def fit_head(model, case, options=None, initial=None):
     timings["total"] = time.perf_counter() - t0
     info["timings"] = timings
     progress(1.0, f"done ({chosen})")
-    return result
+    return result, contour, eng.effective_parameters(cov)
 
 
 def refit_landmarks(model, case, previous, options=None):
@@ -242,7 +286,8 @@ def refit_landmarks(model, case, previous, options=None):
     opts = FitOptions(**{**opts.__dict__, "n_identity": int(saved["n_identity"]),
                          "n_regional": int(saved["n_regional"]), "method": previous.method})
     views, skipped = prepare_views(model, case, opts,
-                                    cameras=previous_cameras(previous, "previous"))
+                                    cameras=previous_cameras(previous, "previous"),
+                                    noise=saved.get("noise"))
     eng = Engine.for_fit(model, views, opts)
     state, saved = saved_state(previous, eng, views, "previous")
     eng.use(state)
@@ -257,7 +302,7 @@ def refit_landmarks(model, case, previous, options=None):
         if pairs is not None and len(pairs["vertices"]):
             cv = np.asarray(pairs["vertices"], dtype=np.int64)
             rows.append(ImageRows(np.arange(off, off + len(cv)), pairs["pixels"], v.camera,
-                                  weights=opts.contour_weight * eng.inv_var,
+                                  weights=opts.contour_weight * eng.inv_var * v.contour_scale,
                                   name=f"contour {v.name}"))
             verts.append(cv)
             off += len(cv)

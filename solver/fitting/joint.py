@@ -173,7 +173,8 @@ class Joint:
                 x = self.world(state)
             sel, px = rows.pairs(x[rows.vertices])
             out.setdefault(v.name, []).append(
-                (self.orig[rows.vertices[sel]], px, np.full(len(sel), self.eng.contour_weight)))
+                (self.orig[rows.vertices[sel]], px,
+                 np.full(len(sel), self.eng.contour_weight * v.contour_scale)))
         return out
 
     def refit(self, state):

@@ -41,8 +41,14 @@ class FitOptions:
     tolerance : float
         Stop a stage when its cost changes by less than this fraction in a round.
     progress : callable(fraction, message) or None
+    noise : {"estimate", "fixed"}
+        "estimate": the placement noise of each view's landmarks and outline is estimated
+        from the fit's own residuals, with a Student-t weight per landmark, and the fit
+        repeated with them (``noise.py``); ``noise_px`` is then the least noise assumed.
+        "fixed": every landmark and outline point is placed with ``noise_px``.
     noise_px : float
-        Standard deviation of landmark placement the weights assume, pixels.
+        Standard deviation of landmark placement the weights assume (the floor of the
+        estimate), pixels.
     contour_weight : float
         Weight of one traced outline point relative to one landmark (a point that
         stands for less than 6 pixels of outline weighs that much less; see
@@ -85,6 +91,7 @@ class FitOptions:
     max_iterations: int = 40
     tolerance: float = 1e-4
     progress: Callable | None = None
+    noise: str = "estimate"
     noise_px: float = 1.0
     contour_weight: float = 1.0
     contour_threshold_px: float = 20.0
@@ -123,6 +130,8 @@ def check_options(options, model):
         val = getattr(o, name)
         if not isinstance(val, int | float) or not np.isfinite(val) or val <= 0:
             raise ValueError(f"options.{name}: must be a finite number > 0, got {val!r}")
+    if o.noise not in ("estimate", "fixed"):
+        raise ValueError(f"options.noise: {o.noise!r}; use 'estimate' or 'fixed'")
     if o.prior not in ("eigen", "identity"):
         raise ValueError(f"options.prior: {o.prior!r}; use 'eigen' or 'identity'")
     for name in ("max_iterations", "tps_iterations"):

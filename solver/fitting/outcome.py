@@ -17,12 +17,15 @@ from .tps import ThinPlateSpline
 PLAUSIBLE_PERCENTILE = 99.0
 
 
-def choose(eng, joint, candidates, tie=0.05):
+def choose(eng, joint, candidates, tie=0.05, by_cost=False):
     """The candidate whose landmarks and contour reproject best; within ``tie`` (relative)
-    of the best, the one with the smallest shape prior (the more typical head)."""
+    of the best, the one with the smallest shape prior (the more typical head). With
+    ``by_cost`` "best" is the lowest posterior cost (residuals weighted by their estimated
+    noise, plus the priors) instead of the plain pixel RMS, which an overfitted head wins."""
     scores = {}
     for name, (state, _) in candidates.items():
-        scores[name] = (joint.reprojection_rms(state), eng.prior_cost(state.coeffs))
+        fit = joint.cost(state) if by_cost else joint.reprojection_rms(state)
+        scores[name] = (fit, eng.prior_cost(state.coeffs))
     best_rms = min(r for r, _ in scores.values())
     close = [n for n, (r, _) in scores.items() if r <= best_rms * (1.0 + tie) + 1e-9]
     chosen = min(close, key=lambda n: scores[n][1])

@@ -42,6 +42,10 @@ class ViewData:
         view's camera (None: an ordinary view, or a mirror view whose camera is given and
         kept).
 
+    contour_scale : float
+        Weight of the outline's rows relative to ``contour_weight`` / noise^2 (the
+        estimated outline noise, ``noise.Noise.contour_factor``).
+
     A view's outline candidates are not stored here: they depend on the head they were
     found on, so each stage passes its own to :meth:`Engine.joint` (``outlines``).
     """
@@ -56,6 +60,7 @@ class ViewData:
     contour: np.ndarray | None = None
     refit: bool = True
     mirror_of: str | None = None
+    contour_scale: float = 1.0
 
 
 @dataclass
@@ -77,10 +82,11 @@ class State:
 
 
 
-def prepare_views(model, case, opts, cameras=None):
+def prepare_views(model, case, opts, cameras=None, noise=None):
     """The case's views as ``ViewData``; every problem is a ValueError naming the view or
     landmark. ``cameras`` (view name -> Camera, e.g. a previous fit's) replaces the file's
-    cameras and nothing is computed.
+    cameras and nothing is computed. ``noise`` (a ``noise.Noise``) scales each landmark's
+    weight and each outline's by the estimated placement noise.
 
     A mirror view (``View.mirror_of``) whose camera is not kept is linked to the view it
     mirrors: its camera is that view's camera reflected in a mirror plane the fit
@@ -141,6 +147,8 @@ def prepare_views(model, case, opts, cameras=None):
             verts.append(vtx)
             px.append(uv)
         w = opts.landmark_weight * np.array([weights.get(n, 1.0) for n in names])
+        if noise is not None:
+            w = w * np.array([noise.landmark_factor(name, n) for n in names])
         used = int(np.count_nonzero(w))
         rule = {"kept": kept, "passpoints": bool(view.passpoints), "mirror": link is not None}
         if cameras is not None:
@@ -177,7 +185,7 @@ def prepare_views(model, case, opts, cameras=None):
         side = cam is not None and is_side_camera(cam)
         data = ViewData(name, cam, names, np.array(verts, dtype=np.int64),
                         np.array(px, dtype=np.float64).reshape(-1, 2), w, side, contour,
-                        refit, link)
+                        refit, link, 1.0 if noise is None else noise.contour_factor(name))
         (views if used else skipped).append(data)
     for v in views:
         if v.mirror_of is not None and any(u.name == v.mirror_of for u in skipped):

@@ -160,8 +160,10 @@ def test_refit_follows_a_dragged_landmark(model, noisy, noisy_fit):
     np.testing.assert_allclose(
         fast.local_vertices, model.identity.instance(fast.identity_coeffs) + fast.detail,
         atol=1e-12)
-    # agrees with a full fit started from the same state
-    full = fit_head(model, case, FitOptions(method="approach1"), initial=noisy_fit)
+    # agrees with a full fit started from the same state with the same weights (a full fit
+    # that estimates the noise anew would take an 8-px drag of a 1-px case as an outlier)
+    full = fit_head(model, case, FitOptions(method="approach1", noise="fixed"),
+                    initial=noisy_fit)
     d = 1000 * np.sqrt(((fast.local_vertices[model.skin]
                          - full.local_vertices[model.skin]) ** 2).sum(1).mean())
     moved = 1000 * np.sqrt(((noisy_fit.local_vertices[model.skin]

@@ -1,0 +1,83 @@
+"""The placement noise estimated from the fit (solver/fitting/noise.py): the estimate, the
+Student-t weights, and what they do to a fit."""
+
+import copy
+
+import numpy as np
+import pytest
+
+from solver import FitOptions, fit_head, refit_landmarks
+from solver.fitting.noise import consistency, estimate_noise
+from solver.synthetic import make_case, skin_error_mm
+
+
+def test_estimate_recovers_a_known_sigma_and_drops_an_outlier():
+    rng = np.random.default_rng(0)
+    names = [f"p{i}" for i in range(200)]
+    r = np.linalg.norm(rng.normal(scale=4.0, size=(200, 2)), axis=1)
+    r[7] = 100.0  # one landmark placed 100 px off
+    c = np.abs(rng.normal(scale=2.0, size=150))
+    noise = estimate_noise({"front": (names, r)}, {"front": c}, effective=0.0, floor_px=1.0)
+    assert noise.landmark_px["front"] == pytest.approx(4.0, rel=0.1)
+    assert noise.contour_px["front"] == pytest.approx(2.0, rel=0.15)
+    w = noise.weights["front"]
+    assert w["p7"] < 0.01 and np.median(list(w.values())) == pytest.approx(1.0, abs=0.2)
+    assert list(noise.report()["down_weighted"]["front"]) == ["p7"]
+    # the floor holds: well-placed landmarks are not trusted beyond noise_px
+    tiny = estimate_noise({"front": (names, r * 0.01)}, {}, 0.0, floor_px=1.0)
+    assert tiny.landmark_px["front"] == pytest.approx(1.0)
+
+
+def test_consistency_turns_the_t_scale_into_the_gaussian_sigma():
+    rng = np.random.default_rng(1)
+    sq = (rng.normal(size=(400000, 2)) ** 2).sum(axis=1)
+    s2 = 1.0
+    for _ in range(60):
+        s2 = (7.0 * sq / (5.0 + sq / s2)).mean() / 2.0
+    assert consistency(2) == pytest.approx(s2, rel=5e-3)
+
+
+@pytest.mark.parametrize("sigma", [2.0, 4.0])
+def test_a_known_noise_is_recovered_within_20_percent(model, sigma):
+    case, _ = make_case(model, 2, noise_px=sigma, contour_noise_px=sigma)
+    res = fit_head(model, case)
+    for view, est in res.info["noise"]["landmark_px"].items():
+        assert est == pytest.approx(sigma, rel=0.2), view
+    assert res.info["noise"]["fits"] >= 2
+
+
+def test_one_landmark_100_px_off_moves_the_head_less_than_0_3_mm(model):
+    case, _ = make_case(model, 3, noise_px=1.0)
+    bad = copy.deepcopy(case)
+    u, v = bad.views["front"].points["nose_tip"]
+    bad.views["front"].points["nose_tip"] = (u + 100.0, v)
+    good, worse = fit_head(model, case), fit_head(model, bad)
+    assert skin_error_mm(model, worse.local_vertices, good.local_vertices) < 0.3
+    assert "nose_tip" in worse.info["noise"]["down_weighted"]["front"]
+    # with the noise fixed the same landmark drags the head (what the estimate prevents)
+    fixed = FitOptions(noise="fixed")
+    assert skin_error_mm(model, fit_head(model, bad, fixed).local_vertices,
+                         fit_head(model, case, fixed).local_vertices) > 1.0
+
+
+def test_noisier_landmarks_keep_the_head_nearer_the_mean(model):
+    case, _ = make_case(model, 4, noise_px=6.0)
+    est = fit_head(model, case)
+    fixed = fit_head(model, case, FitOptions(noise="fixed"))
+    assert np.linalg.norm(est.identity_coeffs) < 0.8 * np.linalg.norm(fixed.identity_coeffs)
+
+
+def test_the_refit_keeps_the_estimated_weights(model):
+    case, _ = make_case(model, 3, noise_px=1.0)
+    bad = copy.deepcopy(case)
+    u, v = bad.views["front"].points["nose_tip"]
+    bad.views["front"].points["nose_tip"] = (u + 100.0, v)
+    res = fit_head(model, bad)
+    again = refit_landmarks(model, bad, res)
+    assert skin_error_mm(model, again.local_vertices, res.local_vertices) < 0.2
+
+
+def test_bad_noise_option_is_named(model):
+    case, _ = make_case(model, 3, noise_px=1.0)
+    with pytest.raises(ValueError, match="options.noise"):
+        fit_head(model, case, FitOptions(noise="guess"))
