@@ -19,6 +19,7 @@ Axes as everywhere in the project: metres, Blender axes (Z up, face toward -Y, s
 left +X).
 """
 
+import json
 import os
 import struct
 from dataclasses import dataclass, field
@@ -714,8 +715,6 @@ def load_scan(folder, name="james"):
     """The scan ``<folder>/<name>.obj`` (mm), its landmarks ``<name>.ljson`` (mm, mapped to
     iBUG numbers by :func:`ibug_numbers`) and its texture ``<name>.jpg``'s two halves as
     photos "photo_a" (left half) and "photo_b" (right half)."""
-    import json
-
     folder = Path(folder)
     v, tri, uv, tri_uv = read_obj(folder / f"{name}.obj")
     vertices = obj_to_blender(v) / 1000.0
