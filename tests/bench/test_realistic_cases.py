@@ -1,0 +1,155 @@
+"""The realistic benchmark's cases and score (bench/realistic_cases.py): the out-of-model
+displacement lies outside the model's span at the requested size, the surface distance is
+exact, the ICP alignment finds a known similarity, people's landmarks are where they
+should be, and the real scan's landmarks and photo cameras are right (skipped when the
+scan is not there)."""
+
+import numpy as np
+import pytest
+
+from bench.realistic_cases import (
+    OUTLINE_IBUG,
+    Surface,
+    align_icp,
+    calibrate,
+    closest_on_triangles,
+    james_folder,
+    load_scan,
+    make_realistic_case,
+    model_face_vertices,
+    out_of_model_displacement,
+    part_triangles,
+    sample_surface,
+    span_basis,
+)
+from solver.geometry import rotation_from_vector
+from solver.procrustes import Similarity, similarity_procrustes
+from tests import ROOT
+
+
+def test_displacement_is_outside_the_span_with_the_requested_rms(model):
+    rng = np.random.default_rng(3)
+    local = model.identity.instance(rng.normal(size=model.identity.n_coeffs))
+    d = out_of_model_displacement(model, local, rng, 0.002)
+    face = model_face_vertices(model)
+    assert np.sqrt((d[face] ** 2).sum(axis=1).mean()) == pytest.approx(0.002, rel=1e-12)
+    # Orthogonal over the skin to every identity mode and every similarity move.
+    basis = span_basis(model, local, model.skin)
+    flat = d[model.skin].reshape(-1)
+    cos = basis.T @ flat / (np.linalg.norm(basis, axis=0) * np.linalg.norm(flat))
+    assert np.abs(cos).max() < 1e-8
+    # Smooth and not tiny anywhere it matters: the face holds most of it.
+    assert np.sqrt((d[model.skin] ** 2).sum(axis=1).mean()) < 0.002
+
+
+def test_closest_point_on_a_triangle_is_exact():
+    a, b, c = np.array([0.0, 0, 0]), np.array([1.0, 0, 0]), np.array([0.0, 1, 0])
+    cases = [
+        ((0.2, 0.3, 0.5), (0.2, 0.3, 0.0)),    # above the inside
+        ((0.5, -0.4, 0.3), (0.5, 0.0, 0.0)),   # beyond the edge a-b
+        ((0.8, 0.8, -0.1), (0.5, 0.5, 0.0)),   # beyond the edge b-c
+        ((-0.3, 0.4, 0.2), (0.0, 0.4, 0.0)),   # beyond the edge a-c
+        ((-0.2, -0.1, 0.4), (0.0, 0.0, 0.0)),  # near the corner a
+        ((1.5, -0.2, 0.0), (1.0, 0.0, 0.0)),   # near the corner b
+        ((-0.1, 1.3, 0.2), (0.0, 1.0, 0.0)),   # near the corner c
+    ]
+    p = np.array([q for q, _ in cases])
+    expect = np.array([e for _, e in cases])
+    n = len(p)
+    got = closest_on_triangles(p, np.tile(a, (n, 1)), np.tile(b, (n, 1)), np.tile(c, (n, 1)))
+    np.testing.assert_allclose(got, expect, atol=1e-15)
+    # The same through a Surface of that triangle and a far, large one beside it.
+    verts = np.vstack([a, b, c, [5.0, 0, 0], [9.0, 0, 0], [5.0, 4, 0]])
+    dist, q = Surface(verts, [[0, 1, 2], [3, 4, 5]], k=1, spacing=0.5).closest(p)
+    np.testing.assert_allclose(q, expect, atol=1e-15)
+    np.testing.assert_allclose(dist, np.linalg.norm(p - expect, axis=1), atol=1e-15)
+
+
+def test_surface_distance_matches_brute_force_on_the_head(model):
+    tris = part_triangles(model)
+    rng = np.random.default_rng(0)
+    p = sample_surface(model.vertices, tris, 60, rng)
+    p += rng.normal(size=p.shape) * rng.choice([0.0005, 0.005, 0.03], size=(60, 1))
+    dist, q = Surface(model.vertices, tris).closest(p)
+    c = model.vertices[tris]
+    brute = np.linalg.norm(closest_on_triangles(p[:, None], c[None, :, 0], c[None, :, 1],
+                                                c[None, :, 2]) - p[:, None], axis=2).min(1)
+    np.testing.assert_allclose(dist, brute, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(q - p, axis=1), dist, atol=1e-12)
+
+
+def test_icp_finds_a_known_similarity(model):
+    tris = part_triangles(model)
+    rng = np.random.default_rng(1)
+    truth = Similarity(1.04, rotation_from_vector([0.03, -0.02, 0.04]), np.array([0.003, 0.0,
+                                                                                  -0.002]))
+    face = model_face_vertices(model)
+    face_tris = tris[face[tris].all(axis=1)]
+    samples = truth.apply(sample_surface(model.vertices, face_tris, 3000, rng))
+    start = Similarity(1.0, np.eye(3), np.zeros(3))
+    sim, rms = align_icp(Surface(model.vertices, tris), samples, start)
+    assert rms < 2e-5
+    assert sim.scale == pytest.approx(1.04, abs=1e-3)
+    np.testing.assert_allclose(sim.rotation, truth.rotation, atol=1e-3)
+
+
+def test_realistic_case_places_landmarks_as_people_do(model):
+    case, truth = make_realistic_case(model, 5000)
+    ibug = {e["name"]: e["ibug"] for e in model.landmark_info if e.get("ibug")}
+    profile = set(case.views["right"].points)
+    assert "chin_bottom" in profile
+    assert not any(ibug.get(n) in OUTLINE_IBUG and ibug[n] != 9 for n in profile)
+    assert set(case.views["front"].points) >= {n for n, i in ibug.items() if i <= 17}
+    assert 1.5 <= truth.displacement_mm <= 3.0
+    assert 3.0 <= truth.placement.bias_px <= 5.0 and 3.0 <= truth.placement.noise_px <= 6.0
+    # Bias and noise together: about sqrt(bias^2 + noise^2), more for the sliding outline.
+    assert 4.0 < truth.landmark_rms_px < 12.0
+    assert case.views["right"].contour.shape == (100, 2)
+    assert case.views["front"].contour is None
+
+
+@pytest.fixture(scope="module")
+def scan():
+    folder = james_folder(ROOT)
+    if not (folder / "james.obj").is_file():
+        pytest.skip(f"the scan james is not in {folder}")
+    return load_scan(folder)
+
+
+def _subject_right(p):
+    """The subject's right from iBUG points (dict number -> (3,)) without using their
+    sides: up from the menton to the nose bridge, forward from the eye and mouth corners
+    to the nose tip; right = forward x up (Blender: -Y x Z = -X)."""
+    up = p[28] - p[9]
+    forward = p[31] - np.mean([p[37], p[46], p[49], p[55]], axis=0)
+    return np.cross(forward, up), up
+
+
+def test_james_landmarks_are_mapped_by_side(scan, model):
+    p = scan.ibug
+    right, up = _subject_right(p)
+    assert (p[37] - p[46]) @ right > 0  # the right eye's outer corner on the right
+    assert (p[1] - p[17]) @ right > 0 and (p[49] - p[55]) @ right > 0
+    assert p[28] @ up > p[31] @ up > p[34] @ up  # nose bridge top, tip, then subnasale
+    mean = {int(e["ibug"]): model.vertices[e["vertex"]] for e in model.landmark_info
+            if e.get("ibug")}
+    m_right, _ = _subject_right(mean)
+    assert (mean[37] - mean[46]) @ m_right > 0  # the rule agrees with the model's names
+    # A similarity lays the mean head's points on the scan's far better than their mirror.
+    keys = range(1, 69)
+    src = np.array([mean[k] for k in keys])
+    rms = similarity_procrustes(src, scan.landmark_array).rms
+    mirrored = similarity_procrustes(src * [-1.0, 1.0, 1.0], scan.landmark_array).rms
+    assert rms < 0.012 and rms < 0.3 * mirrored
+
+
+def test_james_photos_are_calibrated_to_their_texture(scan):
+    assert set(scan.photos) == {"photo_a", "photo_b"}
+    for photo, (verts, px, size) in scan.photos.items():
+        assert size == (1200, 1600)
+        c = calibrate(scan, photo)
+        r = np.linalg.norm(c.camera.project(scan.vertices[verts]) - px, axis=1)
+        assert c.used >= 0.99 * len(verts)
+        assert np.sqrt(np.mean(r**2)) < 1.0 and np.percentile(r, 99) < 3.0
+        assert c.rms_px < 1.0
+        assert (c.camera.depth(scan.vertices[verts]) > 1.0).all()  # about 1.5 m away
