@@ -131,7 +131,7 @@ def _cmd_fit(args):
                        ("n_regional", args.regional), ("lambda1", args.lambda1),
                        ("lambda2", args.lambda2), ("prior", args.prior),
                        ("max_iterations", args.max_iterations),
-                       ("noise_px", args.noise_px)):
+                       ("noise_px", args.noise_px), ("noise", args.noise)):
         if value is not None:
             kw[key] = value
     if args.exact:
@@ -316,8 +316,13 @@ def build_parser():
     fit.add_argument("--max-iterations", type=_positive_int, metavar="N",
                      help="iteration limit of the fit")
     fit.add_argument("--noise-px", type=_non_negative_float, metavar="PX",
-                     help="how precisely the landmarks were placed (standard deviation, "
-                          "pixels); weighs them against the shape prior")
+                     help="the least placement noise of a landmark assumed (standard "
+                          "deviation, pixels; default 1): the fit estimates each photo's "
+                          "noise from its residuals, never below this")
+    fit.add_argument("--noise", choices=("estimate", "fixed"),
+                     help="'estimate' (default): placement noise and per-landmark weights "
+                          "from the fit itself; 'fixed': every landmark placed with "
+                          "--noise-px")
     fit.add_argument("--frame", choices=("local", "world"), default="local",
                      help="OBJ coordinates: 'local' the head upright in the model's frame "
                           "(default), 'world' posed as in the photos")

@@ -220,3 +220,24 @@ def test_fit_a_synthetic_case_writes_obj_texture_and_report(tmp_path, model):
     assert report["uncertainty_mm"]["median"] > 0
     assert report["timings_s"]["fit"] > 0
     assert set(report["outputs"]) == {"obj", "mtl", "texture", "report"}
+    # the estimated placement noise and the head's plausibility are in the report
+    noise = report["info"]["noise"]
+    assert set(noise["landmark_px"]) == set(case.views) and noise["floor_px"] == 1.0
+    assert 0 <= report["info"]["plausibility"]["percentile"] <= 100
+
+
+def test_fit_with_fixed_noise(tmp_path, model):
+    from solver.io.landmarks_file import save_landmarks
+    from solver.synthetic import make_case
+
+    case, _ = make_case(model, 12, noise_px=0.5, image_height=512)
+    path = tmp_path / "case.json"
+    save_landmarks(case, path)
+    proc = run_cli("fit", path, "--out", tmp_path / "head.obj", "--report",
+                   tmp_path / "report.json", "--components", 20, "--noise", "fixed",
+                   "--noise-px", 2)
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads((tmp_path / "report.json").read_text(encoding="utf-8"))
+    assert "noise" not in report["info"]  # nothing estimated: every landmark at 2 px
+    proc = run_cli("fit", path, "--out", tmp_path / "head.obj", "--noise", "guess")
+    assert proc.returncode == 2 and "--noise" in proc.stderr
