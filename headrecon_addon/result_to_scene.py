@@ -114,12 +114,18 @@ def fit_method(result):
 
 def residual_rows(result, calibration=None):
     """The residual list's rows: (rank, pixels, view, name, kind, message), sorted: flagged
-    passpoints (suspects) first, then flagged landmarks, then the rest; worst first."""
+    passpoints (suspects) first, then flagged landmarks and those the fit down-weighted as
+    misplaced (its noise estimate), then the rest; worst first."""
     rows = []
+    down_weighted = result.info.get("noise", {}).get("down_weighted", {})
     for view, r in result.residuals.items():
         flagged = set(r.flagged)
+        down = down_weighted.get(view, {})
         for name, px in zip(r.names, np.asarray(r.pixels, dtype=np.float64), strict=True):
-            rows.append((1 if name in flagged else 2, float(px), view, name, "LANDMARK", ""))
+            message = (f"the fit gave it {100 * down[name]:.0f} % of a landmark's weight: "
+                       "it sits far from where the others put the head" if name in down else "")
+            rows.append((1 if name in flagged or name in down else 2, float(px), view, name,
+                         "LANDMARK", message))
     for view, (names, check) in (calibration or {}).items():
         suspects = {s.name: s for s in check.suspects if s.view == view}
         px = np.asarray(check.residuals[view], dtype=np.float64)

@@ -116,3 +116,21 @@ def test_residual_list_and_landmark_colours(fitted):
                          if landmarks.landmark_objects(p).get(name) is not None)
             o = landmarks.landmark_objects(plane)[name]
             assert o.headrecon.flagged and "Flagged" in o.material_slots[0].material.name
+
+
+def test_residual_list_shows_down_weighted_landmarks_first(fitted):
+    import dataclasses
+
+    from headrecon_addon.result_to_scene import residual_rows
+
+    _, _, result = fitted
+    view = next(iter(result.residuals))
+    name = result.residuals[view].names[-1]
+    noise = {**result.info.get("noise", {}), "down_weighted": {view: {name: 0.01}}}
+    down = dataclasses.replace(result, info={**result.info, "noise": noise})
+    rows = residual_rows(down)
+    ranked = [(rank, v, n, message) for rank, _, v, n, _, message in rows]
+    first = [r for r in ranked if r[0] < 2]
+    assert (1, view, name) in [(r[0], r[1], r[2]) for r in first]
+    assert "1 % of a landmark's weight" in next(r[3] for r in ranked if r[2] == name
+                                                   and r[1] == view)
