@@ -32,6 +32,7 @@ from solver import DLTCamera, LandmarkCase, OrthographicCamera, View, fit_dlt
 from solver.cameras import ORTHO_VIEWS
 from solver.fitting.register import register
 from solver.geometry import rotation_from_vector, skew, vertex_normals
+from solver.io.obj import read_obj as solver_read_obj
 from solver.procrustes import Similarity, similarity_procrustes
 from solver.synthetic import random_rotation, resample_polyline, trace_silhouette
 from solver.texture.raster import depth_buffer
@@ -569,25 +570,14 @@ def jpeg_size(path):
 
 def read_obj(path):
     """(vertices (n, 3), triangles (T, 3), texture coordinates (m, 2), the texture
-    coordinate of each triangle corner (T, 3)) of a triangulated OBJ file."""
-    v, vt, fv, ft = [], [], [], []
-    with open(path) as f:
-        for line in f:
-            parts = line.split()
-            if not parts:
-                continue
-            if parts[0] == "v":
-                v.append([float(x) for x in parts[1:4]])
-            elif parts[0] == "vt":
-                vt.append([float(x) for x in parts[1:3]])
-            elif parts[0] == "f":
-                corners = [p.split("/") for p in parts[1:]]
-                if len(corners) != 3:
-                    raise ValueError(f"{path}: a face with {len(corners)} corners; "
-                                     "expected triangles")
-                fv.append([int(c[0]) - 1 for c in corners])
-                ft.append([int(c[1]) - 1 for c in corners])
-    return np.array(v), np.array(fv), np.array(vt), np.array(ft)
+    coordinate of each triangle corner (T, 3)) of a triangulated OBJ file, read with the
+    solver's OBJ reader."""
+    mesh = solver_read_obj(path)
+    if (mesh.face_loop_total != 3).any():
+        bad = int(mesh.face_loop_total[mesh.face_loop_total != 3][0])
+        raise ValueError(f"{path}: a face with {bad} corners; expected triangles")
+    return (mesh.positions, mesh.loop_vertex.reshape(-1, 3), mesh.uvs,
+            mesh.loop_uv.reshape(-1, 3))
 
 
 def obj_to_blender(points):
