@@ -76,9 +76,11 @@ class Noise:
         return True
 
     def report(self):
-        """JSON-ready summary: sigmas per view and the landmarks that lost weight."""
+        """JSON-ready summary: sigmas per view, every landmark's weight, and the landmarks
+        that lost most of theirs."""
         return {"landmark_px": dict(self.landmark_px), "contour_px": dict(self.contour_px),
                 "floor_px": self.floor_px,
+                "weights": {v: dict(ws) for v, ws in self.weights.items()},
                 "down_weighted": {v: {n: w for n, w in ws.items() if w < DOWN_WEIGHTED}
                                   for v, ws in self.weights.items()
                                   if any(w < DOWN_WEIGHTED for w in ws.values())}}

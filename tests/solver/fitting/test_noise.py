@@ -23,6 +23,7 @@ def test_estimate_recovers_a_known_sigma_and_drops_an_outlier():
     w = noise.weights["front"]
     assert w["p7"] < 0.01 and np.median(list(w.values())) == pytest.approx(1.0, abs=0.2)
     assert list(noise.report()["down_weighted"]["front"]) == ["p7"]
+    assert noise.report()["weights"]["front"] == w  # every landmark's final weight
     # the floor holds: well-placed landmarks are not trusted beyond noise_px
     tiny = estimate_noise({"front": (names, r * 0.01)}, {}, 0.0, floor_px=1.0)
     assert tiny.landmark_px["front"] == pytest.approx(1.0)
