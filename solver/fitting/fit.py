@@ -39,10 +39,11 @@ landmark's gap between its direct and its mirrored ray. ``info["projection"]`` r
 each photo's parallel-projection error (seed 001 ch. 2) and ``info["warnings"]`` what the
 user should know.
 
-Everything is least squares in pixels weighted by 1 / ``noise_px``^2 against the prior
-``lambda2^2 |c|^2`` (c in standard deviations), so with ``lambda2 = 1`` the fit is the
-posterior mode for landmarks placed with that noise, and the inverse normal matrix is the
-posterior covariance behind ``FitResult.uncertainty``.
+Everything is least squares in pixels weighted by 1 / sigma^2 against the prior
+``lambda2^2 |c|^2`` (c in standard deviations), sigma the placement noise the fit
+estimates from its own residuals (``noise.py``; ``noise_px`` its floor), so with
+``lambda2 = 1`` the fit is the posterior mode for landmarks placed with that noise, and the
+inverse normal matrix is the posterior covariance behind ``FitResult.uncertainty``.
 """
 
 
@@ -54,7 +55,7 @@ from ..errors import rms
 from .approach1 import approach1, profile_fit
 from .approach2 import approach2
 from .engine import Engine
-from .noise import MAX_ROUNDS, Noise, estimate_noise
+from .noise import MAX_ROUNDS, estimate_noise
 from .options import FitOptions, check_options
 from .outcome import (
     choose,
@@ -111,6 +112,8 @@ def fit_head(model, case, options=None, initial=None):
         "timings" (seconds), "rms_px" per view and "contour_rms_px", "projection" (per
         photo the parallel-projection error epsilon, see :func:`projection_info`),
         "mirror" (per mirror view the plane and the landmarks' ray gaps),
+        "noise" (the estimated placement noise per view, every landmark's weight and the
+        number of fits, ``noise.Noise.report``; not with ``noise="fixed"``),
         "plausibility" (the identity's Mahalanobis norm and its percentile under the
         model, ``outcome.plausibility``), "warnings"
         (messages for the user) and "refit_state" (what :func:`refit_landmarks`
@@ -146,8 +149,7 @@ def fit_head(model, case, options=None, initial=None):
         rounds += 1
         for stage, seconds in result.info["timings"].items():
             timings[stage] = seconds if stage == "total" else timings.get(stage, 0.0) + seconds
-    result.info["noise"] = {**(noise or Noise(floor_px=opts.noise_px)).report(),
-                            "fits": rounds}
+    result.info["noise"] = {**noise.report(), "fits": rounds}
     result.info["refit_state"]["noise"] = noise
     result.info["timings"] = timings
     progress(1.0, f"done ({result.info['approach']}, {rounds} fits)")
@@ -158,8 +160,6 @@ def _fit(model, case, opts, initial, noise, progress, t0):
     """One fit of the case with landmark and outline weights from ``noise`` (None: all
     placed with ``noise_px``), from ``initial``'s state when given. Returns (result,
     contour residuals per view, effective number of fitted parameters)."""
-
-
     cams = None if initial is None else previous_cameras(initial, "initial")
     views, skipped = prepare_views(model, case, opts, cameras=cams, noise=noise)
     eng = Engine.for_fit(model, views, opts)
