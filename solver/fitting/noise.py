@@ -17,7 +17,6 @@ import functools
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import integrate, stats
 
 #: Degrees of freedom of the Student-t placement error: heavy enough tails that a landmark
 #: ten sigmas off keeps about 1 % of its weight.
@@ -145,13 +144,21 @@ def consistency(dim):
     """s^2 / sigma^2 that the Student-t scale's EM reaches on Gaussian residuals of standard
     deviation sigma in ``dim`` dimensions (about 0.76 for 2-D, 0.73 for 1-D at nu = 5): what
     turns the scale into the noise's standard deviation."""
+    # squared lengths q of standard-normal residuals and their probabilities, by Gauss
+    # quadrature: for 1-D q = z^2 (Hermite), for 2-D q = 2 u with u exponential (Laguerre)
+    if dim == 1:
+        z, w = np.polynomial.hermite_e.hermegauss(80)
+        q, w = z * z, w / np.sqrt(2.0 * np.pi)
+    elif dim == 2:
+        u, w = np.polynomial.laguerre.laggauss(80)
+        q = 2.0 * u
+    else:
+        raise ValueError(f"dim: 1 or 2, got {dim!r}")
     nu = STUDENT_NU
     s2 = 1.0
     for _ in range(100):
-        mean, _ = integrate.quad(lambda q, s2=s2: (nu + dim) * q / (nu + q / s2)
-                                 * stats.chi2.pdf(q, dim), 0.0, np.inf)
-        new = mean / dim
-        if abs(new - s2) < 1e-10:
+        new = float(w @ ((nu + dim) * q / (nu + q / s2))) / dim
+        if abs(new - s2) < 1e-12:
             break
         s2 = new
     return float(s2)

@@ -4,7 +4,7 @@ on each photo's projection, assembled into a ``FitResult``."""
 
 import numpy as np
 from scipy.spatial import cKDTree
-from scipy.stats import chi2
+from scipy.special import gammainc
 
 from ..cameras import OrthographicCamera
 from ..cameras.mirror import triangulate_mirror
@@ -273,7 +273,8 @@ def plausibility(coeffs):
     degrees of freedom). Returns (info, warnings): a warning above PLAUSIBLE_PERCENTILE."""
     c = np.asarray(coeffs, dtype=np.float64).reshape(-1)
     norm = float(np.sqrt(c @ c))
-    percentile = 100.0 * float(chi2.cdf(norm * norm, len(c))) if len(c) else 0.0
+    # the chi-square distribution function with len(c) degrees of freedom
+    percentile = 100.0 * float(gammainc(0.5 * len(c), 0.5 * norm * norm)) if len(c) else 0.0
     info = {"mahalanobis": norm, "percentile": percentile, "n_coeffs": len(c),
             "largest_sigma": float(np.abs(c).max()) if len(c) else 0.0}
     warnings = []
