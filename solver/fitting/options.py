@@ -104,49 +104,70 @@ class FitOptions:
     calibration_rounds: int = 8
 
 
+#: (least, most) of each numeric option: beyond them a fit means nothing or overflows
+#: (``lambda2=1e300`` overflowed the prior's cost; ``noise_px=1e-300`` the weights).
+RANGES = {
+    "lambda1": (0.0, 1e6), "lambda2": (0.0, 1e6), "landmark_weight": (0.0, 1e6),
+    "front_weight": (0.0, 1e6), "contour_weight": (0.0, 1e6), "flag_sigmas": (0.0, 1e3),
+    "flag_min_px": (0.0, 1e6), "noise_px": (1e-3, 1e4), "contour_threshold_px": (1e-2, 1e6),
+    "tolerance": (1e-12, 1.0), "camera_distance_m": (1e-2, 1e4),
+}
+#: (least, most) of each whole-number option.
+INT_RANGES = {"max_iterations": (1, 10000), "tps_iterations": (1, 1000),
+              "calibration_rounds": (0, 1000), "n_regional": (0, 1000)}
+
+
+def _number_problem(name, value):
+    """The message for a numeric option outside ``RANGES``, or None."""
+    lo, hi = RANGES[name]
+    ok = not isinstance(value, bool) and isinstance(value, int | float | np.floating) \
+        and np.isfinite(value) and lo <= value <= hi
+    return None if ok else (f"options.{name}: must be a number in [{lo:g}, {hi:g}], got "
+                            f"{value!r}")
+
+
+def _integer_problem(name, value, hi=None):
+    """The message for a whole-number option outside ``INT_RANGES`` (or ``hi``), or None."""
+    lo, top = INT_RANGES.get(name, (0, hi))
+    top = top if hi is None else hi
+    ok = not isinstance(value, bool) and isinstance(value, int | np.integer) \
+        and lo <= value <= top
+    return None if ok else (f"options.{name}: must be an integer in {lo}..{top}, got "
+                            f"{value!r}")
+
+
 def check_options(options, model):
+    """``options`` (None: the defaults) checked against ``RANGES`` and the model.
+
+    Raises
+    ------
+    ValueError
+        Naming the option (``options.<name>``) with its allowed values or range.
+    """
     o = FitOptions() if options is None else options
     if not isinstance(o, FitOptions):
         raise ValueError(f"options: expected FitOptions, got {type(o).__name__}")
     if o.method not in METHODS:
         raise ValueError(f"options.method: {o.method!r}; use one of {', '.join(METHODS)}")
-    k = model.identity.n_coeffs
-    if isinstance(o.n_identity, bool) or not isinstance(o.n_identity, int | np.integer) \
-            or not 0 <= o.n_identity <= k:
-        raise ValueError(f"options.n_identity: must be an integer in 0..{k}, "
-                         f"got {o.n_identity!r}")
-    if isinstance(o.n_regional, bool) or not isinstance(o.n_regional, int | np.integer) \
-            or o.n_regional < 0:
-        raise ValueError(f"options.n_regional: must be an integer >= 0, got {o.n_regional!r}")
+    problems = [_integer_problem("n_identity", o.n_identity, model.identity.n_coeffs)]
+    problems += [_integer_problem(name, getattr(o, name)) for name in INT_RANGES]
+    problems += [_number_problem(name, getattr(o, name)) for name in RANGES
+                 if name != "camera_distance_m" or o.camera_distance_m is not None]
+    problems = [p for p in problems if p is not None]
+    if problems:
+        raise ValueError(problems[0])
     if o.n_identity == 0 and o.n_regional == 0:
         raise ValueError("options.n_identity, options.n_regional: both 0 leave no shape to "
                          "fit")
-    for name in ("lambda1", "lambda2", "landmark_weight", "front_weight", "contour_weight",
-                 "flag_sigmas", "flag_min_px"):
-        val = getattr(o, name)
-        if not isinstance(val, int | float) or not np.isfinite(val) or val < 0:
-            raise ValueError(f"options.{name}: must be a finite number >= 0, got {val!r}")
-    for name in ("noise_px", "contour_threshold_px", "tolerance"):
-        val = getattr(o, name)
-        if not isinstance(val, int | float) or not np.isfinite(val) or val <= 0:
-            raise ValueError(f"options.{name}: must be a finite number > 0, got {val!r}")
+    if o.n_regional > 0 and hasattr(model, "regional"):
+        try:
+            model.regional(o.n_regional)  # kept with the model: the fit uses it next
+        except ValueError as e:
+            raise ValueError(f"options.n_regional: {e}") from None
     if o.noise not in ("estimate", "fixed"):
         raise ValueError(f"options.noise: {o.noise!r}; use 'estimate' or 'fixed'")
     if o.prior not in ("eigen", "identity"):
         raise ValueError(f"options.prior: {o.prior!r}; use 'eigen' or 'identity'")
-    for name in ("max_iterations", "tps_iterations"):
-        val = getattr(o, name)
-        if isinstance(val, bool) or not isinstance(val, int | np.integer) or val < 1:
-            raise ValueError(f"options.{name}: must be an integer >= 1, got {val!r}")
-    val = o.calibration_rounds
-    if isinstance(val, bool) or not isinstance(val, int | np.integer) or val < 0:
-        raise ValueError(f"options.calibration_rounds: must be an integer >= 0, got {val!r}")
-    d = o.camera_distance_m
-    if d is not None and (isinstance(d, bool) or not isinstance(d, int | float)
-                          or not np.isfinite(d) or d <= 0):
-        raise ValueError(f"options.camera_distance_m: must be None or a finite number > 0 "
-                         f"(metres), got {d!r}")
     if o.progress is not None and not callable(o.progress):
         raise ValueError("options.progress: must be callable(fraction, message) or None")
     return o
-

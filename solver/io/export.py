@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from ..texture.uvs import resolve_parts
-from .atomic import write_file_atomic
-from .obj import write_obj
+from .atomic import check_outputs, write_files_atomic
+from .obj import obj_files
 
 
 def png_bytes(image):
@@ -68,8 +68,40 @@ def texture_atlas(model, tiles):
     return atlas, out, textured
 
 
+def head_obj_files(path, model, vertices, tiles=None, texture_path=None, faces=None):
+    """The files of the head as OBJ: ``write_head_obj``'s parameters, its files not written.
+
+    Returns
+    -------
+    names : dict of str -> Path
+        "obj", and with ``tiles`` "mtl" and "texture".
+    files : dict of Path -> str or bytes
+        Each file's contents, for ``write_files_atomic`` (with other outputs, as one set).
+    """
+    if tiles is not None and texture_path is None:
+        raise ValueError("texture_path: needed to write the texture of the tiles")
+    keep = slice(None) if faces is None else np.asarray(faces, dtype=bool)
+    loop_uv, textured = model.loop_uv, None
+    if tiles is not None:
+        atlas, loop_uv, textured = texture_atlas(model, tiles)
+        texture_path = Path(texture_path)
+        textured = textured[keep]
+    # A polygon subset keeps the model's corner arrays: faces point into them.
+    files = obj_files(path, vertices, model.loop_vertex, model.face_loop_start[keep],
+                      model.face_loop_total[keep], loop_uv,
+                      mtl_texture=texture_path if tiles is not None else None,
+                      textured_faces=textured)
+    names = dict(zip(("obj", "mtl"), files, strict=False))
+    if tiles is not None:
+        names["texture"] = texture_path
+        check_outputs({f"the {key}": p for key, p in names.items()})
+        files[texture_path] = png_bytes(atlas)
+    return names, files
+
+
 def write_head_obj(path, model, vertices, tiles=None, texture_path=None, faces=None):
-    """Write the head as OBJ and, with ``tiles``, its texture and ``.mtl``, atomically.
+    """Write the head as OBJ and, with ``tiles``, its texture and ``.mtl``, as one atomic set
+    (all old or all new, never over each other).
 
     Parameters
     ----------
@@ -93,23 +125,6 @@ def write_head_obj(path, model, vertices, tiles=None, texture_path=None, faces=N
     dict of str -> Path
         "obj", and with ``tiles`` "texture" and "mtl": the files written.
     """
-    if tiles is not None and texture_path is None:
-        raise ValueError("texture_path: needed to write the texture of the tiles")
-    keep = slice(None) if faces is None else np.asarray(faces, dtype=bool)
-    outputs = {}
-    loop_uv, textured = model.loop_uv, None
-    if tiles is not None:
-        atlas, loop_uv, textured = texture_atlas(model, tiles)
-        texture_path = Path(texture_path)
-        write_file_atomic(texture_path, png_bytes(atlas))
-        outputs["texture"] = texture_path
-        textured = textured[keep]
-    # A polygon subset keeps the model's corner arrays: faces point into them.
-    written = write_obj(path, vertices, model.loop_vertex, model.face_loop_start[keep],
-                        model.face_loop_total[keep], loop_uv,
-                        mtl_texture=texture_path if tiles is not None else None,
-                        textured_faces=textured)
-    outputs["obj"] = written[0]
-    if len(written) > 1:
-        outputs["mtl"] = written[1]
-    return outputs
+    names, files = head_obj_files(path, model, vertices, tiles, texture_path, faces)
+    write_files_atomic(files)
+    return names

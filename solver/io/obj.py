@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import write_file_atomic
+from .atomic import check_outputs, write_files_atomic
 
 AXES = ("y_up", "blender")
 MATERIALS = ("head", "untextured")
@@ -148,9 +148,36 @@ def mtl_text(texture_relpath):
             "Ks 0.000 0.000 0.000\nNs 10.0\nd 1.0\nillum 1\n")
 
 
+def mtl_path(obj_path):
+    """The ``.mtl`` written beside an OBJ with a texture: the OBJ's path with ``.mtl``."""
+    return Path(obj_path).with_suffix(".mtl")
+
+
+def obj_files(path, vertices, loop_vertex, face_loop_start, face_loop_total, loop_uv=None,
+              mtl_texture=None, axes="y_up", textured_faces=None):
+    """The files ``write_obj`` writes, as ``{path: text}`` (the OBJ first, then the MTL if
+    any), for a caller that writes them with others as one set (``write_files_atomic``).
+    """
+    path = Path(path)
+    mtl = mtl_path(path) if mtl_texture is not None else None
+    text = obj_text(vertices, loop_vertex, face_loop_start, face_loop_total, loop_uv,
+                    mtl_name=None if mtl is None else mtl.name, axes=axes,
+                    object_name=path.stem or "head", textured_faces=textured_faces)
+    files = {path: text}
+    if mtl is not None:
+        check_outputs({"the OBJ": path, "its .mtl": mtl})
+        tex = Path(mtl_texture)
+        try:
+            rel = Path(os.path.relpath(tex.resolve(), path.resolve().parent)).as_posix()
+        except ValueError:  # another drive on Windows
+            rel = tex.resolve().as_posix()
+        files[mtl] = mtl_text(rel)
+    return files
+
+
 def write_obj(path, vertices, loop_vertex, face_loop_start, face_loop_total, loop_uv=None,
               mtl_texture=None, axes="y_up", textured_faces=None):
-    """Write a polygon mesh as OBJ (metres), atomically.
+    """Write a polygon mesh as OBJ (metres), the OBJ and its MTL as one atomic set.
 
     Parameters
     ----------
@@ -180,27 +207,10 @@ def write_obj(path, vertices, loop_vertex, face_loop_start, face_loop_total, loo
     list of Path
         The files written (the OBJ, and the MTL if any).
     """
-    path = Path(path)
-    mtl_path = None
-    mtl_name = None
-    if mtl_texture is not None:
-        mtl_path = path.with_suffix(".mtl")
-        mtl_name = mtl_path.name
-    text = obj_text(vertices, loop_vertex, face_loop_start, face_loop_total, loop_uv,
-                    mtl_name=mtl_name, axes=axes, object_name=path.stem or "head",
-                    textured_faces=textured_faces)
-    written = []
-    if mtl_path is not None:
-        tex = Path(mtl_texture)
-        try:
-            rel = Path(os.path.relpath(tex.resolve(), path.resolve().parent)).as_posix()
-        except ValueError:  # another drive on Windows
-            rel = tex.resolve().as_posix()
-        write_file_atomic(mtl_path, mtl_text(rel))
-        written.append(mtl_path)
-    write_file_atomic(path, text)
-    written.insert(0, path)
-    return written
+    files = obj_files(path, vertices, loop_vertex, face_loop_start, face_loop_total,
+                      loop_uv, mtl_texture, axes, textured_faces)
+    write_files_atomic(files)
+    return list(files)
 
 
 # --------------------------------------------------------------------------------------

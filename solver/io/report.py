@@ -103,6 +103,11 @@ def fit_report(case, model, result, options, outputs, timings):
     })
 
 
+def report_text(report):
+    """A ``fit_report`` as the indented JSON text a report file holds."""
+    return json.dumps(report, indent=1, allow_nan=False) + "\n"
+
+
 def write_fit_report(path, report):
     """Write a ``fit_report`` as indented JSON, atomically."""
-    write_file_atomic(path, json.dumps(report, indent=1, allow_nan=False) + "\n")
+    write_file_atomic(path, report_text(report))

@@ -2,7 +2,7 @@
 
 import pytest
 
-from solver.io.json_file import read_json
+from solver.io.json_file import json_depth, read_json
 
 
 def test_read_json(tmp_path):
@@ -22,3 +22,30 @@ def test_read_json(tmp_path):
         read_json(tmp_path / "b.json")
     with pytest.raises(IsADirectoryError, match="is a folder"):
         read_json(tmp_path)
+
+
+def test_deep_nesting_is_refused_before_parsing(tmp_path):
+    p = tmp_path / "deep.json"
+    p.write_text('{"x-tool": ' + "[" * 5000 + "]" * 5000 + "}", encoding="utf-8")
+    with pytest.raises(ValueError, match=r"deep\.json: arrays and objects nested 5001 deep; "
+                                         r"at most 64"):
+        read_json(p)
+    # brackets inside strings are text, not nesting
+    p.write_text('{"x-tool": "' + "[" * 5000 + '", "a": [[1]]}', encoding="utf-8")
+    assert read_json(p)["a"] == [[1]]
+    p.write_text("[" * 64 + "]" * 64, encoding="utf-8")
+    got, levels = read_json(p), 1
+    while got:
+        got, levels = got[0], levels + 1
+    assert levels == 64  # the limit itself is read
+    assert json_depth(b'{"a": "\\"[[", "b": [{}]}') == 3
+
+
+def test_a_huge_file_is_refused(tmp_path, monkeypatch):
+    import solver.io.json_file as jf
+
+    monkeypatch.setattr(jf, "MAX_JSON_BYTES", 100)
+    p = tmp_path / "big.json"
+    p.write_text("[" + ",".join(["1"] * 100) + "]", encoding="utf-8")
+    with pytest.raises(ValueError, match=r"big\.json: larger than"):
+        read_json(p)
