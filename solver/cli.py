@@ -55,8 +55,16 @@ def _one_line(text):
     return " ".join(str(text).split()) or "failed"
 
 
-def _read_photo(case, view_name):
-    """A view's photo as float32 (H, W, 3|4) in [0, 1], checked against the file's size."""
+#: Most pixels of a photo read (a 200-megapixel camera's). Larger ones are refused before
+#: decoding: Pillow's own limit would end in a DecompressionBombError naming no photo.
+MAX_PHOTO_PIXELS = 200_000_000
+
+
+def _open_photo(case, view_name):
+    """A view's photo opened (not decoded), checked against the pixel limit and the file's
+    size; returns (Image, path)."""
+    import warnings
+
     from PIL import Image, UnidentifiedImageError
 
     view = case.views[view_name]
@@ -65,28 +73,112 @@ def _read_photo(case, view_name):
     if not path.is_file():
         raise CliError(f"{where}: photo {view.image!r} not found ({path})")
     try:
-        with Image.open(path) as im:
-            # EXIF orientation is deliberately not applied: Blender ignores it too, and the
-            # landmarks were placed on the pixels as stored.
-            if tuple(im.size) != tuple(view.size):
-                raise CliError(f"{case.source}: views.{view_name}.size: the file says "
-                               f"{view.size[0]}x{view.size[1]} but {path.name} is "
-                               f"{im.size[0]}x{im.size[1]} pixels")
-            alpha = im.mode in ("RGBA", "LA", "PA") or "transparency" in im.info
-            arr = np.asarray(im.convert("RGBA" if alpha else "RGB"), dtype=np.float32)
+        with warnings.catch_warnings():  # the limit below is ours
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
+            try:
+                im = Image.open(path)
+            finally:
+                Image.MAX_IMAGE_PIXELS = limit
     except UnidentifiedImageError:
         raise CliError(f"{where}: {path.name} is not an image Pillow can read") from None
+    except OSError as e:
+        raise CliError(f"{where}: cannot read {path.name}: {e}") from None
+    w, h = im.size
+    if w * h > MAX_PHOTO_PIXELS:
+        im.close()
+        raise CliError(f"{where}: {path.name} is {w}x{h} pixels ({w * h / 1e6:.0f} "
+                       f"megapixels); photos up to {MAX_PHOTO_PIXELS / 1e6:.0f} megapixels "
+                       "are read")
+    # EXIF orientation is deliberately not applied: Blender ignores it too, and the
+    # landmarks were placed on the pixels as stored.
+    if (w, h) != tuple(view.size):
+        im.close()
+        raise CliError(f"{case.source}: views.{view_name}.size: the file says "
+                       f"{view.size[0]}x{view.size[1]} but {path.name} is {w}x{h} pixels")
+    return im, path
+
+
+def _read_photo(case, view_name, texture_size):
+    """A view's photo as float32 (H, W, 3|4) in [0, 1], reduced to what a texture of
+    ``texture_size`` needs (``bake_photo_size``; the bake samples it where the full photo
+    would be), so a huge photo costs neither minutes nor gigabytes."""
+    from PIL import Image
+
+    from .texture.bake import bake_photo_size
+
+    im, path = _open_photo(case, view_name)
+    where = f"{case.source}: views.{view_name}.image"
+    try:
+        with im:
+            target = bake_photo_size(im.size, texture_size)
+            if target != im.size:
+                im.draft("RGB", target)  # JPEG: decode at a reduced scale directly
+            alpha = im.mode in ("RGBA", "LA", "PA") or "transparency" in im.info
+            mode = "RGBA" if alpha else "RGB"
+            rgb = im if im.mode == mode else im.convert(mode)
+            if rgb.size != target:
+                rgb = rgb.resize(target, Image.Resampling.BOX, reducing_gap=2.0)
+            arr = np.asarray(rgb, dtype=np.float32)
     except OSError as e:
         raise CliError(f"{where}: cannot read {path.name}: {e}") from None
     return arr / np.float32(255.0)
 
 
-def _prepare_output(path, what):
-    p = Path(path)
-    if p.exists() and p.is_dir():
-        raise CliError(f"{what} {p}: is a folder; give a file name")
-    p.parent.mkdir(parents=True, exist_ok=True)
-    return p
+#: The command line's option for each FitOptions field it sets (for messages).
+_OPTION_FLAGS = {"method": "--method", "n_identity": "--components", "n_regional": "--regional",
+                 "lambda1": "--lambda1", "lambda2": "--lambda2", "prior": "--prior",
+                 "max_iterations": "--max-iterations", "noise_px": "--noise-px",
+                 "noise": "--noise"}
+
+
+def _fit_options(args, model, progress):
+    """The FitOptions of the arguments, checked (``check_options``) before anything runs;
+    a bad value is named by its command-line option, with the range."""
+    from .fitting.options import FitOptions, check_options
+
+    kw = {"progress": progress}
+    for key, flag in _OPTION_FLAGS.items():
+        value = getattr(args, flag[2:].replace("-", "_"))
+        if value is not None:
+            kw[key] = value
+    if args.exact:
+        kw["exact_landmarks"] = True
+    options = FitOptions(**kw)
+    try:
+        return check_options(options, model)
+    except ValueError as e:
+        msg = str(e)
+        for key, flag in _OPTION_FLAGS.items():
+            if msg.startswith(f"options.{key}:"):
+                msg = flag + msg[len(f"options.{key}"):]
+        raise CliError(msg) from None
+
+
+def _outputs(args):
+    """What ``fit`` will write, by option: the OBJ, with a texture its PNG and .mtl, the
+    report."""
+    from .io.obj import mtl_path
+
+    outputs = {"--out": Path(args.out)}
+    if args.texture:
+        outputs["--texture"] = Path(args.texture)
+        outputs[f"the .mtl of --out ({mtl_path(args.out).name})"] = mtl_path(args.out)
+    if args.report:
+        outputs["--report"] = Path(args.report)
+    return outputs
+
+
+def _inputs(args, case):
+    """What ``fit`` reads: the landmarks file, every view's photo, the head model."""
+    inputs = {"the landmarks file": Path(args.landmarks)}
+    for name in case.views:
+        photo = case.image_path(name)
+        if photo is not None:
+            inputs[f"the photo of view {name!r}"] = photo
+    if args.model:
+        inputs["--model"] = Path(args.model)
+    return inputs
 
 
 # --------------------------------------------------------------------------------------
@@ -94,6 +186,8 @@ def _prepare_output(path, what):
 
 
 def _cmd_fit(args):
+    from .io.atomic import check_outputs
+
     progress = _Progress(args.quiet)
     timings = {}
     t_start = time.perf_counter()
@@ -101,42 +195,31 @@ def _cmd_fit(args):
     # No progress output until the input is checked: bad input gets exactly one line.
     t = time.perf_counter()
     case = load_landmarks(args.landmarks)
+    outputs = _outputs(args)
+    check_outputs(outputs, _inputs(args, case))  # before anything is read or written
     photos = {}
     if args.texture:  # read the photos before fitting: a missing photo fails fast
         for name, view in case.views.items():
             if view.image is not None:
-                photos[name] = _read_photo(case, name)
+                photos[name] = _read_photo(case, name, args.texture_size)
         if not photos:
             raise CliError(f"--texture: {case.source}: no view names a photo ('image')")
     timings["read"] = time.perf_counter() - t
-    out = _prepare_output(args.out, "--out")
-    texture_path = _prepare_output(args.texture, "--texture") if args.texture else None
-    report_path = _prepare_output(args.report, "--report") if args.report else None
 
     t = time.perf_counter()
     # Imported here, after the input checks: a bad file fails fast, before numpy-heavy
     # modules load.
-    from .fitting.fit import FitOptions, fit_head
-    from .io.export import write_head_obj
-    from .io.report import fit_report, write_fit_report
+    from .fitting.fit import fit_head
+    from .io.atomic import write_files_atomic
+    from .io.export import head_obj_files
+    from .io.report import fit_report, report_text
     from .model.head_model import load_model
 
     model = load_model(args.model)
+    options = _fit_options(args, model, progress)
     timings["model"] = time.perf_counter() - t
     progress(0.0, f"read {case.source} ({case.n_points} landmarks in {len(case.views)} views) "
                   f"and the head model")
-
-    kw = {"progress": progress}
-    for key, value in (("method", args.method), ("n_identity", args.components),
-                       ("n_regional", args.regional), ("lambda1", args.lambda1),
-                       ("lambda2", args.lambda2), ("prior", args.prior),
-                       ("max_iterations", args.max_iterations),
-                       ("noise_px", args.noise_px), ("noise", args.noise)):
-        if value is not None:
-            kw[key] = value
-    if args.exact:
-        kw["exact_landmarks"] = True
-    options = FitOptions(**kw)
     progress(0.0, f"fitting ({options.method})")
     t = time.perf_counter()
     result = fit_head(model, case, options)
@@ -145,7 +228,7 @@ def _cmd_fit(args):
         print(f"warning: {message}", file=sys.stderr)
 
     tiles = None
-    if texture_path is not None:
+    if args.texture:
         from .texture.bake import bake_fit_texture
 
         progress(1.0, f"baking the texture from {len(photos)} photo(s)")
@@ -153,19 +236,23 @@ def _cmd_fit(args):
         tiles = bake_fit_texture(model, result, photos, size=args.texture_size)
         timings["texture"] = time.perf_counter() - t
 
-    progress(1.0, f"writing {out}")
+    progress(1.0, f"writing {args.out}")
     t = time.perf_counter()
     vertices = result.world_vertices if args.frame == "world" else result.local_vertices
-    written = write_head_obj(out, model, vertices, tiles, texture_path)
-    outputs = {key: written[key] for key in ("texture", "obj", "mtl") if key in written}
-    timings["write"] = time.perf_counter() - t
-
-    if report_path is not None:
-        outputs["report"] = report_path
+    names, files = head_obj_files(outputs["--out"], model, vertices, tiles,
+                                  outputs.get("--texture"))
+    written = {key: names[key] for key in ("texture", "obj", "mtl") if key in names}
+    if args.report:
+        written["report"] = outputs["--report"]
+        timings["write"] = time.perf_counter() - t
         timings["total"] = time.perf_counter() - t_start
         options = {k: v for k, v in vars(args).items() if k not in ("func", "debug")}
-        write_fit_report(report_path, fit_report(case, model, result, options, outputs,
-                                                 timings))
+        files[outputs["--report"]] = report_text(fit_report(case, model, result, options,
+                                                            written, timings))
+    for path in files:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    write_files_atomic(files)  # all or nothing: a failure leaves every old file
+    timings["write"] = time.perf_counter() - t
 
     if not args.quiet:
         for view, r in result.residuals.items():
@@ -175,7 +262,7 @@ def _cmd_fit(args):
                 print(f"{view}: landmark residual mean {px.mean():.2f} px, max {px.max():.2f} px"
                       f"{flag}", file=sys.stderr)
         print(f"done in {time.perf_counter() - t_start:.2f} s: "
-              + ", ".join(str(p) for p in outputs.values()), file=sys.stderr)
+              + ", ".join(str(p) for p in written.values()), file=sys.stderr)
     return EXIT_OK
 
 
@@ -363,9 +450,15 @@ def main(argv=None):
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
-    except (CliError, ValueError, OSError) as e:
+    except (CliError, ValueError, OSError, MemoryError) as e:
         # Bad input (a file, a photo, an option): one line, no traceback.
         if args.debug:
             raise
         print(f"{PROG} {args.command}: error: {_one_line(e)}", file=sys.stderr)
+        return EXIT_FAILED
+    except Exception as e:  # a bug: still one line, and how to see where
+        if args.debug:
+            raise
+        print(f"{PROG} {args.command}: internal error: {type(e).__name__}: {_one_line(e)} "
+              "(run with --debug for the traceback, and please report it)", file=sys.stderr)
         return EXIT_FAILED

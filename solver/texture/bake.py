@@ -37,6 +37,37 @@ from .raster import depth_buffer
 from .uvs import BLEED, SKIN_PARTS, UVRaster, resolve_parts, selected_triangles, uv_raster, uv_tiles
 
 
+#: Longest photo side the bake samples, per texel of the texture's height: a photo larger
+#: than this is reduced before the bake (``bake_photo_size``). The skin's face tile spans
+#: about a quarter of a portrait photo's height, so 4 photo pixels per texel still give
+#: each texel its own pixel on a face a quarter of the photo high.
+PHOTO_PIXELS_PER_TEXEL = 4
+
+
+def bake_photo_size(photo_size, texture_size):
+    """The (width, height) a photo is reduced to for a bake of ``texture_size`` texels: the
+    photo's own size when its longer side is at most ``PHOTO_PIXELS_PER_TEXEL`` texels per
+    texture row (never below 2048), else scaled down to that, aspect kept. The bake takes
+    the reduced photo with the camera of the full one (``bake_tiles``)."""
+    w, h = (int(v) for v in photo_size)
+    most = max(2048, PHOTO_PIXELS_PER_TEXEL * int(texture_size))
+    if max(w, h) <= most:
+        return w, h
+    f = most / max(w, h)
+    return max(1, round(w * f)), max(1, round(h * f))
+
+
+def _photo_scale(image_size, camera_size):
+    """(sx, sy) from the camera's pixels to the image's, or None when the image is neither
+    the camera's photo nor that photo reduced with its aspect kept (within a pixel)."""
+    (w, h), (cw, ch) = image_size, camera_size
+    if (w, h) == (cw, ch):
+        return 1.0, 1.0
+    if w > cw or h > ch or abs(w - cw * h / ch) > 1 or abs(h - ch * w / cw) > 1:
+        return None
+    return w / cw, h / ch
+
+
 @dataclass(frozen=True)
 class BakeOptions:
     """Knobs of the texture bake (defaults suit two photos of about 1 megapixel).
@@ -103,7 +134,9 @@ def bake_texture(model, world_vertices, views, size=1024, *, parts=None, tile=No
         The fitted head in world space (``FitResult.world_vertices``).
     views : list of (image, camera)
         ``image`` ndarray (H, W, 3 or 4) float in [0, 1] (an alpha channel weighs the
-        pixel: 0 = background); ``camera`` the photo's fitted Camera.
+        pixel: 0 = background); ``camera`` the photo's fitted Camera. The image may be the
+        camera's photo reduced with its aspect kept (``bake_photo_size``): it is sampled
+        where the full photo would be.
     size : int
         Texture size in texels.
     parts, tile
@@ -237,10 +270,12 @@ def _check_views(views):
             raise ValueError(f"views[{i}]: camera must be a Camera, got {type(camera).__name__}")
         size = getattr(camera, "size", None)
         h, w = img.shape[:2]
-        if size is not None and (int(size[0]), int(size[1])) != (w, h):
+        scale = (1.0, 1.0) if size is None else _photo_scale((w, h), (int(size[0]),
+                                                                      int(size[1])))
+        if scale is None:
             raise ValueError(f"views[{i}]: image is {w}x{h} pixels but its camera expects "
-                             f"{int(size[0])}x{int(size[1])}")
-        out.append((img, camera))
+                             f"{int(size[0])}x{int(size[1])} (or that photo reduced)")
+        out.append((img, camera, scale))
     if not out:
         raise ValueError("views: no photos given")
     return out
@@ -279,8 +314,9 @@ class _ViewSampler:
     of a few millimetres; a million texels then cost sparse products, not camera calls.
     """
 
-    def __init__(self, image, camera, world, occluders, head_size, centre, opts):
+    def __init__(self, image, camera, scale, world, occluders, head_size, centre, opts):
         self.h, self.w = image.shape[:2]
+        self.scale = np.asarray(scale, dtype=np.float64)  # camera pixels -> image pixels
         self.alpha = image.shape[2] == 4
         # Four float32 channels viewed as one complex128: one 16-byte gather per pixel.
         # A one-pixel edge-replicated border spares clamping the bilinear neighbours.
@@ -305,6 +341,7 @@ class _ViewSampler:
         self.depth = near.astype(np.float32).ravel()
         # one buffer pixel in metres at the head, for the slope part of the tolerance
         jac = np.asarray(camera.jacobian(centre[None]), dtype=np.float64)[0]
+        jac = jac * self.scale[:, None]
         ppm = np.sqrt((jac ** 2).sum() / 2.0)
         self.footprint = np.float32(1.0 / (ppm * min(self.fx, self.fy)))
         self.tol = np.float32(opts.depth_tolerance * head_size)
@@ -333,7 +370,7 @@ class _ViewSampler:
         pts = world[self.used]
         # float32 per texel: 1e-4 pixel and sub-micrometre depth resolution, half the traffic
         uvz = np.zeros((len(world), 3), np.float32)
-        uvz[self.used, :2] = self.camera.project(pts)
+        uvz[self.used, :2] = self.camera.project(pts) * self.scale
         uvz[self.used, 2] = self.camera.to_camera(pts)[:, 2]
         toward = np.asarray(self.camera.toward_camera(pts), dtype=np.float64)
         if np.ptp(toward, axis=0).max() < 1e-12:  # parallel projection: one direction
@@ -436,8 +473,8 @@ def _bake(model, world_vertices, views, rasters, parts, occluders, similarity, m
         if len(mirror_flags) != len(views):
             raise ValueError(f"mirror: {len(mirror_flags)} flags for {len(views)} views")
     samplers = []
-    for i, (img, cam) in enumerate(views):
-        s = _ViewSampler(img, cam, world, occluders, head_size, centre, opts)
+    for i, (img, cam, scale) in enumerate(views):
+        s = _ViewSampler(img, cam, scale, world, occluders, head_size, centre, opts)
         if mirror_flags is None:
             toward = np.asarray(cam.toward_camera(centre[None]), dtype=np.float64)[0]
             use_mirror = abs(float(toward @ normal_m)) >= opts.mirror_min_lateral

@@ -241,3 +241,122 @@ def test_fit_with_fixed_noise(tmp_path, model):
     assert "noise" not in report["info"]  # nothing estimated: every landmark at 2 px
     proc = run_cli("fit", path, "--out", tmp_path / "head.obj", "--noise", "guess")
     assert proc.returncode == 2 and "--noise" in proc.stderr
+
+
+# --------------------------------------------------------------------------------------
+# Bad input and faults: one line, never a user's file destroyed
+
+
+def test_deeply_nested_json_is_one_line(tmp_path, case_doc):
+    text = json.dumps(case_doc)[:-1] + ', "x-tool": ' + "[" * 1000 + "]" * 1000 + "}"
+    case = tmp_path / "case.json"
+    case.write_text(text, encoding="utf-8")
+    assert_one_line_error(run_cli("validate", case), "case.json: arrays and objects nested "
+                                                     "1001 deep; at most 64 are read")
+    proc = run_cli("fit", case, "--out", tmp_path / "h.obj")
+    assert_one_line_error(proc, "case.json: arrays and objects nested 1001 deep")
+
+
+def test_an_option_out_of_range_names_its_range(tmp_path, case_doc):
+    case = write_case(tmp_path, case_doc)
+    proc = run_cli("fit", case, "--out", tmp_path / "h.obj", "--lambda2", "1e300")
+    assert_one_line_error(proc, "--lambda2: must be a number in [0, 1e+06], got 1e+300")
+    proc = run_cli("fit", case, "--out", tmp_path / "h.obj", "--max-iterations", "0")
+    assert_one_line_error(proc, "--max-iterations: must be an integer in 1..10000, got 0")
+    assert not (tmp_path / "h.obj").exists()
+
+
+@pytest.mark.parametrize("args, fragments", [
+    (["--report", "case.json"], ["--report", "is the landmarks file", "case.json"]),
+    (["--out", "case.json"], ["--out", "is the landmarks file"]),
+    (["--texture", "front.png"], ["--texture", "is the photo of view 'front'", "front.png"]),
+    (["--texture", "head.mtl"], ["the .mtl of --out (head.mtl)", "is also --texture"]),
+    (["--report", "head.obj"], ["--report", "is also --out", "head.obj"]),
+    (["--report", "link.json"], ["--report", "is the landmarks file"]),
+    (["--out", "model.npz", "--model", "model.npz"], ["--out", "is --model"]),
+])
+def test_outputs_never_overwrite_inputs_or_each_other(tmp_path, case_doc, args, fragments):
+    from PIL import Image
+
+    case = write_case(tmp_path, case_doc)
+    (tmp_path / "link.json").symlink_to(case)
+    Image.new("RGB", (W, H)).save(tmp_path / "front.png")
+    for name in ("head.obj", "head.mtl", "model.npz"):
+        (tmp_path / name).write_bytes(b"old " + name.encode())
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    argv = ["fit", "case.json", "--out", "head.obj", *args]
+    proc = run_cli(*argv, cwd=tmp_path)
+    assert_one_line_error(proc, *fragments)
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
+def _claiming_png(path, width, height):
+    """A valid 1x1 PNG whose header then claims width x height (CRC fixed up)."""
+    import struct
+    import zlib
+
+    from PIL import Image
+
+    Image.new("RGB", (1, 1)).save(path)
+    data = bytearray(path.read_bytes())
+    data[16:24] = struct.pack(">II", width, height)
+    data[29:33] = struct.pack(">I", zlib.crc32(bytes(data[12:29])))
+    path.write_bytes(bytes(data))
+
+
+def test_a_photo_over_the_pixel_limit_is_named_with_its_size(tmp_path, case_doc):
+    doc = json.loads(json.dumps(case_doc))
+    doc["views"]["front"]["size"] = [60000, 60000]
+    case = write_case(tmp_path, doc)
+    _claiming_png(tmp_path / "front.png", 60000, 60000)
+    proc = run_cli("fit", case, "--out", tmp_path / "h.obj", "--texture", tmp_path / "t.png")
+    assert_one_line_error(proc, "case.json: views.front.image: front.png is 60000x60000 "
+                                "pixels (3600 megapixels); photos up to 200 megapixels")
+
+
+def test_a_big_photo_is_read_reduced_for_the_bake(tmp_path, case_doc):
+    from PIL import Image
+
+    from solver.cli import _read_photo
+    from solver.io.landmarks_file import load_landmarks
+
+    doc = json.loads(json.dumps(case_doc))
+    doc["views"]["front"]["size"] = [6000, 3000]
+    case = load_landmarks(write_case(tmp_path, doc))
+    Image.new("RGB", (6000, 3000), (255, 128, 0)).save(tmp_path / "front.png")
+    photo = _read_photo(case, "front", 128)
+    assert photo.shape == (1024, 2048, 3) and photo.dtype == np.float32
+    np.testing.assert_allclose(photo[500, 1000], [1.0, 128 / 255, 0.0], atol=1e-6)
+    assert _read_photo(case, "front", 2048).shape == (3000, 6000, 3)  # needed whole
+
+
+def test_a_failed_write_leaves_the_old_output_set_and_names_the_file(tmp_path, model):
+    import resource
+
+    from PIL import Image
+
+    from solver.io.landmarks_file import save_landmarks
+    from solver.synthetic import make_case
+
+    case, _ = make_case(model, 13, noise_px=0.5, image_height=256)
+    for name, view in case.views.items():
+        view.image = f"{name}.png"
+        Image.new("RGB", tuple(view.size), (200, 150, 100)).save(tmp_path / f"{name}.png")
+    save_landmarks(case, tmp_path / "case.json")
+    argv = ["fit", "case.json", "--out", "out/head.obj", "--texture", "out/head.png",
+            "--texture-size", 64, "--report", "out/report.json", "--components", 10,
+            "--noise", "fixed", "-q"]
+    assert run_cli(*argv, cwd=tmp_path).returncode == 0
+    old = {p.name: p.read_bytes() for p in (tmp_path / "out").iterdir()}
+    assert set(old) == {"head.obj", "head.mtl", "head.png", "report.json"}
+
+    def small_files():  # ulimit -f: writing past 200 kB fails with "File too large"
+        resource.setrlimit(resource.RLIMIT_FSIZE, (200_000, resource.RLIM_INFINITY))
+
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.run([sys.executable, "-m", "solver", *map(str, argv)],
+                          cwd=tmp_path, capture_output=True, text=True, env=env,
+                          timeout=600, preexec_fn=small_files)
+    assert_one_line_error(proc, "File too large", "head.obj")
+    assert ".tmp" not in proc.stderr
+    assert {p.name: p.read_bytes() for p in (tmp_path / "out").iterdir()} == old

@@ -9,6 +9,7 @@ from solver.io.export import texture_atlas
 from solver.texture.bake import (
     BakeOptions,
     bake_fit_texture,
+    bake_photo_size,
     bake_texture,
     bake_tiles,
 )
@@ -388,3 +389,24 @@ def test_real_head_front_photo_lands_on_front_facing_skin(model):
         assert facing.sum() > 500, tile
         err = np.abs(tex.reshape(-1, 3)[r.texel, :2] - cam.project(pts) / [w, h]).max(axis=1)
         assert np.mean(err[facing] < 0.01) > 0.99, tile
+
+
+def test_a_reduced_photo_is_sampled_where_the_full_one_would_be():
+    m = two_sheets()
+    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
+    full = coded_photo()
+    half = full.reshape(H // 2, 2, W // 2, 2, 3).mean(axis=(1, 3))  # 2x2 box reduction
+    r = uv_raster(m, 64)
+    a = bake_texture(m, m.vertices, [(full, cam)], 64, tile=1001, raster=r)
+    b = bake_texture(m, m.vertices, [(half, cam)], 64, tile=1001, raster=r)
+    seen = r.texel  # the coded colour is linear in (u, v): box-reducing leaves it
+    assert np.abs(a.reshape(-1, 3)[seen] - b.reshape(-1, 3)[seen]).max() < 0.02
+    with pytest.raises(ValueError, match=r"image is 48x48 pixels but its camera expects "
+                                         r"96x128 \(or that photo reduced\)"):
+        bake_texture(m, m.vertices, [(full[:48, :48], cam)], 64, tile=1001, raster=r)
+
+
+def test_bake_photo_size_reduces_big_photos_only():
+    assert bake_photo_size((768, 1024), 1024) == (768, 1024)
+    assert bake_photo_size((11000, 11000), 1024) == (4096, 4096)
+    assert bake_photo_size((11000, 5500), 128) == (2048, 1024)
