@@ -36,7 +36,6 @@ from ..geometry import vertex_normals
 from .raster import depth_buffer
 from .uvs import BLEED, SKIN_PARTS, UVRaster, resolve_parts, selected_triangles, uv_raster, uv_tiles
 
-
 #: Longest photo side the bake samples, per texel of the texture's height: a photo larger
 #: than this is reduced before the bake (``bake_photo_size``). The skin's face tile spans
 #: about a quarter of a portrait photo's height, so 4 photo pixels per texel still give
