@@ -211,6 +211,7 @@ def _cmd_fit(args):
     # modules load.
     from .fitting.fit import fit_head
     from .io.atomic import write_files_atomic
+    from .io.contour import thin_case_contours
     from .io.export import head_obj_files
     from .io.report import fit_report, report_text
     from .model.head_model import load_model
@@ -220,10 +221,13 @@ def _cmd_fit(args):
     timings["model"] = time.perf_counter() - t
     progress(0.0, f"read {case.source} ({case.n_points} landmarks in {len(case.views)} views) "
                   f"and the head model")
+    notes = thin_case_contours(case)
     progress(0.0, f"fitting ({options.method})")
     t = time.perf_counter()
     result = fit_head(model, case, options)
     timings["fit"] = time.perf_counter() - t
+    for message in notes:  # after the fit: a failure still gets one line
+        print(f"notice: {message}", file=sys.stderr)
     for message in result.info.get("warnings", ()):
         print(f"warning: {message}", file=sys.stderr)
 

@@ -47,8 +47,7 @@ def case_problems(case, landmark_set, for_fit, bad_cameras=frozenset()):
         w, h = view.size
         found = _points_problems(view, where, landmark_set)
         if view.contour is not None:
-            for i, uv in enumerate(view.contour):
-                found += _point_problems(format_path(where + ("contour", i)), uv, w, h)
+            found += _contour_problems(view.contour, where, w, h)
         if vname not in bad_cameras:
             found += _camera_problems(view, where)
         found += _mirror_problems(case, view, where)
@@ -265,6 +264,21 @@ def _passpoint_problems(case, view, where, for_fit):
                 msg = msg[len("points: "):] if msg.startswith("points: ") else msg
                 problems.append((at, f"cannot compute the camera: {msg}"))
     return problems
+
+
+def _contour_problems(contour, where, w, h):
+    """The first contour point that is not finite or outside the image (vectorised: a
+    contour may have thousands of points), with how many more there are."""
+    c = np.asarray(contour, dtype=np.float64).reshape(-1, 2)
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.isfinite(c).all(axis=1) & (c >= 0).all(axis=1) & (c[:, 0] <= w)
+                & (c[:, 1] <= h))
+    if not bad.any():
+        return []
+    i = int(np.flatnonzero(bad)[0])
+    at, message = _point_problems(format_path(where + ("contour", i)), c[i], w, h)[0]
+    more = int(bad.sum()) - 1
+    return [(at, message + (f" (and {more} more point{'s' * (more > 1)})" if more else ""))]
 
 
 def _point_problems(at, uv, w, h):
