@@ -155,6 +155,16 @@ def _fit_options(args, model, progress):
         raise CliError(msg) from None
 
 
+def _fit_failure(case, error):
+    """One line for a fit that failed on input the checks let through: the file, and the
+    view when the fit names it ("view 'front': ..."), else how to find the view."""
+    msg = _one_line(error)
+    if msg.startswith("view '") or msg.startswith(case.source):
+        return msg if msg.startswith(case.source) else f"{case.source}: {msg}"
+    return (f"{case.source}: the fit failed ({type(error).__name__}: {msg}); "
+            f"'{PROG} validate {case.source}' checks each view's camera and landmarks")
+
+
 def _outputs(args):
     """What ``fit`` will write, by option: the OBJ, with a texture its PNG and .mtl, the
     report."""
@@ -224,7 +234,10 @@ def _cmd_fit(args):
     notes = thin_case_contours(case)
     progress(0.0, f"fitting ({options.method})")
     t = time.perf_counter()
-    result = fit_head(model, case, options)
+    try:
+        result = fit_head(model, case, options)
+    except (ValueError, ArithmeticError) as e:
+        raise CliError(_fit_failure(case, e)) from None
     timings["fit"] = time.perf_counter() - t
     for message in notes:  # after the fit: a failure still gets one line
         print(f"notice: {message}", file=sys.stderr)

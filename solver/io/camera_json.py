@@ -9,6 +9,13 @@ import numpy as np
 from ..cameras import ORTHO_VIEWS, OrthographicCamera, camera_from_dict
 from .jsonschema_lite import format_path
 
+#: Plausible lenses, mm equivalent on a 36 mm sensor (a fisheye to the longest tele): a
+#: pinhole's focal length (``lens_mm``, ``focal_px``, ``focal_range_mm``, ``focal_prior``)
+#: outside it ends the fit in non-finite numbers or a least-squares solver that fails.
+LENS_MM_RANGE = (2.0, 5000.0)
+#: Plausible radial distortion k1 of a pinhole camera (normalised coordinates).
+K1_RANGE = (-1.0, 1.0)
+
 # Per kind: the fields that make its parameters known (any one present: the object must be
 # a complete camera), and the fields that only make sense with them.
 _PARAMETER_KEYS = {"dlt": ("parameters", "matrix"), "pinhole": ("rotation", "centre")}
@@ -79,6 +86,50 @@ def non_finite_paths(value, path):
     return []
 
 
+def _px_per_mm(size):
+    return max(float(size[0]), float(size[1])) / 36.0
+
+
+def camera_range_problems(value, size, where):
+    """The fields of a camera object (as the file stores it, or ``Camera.to_dict()``)
+    outside their plausible range: a pinhole's focal length (``LENS_MM_RANGE``), its
+    principal point (inside the photo) and k1 (``K1_RANGE``). Returns (path, message)
+    pairs naming the range."""
+    kind = value.get("kind")
+    w, h = (float(v) for v in size)
+    lo, hi = LENS_MM_RANGE
+    problems = []
+
+    def bad(key, message):
+        problems.append((format_path(where + (key,)), message))
+
+    if kind == "pinhole":
+        ppm = _px_per_mm(size)
+        if "focal_px" in value:
+            f = float(value["focal_px"])
+            if not lo * ppm <= f <= hi * ppm:
+                bad("focal_px", f"{f:g} px is outside {lo * ppm:.4g}..{hi * ppm:.4g} px, the "
+                                f"lenses of {lo:g}..{hi:g} mm (36 mm equivalent) on this "
+                                f"{size[0]}x{size[1]} photo")
+        elif "lens_mm" in value and not lo <= float(value["lens_mm"]) <= hi:
+            bad("lens_mm", f"{float(value['lens_mm']):g} mm is outside {lo:g}..{hi:g} mm "
+                           "(36 mm equivalent)")
+        for key, n_lenses in (("focal_range_mm", 2), ("focal_prior", 1)):
+            pair = value.get(key)
+            lenses = () if pair is None else pair[:n_lenses]
+            if any(not lo <= float(x) <= hi for x in lenses):
+                bad(key, f"{list(pair)}: the lens (mm, 36 mm equivalent) must be in "
+                         f"{lo:g}..{hi:g}")
+        pp = value.get("principal_point")
+        if pp is not None and not (0.0 <= float(pp[0]) <= w and 0.0 <= float(pp[1]) <= h):
+            bad("principal_point", f"({float(pp[0]):g}, {float(pp[1]):g}) lies outside the "
+                                   f"{size[0]}x{size[1]} photo")
+        k1 = value.get("k1")
+        if k1 is not None and not K1_RANGE[0] <= float(k1) <= K1_RANGE[1]:
+            bad("k1", f"{float(k1):g} is outside {K1_RANGE[0]:g}..{K1_RANGE[1]:g}")
+    return problems
+
+
 def camera_object_problems(value, size, where):
     """What a schema cannot say about a camera object of the file (version 2): numbers that
     are not finite, fields that contradict each other, options the camera would refuse.
@@ -123,6 +174,8 @@ def camera_object_problems(value, size, where):
             camera_from_dict(trial)
         except (ValueError, TypeError, KeyError) as e:
             problems.append((at, str(e)))
+        if not problems:
+            problems += camera_range_problems(value, value.get("size", size), where)
     if not has_parameters(value) and "size" in value and list(value["size"]) != list(size):
         problems.append((format_path(where + ("size",)),
                          f"camera size {list(value['size'])} differs from the view size "

@@ -9,7 +9,14 @@ import math
 import numpy as np
 
 from ..cameras import ORTHO_VIEWS, Camera, OrthographicCamera, camera_class, camera_kinds
-from .camera_json import camera_object_problems, camera_to_json, is_nominal, non_finite_paths
+from .camera_json import (
+    camera_object_problems,
+    camera_range_problems,
+    camera_to_json,
+    is_nominal,
+    non_finite_paths,
+)
+from .consistency import consistency_problems, is_mirrored
 from .jsonschema_lite import format_path
 from .landmark_counts import count_problems, landmarks_needed
 from .landmark_set import as_landmark_set
@@ -64,6 +71,7 @@ def case_problems(case, landmark_set, for_fit, bad_cameras=frozenset()):
             top.append((at, f"expected [x, y, z], got {xyz.size} numbers"))
         elif not np.isfinite(xyz).all():
             top.append((at, "not a finite number; NaN and infinity are not allowed"))
+    top += consistency_problems(case, for_fit, bad_cameras)
     total = []
     for name, message in count_problems(used, needed) if for_fit else ():
         if name is None:
@@ -149,6 +157,7 @@ def _camera_problems(view, where):
     if cam_size is not None and tuple(cam_size) != tuple(view.size):
         problems.append((at, f"camera size {list(cam_size)} differs from the view size "
                              f"{list(view.size)}"))
+    problems += camera_range_problems(value, view.size, where + ("camera",))
     if isinstance(cam, OrthographicCamera):
         r = np.asarray(cam.rotation, dtype=np.float64)
         if not np.allclose(r @ r.T, np.eye(3), rtol=0, atol=1e-6):
@@ -160,18 +169,6 @@ def _camera_problems(view, where):
                          "(its scale and offset a guess): give the camera's parameters to "
                          "keep it fixed"))
     return problems
-
-
-def _mirrored(camera):
-    """True / False for a camera seen in a mirror (rotation determinant -1), None if the
-    camera does not say."""
-    flag = getattr(camera, "is_mirrored", None)
-    if isinstance(flag, bool):
-        return flag
-    rot = getattr(camera, "rotation", None)
-    if rot is None:
-        return None
-    return bool(np.linalg.det(np.asarray(rot, dtype=np.float64).reshape(3, 3)) < 0)
 
 
 def _mirror_problems(case, view, where):
@@ -209,7 +206,7 @@ def _mirror_problems(case, view, where):
                          "landmarks carry the subject's true names, so the camera is "
                          "mirrored): give {\"kind\": \"dlt\"} to compute it, or a mirrored "
                          "camera's parameters"))
-    elif cam is not None and _mirrored(cam) is False:
+    elif cam is not None and is_mirrored(cam) is False:
         problems.append((format_path(where + ("camera",)),
                          "not mirrored (rotation determinant +1); a view seen in a mirror "
                          "has a mirrored camera (determinant -1), e.g. "
