@@ -294,7 +294,7 @@ def _cmd_validate(args):
             case = load_landmarks(path, for_fit=not args.draft)
         except LandmarksError as e:
             for line in e.messages():
-                print(line, file=sys.stderr)
+                print(_one_line(line), file=sys.stderr)
             status = EXIT_FAILED
             continue
         except (ValueError, OSError) as e:

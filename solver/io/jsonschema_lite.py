@@ -61,7 +61,8 @@ def format_path(path):
     """``('views', 'front', 'points', 'nose_tip', 1)`` -> ``views.front.points.nose_tip[1]``.
 
     Keys that are not plain words (spaces, dots, quotes...) are written ``["my key"]`` so the
-    path stays unambiguous.
+    path stays unambiguous, with characters that do not print (line breaks such as U+0085)
+    escaped, so a message stays one line.
     """
     out = ""
     for part in path:
@@ -70,7 +71,9 @@ def format_path(path):
         elif _PLAIN_KEY.match(part):
             out += f".{part}" if out else part
         else:
-            out += f"[{json.dumps(part, ensure_ascii=False)}]"
+            quoted = json.dumps(part, ensure_ascii=False)
+            out += "[" + "".join(c if c.isprintable() else f"\\u{ord(c):04x}"
+                                 for c in quoted) + "]"
     return out
 
 

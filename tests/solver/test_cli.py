@@ -360,3 +360,17 @@ def test_a_failed_write_leaves_the_old_output_set_and_names_the_file(tmp_path, m
     assert_one_line_error(proc, "File too large", "head.obj")
     assert ".tmp" not in proc.stderr
     assert {p.name: p.read_bytes() for p in (tmp_path / "out").iterdir()} == old
+
+
+def test_a_fit_failure_the_checks_let_through_names_the_file():
+    from types import SimpleNamespace
+
+    from solver.cli import _fit_failure
+
+    case = SimpleNamespace(source="case.json")
+    assert _fit_failure(case, ValueError("view 'front': 2 usable landmarks")) == \
+        "case.json: view 'front': 2 usable landmarks"
+    msg = _fit_failure(case, OverflowError("(34, 'Numerical result out of range')"))
+    assert msg.startswith("case.json: the fit failed (OverflowError: ") and \
+        msg.endswith("'python -m solver validate case.json' checks each view's camera and "
+                     "landmarks")

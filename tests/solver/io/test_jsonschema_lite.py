@@ -94,3 +94,8 @@ def test_error_paths_and_messages():
         'views.front.points.nose_tip[1]: expected a number, got string "x"']
     assert format_path(()) == ""
     assert format_path(("a", 0, "b c", 'q"')) == 'a[0]["b c"]["q\\""]'
+
+
+def test_a_key_that_breaks_lines_is_escaped():
+    path = format_path(("views", "\x85", "a\u2028b", "é"))
+    assert path == 'views["\\u0085"]["a\\u2028b"]["é"]' and len(path.splitlines()) == 1
