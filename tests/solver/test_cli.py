@@ -231,12 +231,20 @@ def test_fit_with_fixed_noise(tmp_path, model):
     from solver.synthetic import make_case
 
     case, _ = make_case(model, 12, noise_px=0.5, image_height=512)
+    name, view = next((n, v) for n, v in case.views.items() if v.contour is not None)
+    # a contour traced every tenth of a pixel: thinned for the fit, and the fit says so
+    c = view.contour
+    t = np.linspace(0, len(c) - 1, 10 * len(c))
+    view.contour = np.column_stack([np.interp(t, np.arange(len(c)), c[:, 0]),
+                                    np.interp(t, np.arange(len(c)), c[:, 1])])
     path = tmp_path / "case.json"
     save_landmarks(case, path)
     proc = run_cli("fit", path, "--out", tmp_path / "head.obj", "--report",
                    tmp_path / "report.json", "--components", 20, "--noise", "fixed",
                    "--noise-px", 2)
     assert proc.returncode == 0, proc.stderr
+    assert f"notice: {path}: views.{name}.contour: {10 * len(c)} points thinned to " \
+        in proc.stderr
     report = json.loads((tmp_path / "report.json").read_text(encoding="utf-8"))
     assert "noise" not in report["info"]  # nothing estimated: every landmark at 2 px
     proc = run_cli("fit", path, "--out", tmp_path / "head.obj", "--noise", "guess")
