@@ -36,17 +36,27 @@ def assert_one_line_error(proc, *fragments):
         assert frag in lines[0], (frag, lines[0])
 
 
+def landmarks_doc(w=W, h=H, margin=50, seed=5, front=(0, 20), side=(30, 40)):
+    """A valid version-1 document: the landmark set's names ``front`` and ``side`` (index
+    ranges) at random pixels ``margin`` inside a ``w`` x ``h`` front and profile photo."""
+    names = list(load_landmark_set().names)
+    rng = np.random.default_rng(seed)
+    pts = rng.uniform([margin, margin], [w - margin, h - margin], size=(len(names), 2))
+    pts = pts.round(1)
+
+    def points(lo, hi):
+        return {names[i]: pts[i].tolist() for i in range(lo, hi)}
+
+    return {"format": "headrecon-landmarks", "version": 1, "views": {
+        "front": {"image": "front.png", "size": [w, h], "camera": "orthographic-front",
+                  "points": points(*front)},
+        "side": {"image": "side.png", "size": [w, h], "camera": "orthographic-right",
+                 "points": points(*side)}}}
+
+
 @pytest.fixture(scope="module")
 def case_doc():
-    lms = load_landmark_set()
-    names = list(lms.names)
-    rng = np.random.default_rng(5)
-    pts = rng.uniform([50, 50], [W - 50, H - 50], size=(len(names), 2)).round(1)
-    return {"format": "headrecon-landmarks", "version": 1, "views": {
-        "front": {"image": "front.png", "size": [W, H], "camera": "orthographic-front",
-                  "points": {n: pts[i].tolist() for i, n in enumerate(names[:20])}},
-        "side": {"image": "side.png", "size": [W, H], "camera": "orthographic-right",
-                 "points": {n: pts[i].tolist() for i, n in enumerate(names[30:40])}}}}
+    return landmarks_doc()
 
 
 def write_case(folder, doc, name="case.json"):

@@ -11,13 +11,13 @@ import io
 import json
 from pathlib import Path
 
-import numpy as np
 import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from solver import cli, load_landmark_set
+from solver import cli
 from solver.fitting.options import RANGES
+from tests.solver.test_cli import landmarks_doc
 
 W, H = 300, 400
 
@@ -37,16 +37,9 @@ JSON_VALUE = st.recursive(JSON_LEAF, lambda kids: st.lists(kids, max_size=4)
 
 
 def _doc():
-    lms = load_landmark_set()
-    names = list(lms.names)
-    rng = np.random.default_rng(2)
-    pts = rng.uniform([20, 20], [W - 20, H - 20], size=(len(names), 2)).round(1)
-    return {"format": "headrecon-landmarks", "version": 1, "views": {
-        "front": {"image": "front.png", "size": [W, H], "camera": "orthographic-front",
-                  "points": {n: pts[i].tolist() for i, n in enumerate(names[:12])}},
-        "side": {"image": "side.png", "size": [W, H], "camera": "orthographic-right",
-                 "points": {n: pts[i].tolist() for i, n in enumerate(names[40:48])},
-                 "contour": [[100.0, 50.0], [90.0, 120.0], [110.0, 200.0]]}}}
+    doc = landmarks_doc(W, H, margin=20, seed=2, front=(0, 12), side=(40, 48))
+    doc["views"]["side"]["contour"] = [[100.0, 50.0], [90.0, 120.0], [110.0, 200.0]]
+    return doc
 
 
 DOC = _doc()
