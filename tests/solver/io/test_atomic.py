@@ -78,3 +78,15 @@ def test_outputs_that_are_inputs_or_each_other_are_refused(tmp_path):
     with pytest.raises(ValueError, match="give the outputs different file names"):
         write_files_atomic({tmp_path / "a": "1", tmp_path / "sub" / ".." / "a": "2"})
     assert not (tmp_path / "a").exists()
+
+
+def test_saving_landmarks_into_a_missing_folder_names_the_file(tmp_path):
+    from solver import LandmarkCase, OrthographicCamera, View, save_landmarks
+
+    cam = OrthographicCamera.nominal("orthographic-front", (100, 100))
+    case = LandmarkCase({"front": View("front", None, (100, 100), cam, {"nose_tip": (5, 5)})})
+    target = tmp_path / "missing" / "case.json"
+    with pytest.raises(OSError) as info:
+        save_landmarks(case, target)
+    assert str(info.value).endswith(f"No such file or directory: '{target}'")
+    assert ".tmp" not in str(info.value)
