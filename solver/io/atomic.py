@@ -7,13 +7,14 @@ import tempfile
 from pathlib import Path
 
 
-def same_file(a, b):
+def same_file(a, b, fold_case=False):
     """Whether paths ``a`` and ``b`` name one file: the same resolved path (symbolic links
-    followed; case folded where the platform's paths are case-insensitive), or, when both
-    exist, one file by ``os.path.samefile`` (hard links, case-insensitive file systems)."""
+    followed; case folded where the platform's paths are case-insensitive, or everywhere
+    with ``fold_case``), or, when both exist, one file by ``os.path.samefile`` (hard links,
+    case-insensitive file systems)."""
     ra = os.path.normcase(os.path.realpath(a))
     rb = os.path.normcase(os.path.realpath(b))
-    if ra == rb:
+    if ra == rb or fold_case and ra.casefold() == rb.casefold():
         return True
     try:
         return os.path.samefile(a, b)
@@ -44,7 +45,9 @@ def check_outputs(outputs, inputs=None):
                 raise ValueError(f"{label} {path}: is {other} ({known}); refusing to "
                                  "overwrite an input, give another file name")
         for other, known in outs[:i]:
-            if same_file(path, known):
+            # Outputs not written yet cannot be compared by samefile: names that differ in
+            # case only are one file on a case-insensitive file system (macOS, Windows).
+            if same_file(path, known, fold_case=True):
                 raise ValueError(f"{label} {path}: is also {other} ({known}); give the "
                                  "outputs different file names")
         if path.is_dir():

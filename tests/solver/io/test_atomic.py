@@ -72,6 +72,8 @@ def test_outputs_that_are_inputs_or_each_other_are_refused(tmp_path):
             check_outputs({"--out": tmp_path / "h.obj", "--report": other}, inputs)
     with pytest.raises(ValueError, match=r"--report .*x: is also --out \(.*x\)"):
         check_outputs({"--out": tmp_path / "x", "--report": tmp_path / "x"}, inputs)
+    with pytest.raises(ValueError, match=r"--report .*Head\.obj: is also --out"):
+        check_outputs({"--out": tmp_path / "head.obj", "--report": tmp_path / "Head.obj"})
     with pytest.raises(ValueError, match="is a folder"):
         check_outputs({"--out": tmp_path})
     check_outputs({"--out": tmp_path / "h.obj", "--report": tmp_path / "r.json"}, inputs)
