@@ -131,7 +131,8 @@ def _cmd_fit(args):
                        ("n_regional", args.regional), ("lambda1", args.lambda1),
                        ("lambda2", args.lambda2), ("prior", args.prior),
                        ("max_iterations", args.max_iterations),
-                       ("noise_px", args.noise_px), ("noise", args.noise)):
+                       ("noise_px", args.noise_px), ("noise", args.noise),
+                       ("outline_landmarks", args.outline_landmarks)):
         if value is not None:
             kw[key] = value
     if args.exact:
@@ -323,6 +324,10 @@ def build_parser():
                      help="'estimate' (default): placement noise and per-landmark weights "
                           "from the fit itself; 'fixed': every landmark placed with "
                           "--noise-px")
+    fit.add_argument("--outline-landmarks", choices=("vertex", "slide"),
+                     help="the jaw, chin and head-side points of a front photo: 'vertex' "
+                          "(default) fitted to their model vertices, 'slide' across the "
+                          "head's silhouette and loosely along it")
     fit.add_argument("--frame", choices=("local", "world"), default="local",
                      help="OBJ coordinates: 'local' the head upright in the model's frame "
                           "(default), 'world' posed as in the photos")
