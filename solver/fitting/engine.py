@@ -29,7 +29,6 @@ from .rows import ImageRows
 from .shape_icp import ShapeProblem
 from .views import FRONTAL_DEGREES, PROFILE_DEGREES, assign_roles
 
-
 #: How far a sliding landmark may be from the head's outline and still be matched to it,
 #: in contour thresholds: it stands for a place on the outline, and a head far from it
 #: (the start of a fit) still has to be pulled there.
