@@ -129,7 +129,7 @@ def _read_photo(case, view_name, texture_size):
 _OPTION_FLAGS = {"method": "--method", "n_identity": "--components", "n_regional": "--regional",
                  "lambda1": "--lambda1", "lambda2": "--lambda2", "prior": "--prior",
                  "max_iterations": "--max-iterations", "noise_px": "--noise-px",
-                 "noise": "--noise"}
+                 "noise": "--noise", "outline_landmarks": "--outline-landmarks"}
 
 
 def _fit_options(args, model, progress):
@@ -427,6 +427,10 @@ def build_parser():
                      help="'estimate' (default): placement noise and per-landmark weights "
                           "from the fit itself; 'fixed': every landmark placed with "
                           "--noise-px")
+    fit.add_argument("--outline-landmarks", choices=("vertex", "slide"),
+                     help="the jaw, chin and head-side points of a front photo: 'vertex' "
+                          "(default) fitted to their model vertices, 'slide' across the "
+                          "head's silhouette and loosely along it")
     fit.add_argument("--frame", choices=("local", "world"), default="local",
                      help="OBJ coordinates: 'local' the head upright in the model's frame "
                           "(default), 'world' posed as in the photos")

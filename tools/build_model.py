@@ -337,6 +337,10 @@ def load_landmark_set(path=LANDMARKS_PATH, n_vertices=N_VERTICES):
         if not isinstance(views, list) or not views or not set(views) <= set(VIEWS) \
                 or len(set(views)) != len(views):
             raise ValueError(f"{where}: 'views' must be a non-empty subset of {list(VIEWS)}")
+        outline = e.get("outline", [])
+        if not isinstance(outline, list) or not set(outline) <= set(views) \
+                or len(set(outline)) != len(outline):
+            raise ValueError(f"{where}: 'outline' must be a subset of its 'views' {views}")
         if not isinstance(e.get("description"), str) or not e["description"].strip():
             raise ValueError(f"{where}: 'description' must be a non-empty string")
         for key, table, top in (("ibug", ibug, 68), ("thesis", thesis, 40)):

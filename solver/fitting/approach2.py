@@ -27,7 +27,8 @@ def approach2(eng, model, state, opts):
     Each round warps the head with a thin-plate spline that takes its landmark vertices
     to their 3-D targets (``Engine.landmark_targets``), then fits the model to the warped
     skin (every 8th skin vertex) and to the targets themselves (weighted like the
-    landmarks' pixels), with the profile contour as in approach 1; the cameras follow.
+    landmarks' pixels), with the traced outlines and the sliding landmarks (which have no
+    3-D target) as in approach 1; the cameras follow.
     Outlines other than an orthographic profile's are matched to candidates found on the
     head approach 2 starts from (``info["outlines"]``, as in :func:`approach1`).
     """
@@ -55,6 +56,12 @@ def approach2(eng, model, state, opts):
         contour.append((v, rows))
         parts.append(cand)
         off += len(cand)
+    for v in eng.views:  # the sliding landmarks have no 3-D target: as in approach 1
+        if v.name in joint.sliding:
+            rows, copies, _ = eng.sliding_rows(v, off, own)
+            contour += [(v, r) for r in rows]
+            parts.append(copies)
+            off += len(copies)
     # One problem for all rounds: only targets change, so the dense rows' Gram matrix
     # is computed once.
     copies = np.concatenate([dense, verts] + parts)

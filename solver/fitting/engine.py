@@ -18,9 +18,21 @@ from ..memo import memo
 from ..model.linear_model import LinearModel
 from ..model.stacked import StackedModel
 from .joint import Joint
-from .outline import CONTOUR_KEEP_SIGMAS, ContourRows, outline_candidates
+from .outline import (
+    CONTOUR_KEEP_SIGMAS,
+    ContourRows,
+    OutlineAlongRows,
+    OutlinePointRows,
+    outline_candidates,
+)
 from .rows import ImageRows
 from .shape_icp import ShapeProblem
+from .views import FRONTAL_DEGREES, PROFILE_DEGREES, assign_roles
+
+#: How far a sliding landmark may be from the head's outline and still be matched to it,
+#: in contour thresholds: it stands for a place on the outline, and a head far from it
+#: (the start of a fit) still has to be pulled there.
+OUTLINE_POINT_REACH = 2.5
 
 
 class Engine:
@@ -69,6 +81,8 @@ class Engine:
         # sigmas of the placement noise.
         self.contour_keep = CONTOUR_KEEP_SIGMAS * noise_px
         self._by_name = {v.name: v for v in views}
+        # whether a front photo's outline landmarks slide (FitOptions.outline_landmarks)
+        self.slide_outline = False
         self.fixed_similarity = self.gauge(views)
         self._slices = memo(lin, "slices", dict)
         # Gamma enters the cost only as Gamma^T Gamma: a factor with one row per
@@ -98,8 +112,10 @@ class Engine:
             return StackedModel(parts)
 
         lin = memo(model, ("fitted model", int(opts.n_identity), int(opts.n_regional)), make)
-        return cls(lin, views, *outline_candidates(model), opts.noise_px, opts.lambda1,
-                   opts.lambda2, opts.prior, opts.contour_weight, opts.contour_threshold_px)
+        eng = cls(lin, views, *outline_candidates(model), opts.noise_px, opts.lambda1,
+                  opts.lambda2, opts.prior, opts.contour_weight, opts.contour_threshold_px)
+        eng.slide_outline = opts.outline_landmarks == "slide"
+        return eng
 
     # ------------------------------------------------------------------ views
 
@@ -251,14 +267,22 @@ class Engine:
 
     def finish_views(self, state):
         """After the cameras are placed: which views look along the head's left-right axis
-        (at the head's landmarks)."""
+        (at the head's landmarks), which at the face (within FRONTAL_DEGREES) or along that
+        axis (within PROFILE_DEGREES: a profile photo), and so the
+        landmarks' roles in each (``views.assign_roles``; sliding only with
+        ``FitOptions.outline_landmarks="slide"``)."""
         self.use(state)
         verts = np.concatenate([v.vertices for v in self.views])
         centre = self.world(state, verts).mean(axis=0)
         axis = state.rotation[:, 0]
+        forward = -state.rotation[:, 1]  # the face looks toward -Y
         for v in self.views:
             d = np.asarray(v.camera.toward_camera(centre[None, :]), dtype=np.float64)[0]
             v.side = bool(abs(d @ axis) > 0.7 * np.linalg.norm(d))
+            length = np.linalg.norm(d)
+            frontal = d @ forward > np.cos(np.radians(FRONTAL_DEGREES)) * length
+            profile = abs(d @ axis) > np.cos(np.radians(PROFILE_DEGREES)) * length
+            assign_roles(v, frontal and self.slide_outline, profile)
 
     def _camera_points(self, state, view, extra):
         """(world points, pixels, weights) a real camera is refitted to: its landmarks,
@@ -268,7 +292,7 @@ class Engine:
         pts, px, w = [], [], []
         for u in [view] + self.mirrors_of(view):
             x = [self.world(state, u.vertices)]
-            q, ww = [u.pixels], [u.weights]
+            q, ww = [u.pixels], [u.fixed_weights]
             for ev, ep, ew in extra.get(u.name, ()):
                 x.append(self.world(state, ev))
                 q.append(ep)
@@ -399,13 +423,43 @@ class Engine:
 
     # ------------------------------------------------------------------ rows
 
-    def landmark_rows(self, view, start, front_weight=1.0):
+    def landmark_rows(self, view, start, front_weight=1.0, slide=False):
         """Image rows of ``view``'s landmarks on copies ``start`` ... ``start + n - 1``,
-        weighted 1 / noise^2 (and ``front_weight`` unless a profile photo)."""
+        weighted 1 / noise^2 (and ``front_weight`` unless a profile photo); with ``slide``
+        those that slide (``view.slide``) weigh 0: :meth:`sliding_rows` fits them."""
         n = len(view.vertices)
-        w = (1.0 if view.side else front_weight) * self.inv_var * view.weights
+        w = (1.0 if view.side else front_weight) * self.inv_var * (
+            view.fixed_weights if slide else view.weights)
         return ImageRows(np.arange(start, start + n), view.pixels, view.camera, weights=w,
                          name=f"landmarks {view.name}")
+
+    def sliding_rows(self, view, start, outlines=None, front_weight=1.0):
+        """Rows of ``view``'s sliding landmarks (``view.slide``), weighted as
+        :meth:`landmark_rows` weighs landmarks: across the head's outline, on copies of its
+        outline candidates from ``start`` (:meth:`outline_candidates`), then along it, on
+        copies of their own vertices after those (with ``view.along_weights``).
+
+        Returns
+        -------
+        rows : list
+            [OutlinePointRows, OutlineAlongRows]
+        copies : ndarray
+            The model vertices of the copies from ``start``, in order.
+        idx : ndarray
+            The landmarks' indices in the view.
+        """
+        cand, faces, edges = self.outline_candidates(view, outlines)
+        idx = np.flatnonzero(view.slide)
+        scale = (1.0 if view.side else front_weight) * self.inv_var
+        across = OutlinePointRows(np.arange(start, start + len(cand)), view.pixels[idx],
+                                  view.camera, scale * view.weights[idx], faces, edges,
+                                  max_distance=OUTLINE_POINT_REACH * self.contour_threshold,
+                                  name=f"outline points {view.name}")
+        at = start + len(cand)
+        along = OutlineAlongRows(np.arange(at, at + len(idx)), view.pixels[idx], view.camera,
+                                 scale * view.along_weights[idx], across,
+                                 name=f"outline along {view.name}")
+        return [across, along], np.concatenate([cand, view.vertices[idx]]), idx
 
     def contour_rows(self, view, start, outlines=None, keep_distance=None):
         """Rows of ``view``'s traced outline on copies of its outline candidates from
@@ -436,14 +490,14 @@ class Engine:
         targets : ndarray, shape (n, 3)
         """
         views = self.views
-        allv = np.concatenate([v.vertices[v.weights > 0] for v in views])
+        allv = np.concatenate([v.vertices[v.fixed_weights > 0] for v in views])
         uniq, inv = np.unique(allv, return_inverse=True)
         x = self.world(state, uniq)
         a = np.zeros((len(uniq), 3, 3))
         b = np.zeros((len(uniq), 3))
         start = 0
         for v in views:
-            use = v.weights > 0
+            use = v.fixed_weights > 0
             n = int(use.sum())
             idx = inv[start:start + n]
             start += n
@@ -462,10 +516,12 @@ class Engine:
     # ------------------------------------------------------------------ errors
 
     def reprojection(self, state, views=None):
-        """Per view: landmark residuals (n,) in pixels."""
+        """Per view: the residuals (pixels) of the landmarks tied to their vertices
+        (weight above 0, not sliding)."""
         out = {}
         for v in self.views if views is None else views:
-            px = state.cameras[v.name].project(self.world(state, v.vertices))
-            out[v.name] = np.linalg.norm(px - v.pixels, axis=1)
+            use = v.fixed_weights > 0
+            px = state.cameras[v.name].project(self.world(state, v.vertices[use]))
+            out[v.name] = np.linalg.norm(px - v.pixels[use], axis=1)
         return out
 

@@ -67,7 +67,14 @@ from .outcome import (
 )
 from .pose import init_pose
 from .rows import ImageRows
-from .views import State, prepare_views, previous_cameras, saved_state, skip_warnings
+from .views import (
+    State,
+    drop_warnings,
+    prepare_views,
+    previous_cameras,
+    saved_state,
+    skip_warnings,
+)
 
 
 class Progress:
@@ -133,19 +140,18 @@ def fit_head(model, case, options=None, initial=None):
         return _fit(model, case, opts, initial, None, progress, t0)[0]
     # The noise from the fit's residuals, the fit again with it, until the estimate
     # settles (noise.py); each fit after the first starts where the last one ended.
-    result, contour, effective = _fit(model, case, opts, initial, None,
-                                      progress.part(0.0, 0.55), t0)
+    result, contour, along, effective = _fit(model, case, opts, initial, None,
+                                             progress.part(0.0, 0.55), t0)
     noise, rounds = None, 1
     timings = dict(result.info["timings"])
     while rounds < MAX_ROUNDS:
-        estimate = estimate_noise({n: (r.names, r.pixels) for n, r in result.residuals.items()},
-                                  contour, effective, opts.noise_px)
+        estimate = estimate_noise(result.residuals, contour, effective, opts.noise_px, along)
         if noise is not None and noise.settled(estimate):
             break
         noise = estimate
         part = 0.55 + 0.15 * (rounds - 1)
-        result, contour, effective = _fit(model, case, opts, result, noise,
-                                          progress.part(part, part + 0.15), t0)
+        result, contour, along, effective = _fit(model, case, opts, result, noise,
+                                                 progress.part(part, part + 0.15), t0)
         rounds += 1
         for stage, seconds in result.info["timings"].items():
             timings[stage] = seconds if stage == "total" else timings.get(stage, 0.0) + seconds
@@ -159,7 +165,8 @@ def fit_head(model, case, options=None, initial=None):
 def _fit(model, case, opts, initial, noise, progress, t0):
     """One fit of the case with landmark and outline weights from ``noise`` (None: all
     placed with ``noise_px``), from ``initial``'s state when given. Returns (result,
-    contour residuals per view, effective number of fitted parameters)."""
+    contour residuals per view, the sliding landmarks' residuals along the outline per
+    view, effective number of fitted parameters)."""
     cams = None if initial is None else previous_cameras(initial, "initial")
     views, skipped = prepare_views(model, case, opts, cameras=cams, noise=noise)
     eng = Engine.for_fit(model, views, opts)
@@ -207,7 +214,9 @@ def _fit(model, case, opts, initial, noise, progress, t0):
     cov = joint.covariance(state)
     unc = vertex_uncertainty(model, eng, cov)
     contour = joint.contour_residuals(state)
-    pairs = joint.contour_pairs(state)
+    pairs = joint.contour_pairs(state, kinds=("contour",))
+    matches = joint.outline_matches(state)
+    along = joint.along_residuals(state)
     info = {
         "approach": chosen,
         "candidates": {n: {"rms_px": r, "prior": p} for n, (r, p) in scores.items()},
@@ -225,13 +234,19 @@ def _fit(model, case, opts, initial, noise, progress, t0):
                        for n, p in state.planes.items()},
             "contour": {n: {"vertices": np.concatenate([p[0] for p in lst]),
                             "pixels": np.vstack([p[1] for p in lst])}
-                        for n, lst in pairs.items()}},
+                        for n, lst in pairs.items()},
+            # the sliding landmarks: the vertex each met the outline at, and the offset
+            # along the outline from it (refit_landmarks holds them there)
+            "outline": {n: {"names": [eng.view(n).names[i] for i in idx],
+                            "vertices": verts.copy(), "offsets": along.copy()}
+                        for n, (idx, _, verts, along) in matches.items()}},
     }
     if "approach1" in candidates and "calibration_rounds" in candidates["approach1"][1]:
         info["iterations"]["calibration_rounds"] = \
             candidates["approach1"][1]["calibration_rounds"]
     result = make_result(model, eng, state, opts, opts.method, info, uncertainty=unc,
-                          skipped=skipped)
+                          skipped=skipped,
+                          outline={n: m[:2] for n, m in matches.items()})
     info["rms_px"] = {n: result.rms_px(n) for n in result.residuals}
     info["projection"], fitted = projection_info(model, result, eng, opts)
     if state.planes:
@@ -241,12 +256,13 @@ def _fit(model, case, opts, initial, noise, progress, t0):
     # which views it skipped: a dragged landmark can make a skipped view usable.
     info["refit_state"]["warnings"] = list(fitted)
     info["plausibility"], implausible = plausibility(result.identity_coeffs)
-    info["warnings"] = skip_warnings(skipped) + fitted + implausible
+    info["warnings"] = skip_warnings(skipped) + drop_warnings(eng.views) + fitted \
+        + implausible
     timings["result"] = time.perf_counter() - t
     timings["total"] = time.perf_counter() - t0
     info["timings"] = timings
     progress(1.0, f"done ({chosen})")
-    return result, contour, eng.effective_parameters(cov)
+    return result, contour, along, eng.effective_parameters(cov)
 
 
 def refit_landmarks(model, case, previous, options=None):
@@ -290,14 +306,32 @@ def refit_landmarks(model, case, previous, options=None):
                                     noise=saved.get("noise"))
     eng = Engine.for_fit(model, views, opts)
     state, saved = saved_state(previous, eng, views, "previous")
-    eng.use(state)
+    eng.finish_views(state)
     rows, verts = [], []
+    held = {}  # view name -> (landmark indices, rows) of the sliding landmarks
     off = 0
     for v in views:
         if len(v.vertices):
-            rows.append(eng.landmark_rows(v, off, opts.front_weight))
+            rows.append(eng.landmark_rows(v, off, opts.front_weight, slide=True))
             verts.append(v.vertices)
             off += len(v.vertices)
+        # a sliding landmark stays where the full fit met the outline with it: on that
+        # vertex, offset along the outline as it was there
+        where = saved.get("outline", {}).get(v.name)
+        slid = {n: i for i, n in enumerate(v.names) if v.slide[i]}
+        pick = [(slid[n], j) for j, n in enumerate(where["names"]) if n in slid] \
+            if where is not None else []
+        if pick:
+            idx = np.array([i for i, _ in pick])
+            sel = np.array([j for _, j in pick])
+            w = (1.0 if v.side else opts.front_weight) * eng.inv_var * v.weights[idx]
+            held_rows = ImageRows(np.arange(off, off + len(idx)),
+                                  v.pixels[idx] - np.asarray(where["offsets"])[sel],
+                                  v.camera, weights=w, name=f"outline points {v.name}")
+            rows.append(held_rows)
+            held[v.name] = (idx, held_rows)
+            verts.append(np.asarray(where["vertices"], dtype=np.int64)[sel])
+            off += len(idx)
         pairs = saved.get("contour", {}).get(v.name)
         if pairs is not None and len(pairs["vertices"]):
             cv = np.asarray(pairs["vertices"], dtype=np.int64)
@@ -312,14 +346,19 @@ def refit_landmarks(model, case, previous, options=None):
                         translation=state.translation, coeffs=state.coeffs,
                         max_iterations=1, tolerance=0.0, sigma=1.0)
     state.coeffs = fit.coeffs.copy()
+    world = eng.world(state, np.concatenate(verts))
+    outline = {n: (idx, np.linalg.norm(r.pixels - r.camera.project(world[r.vertices]), axis=1))
+               for n, (idx, r) in held.items()}
     info = {"approach": previous.info.get("approach", previous.method), "refit": True,
             "refit_state": {**saved, "coeffs": state.coeffs.copy()},
-            "warnings": skip_warnings(skipped) + list(saved.get("warnings", []))}
+            "warnings": skip_warnings(skipped) + drop_warnings(views)
+            + list(saved.get("warnings", []))}
     info["plausibility"], implausible = plausibility(state.coeffs[:int(opts.n_identity)])
     info["warnings"] += implausible
     result = make_result(model, eng, state, opts, previous.method, info,
                           uncertainty=np.asarray(previous.uncertainty).copy(),
-                          detail=np.asarray(previous.detail).copy(), skipped=skipped)
+                          detail=np.asarray(previous.detail).copy(), skipped=skipped,
+                          outline=outline)
     info["rms_px"] = {n: result.rms_px(n) for n in result.residuals}
     info["timings"] = {"total": time.perf_counter() - t0}
     return result

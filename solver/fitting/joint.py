@@ -91,14 +91,25 @@ class Joint:
         # view name -> (vertices, faces, edges): candidates found for this problem's head
         self.outlines = dict(outlines or {})
         self.groups = []  # (view, kind, rows)
+        # view name -> indices of its landmarks fitted to the head's outline (the sliding
+        # ones of a view with outline candidates; without, they stay on their vertices)
+        self.sliding = {}
         orig = []
         off = 0
         for v in self.views:
+            slide = landmarks and bool(v.slide.any()) and v.name in self.outlines
             if landmarks and len(v.vertices):
-                rows = eng.landmark_rows(v, off, front_weight)
+                rows = eng.landmark_rows(v, off, front_weight, slide=slide)
                 self.groups.append((v, "landmarks", rows))
                 orig.append(v.vertices)
                 off += len(v.vertices)
+            if slide:
+                (across, along), copies, idx = eng.sliding_rows(v, off, self.outlines,
+                                                                front_weight)
+                self.groups += [(v, "outline points", across), (v, "outline along", along)]
+                self.sliding[v.name] = idx
+                orig.append(copies)
+                off += len(copies)
             if contour and v.contour is not None:
                 rows, cand = eng.contour_rows(v, off, self.outlines, keep_distance)
                 self.groups.append((v, "contour", rows))
@@ -161,20 +172,59 @@ class Joint:
         return self.eng.camera_prior_cost(state, [b.view for b in self.blocks
                                                   if b.kind == "camera"])
 
-    def contour_pairs(self, state):
-        """view name -> [(model vertices, target pixels, weights)] of the current contour
-        rows (for the camera refit)."""
+    def contour_pairs(self, state, kinds=("contour", "outline points")):
+        """view name -> [(model vertices, target pixels, weights)] of the current rows of
+        the traced outlines and the sliding landmarks (``kinds``), for the camera refit
+        (weights relative to 1 / noise^2)."""
         out = {}
         x = None
         for v, kind, rows in self.groups:
-            if kind != "contour" or len(rows.selected) == 0:
+            if kind not in kinds or len(rows.selected) == 0:
                 continue
             if x is None:
                 x = self.world(state)
             sel, px = rows.pairs(x[rows.vertices])
-            out.setdefault(v.name, []).append(
-                (self.orig[rows.vertices[sel]], px,
-                 np.full(len(sel), self.eng.contour_weight * v.contour_scale)))
+            w = np.full(len(sel), self.eng.contour_weight * v.contour_scale) \
+                if kind == "contour" else rows.row_weights / self.eng.inv_var
+            out.setdefault(v.name, []).append((self.orig[rows.vertices[sel]], px, w))
+        return out
+
+    def outline_matches(self, state):
+        """Per view with sliding landmarks, where each met the head's outline at ``state``:
+        view name -> (landmark indices in the view (k,), signed pixel distances across the
+        outline (k,), the nearer model vertex of each one's silhouette point (k,), and the
+        pixel offset along the outline from that vertex's projection (k, 2)). The offset
+        lets the drag refit hold a landmark to that vertex without pulling along the
+        outline."""
+        self.sync(state)
+        x = self.world(state)
+        out = {}
+        for v, kind, rows in self.groups:
+            if kind != "outline points":
+                continue
+            xs = x[rows.vertices]
+            rows.update(xs)
+            r = rows.residuals(xs)
+            sel = rows.selected
+            gap = rows.targets - v.camera.project(xs[sel])
+            along = gap - np.einsum("ij,ij->i", gap, rows.row_normals)[:, None] \
+                * rows.row_normals
+            out[v.name] = (self.sliding[v.name][rows.points], r,
+                           self.orig[rows.vertices[sel]], along)
+        return out
+
+    def along_residuals(self, state):
+        """view name -> (names, pixel residuals along the outline) of the sliding landmarks
+        that met the head's outline at ``state`` (after :meth:`outline_matches` or a
+        cost evaluation there)."""
+        x = self.world(state)
+        out = {}
+        for v, kind, rows in self.groups:
+            if kind != "outline along":
+                continue
+            pts = rows.outline.points
+            r = rows.residuals(x[rows.vertices])[pts, 0]
+            out[v.name] = ([v.names[i] for i in self.sliding[v.name][pts]], r)
         return out
 
     def refit(self, state):
@@ -199,9 +249,11 @@ class Joint:
         return out
 
     def reprojection_rms(self, state):
-        """RMS of every landmark and contour-correspondence pixel residual at ``state``."""
+        """RMS of every landmark and contour-correspondence pixel residual at ``state``
+        (a sliding landmark's across the outline)."""
         parts = list(self.eng.reprojection(state).values())
         parts += list(self.contour_residuals(state).values())
+        parts += [m[1] for m in self.outline_matches(state).values()]
         return rms(np.concatenate(parts))
 
     # ------------------------------------------------------------------ camera modes

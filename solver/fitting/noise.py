@@ -4,9 +4,10 @@ Real landmarks (an artist's clicks, a detector's points) sit several pixels from
 landmark vertices even on a perfect head, because a landmark's definition differs between
 people, detectors and the model. A fit that assumed 1-px placement chases them and bends
 the head. So the fit estimates the placement noise from its own residuals: one standard
-deviation per view for the landmarks and one per view for the traced outline (variance
-components: the weighted squared residuals over the rows that the data, not the fitted
-parameters, account for), with ``noise_px`` as the floor; and a Student-t weight per
+deviation per view for each group of rows: the landmarks tied to their vertices, the
+landmarks on the head's outline (their distance across it) and the traced outline
+(variance components: the weighted squared residuals over the rows that the data, not
+the fitted parameters, account for), with ``noise_px`` as the floor; and a Student-t weight per
 landmark, so a misplaced one loses its weight on its own. The fit is repeated with these
 weights until they settle. Everything else follows: the shape prior (lambda2 = 1 against
 rows weighted 1 / sigma^2) then keeps a head that few or noisy landmarks describe near the
@@ -38,6 +39,14 @@ class Noise:
     ----------
     landmark_px : dict of str -> float
         Per view: standard deviation of a landmark coordinate, pixels.
+    outline_px : dict of str -> float
+        Per view with at least 3 landmarks on the head's outline (``outline_names``):
+        standard deviation across the outline, pixels.
+    outline_names : dict of str -> frozenset
+        Per view: the landmarks whose residual was their distance across the outline.
+    along_px : dict of str -> float
+        Per view with at least 3 of them: standard deviation of where along the outline
+        they were placed (from their vertices), pixels.
     contour_px : dict of str -> float
         Per view with a traced outline: standard deviation across the outline, pixels.
     weights : dict of str -> dict of str -> float
@@ -51,21 +60,42 @@ class Noise:
     contour_px: dict = field(default_factory=dict)
     weights: dict = field(default_factory=dict)
     floor_px: float = 1.0
+    outline_px: dict = field(default_factory=dict)
+    outline_names: dict = field(default_factory=dict)
+    along_px: dict = field(default_factory=dict)
 
     def landmark_factor(self, view, name):
         """Multiplier of a landmark's weight (relative to 1 / floor^2): its Student-t
-        precision, weight / scale^2."""
-        scale = self.landmark_px.get(view, self.floor_px) * np.sqrt(consistency(2))
-        return (self.floor_px / scale) ** 2 * self.weights.get(view, {}).get(name, 1.0)
+        precision, weight / scale^2 (1 for a landmark of a group without an estimate)."""
+        if name in self.outline_names.get(view, ()):
+            # too few on the outline for an estimate of their own: the view's landmarks'
+            sigma = self.outline_px.get(view, self.landmark_px.get(view))
+            return self._factor(sigma, 1) * self.weights.get(view, {}).get(name, 1.0)
+        return self._factor(self.landmark_px.get(view), 2) \
+            * self.weights.get(view, {}).get(name, 1.0)
+
+    def along_factor(self, view, name):
+        """Multiplier of a sliding landmark's weight along the outline (relative to
+        1 / floor^2; as :meth:`landmark_factor` for any other landmark)."""
+        if name in self.outline_names.get(view, ()):
+            return self._factor(self.along_px.get(view, self.landmark_px.get(view)), 1)
+        return self.landmark_factor(view, name)
 
     def contour_factor(self, view):
         """Multiplier of a view's outline rows' weight (relative to 1 / floor^2)."""
-        scale = self.contour_px.get(view, self.floor_px) * np.sqrt(consistency(1))
-        return (self.floor_px / scale) ** 2
+        return self._factor(self.contour_px.get(view), 1)
+
+    def _factor(self, sigma, dim):
+        """(floor / Student-t scale)^2 of a group with Gaussian-equivalent ``sigma``."""
+        if sigma is None:
+            return 1.0
+        return self.floor_px ** 2 / (sigma ** 2 * consistency(dim))
 
     def settled(self, other):
         """Whether every sigma of ``other`` is within SETTLED of this one's."""
         for mine, theirs in ((self.landmark_px, other.landmark_px),
+                             (self.outline_px, other.outline_px),
+                             (self.along_px, other.along_px),
                              (self.contour_px, other.contour_px)):
             if set(mine) != set(theirs):
                 return False
@@ -77,23 +107,28 @@ class Noise:
     def report(self):
         """JSON-ready summary: sigmas per view, every landmark's weight, and the landmarks
         that lost most of theirs."""
-        return {"landmark_px": dict(self.landmark_px), "contour_px": dict(self.contour_px),
-                "floor_px": self.floor_px,
+        return {"landmark_px": dict(self.landmark_px), "outline_px": dict(self.outline_px),
+                "along_px": dict(self.along_px),
+                "contour_px": dict(self.contour_px), "floor_px": self.floor_px,
                 "weights": {v: dict(ws) for v, ws in self.weights.items()},
                 "down_weighted": {v: {n: w for n, w in ws.items() if w < DOWN_WEIGHTED}
                                   for v, ws in self.weights.items()
                                   if any(w < DOWN_WEIGHTED for w in ws.values())}}
 
 
-def estimate_noise(residuals, contour, effective, floor_px):
+def estimate_noise(residuals, contour, effective, floor_px, along=None):
     """The placement noise a fit's residuals say.
 
     Parameters
     ----------
-    residuals : dict of str -> (list of str, ndarray (n,))
-        Per view: landmark names and their residuals (pixel distances).
+    residuals : dict of str -> ViewResidual
+        Per view: the landmarks' residuals (pixel distances; across the head's outline for
+        the names in ``outline``; those in ``unused`` are not counted).
     contour : dict of str -> ndarray (m,)
         Per view: the outline rows' residuals across the outline, pixels.
+    along : dict of str -> (list of str, ndarray (k,)), optional
+        Per view: the sliding landmarks that met the outline and their residuals along
+        it, pixels.
     effective : float
         Effective number of fitted parameters (the trace of the fit's hat matrix): the
         rows they account for are not counted as measurements of the noise.
@@ -103,22 +138,34 @@ def estimate_noise(residuals, contour, effective, floor_px):
     -------
     Noise
     """
-    n_rows = 2 * sum(len(r) for _, r in residuals.values()) + sum(
-        len(c) for c in contour.values())
+    out = Noise(floor_px=float(floor_px))
+    groups = []  # (view, names, residuals, dimension (2: at a vertex, 1: across))
+    for view, res in residuals.items():
+        r = np.asarray(res.pixels, dtype=np.float64)
+        skip, across = set(res.unused), set(res.outline)
+        for dim in (2, 1):
+            keep = [i for i, n in enumerate(res.names)
+                    if n not in skip and (n in across) == (dim == 1)]
+            if dim == 1 and keep:
+                out.outline_names[view] = frozenset(res.names[i] for i in keep)
+            if len(keep) >= (1 if dim == 2 else 3):
+                groups.append((view, [res.names[i] for i in keep], r[keep], dim))
+    along = {v: np.asarray(a[1], dtype=np.float64) for v, a in (along or {}).items()}
+    n_rows = sum(g[3] * len(g[2]) for g in groups) + sum(len(c) for c in contour.values()) \
+        + sum(len(a) for a in along.values())
     # each group's variance from its own rows, inflated as all rows share the parameters
     inflate = n_rows / max(n_rows - effective, 0.5 * n_rows) if n_rows else 1.0
-    out = Noise(floor_px=float(floor_px))
-    for view, (names, r) in residuals.items():
-        r = np.asarray(r, dtype=np.float64)
-        if len(r) == 0:
-            continue
-        sigma, w = _student_t(r ** 2, 2, inflate, floor_px)
-        out.landmark_px[view] = sigma
-        out.weights[view] = dict(zip(names, w.tolist(), strict=True))
+    for view, names, r, dim in groups:
+        sigma, w = _student_t(r ** 2, dim, inflate, floor_px)
+        (out.landmark_px if dim == 2 else out.outline_px)[view] = sigma
+        out.weights.setdefault(view, {}).update(zip(names, w.tolist(), strict=True))
     for view, c in contour.items():
         c = np.asarray(c, dtype=np.float64)
         if len(c) >= 3:
             out.contour_px[view] = _student_t(c ** 2, 1, inflate, floor_px)[0]
+    for view, a in along.items():
+        if len(a) >= 3:
+            out.along_px[view] = _student_t(a ** 2, 1, inflate, floor_px)[0]
     return out
 
 

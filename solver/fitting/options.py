@@ -49,6 +49,12 @@ class FitOptions:
     noise_px : float
         Standard deviation of landmark placement the weights assume (the floor of the
         estimate), pixels.
+    outline_landmarks : {"vertex", "slide"}
+        How the outline points of a front photo (``assets/landmarks.json`` "outline": the
+        jaw, the chin, the head's and neck's sides) are fitted. "vertex" (default): each to
+        its model vertex, as any landmark. "slide": across the posed model's silhouette,
+        loosely along it (``OutlinePointRows``, ``OutlineAlongRows``). In a profile photo
+        those without a meaning there are left out either way.
     contour_weight : float
         Weight of one traced outline point relative to one landmark (a point that
         stands for less than 6 pixels of outline weighs that much less; see
@@ -93,6 +99,7 @@ class FitOptions:
     progress: Callable | None = None
     noise: str = "estimate"
     noise_px: float = 1.0
+    outline_landmarks: str = "vertex"
     contour_weight: float = 1.0
     contour_threshold_px: float = 20.0
     landmark_weights: dict | None = None
@@ -166,6 +173,9 @@ def check_options(options, model):
             raise ValueError(f"options.n_regional: {e}") from None
     if o.noise not in ("estimate", "fixed"):
         raise ValueError(f"options.noise: {o.noise!r}; use 'estimate' or 'fixed'")
+    if o.outline_landmarks not in ("vertex", "slide"):
+        raise ValueError(f"options.outline_landmarks: {o.outline_landmarks!r}; use 'vertex' "
+                         "or 'slide'")
     if o.prior not in ("eigen", "identity"):
         raise ValueError(f"options.prior: {o.prior!r}; use 'eigen' or 'identity'")
     if o.progress is not None and not callable(o.progress):

@@ -74,18 +74,32 @@ def view_errors(camera, world, view):
     return np.linalg.norm(camera.project(world[view.vertices]) - view.pixels, axis=1)
 
 
-def landmark_residuals(eng, state, opts, local, skipped=()):
+def landmark_residuals(eng, state, opts, local, skipped=(), outline=None):
     """Landmark residuals of the final head (``local`` includes any detail), flagged; a
-    skipped view's (landmarks of weight 0 only, or none) unflagged."""
+    skipped view's (landmarks of weight 0 only, or none) unflagged. ``outline``: view name
+    -> (landmark indices, pixel distances across the outline) of the sliding landmarks
+    that met it, whose residuals these are (``Joint.outline_matches``)."""
     world = state.scale * local @ state.rotation.T + state.translation
     res = {v.name: view_errors(state.cameras[v.name], world, v) for v in eng.views}
-    flags = flag_residuals(res, opts.flag_sigmas, opts.flag_min_px)
+    across = {}
+    for name, (idx, r) in (outline or {}).items():
+        res[name][idx] = np.abs(r)
+        across[name] = set(np.asarray(idx).tolist())
+    # the landmarks the fit used are compared with each other; those it left out are not
+    used = {v.name: v.weights > 0 for v in eng.views}
+    flags = flag_residuals({n: r[used[n]] for n, r in res.items()}, opts.flag_sigmas,
+                           opts.flag_min_px)
     out = {}
     for v in eng.views:
         r = res[v.name]
-        out[v.name] = ViewResidual(list(v.names), r.copy(),
-                                   [n for n, f in zip(v.names, flags[v.name], strict=True)
-                                    if f])
+        slid = across.get(v.name, set())
+        flagged = np.zeros(len(r), bool)
+        flagged[used[v.name]] = flags[v.name]
+        out[v.name] = ViewResidual(
+            list(v.names), r.copy(),
+            [n for n, f in zip(v.names, flagged, strict=True) if f],
+            [n for i, n in enumerate(v.names) if i in slid],
+            [n for n, w in zip(v.names, v.weights, strict=True) if w == 0])
     for v in skipped:
         out[v.name] = ViewResidual(list(v.names), view_errors(v.camera, world, v), [])
     return out
@@ -178,7 +192,7 @@ def exact_detail(eng, state, local):
 
 
 def make_result(model, eng, state, opts, method, info, uncertainty=None, detail=None,
-                 skipped=()):
+                 skipped=(), outline=None):
     ident, regc, disp, reg = local_terms(model, eng, state, opts)
     if detail is None:
         detail = np.zeros_like(disp)
@@ -193,7 +207,7 @@ def make_result(model, eng, state, opts, method, info, uncertainty=None, detail=
         translation=state.translation.copy(), identity_coeffs=ident,
         regional_coeffs=regc, regional_names=names, detail=detail, local_vertices=local,
         cameras={**state.cameras, **{v.name: v.camera for v in skipped}},
-        residuals=landmark_residuals(eng, state, opts, local, skipped),
+        residuals=landmark_residuals(eng, state, opts, local, skipped, outline),
         uncertainty=uncertainty, info=info)
 
 

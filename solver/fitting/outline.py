@@ -101,12 +101,18 @@ class ContourRows(CameraRows):
         self.max_distance = float(max_distance)
         self.reject_factor = reject_factor
         self.keep_distance = float(keep_distance)
-        self.points = np.zeros(0, np.intp)  # traced point of each row
+        self._reset()
+
+    def _reset(self):
+        self._reset_rows()
         self.cap = self.max_distance  # residual a point without a row counts as (pixels)
-        self.ends = np.zeros((0, 2), np.intp)  # candidate indices of its rim edge
-        self.fractions = np.zeros(0)  # t along that edge
         self._updated = False
         self._last = None  # (camera, world) of the last update
+
+    def _reset_rows(self):
+        self.points = np.zeros(0, np.intp)  # traced point of each row
+        self.ends = np.zeros((0, 2), np.intp)  # candidate indices of its rim edge
+        self.fractions = np.zeros(0)  # t along that edge
 
     @property
     def selected(self):
@@ -116,21 +122,31 @@ class ContourRows(CameraRows):
     def rim(self, world):
         """Edges (a, b) among the candidates on the contour generator of the posed head,
         (E', 2) candidate indices."""
+        return self.rim_edges(world)[:, :2]
+
+    def rim_edges(self, world):
+        """The rows of ``edges`` (a, b, face 1, face 2) on the contour generator of the
+        posed head: one of their faces turned to the camera, the other away."""
         f = self.faces
         a, b, c = world[f[:, 0]], world[f[:, 1]], world[f[:, 2]]
         normal = np.cross(b - a, c - a)
         toward = np.asarray(self.camera.toward_camera((a + b + c) / 3.0), dtype=np.float64)
         facing = np.einsum("ij,ij->i", normal, toward) > 0
-        return self.edges[facing[self.edges[:, 2]] != facing[self.edges[:, 3]], :2]
+        return self.edges[facing[self.edges[:, 2]] != facing[self.edges[:, 3]]]
 
-    def update(self, world):
-        # The same head through the same camera again (a cost evaluation, then the next
-        # solve's first build): the outline found last time stands.
+    def _unchanged(self, world):
+        """Whether ``world`` is the head of the last update through the same camera (a cost
+        evaluation, then the next solve's first build): the outline found then stands."""
         last = self._last
         if last is not None and last[0] is self.camera and last[1].shape == world.shape \
                 and np.abs(last[1] - world).max(initial=0.0) < 1e-12:
-            return
+            return True
         self._last = (self.camera, world.copy())
+        return False
+
+    def update(self, world):
+        if self._unchanged(world):
+            return
         e = self.rim(world)
         points, ends, frac = np.zeros(0, np.intp), np.zeros((0, 2), np.intp), np.zeros(0)
         cap = self.max_distance
@@ -218,6 +234,11 @@ class ContourRows(CameraRows):
         where the traced point lies outside the model's silhouette."""
         return np.einsum("ij,ij->i", self.targets - self._silhouette(world), self.row_normals)
 
+    @property
+    def row_weights(self):
+        """The weights of the current rows, (k,)."""
+        return self.point_weights[self.points]
+
     def pairs(self, world):
         """(candidate indices, pixels) of the current rows for a camera refit consistent
         with this cost: each row's nearer edge end, and where the row pulls it (its
@@ -228,6 +249,154 @@ class ContourRows(CameraRows):
         r = self.residuals(world)
         return sel, self.camera.project(world[sel]) + r[:, None] * self.row_normals
 
+
+class OutlinePointRows(ContourRows):
+    """Landmarks that are points of the head's outline in their photo (the jaw and chin of
+    a front photo, ``assets/landmarks.json`` "outline"), each pulled across the posed
+    model's silhouette there, not onto a fixed vertex: the outline moves over the surface
+    as the head turns and as its shape changes, and where along it a person or a detector
+    puts such a point is loosely defined.
+
+    Each landmark q is matched to its nearest point s on the projected rim (an edge
+    (a, b) at a fraction t, as in :class:`ContourRows`); the row is
+    ``w (n . (q - s))^2`` with n the rim's outward normal there: across the outline is
+    what the landmark measures, along it the silhouette may slide. The nearest rim, not
+    the outermost: the jaw's outline in front of the ear lies inside the ear's. A landmark
+    farther than ``max_distance`` from every rim edge gets no row (and counts as at that
+    distance, :meth:`unmatched_cost`).
+
+    Parameters
+    ----------
+    vertices : array_like of int, shape (n,)
+        Copies of the outline candidates.
+    pixels : array_like, shape (m, 2)
+        The landmarks, one row each.
+    camera : Camera
+    weights : array_like, shape (m,)
+        Weight of each landmark's row.
+    faces, edges : ndarray
+        The candidates' mesh (see :class:`ContourRows`).
+    max_distance : float
+    name : str
+    """
+
+    def __init__(self, vertices, pixels, camera, weights, faces, edges, max_distance=20.0,
+                 name="outline points"):
+        self.name = name
+        self.vertices = np.asarray(vertices, dtype=np.intp)
+        self.camera = camera
+        self.faces = np.asarray(faces, dtype=np.intp).reshape(-1, 3)
+        self.edges = np.asarray(edges, dtype=np.intp).reshape(-1, 4)
+        self.pixels = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+        self.point_weights = np.asarray(weights, dtype=np.float64).reshape(-1)
+        if self.point_weights.shape != (len(self.pixels),):
+            raise ValueError(f"{name}: {len(self.point_weights)} weights for "
+                             f"{len(self.pixels)} points")
+        self.normals = np.zeros((len(self.pixels), 2))
+        self.max_distance = float(max_distance)
+        self.reject_factor = None
+        self._reset()
+
+    def update(self, world):
+        if self._unchanged(world):
+            return
+        rim = self.rim_edges(world)
+        self._reset_rows()
+        if not len(rim) or not len(self.pixels):
+            self._updated = True
+            return
+        e = rim[:, :2]
+        used, inv = np.unique(e, return_inverse=True)
+        ends = self.camera.project(world[used])[inv.reshape(-1, 2)]  # (E, 2, 2)
+        a, d = ends[:, 0], ends[:, 1] - ends[:, 0]
+        # each landmark's nearest rim point among the edges with the nearest middles
+        k = min(16, len(e))
+        _, near = cKDTree(a + 0.5 * d).query(self.pixels, k=k)
+        near = near.reshape(len(self.pixels), k)
+        da = d[near]
+        qa = self.pixels[:, None, :] - a[near]
+        t = np.clip(np.einsum("mkj,mkj->mk", qa, da)
+                    / np.maximum(np.einsum("mkj,mkj->mk", da, da), 1e-24), 0.0, 1.0)
+        gap = np.linalg.norm(qa - t[..., None] * da, axis=2)
+        pick = np.argmin(gap, axis=1)
+        rows = np.arange(len(self.pixels))
+        edge, t, gap = near[rows, pick], t[rows, pick], gap[rows, pick]
+        normal = np.stack([d[edge, 1], -d[edge, 0]], axis=1)
+        length = np.linalg.norm(normal, axis=1)
+        keep = (gap <= self.max_distance) & (self.point_weights > 0) & (length > 1e-9)
+        normal = normal / np.maximum(length, 1e-12)[:, None]
+        # outward: away from the edge's first face (both faces of a fold project inside)
+        face = self.faces[rim[edge, 2]]
+        inside = self.camera.project(world[face.reshape(-1)]).reshape(-1, 3, 2).mean(axis=1)
+        middle = a[edge] + 0.5 * d[edge]
+        flip = np.einsum("ij,ij->i", normal, middle - inside) < 0
+        normal[flip] *= -1.0
+        self.points = rows[keep]
+        self.ends = e[edge[keep]]
+        self.fractions = t[keep]
+        self.normals = np.zeros_like(self.normals)
+        self.normals[self.points] = normal[keep]
+        self._updated = True
+
+
+class OutlineAlongRows(CameraRows):
+    """The other half of a sliding landmark: where along the outline it lies, pulled to its
+    vertex with its own, looser weight (thesis-style landmark row, projected on the
+    outline's tangent). A person or a detector puts a jaw point on the outline, but only
+    roughly where the name says along it; how roughly is estimated like any noise
+    (``noise.Noise.along_px``): tight placements keep the vertex's information, loose ones
+    let the point slide.
+
+    Row i is ``w_i (t_i . (q_i - P(x_i)))^2`` with t_i the outline's tangent where
+    ``outline`` (the :class:`OutlinePointRows` of the same landmarks, updated first) met it;
+    a landmark that met no outline keeps both coordinates, as a fixed landmark does.
+
+    Parameters
+    ----------
+    vertices : array_like of int, shape (m,)
+        Copies of the landmarks' vertices.
+    pixels : array_like, shape (m, 2)
+    camera : Camera
+    weights : array_like, shape (m,)
+    outline : OutlinePointRows
+        Rows of the same landmarks in the same order.
+    name : str
+    """
+
+    def __init__(self, vertices, pixels, camera, weights, outline, name="outline along"):
+        self.name = name
+        self.vertices = np.asarray(vertices, dtype=np.intp)
+        self.camera = camera
+        self.pixels = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+        self.weights = np.asarray(weights, dtype=np.float64).reshape(-1)
+        self.outline = outline
+        self.directions = np.tile(np.eye(2), (len(self.pixels), 1, 1))  # (m, 2, 2) rows
+
+    def update(self, world):
+        d = np.tile(np.eye(2), (len(self.pixels), 1, 1))
+        pts = self.outline.points
+        if len(pts):
+            n = self.outline.row_normals
+            d[pts, 0] = np.stack([-n[:, 1], n[:, 0]], axis=1)
+            d[pts, 1] = 0.0
+        self.directions = d
+
+    def residuals(self, world):
+        """(m, 2) rows' residuals: along the tangent (and 0), or both coordinates."""
+        return np.einsum("mij,mj->mi", self.directions, self.pixels - self.camera.project(world))
+
+    def block(self, world, jacobian=True):
+        r = self.residuals(world)
+        sq = float(self.weights @ np.einsum("ij,ij->i", r, r))
+        used = np.any(self.directions != 0, axis=2)  # (m, 2)
+        nrows = int(used[self.weights > 0].sum())
+        if not jacobian:
+            return ScalarRows(None, None, None, None, sq, float(self.weights.sum()), nrows)
+        m = len(self.pixels)
+        jac = np.asarray(self.camera.jacobian(world), dtype=np.float64).reshape(m, 2, 3)
+        g = np.einsum("mij,mjk->mik", self.directions, jac)
+        return ScalarRows(np.repeat(np.arange(m), 2), g.reshape(2 * m, 3), r.reshape(-1),
+                          np.repeat(self.weights, 2), sq, float(self.weights.sum()), nrows)
 
 
 def mean_normals(model):
@@ -320,17 +489,26 @@ def view_outline(model, eng, state, view, margin=1.5):
     skin = np.asarray(model.skin, dtype=np.int64)
     world = eng.world(state, skin)
     camera = state.cameras[view.name]
-    dist, _ = cKDTree(view.contour).query(camera.project(world))
+    dist, _ = cKDTree(outline_pixels(view)).query(camera.project(world))
     verts = skin[dist <= margin * eng.contour_threshold]
     return (verts, *candidate_mesh(model, verts))
 
 
+def outline_pixels(view):
+    """What of ``view`` lies on the head's outline: its traced outline's points and its
+    sliding landmarks (``ViewData.slide``), (m, 2) pixels."""
+    parts = [view.pixels[view.slide & (view.weights > 0)]]
+    if view.contour is not None:
+        parts.append(view.contour)
+    return np.vstack(parts)
+
+
 def own_outline_views(eng, state):
-    """The views whose traced outline is matched to candidates of their own
-    (:func:`view_outline`): every outline but an orthographic profile's (a perspective
-    photo from the side sees more than the midline: the rays to the outline fan out over
-    the head)."""
-    return [v for v in eng.views if v.contour is not None
+    """The views whose outline (traced, or of sliding landmarks) is matched to candidates
+    of their own (:func:`view_outline`): every one but an orthographic profile's (a
+    perspective photo from the side sees more than the midline: the rays to the outline
+    fan out over the head)."""
+    return [v for v in eng.views if len(outline_pixels(v))
             and not (v.side and not state.cameras[v.name].perspective)]
 
 

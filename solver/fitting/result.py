@@ -25,6 +25,9 @@ class ViewResidual:
     names: list
     pixels: np.ndarray  # (n,) pixels
     flagged: list = field(default_factory=list)  # names whose residual stands out
+    # names matched to the head's outline: their residual is the distance across it
+    outline: list = field(default_factory=list)
+    unused: list = field(default_factory=list)  # names the fit left out (weight 0)
 
 
 @dataclass
@@ -80,9 +83,11 @@ class FitResult:
 
     def rms_px(self, view=None):
         """RMS landmark residual in pixels: of one view, or (``view`` None) of all views'
-        landmarks together; 0.0 where there are none."""
+        landmarks together, those the fit left out (``unused``) not counted; 0.0 where
+        there are none."""
         views = self.residuals.values() if view is None else [self.residuals[view]]
-        px = [np.asarray(r.pixels, dtype=np.float64).reshape(-1) for r in views]
+        px = [np.asarray(r.pixels, dtype=np.float64).reshape(-1)[
+            [n not in set(r.unused) for n in r.names]] for r in views]
         return rms(np.concatenate(px) if px else np.zeros(0))
 
     def flagged(self):

@@ -45,6 +45,20 @@ class ViewData:
     contour_scale : float
         Weight of the outline's rows relative to ``contour_weight`` / noise^2 (the
         estimated outline noise, ``noise.Noise.contour_factor``).
+    outline_point : ndarray of bool, shape (n,)
+        The landmark is a point of the head's outline in a front photo
+        (``LandmarkSet.outline_in``).
+    in_profile : ndarray of bool, shape (n,)
+        The landmark means a place in a profile photo (``LandmarkSet.has_meaning_in``).
+    slide : ndarray of bool, shape (n,)
+        Set once the cameras are placed (:func:`assign_roles`): the landmarks matched to
+        the head's outline in this photo instead of to their vertices.
+    dropped : list of str
+        Landmarks left out of this photo (weight 0): outline points of a front photo, with
+        no meaning in a profile photo.
+    along_weights : ndarray, shape (n,)
+        A sliding landmark's weight along the outline, as ``weights`` (the estimated noise
+        along it, ``noise.Noise.along_factor``).
 
     A view's outline candidates are not stored here: they depend on the head they were
     found on, so each stage passes its own to :meth:`Engine.joint` (``outlines``).
@@ -61,6 +75,67 @@ class ViewData:
     refit: bool = True
     mirror_of: str | None = None
     contour_scale: float = 1.0
+    outline_point: np.ndarray | None = None
+    in_profile: np.ndarray | None = None
+    slide: np.ndarray | None = None
+    dropped: list = field(default_factory=list)
+    along_weights: np.ndarray | None = None
+
+    def __post_init__(self):
+        n = len(self.vertices)
+        if self.along_weights is None:
+            self.along_weights = np.asarray(self.weights, dtype=np.float64).copy()
+        for name in ("outline_point", "in_profile"):
+            if getattr(self, name) is None:
+                setattr(self, name, np.full(n, name == "in_profile"))
+        if self.slide is None:
+            self.slide = np.zeros(n, bool)
+
+    @property
+    def fixed_weights(self):
+        """``weights`` of the landmarks tied to their vertices (0 for those that slide)."""
+        return np.where(self.slide, 0.0, self.weights)
+
+
+#: A photo whose camera looks at the face within this many degrees of straight on is a
+#: front photo for the landmarks' roles (:func:`assign_roles`), one within this many
+#: degrees of the head's left-right axis a profile photo.
+FRONTAL_DEGREES = 15.0
+PROFILE_DEGREES = 20.0
+
+
+def assign_roles(view, frontal, profile):
+    """The landmarks' roles in ``view`` once its camera is placed: in a front photo
+    (``frontal``) the outline points slide along the head's outline (``slide``); in a
+    profile photo (``profile``) the outline points without a meaning there (the jaw's, the
+    head's width) are left out (weight 0, named in ``dropped``).
+
+    Raises
+    ------
+    ValueError
+        Too few landmarks are left for the view's camera (naming the view).
+    """
+    view.slide = view.outline_point & bool(frontal)
+    view.dropped = []
+    if profile:
+        drop = view.outline_point & ~view.in_profile & (view.weights > 0)
+        if drop.any():
+            view.dropped = [n for n, d in zip(view.names, drop, strict=True) if d]
+            view.weights = np.where(drop, 0.0, view.weights)
+            view.along_weights = np.where(drop, 0.0, view.along_weights)
+            if view.refit and view.camera is not None:
+                _check_count(f"view {view.name!r} (after leaving out "
+                             f"{', '.join(view.dropped)}: no meaning in a profile photo)",
+                             int(np.count_nonzero(view.weights)),
+                             landmarks_needed(view.camera.min_refit_points))
+
+
+def drop_warnings(views):
+    """One note per view that had landmarks without a meaning there."""
+    return [f"view {v.name!r}: {', '.join(v.dropped)} not used: "
+            f"{'it has' if len(v.dropped) == 1 else 'they have'} no meaning in a profile "
+            "photo (outline points of a front photo; see assets/landmarks.json)"
+            for v in views if v.dropped]
 
 
 @dataclass
@@ -147,7 +222,9 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
             verts.append(vtx)
             px.append(uv)
         w = opts.landmark_weight * np.array([weights.get(n, 1.0) for n in names])
+        along = w.copy()
         if noise is not None:
+            along = w * np.array([noise.along_factor(name, n) for n in names])
             w = w * np.array([noise.landmark_factor(name, n) for n in names])
         used = int(np.count_nonzero(w))
         rule = {"kept": kept, "passpoints": bool(view.passpoints), "mirror": link is not None}
@@ -185,7 +262,11 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
         side = cam is not None and is_side_camera(cam)
         data = ViewData(name, cam, names, np.array(verts, dtype=np.int64),
                         np.array(px, dtype=np.float64).reshape(-1, 2), w, side, contour,
-                        refit, link, 1.0 if noise is None else noise.contour_factor(name))
+                        refit, link, 1.0 if noise is None else noise.contour_factor(name),
+                        np.array([lms.outline_in(n, "front") for n in names], dtype=bool),
+                        np.array([lms.has_meaning_in(n, "right")
+                                  or lms.has_meaning_in(n, "left") for n in names],
+                                 dtype=bool), along_weights=along)
         (views if used else skipped).append(data)
     for v in views:
         if v.mirror_of is not None and any(u.name == v.mirror_of for u in skipped):

@@ -108,6 +108,25 @@ class LandmarkSet:
             raise ValueError(f"landmark {name!r}: unknown{self.suggestion(name)}")
         return self.vertices[canon]
 
+    def outline_in(self, name, kind):
+        """Whether landmark ``name`` (canonical) is a point of the head's outline in a photo
+        of ``kind`` ("front", "right", "left"): matched to the posed model's silhouette
+        there, not to its vertex (the entry's "outline")."""
+        return kind in self._entry(name).get("outline", ())
+
+    def has_meaning_in(self, name, kind):
+        """Whether landmark ``name`` (canonical) means a place in a photo of ``kind`` (the
+        entry's "views"; a set without entries, e.g. from names, says yes)."""
+        entry = self._entry(name)
+        return "views" not in entry or kind in entry["views"]
+
+    @functools.cached_property
+    def _entries(self):
+        return {e.get("name"): e for e in self.info if isinstance(e, dict)}
+
+    def _entry(self, name):
+        return self._entries.get(name, {})
+
     def all_names(self):
         """Every accepted spelling: canonical names, then ``ibugNN`` aliases."""
         return list(self.names) + [f"ibug{n:02d}" for n in sorted(self.ibug)]

@@ -7,7 +7,13 @@ import pytest
 
 from solver import FitOptions, OrthographicCamera, PinholeCamera, fit_head
 from solver.fitting.engine import Engine
-from solver.fitting.outline import CONTOUR_KEEP_SIGMAS, ContourRows, candidate_mesh, shared_edges
+from solver.fitting.outline import (
+    CONTOUR_KEEP_SIGMAS,
+    ContourRows,
+    OutlinePointRows,
+    candidate_mesh,
+    shared_edges,
+)
 from solver.fitting.rows import PointRows
 from solver.fitting.shape_icp import ShapeProblem
 from solver.fitting.views import State, prepare_views
@@ -247,3 +253,55 @@ def test_outlines_of_two_perspective_photos_do_not_latch_onto_the_wrong_rim(mode
     assert skin_error_mm(model, res.local_vertices, truth.local_vertices) < 1.0
     for name in case.views:
         assert res.info["contour_rms_px"][name] < 1.5
+
+
+def test_outline_points_measure_across_the_silhouette_and_slide_along_it():
+    verts, faces, edges = _tube()
+    px = np.array([[97.0, 103.0], [183.0, 98.0], [250.0, -4.0], [120.0, 160.0]])
+    rows = OutlinePointRows(np.arange(len(verts)), px, CAMERA, np.ones(4), faces, edges,
+                            max_distance=20.0)
+    rows.update(verts)
+    # the fourth point is 60 px from every rim: no row, and it counts as at the cut-off
+    assert rows.points.tolist() == [0, 1, 2]
+    assert rows.unmatched_cost() == pytest.approx(20.0**2)
+    # signed distance across the outline, positive outside, along the outward normal
+    np.testing.assert_allclose(rows.residuals(verts), [3.0, -2.0, 4.0], atol=1e-9)
+    np.testing.assert_allclose(rows.row_normals, [[0, 1], [0, 1], [0, -1]], atol=1e-9)
+    # the tube moved 13 px along its axis (along the outline): the points slide, no change
+    moved = verts + [0.013, 0.0, 0.0]
+    rows.update(moved)
+    np.testing.assert_allclose(rows.residuals(moved), [3.0, -2.0, 4.0], atol=1e-9)
+    # moved 1 px up (v + 1): the top points come 1 px nearer, the bottom one 1 px farther
+    up = verts + [0.0, 0.001, 0.0]
+    rows.update(up)
+    np.testing.assert_allclose(rows.residuals(up), [2.0, -3.0, 5.0], atol=1e-9)
+
+
+def test_outline_point_rows_have_the_derivative_of_their_residuals():
+    verts, faces, edges = _tube()
+    px = np.array([[97.0, 103.0], [183.0, 98.0], [250.0, -4.0]])
+    rows = OutlinePointRows(np.arange(len(verts)), px, CAMERA, [1.0, 2.0, 0.5], faces, edges)
+    rows.update(verts)
+    block = rows.block(verts)
+    assert block.sq == pytest.approx(float(np.dot([1.0, 2.0, 0.5], [9.0, 4.0, 16.0])))
+    rng = np.random.default_rng(3)
+    step = 1e-6 * rng.normal(size=verts.shape)
+    predicted = -np.einsum("kcj,kcj->k", block.g, step[block.idx])
+    np.testing.assert_allclose(rows.residuals(verts + step) - rows.residuals(verts),
+                               predicted, atol=1e-9)
+
+
+def test_the_nearest_rim_not_the_outermost_is_a_landmarks_outline():
+    # two tubes, one inside the other's outline in the photo (a cheek inside an ear):
+    # a point 2 px off the inner tube's outline is matched to it, not to the outer one's
+    inner = _tube(radius=0.03, axis_y=0.05)
+    outer = _tube(radius=0.05, axis_y=0.05)
+    verts = np.vstack([inner[0], outer[0] + [0.0, 0.0, -0.2]])
+    n = len(inner[0])
+    faces = np.vstack([inner[1], outer[1] + n])
+    edges = shared_edges(faces, len(verts))
+    rows = OutlinePointRows(np.arange(len(verts)), [[150.0, 82.0]], CAMERA, [1.0], faces,
+                            edges)
+    rows.update(verts)
+    np.testing.assert_allclose(rows.residuals(verts), [2.0], atol=1e-9)
+    assert np.all(rows.ends < n)

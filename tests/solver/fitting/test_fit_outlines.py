@@ -237,3 +237,70 @@ def test_every_traced_point_meets_the_true_heads_outline_ears_included(model, se
         rms = np.sqrt(np.mean(rows.residuals(eng.world(state, joint.orig)
                                             [rows.vertices]) ** 2))
         assert rms < 0.5, (view.name, rms)
+
+
+def _slid_case(model, seed, shift_px=12.0):
+    """A front + profile case whose front outline landmarks (``assets/landmarks.json``
+    "outline") were moved along the true head's outline by +-``shift_px`` (as a person
+    or a detector places them: on the outline, loosely along it), and the case before."""
+    case, truth = make_case(model, seed, noise_px=1.0)
+    world = truth.scale * truth.local_vertices @ truth.rotation.T + truth.translation
+    cam = truth.cameras["front"]
+    view = case.views["front"]
+    lms = model.landmark_set
+    names = [n for n in view.points if lms.outline_in(n, "front")]
+    skin = np.asarray(model.skin)
+    faces, edges = outline.candidate_mesh(model, skin)
+    probe = outline.OutlinePointRows(np.arange(len(skin)), [view.points[n] for n in names],
+                                     cam, np.ones(len(names)), faces, edges)
+    probe.update(world[skin])
+    assert len(probe.points) == len(names)  # every outline landmark is on the outline
+    tangent = probe.row_normals @ np.array([[0.0, -1.0], [1.0, 0.0]])
+    sign = np.where(np.arange(len(names)) % 2 == 0, 1.0, -1.0)[:, None]
+    shifted = probe.targets + shift_px * sign * tangent
+    snap = outline.OutlinePointRows(np.arange(len(skin)), shifted, cam, np.ones(len(names)),
+                                    faces, edges)
+    snap.update(world[skin])
+    on = shifted - snap.residuals(world[skin])[:, None] * snap.row_normals  # back on it
+    points = dict(view.points)
+    points.update({n: tuple(p) for n, p in zip(names, on, strict=True)})
+    views = dict(case.views)
+    views["front"] = dataclasses.replace(view, points=points)
+    return dataclasses.replace(case, views=views), case, truth, names
+
+
+def test_outline_landmarks_slide_along_the_heads_outline(model):
+    slid, placed, truth, names = _slid_case(model, 41)
+    assert len(names) >= 17
+    opts = FitOptions(outline_landmarks="slide")
+    a = fit_head(model, placed, opts)
+    b = fit_head(model, slid, opts)
+    tied = fit_head(model, slid)  # the default: each to its vertex
+
+    def err(res):
+        return skin_error_mm(model, res.local_vertices, truth.local_vertices)
+
+    # moved 12 px along the outline, the jaw and chin say about the same: the same head,
+    # where tied to their vertices they pull it out of shape
+    assert err(b) < err(a) + 0.3 and err(b) < 0.8 * err(tied)
+    assert tied.residuals["front"].outline == []
+    res = b.residuals["front"]
+    assert set(names) <= set(res.outline)  # measured across the outline
+    across = dict(zip(res.names, res.pixels, strict=True))
+    assert max(across[n] for n in names) < 4.0
+    assert set(b.info["noise"]["outline_px"]) == {"front"}
+
+
+def test_a_front_outline_landmark_in_a_profile_photo_is_left_out_with_a_note(model):
+    case, truth = make_case(model, 42, noise_px=1.0)
+    base = fit_head(model, case)
+    right = case.views["right"]
+    assert "jaw_3_right" not in right.points  # it has no meaning there
+    points = {**right.points, "jaw_3_right": (5.0, 5.0)}  # and is far from the head
+    views = {**case.views, "right": dataclasses.replace(right, points=points)}
+    res = fit_head(model, dataclasses.replace(case, views=views))
+    assert skin_error_mm(model, res.local_vertices, base.local_vertices) < 0.05
+    assert res.residuals["right"].unused == ["jaw_3_right"]
+    assert "jaw_3_right" not in res.residuals["right"].flagged
+    notes = [w for w in res.info["warnings"] if "jaw_3_right" in w]
+    assert len(notes) == 1 and "no meaning in a profile photo" in notes[0]

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from solver import FitOptions, fit_head, refit_landmarks
-from solver.fitting.noise import consistency, estimate_noise
+from solver.fitting.noise import Noise, consistency, estimate_noise
+from solver.fitting.result import ViewResidual
 from solver.synthetic import make_case, skin_error_mm
 
 
@@ -17,7 +18,8 @@ def test_estimate_recovers_a_known_sigma_and_drops_an_outlier():
     r = np.linalg.norm(rng.normal(scale=4.0, size=(200, 2)), axis=1)
     r[7] = 100.0  # one landmark placed 100 px off
     c = np.abs(rng.normal(scale=2.0, size=150))
-    noise = estimate_noise({"front": (names, r)}, {"front": c}, effective=0.0, floor_px=1.0)
+    noise = estimate_noise({"front": ViewResidual(names, r)}, {"front": c}, effective=0.0,
+                           floor_px=1.0)
     assert noise.landmark_px["front"] == pytest.approx(4.0, rel=0.1)
     assert noise.contour_px["front"] == pytest.approx(2.0, rel=0.15)
     w = noise.weights["front"]
@@ -25,7 +27,7 @@ def test_estimate_recovers_a_known_sigma_and_drops_an_outlier():
     assert list(noise.report()["down_weighted"]["front"]) == ["p7"]
     assert noise.report()["weights"]["front"] == w  # every landmark's final weight
     # the floor holds: well-placed landmarks are not trusted beyond noise_px
-    tiny = estimate_noise({"front": (names, r * 0.01)}, {}, 0.0, floor_px=1.0)
+    tiny = estimate_noise({"front": ViewResidual(names, r * 0.01)}, {}, 0.0, floor_px=1.0)
     assert tiny.landmark_px["front"] == pytest.approx(1.0)
 
 
@@ -82,3 +84,34 @@ def test_bad_noise_option_is_named(model):
     case, _ = make_case(model, 3, noise_px=1.0)
     with pytest.raises(ValueError, match="options.noise"):
         fit_head(model, case, FitOptions(noise="guess"))
+
+
+def test_a_group_without_an_estimate_keeps_the_floors_weight():
+    noise = Noise(landmark_px={"front": 4.0}, floor_px=1.0)
+    # a view the estimate had no landmarks for: placed with the floor, weight 1
+    assert noise.landmark_factor("side", "nose_tip") == pytest.approx(1.0)
+    assert noise.contour_factor("side") == pytest.approx(1.0)
+    # an estimated view: the Student-t precision of its sigma
+    assert noise.landmark_factor("front", "nose_tip") == pytest.approx(
+        1.0 / (16.0 * consistency(2)))
+
+
+def test_sliding_landmarks_are_a_group_of_their_own_and_unused_ones_do_not_count():
+    rng = np.random.default_rng(2)
+    inner = [f"p{i}" for i in range(60)]
+    jaw = [f"j{i}" for i in range(17)]
+    r = np.concatenate([np.linalg.norm(rng.normal(scale=2.0, size=(60, 2)), axis=1),
+                        np.abs(rng.normal(scale=6.0, size=17)), [500.0]])
+    res = ViewResidual(inner + jaw + ["far"], r, outline=jaw, unused=["far"])
+    along = {"front": (jaw, rng.normal(scale=10.0, size=17))}
+    noise = estimate_noise({"front": res}, {}, 0.0, 1.0, along)
+    assert noise.landmark_px["front"] == pytest.approx(2.0, rel=0.2)
+    assert noise.outline_px["front"] == pytest.approx(6.0, rel=0.35)
+    assert noise.along_px["front"] == pytest.approx(10.0, rel=0.35)
+    assert "far" not in noise.weights["front"]
+    # a sliding landmark weighs by its own group's noise, across and along
+    assert noise.landmark_factor("front", "j3") == pytest.approx(
+        noise.weights["front"]["j3"] / (noise.outline_px["front"] ** 2 * consistency(1)))
+    assert noise.along_factor("front", "j3") == pytest.approx(
+        1.0 / (noise.along_px["front"] ** 2 * consistency(1)))
+    assert noise.along_factor("front", "p3") == noise.landmark_factor("front", "p3")

@@ -36,7 +36,7 @@ def test_fits_report_plausibility_and_warn_of_implausible_heads(model):
     assert p["n_coeffs"] == 100 and p["percentile"] < PLAUSIBLE_PERCENTILE
     assert not [w for w in res.info["warnings"] if "implausible" in w]
     assert refit_landmarks(model, case, res).info["plausibility"]["mahalanobis"] == \
-        pytest.approx(p["mahalanobis"], rel=0.01)  # the same landmarks: about the same head
+        pytest.approx(p["mahalanobis"], rel=0.02)  # the same landmarks: about the same head
     # a head four times as far from the mean as the model's own heads
     odd, _ = make_case(model, 1003, noise_px=1.0, coeff_scale=4.0)
     res = fit_head(model, odd)

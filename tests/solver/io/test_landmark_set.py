@@ -75,3 +75,17 @@ def test_the_model_resolves_names_through_its_landmark_set(model, lms):
     with pytest.raises(ValueError, match="got a string"):
         as_landmark_set("nose_tip")
 
+
+
+def test_outline_points_and_where_a_landmark_has_a_meaning(lms):
+    # the jaw is a front photo's outline, with no place in a profile photo
+    assert lms.outline_in("jaw_3_right", "front") and not lms.outline_in("nose_tip", "front")
+    assert not lms.has_meaning_in("jaw_3_right", "right")
+    # the menton: an outline point in front, the chin's lowest point on the profile line
+    assert lms.outline_in("chin_bottom", "front") and lms.has_meaning_in("chin_bottom", "right")
+    assert lms.has_meaning_in("nose_tip", "right") and lms.has_meaning_in("nose_tip", "front")
+    for entry in lms.info:  # every outline view is one of the landmark's views
+        assert set(entry.get("outline", ())) <= set(entry["views"]), entry["name"]
+    # a set from bare names knows nothing of views: every name means something everywhere
+    bare = LandmarkSet.from_names(["a"])
+    assert bare.has_meaning_in("a", "right") and not bare.outline_in("a", "front")

@@ -332,6 +332,7 @@ def test_landmark_geometry_makes_sense(model):
     (lambda e: e[0].update(vertex=10 ** 6), "'vertex'"),
     (lambda e: e[0].update(views=["top"]), "'views'"),
     (lambda e: e[0].update(description=" "), "'description'"),
+    (lambda e: e[0].update(outline=["right"]), "'outline'"),
     (lambda e: e[1].update(ibug=e[0]["ibug"]), "'ibug' 1 already used"),
     (lambda e: e[0].update(thesis=41), "'thesis'"),
 ])
