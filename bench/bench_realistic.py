@@ -60,6 +60,8 @@ def _parse():
     p.add_argument("--samples", type=int, default=4000,
                    help="points sampled on the true surface per score")
     p.add_argument("--james", default=None, help="folder of the scan james")
+    p.add_argument("--outline-landmarks", choices=("vertex", "slide"), default="vertex",
+                   help="FitOptions.outline_landmarks of every fit (default: the fit's)")
     return p.parse_args()
 
 
@@ -142,11 +144,15 @@ def synthetic_truth(model, truth, samples, seed):
     return Truth(regions, skin, start)
 
 
+#: FitOptions fields every fit of the run shares (``--outline-landmarks``).
+SHARED = {}
+
+
 def fits(model, case, grid):
     """The default fit and the grid's fits: name -> FitResult."""
-    out = {"fit": fit_head(model, case)}
+    out = {"fit": fit_head(model, case, FitOptions(**SHARED))}
     for x in grid:
-        out[f"nz={x:g}"] = fit_head(model, case, FitOptions(noise_px=x))
+        out[f"nz={x:g}"] = fit_head(model, case, FitOptions(noise_px=x, **SHARED))
     return out
 
 
@@ -306,11 +312,14 @@ def main(args):
     t0 = time.perf_counter()
     model = load_model()
     grid = list(args.noise_px)
+    if args.outline_landmarks != FitOptions.outline_landmarks:
+        SHARED["outline_landmarks"] = args.outline_landmarks
     n_expr = args.cases // 2 if args.expression_cases is None else args.expression_cases
     print(f"machine: {machine_description()}")
     print(f"cases: {args.cases} out-of-model, {n_expr} with expression, the scan james' "
           f"variants; {args.samples} points sampled on the true surface per score; "
-          f"noise_px grid: {', '.join(f'{x:g}' for x in grid) or 'none'}")
+          f"noise_px grid: {', '.join(f'{x:g}' for x in grid) or 'none'}; outline landmarks: "
+          f"{args.outline_landmarks}")
     groups = {}
     if args.cases > 0:
         groups["out-of-model heads"] = run_synthetic(model, "out-of-model", args.cases,
