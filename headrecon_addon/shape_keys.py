@@ -3,7 +3,8 @@
 Basis is the model's mean; one key per identity component ("identity_000"...) and per
 regional component ("<region>_NN") whose value is the fitted coefficient (sliders -3..3,
 wider if a coefficient lies outside); "fit_detail" (value 1) carries what the model cannot
-express (FitResult.detail); the 57 ARKit-named expression keys start at 0. With the
+express (FitResult.detail); the expression keys (Apple's ARKit names, then the model's
+extras: ``arkit.key_plan``) start at 0. With the
 values set, the evaluated mesh is exactly FitResult.local_vertices (float32), the terms of
 ``local = mean + identity + regional + detail``.
 
@@ -14,6 +15,8 @@ removes exactly those and nothing an artist added.
 """
 
 import numpy as np
+
+from . import arkit
 
 FIT_KEYS = "headrecon_fit_keys"  # ID property on the Key: names of the keys a fit wrote
 DETAIL = "fit_detail"
@@ -143,7 +146,7 @@ def write_fit_keys(obj, model, result):
             for name, c, delta in zip(reg.names, result.regional_coeffs, reg.basis, strict=True):
                 add(name, mean + delta, c)
         add(DETAIL, mean + np.asarray(result.detail, dtype=np.float64), 1.0, slider=False)
-        for name, delta in zip(model.expression_names, model.expressions, strict=True):
+        for name, delta in arkit.expression_keys(model.expression_names, model.expressions):
             add(name, mean + delta, 0.0, slider=False)
     finally:
         obj.data.shape_keys[FIT_KEYS] = names

@@ -112,7 +112,7 @@ def test_summary_names_the_winning_approach(model, tmp_path, monkeypatch, capsys
     doc = _glb_json(tmp_path / "carol.glb")
     assert [n["name"] for n in doc["nodes"]] == ["carol"]
     targets = {len(p.get("targets", ())) for p in doc["meshes"][0]["primitives"]}
-    assert targets == {1 + 20 + 57}  # identity keys, detail, expressions
+    assert targets == {1 + 20 + 59}  # identity keys, detail, expressions (51 ARKit + 8)
     lashes = next(m for m in doc["materials"] if m["name"].endswith("Eyelashes"))
     assert lashes["alphaMode"] == "BLEND"
     assert "baseColorTexture" in lashes["pbrMetallicRoughness"]
