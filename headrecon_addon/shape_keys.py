@@ -21,6 +21,9 @@ from . import arkit
 FIT_KEYS = "headrecon_fit_keys"  # ID property on the Key: names of the keys a fit wrote
 DETAIL = "fit_detail"
 LIVE_MUTED = "headrecon_live_muted"  # ID property on the Key: keys muted while dragging
+# ID property on the Key: identity keys Apply Identity kept (muted) after moving them into
+# the Basis (apply_identity.py); a re-fit removes them with the other fit keys.
+KEPT_APPLIED = "headrecon_identity_applied"
 SLIDER = 3.0
 SLIDER_LIMIT = 10.0  # Blender's own bound on slider_min / slider_max
 
@@ -57,8 +60,10 @@ def remove_fit_keys(obj):
     names = set(fit_key_names(obj))
     for kb in [kb for kb in key.key_blocks if kb.name in names]:
         obj.shape_key_remove(kb)
-    if obj.data.shape_keys is not None and FIT_KEYS in obj.data.shape_keys:
-        del obj.data.shape_keys[FIT_KEYS]
+    key = obj.data.shape_keys
+    for prop in (FIT_KEYS, KEPT_APPLIED):
+        if key is not None and prop in key:
+            del key[prop]
 
 
 def _slider(kb, value):
