@@ -3,14 +3,19 @@
 What an engine gets: the fitted face as the base mesh (identity applied on a temporary
 copy of the head, so the scene is not changed), the expression keys as morph targets /
 blend shapes by Apple's ARKit names (plus the model's extras), all at weight 0, the baked
-texture embedded (.glb), and no morph normals unless asked for (they double the file and
+texture embedded, and no morph normals unless asked for (they double the file and
 engines recompute normals). The fitted similarity stays the node's transform.
+
+The glTF exporter embeds images from their pixels; the FBX exporter only embeds image
+files, so for .fbx every image without a file on disk (the baked textures) is written as a
+PNG into ``<name>_textures/`` beside the .fbx, and the copy's materials use those files.
 """
 
 from contextlib import contextmanager
 from pathlib import Path
 
 import bpy
+import numpy as np
 
 from . import apply_identity
 
@@ -53,6 +58,56 @@ def _game_copy(head, model_expression_names, scene):
         bpy.data.objects.remove(copy)
         bpy.data.meshes.remove(mesh)
         head.name = name
+
+
+def _on_disk(img):
+    return img.source == "FILE" and bool(img.filepath) and Path(
+        bpy.path.abspath(img.filepath)).is_file()
+
+
+def _image_file(img, folder):
+    """A new image with ``img``'s pixels saved as ``folder/<name>.png`` (bpy Image)."""
+    w, h = img.size
+    px = np.empty(w * h * 4, dtype=np.float32)
+    img.pixels.foreach_get(px)
+    out = bpy.data.images.new(img.name + " (file)", w, h, alpha=True)
+    out.pixels.foreach_set(px)
+    folder.mkdir(parents=True, exist_ok=True)
+    out.filepath_raw = str(folder / (bpy.path.clean_name(img.name) + ".png"))
+    out.file_format = "PNG"
+    out.save()
+    return out
+
+
+@contextmanager
+def _textures_as_files(obj, folder):
+    """Give ``obj`` (the temporary copy) copies of its materials whose images without a
+    file are saved into ``folder``; the copies are removed afterwards (the files stay)."""
+    materials, images = [], {}
+
+    def needs_file(node):
+        return (node.type == "TEX_IMAGE" and node.image is not None and node.image.has_data
+                and not _on_disk(node.image))
+
+    try:
+        for slot in obj.material_slots:
+            mat = slot.material
+            if mat is None or mat.node_tree is None or not any(
+                    needs_file(n) for n in mat.node_tree.nodes):
+                continue
+            new = mat.copy()
+            materials.append(new)
+            slot.material = new
+            for node in filter(needs_file, new.node_tree.nodes):
+                if node.image.name not in images:
+                    images[node.image.name] = _image_file(node.image, folder)
+                node.image = images[node.image.name]
+        yield
+    finally:
+        if materials:
+            bpy.data.batch_remove(materials)
+        if images:
+            bpy.data.batch_remove(list(images.values()))
 
 
 def _select_only(obj):
@@ -104,10 +159,11 @@ def export_head(path, head, model_expression_names, fmt="GLB", morph_normals=Fal
                     export_apply=False, export_morph=True, export_morph_normal=morph_normals,
                     export_morph_tangent=False, export_try_sparse_sk=True)
             else:
-                bpy.ops.export_scene.fbx(
-                    filepath=str(path), use_selection=True, object_types={"MESH"},
-                    use_mesh_modifiers=False, add_leaf_bones=False, path_mode="COPY",
-                    embed_textures=True, bake_anim=False)
+                with _textures_as_files(copy, path.parent / f"{path.stem}_textures"):
+                    bpy.ops.export_scene.fbx(
+                        filepath=str(path), use_selection=True, object_types={"MESH"},
+                        use_mesh_modifiers=False, add_leaf_bones=False, path_mode="COPY",
+                        embed_textures=True, bake_anim=False)
     finally:
         layer = bpy.context.view_layer
         for o in layer.objects:

@@ -107,13 +107,18 @@ def test_reimported_it_shows_the_fitted_face_with_no_key_set(model, fit, head, t
     if not export.exporter_available(fmt):
         pytest.skip(f"no {fmt} exporter in this Blender")
     matrix = np.array(head.matrix_world)
+    before = snapshot()
     path = export.export_head(tmp_path / "erin", head, model.expression_names, fmt)
+    assert snapshot() == before  # the copy, its materials and images are gone again
     obj = _reimport(path)
     keys = key_blocks(obj)
     have = {kb.name for kb in keys}
     assert set(arkit.ARKIT_NAMES) - have == {"tongueOut"}
     assert all(kb.value == 0.0 for kb in keys[1:])
     assert not any(n.startswith("identity_") or n == "fit_detail" for n in have)
+    # the baked texture came along (embedded)
+    faces = [im for im in bpy.data.images if "Face_Texture" in im.name.replace(" ", "_")]
+    assert faces and all(tuple(im.size) == (128, 128) and im.has_data for im in faces)
     # every vertex of the imported mesh lies on the fitted head (the exporters split
     # vertices along UV seams), in world space, and that is not the mean head
     m = np.array(obj.matrix_world)
