@@ -58,11 +58,9 @@ class HEADRECON_OT_apply_identity(bpy.types.Operator):
         return {"FINISHED"}
 
 
-def _format_items(self, context):
-    return [(f, f".{f.lower()}", {"GLB": "Binary glTF, texture embedded (Unity, Unreal, "
-                                          "Godot, three.js)",
-                                  "FBX": "FBX with blend shapes, texture embedded"}[f])
-            for f in export.FORMATS]
+_FORMAT_HELP = {"GLB": "Binary glTF, texture embedded (Unity, Unreal, Godot, three.js)",
+                "FBX": "FBX with blend shapes, texture embedded and as PNG files beside it"}
+_FORMAT_ITEMS = [(f, f".{f.lower()}", _FORMAT_HELP[f]) for f in export.FORMATS]
 
 
 class HEADRECON_OT_export_head(bpy.types.Operator):
@@ -75,7 +73,7 @@ class HEADRECON_OT_export_head(bpy.types.Operator):
 
     filepath: StringProperty(subtype="FILE_PATH", options={"SKIP_SAVE"})
     filter_glob: StringProperty(default="*.glb;*.fbx", options={"HIDDEN"})
-    export_format: EnumProperty(name="Format", items=_format_items,
+    export_format: EnumProperty(name="Format", items=_FORMAT_ITEMS,
                                 description="The file format to write")
     morph_normals: BoolProperty(
         name="Morph Normals",
@@ -88,12 +86,9 @@ class HEADRECON_OT_export_head(bpy.types.Operator):
         return poll_result(cls, object_mode_problem(context) or _fitted_head_problem(context))
 
     def invoke(self, context, event):
-        if not self.filepath:
-            base = bpy.path.abspath("//") or ""
-            self.filepath = str(bpy.path.ensure_ext(
-                bpy.path.join(base, bpy.path.clean_name(_head(context).name))
-                if base else bpy.path.clean_name(_head(context).name),
-                export.SUFFIX[self.export_format]))
+        if not self.filepath:  # next to the .blend when it is saved
+            name = bpy.path.clean_name(_head(context).name) + export.SUFFIX[self.export_format]
+            self.filepath = bpy.path.abspath("//" + name) if bpy.data.filepath else name
         context.window_manager.fileselect_add(self)
         return {"RUNNING_MODAL"}
 
@@ -141,8 +136,11 @@ class HEADRECON_OT_import_arkit_animation(bpy.types.Operator):
         try:
             take = arkit_animation.read_live_link_csv(self.filepath, int(self.timecode_fps))
             action, skipped = arkit_animation.apply_take(_head(context), take, context.scene)
-        except (OSError, ValueError) as e:
+        except ValueError as e:  # the file's problem, said with its line and column
             self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        except Exception as e:
+            self.report({"ERROR"}, f"Import ARKit Animation: {type(e).__name__}: {e}")
             return {"CANCELLED"}
         note = f"; no key for {', '.join(skipped)}" if skipped else ""
         self.report({"INFO"}, f"{action.name}: {len(take.times)} frames on "

@@ -181,7 +181,7 @@ def _coefficient_keys(obj, model, result):
     """The keys a live refit writes: (coefficient key blocks, their (name, value) pairs,
     the detail key), or None when the head's keys do not match the result."""
     key = obj.data.shape_keys
-    if key is None:
+    if key is None or KEPT_APPLIED in key:  # identity applied: its keys are history
         return None
     k = len(result.identity_coeffs)
     pairs = list(zip(model.identity.names[:k], result.identity_coeffs, strict=True))

@@ -87,8 +87,9 @@ def test_identity_keys_can_stay_muted(model, fit, head):
     assert all(keys[n].mute and keys[n].value == values[n] for n in applied)
     assert np.abs(_evaluated(head, EXPRESSION_VALUES) - smiling).max() < 1e-6
     assert apply_identity.identity_problem(head, model.expression_names) is not None
-    # a re-fit writes the keys afresh: the kept keys are the fit's and go with the others
     _, result = fit
+    assert not shape_keys.update_fit_values(head, model, result)  # live refit: fit again
+    # a re-fit writes the keys afresh: the kept keys are the fit's and go with the others
     shape_keys.write_fit_keys(head, model, result)
     assert not keys["identity_000"].mute
     assert apply_identity.identity_problem(head, model.expression_names) is None
