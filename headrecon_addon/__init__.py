@@ -6,10 +6,19 @@
 
 import bpy
 
-from . import fit_ops, landmark_ops, live_refit, panels, photos, properties, reference_head
+from . import (
+    fit_ops,
+    landmark_ops,
+    live_refit,
+    panels,
+    photos,
+    properties,
+    reference_head,
+    result_ops,
+)
 
 CLASSES = (*properties.CLASSES, *reference_head.CLASSES, *photos.CLASSES,
-           *landmark_ops.CLASSES, *fit_ops.CLASSES, *panels.CLASSES)
+           *landmark_ops.CLASSES, *fit_ops.CLASSES, *result_ops.CLASSES, *panels.CLASSES)
 
 _register_classes, _unregister_classes = bpy.utils.register_classes_factory(CLASSES)
 

@@ -1,13 +1,18 @@
-"""Fit landmarks files without the UI and write .blend files (and .glb).
+"""Fit landmarks files without the UI and write .blend files (and .glb / .fbx).
 
-    blender -b -P headrecon_addon/headless.py -- A.json [B.json ...] --out OUT [--glb]
-    python -m headrecon_addon.headless A.json [B.json ...] --out OUT [--glb]
+    blender -b -P headrecon_addon/headless.py -- A.json [B.json ...] --out OUT
+        [--bake-identity] [--export glb|fbx] [--morph-normals]
+    python -m headrecon_addon.headless A.json [B.json ...] --out OUT [...]
 
 ``OUT`` is a ``.blend`` file for one input, or a folder (one ``<name>.blend`` per input).
 Each .blend holds the head with its shape keys, transform, uncertainty attributes and the
 baked texture packed into the file, plus the photo planes with their landmarks. A batch
 goes on past a failed file; one summary line per head (name, method, RMS residual,
 flagged landmarks, time); the exit code is 1 if any file failed, 2 for bad arguments.
+``--bake-identity`` applies the identity in the .blend (Apply Identity: the fitted face is
+the base mesh); ``--export glb|fbx`` writes the game export next to each .blend
+(``export.export_head``: fitted base, ARKit keys, texture, no morph normals unless
+``--morph-normals``); ``--glb`` is ``--export glb``.
 
 Other code (the demo) builds scenes with :func:`build_scene_from_fit` and writes them
 with :func:`save_blend`.
@@ -23,7 +28,7 @@ if __package__:
     import bpy
     import numpy as np
 
-    from . import case_to_scene, photos, result_to_scene
+    from . import apply_identity, case_to_scene, export, photos, result_to_scene
     from .data import Transaction
     from .solver_link import (
         FitOptions,
@@ -143,25 +148,11 @@ def save_blend(path):
     return path
 
 
-def export_glb(path, head):
-    """Write the head (shape keys as morph targets, texture embedded) as binary glTF."""
-    import addon_utils
-
-    if not hasattr(bpy.types, "EXPORT_SCENE_OT_gltf"):
-        addon_utils.enable("io_scene_gltf2", default_set=False)
-    layer = bpy.context.view_layer
-    layer.update()  # objects linked since the last update are not in layer.objects yet
-    for obj in layer.objects:
-        obj.select_set(obj == head)
-    layer.objects.active = head
-    path = Path(path).resolve()
-    bpy.ops.export_scene.gltf(filepath=str(path), export_format="GLB", use_selection=True,
-                              export_morph=True, export_apply=False)
-    return path
-
-
-def fit_file(path, out, model, options=None, texture_size=1024, bake=True, glb=False):
-    """Fit one landmarks file and write its .blend (and .glb). Returns a summary dict."""
+def fit_file(path, out, model, options=None, texture_size=1024, bake=True, export_format=None,
+             bake_identity=False, morph_normals=False):
+    """Fit one landmarks file and write its .blend (with the identity applied when
+    ``bake_identity``) and, with ``export_format`` ("GLB" | "FBX"), its game export next to
+    it. Returns a summary dict."""
     t0 = time.perf_counter()
     case = load_landmarks(path)
     reset_scene()
@@ -171,9 +162,12 @@ def fit_file(path, out, model, options=None, texture_size=1024, bake=True, glb=F
         print(f"{Path(path).stem}: warning: {message}", file=sys.stderr, flush=True)
     head = build_scene_from_fit(model, case, result, imgs, texture_size=texture_size,
                                 bake=bake, name=Path(path).stem)
+    if bake_identity:
+        apply_identity.apply_identity(head, model.expression_names)
     written = [save_blend(out)]
-    if glb:
-        written.append(export_glb(Path(out).with_suffix(".glb"), head))
+    if export_format:
+        written.append(export.export_head(Path(out), head, model.expression_names,
+                                          export_format, morph_normals=morph_normals))
     return {"name": Path(path).stem, "method": result_to_scene.fit_method(result),
             "rms_px": result.rms_px(), "flagged": len(result.flagged()),
             "seconds": time.perf_counter() - t0, "outputs": [str(p) for p in written]}
@@ -203,7 +197,15 @@ def _parser():
     p.add_argument("landmarks", nargs="+", metavar="LANDMARKS.json")
     p.add_argument("--out", required=True, metavar="OUT",
                    help="a .blend file (one input) or a folder (one .blend per input)")
-    p.add_argument("--glb", action="store_true", help="also write a .glb next to each .blend")
+    p.add_argument("--export", choices=("glb", "fbx"),
+                   help="also write a game export (fitted base, ARKit keys, texture) next to "
+                        "each .blend")
+    p.add_argument("--glb", action="store_true", help="the same as --export glb")
+    p.add_argument("--morph-normals", action="store_true",
+                   help="write the morph targets' normals too (.glb; about doubles the file)")
+    p.add_argument("--bake-identity", action="store_true",
+                   help="apply the identity in the .blend: the fitted face becomes the base "
+                        "mesh, the identity keys are removed, the expression keys still work")
     p.add_argument("--method", choices=("combined", "approach1", "approach2"))
     p.add_argument("--components", type=int, help="identity components to fit")
     p.add_argument("--regional", type=int, help="regional components per region (0: none)")
@@ -239,11 +241,12 @@ def main(argv):
     except (ValueError, FileNotFoundError) as e:
         print(f"headless: {e}", file=sys.stderr)
         return 2
+    export_format = (args.export or ("glb" if args.glb else "")).upper() or None
     failed = 0
     for src, dst in plan:
         try:
             s = fit_file(src, dst, model, options, args.texture_size, not args.no_texture,
-                         args.glb)
+                         export_format, args.bake_identity, args.morph_normals)
         except Exception as e:  # report and go on with the batch
             failed += 1
             print(f"{src.stem}: FAILED: {e}", flush=True)

@@ -215,6 +215,12 @@ class HEADRECON_PT_result(_Panel, bpy.types.Panel):
         key = head.data.shape_keys
         layout.label(text=f"{len(key.key_blocks) - 1} shape keys (Object Data > Shape Keys)",
                      icon="SHAPEKEY_DATA")
+        col = layout.column(align=True)
+        col.operator("headrecon.apply_identity", icon="SHAPEKEY_DATA")
+        col.operator("headrecon.import_arkit_animation", text="Import ARKit Animation...",
+                     icon="ACTION")
+        col.operator("headrecon.export_head", text="Export Head (.glb / .fbx)...",
+                     icon="EXPORT")
 
 
 CLASSES = (HEADRECON_PT_head, HEADRECON_PT_photos, HEADRECON_PT_calibration,

@@ -3,7 +3,8 @@
 Basis is the model's mean; one key per identity component ("identity_000"...) and per
 regional component ("<region>_NN") whose value is the fitted coefficient (sliders -3..3,
 wider if a coefficient lies outside); "fit_detail" (value 1) carries what the model cannot
-express (FitResult.detail); the 57 ARKit-named expression keys start at 0. With the
+express (FitResult.detail); the expression keys (Apple's ARKit names, then the model's
+extras: ``arkit.key_plan``) start at 0. With the
 values set, the evaluated mesh is exactly FitResult.local_vertices (float32), the terms of
 ``local = mean + identity + regional + detail``.
 
@@ -15,9 +16,14 @@ removes exactly those and nothing an artist added.
 
 import numpy as np
 
+from . import arkit
+
 FIT_KEYS = "headrecon_fit_keys"  # ID property on the Key: names of the keys a fit wrote
 DETAIL = "fit_detail"
 LIVE_MUTED = "headrecon_live_muted"  # ID property on the Key: keys muted while dragging
+# ID property on the Key: identity keys Apply Identity kept (muted) after moving them into
+# the Basis (apply_identity.py); a re-fit removes them with the other fit keys.
+KEPT_APPLIED = "headrecon_identity_applied"
 SLIDER = 3.0
 SLIDER_LIMIT = 10.0  # Blender's own bound on slider_min / slider_max
 
@@ -54,8 +60,10 @@ def remove_fit_keys(obj):
     names = set(fit_key_names(obj))
     for kb in [kb for kb in key.key_blocks if kb.name in names]:
         obj.shape_key_remove(kb)
-    if obj.data.shape_keys is not None and FIT_KEYS in obj.data.shape_keys:
-        del obj.data.shape_keys[FIT_KEYS]
+    key = obj.data.shape_keys
+    for prop in (FIT_KEYS, KEPT_APPLIED):
+        if key is not None and prop in key:
+            del key[prop]
 
 
 def _slider(kb, value):
@@ -143,7 +151,7 @@ def write_fit_keys(obj, model, result):
             for name, c, delta in zip(reg.names, result.regional_coeffs, reg.basis, strict=True):
                 add(name, mean + delta, c)
         add(DETAIL, mean + np.asarray(result.detail, dtype=np.float64), 1.0, slider=False)
-        for name, delta in zip(model.expression_names, model.expressions, strict=True):
+        for name, delta in arkit.expression_keys(model.expression_names, model.expressions):
             add(name, mean + delta, 0.0, slider=False)
     finally:
         obj.data.shape_keys[FIT_KEYS] = names
@@ -173,7 +181,7 @@ def _coefficient_keys(obj, model, result):
     """The keys a live refit writes: (coefficient key blocks, their (name, value) pairs,
     the detail key), or None when the head's keys do not match the result."""
     key = obj.data.shape_keys
-    if key is None:
+    if key is None or KEPT_APPLIED in key:  # identity applied: its keys are history
         return None
     k = len(result.identity_coeffs)
     pairs = list(zip(model.identity.names[:k], result.identity_coeffs, strict=True))

@@ -71,7 +71,7 @@ def test_extension_zip_builds_installs_and_fits(model, tmp_path):
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     line = next(ln for ln in proc.stdout.splitlines() if ln.startswith("RESULT "))
     res = json.loads(line[len("RESULT "):])
-    assert res["keys"] == 1 + 30 + 1 + 57
+    assert res["keys"] == 1 + 30 + 1 + 59  # basis, identity, detail, 51 ARKit + 8 extras
     # the installed copy ran, with its own solver (not this checkout's)
     assert res["solver_file"].startswith(str(user))
     assert not res["top_level_solver"]

@@ -48,7 +48,7 @@ def test_headless_batch(model, tmp_path):
     names = [kb.name for kb in keys]
     assert names[0] == "Basis" and names[1:31] == [f"identity_{i:03d}" for i in range(30)]
     assert "fit_detail" in names and "jawOpen" in names
-    assert len(names) == 1 + 30 + 1 + 57
+    assert len(names) == 1 + 30 + 1 + 59
     assert any(kb.value != 0 for kb in keys[1:31])
     tex = [i for i in bpy.data.images if i.get("headrecon_baked")]
     assert len(tex) == 2 and all(i.packed_file is not None and tuple(i.size) == (256, 256)
@@ -107,12 +107,16 @@ def test_summary_names_the_winning_approach(model, tmp_path, monkeypatch, capsys
     line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("carol:"))
     assert line.startswith(f"carol: method {won}, RMS ")
     assert bpy.data.objects["carol"].headrecon.fit_method == won
-    # the .glb holds the head with its shape keys as morph targets, and the lashes as an
-    # alpha-blended texture (not opaque strips over the eyes)
+    # the .glb holds the fitted head with its expression keys as morph targets (identity
+    # applied, no morph normals), and the lashes as an alpha-blended texture (not opaque
+    # strips over the eyes); the .blend keeps its identity keys
     doc = _glb_json(tmp_path / "carol.glb")
     assert [n["name"] for n in doc["nodes"]] == ["carol"]
     targets = {len(p.get("targets", ())) for p in doc["meshes"][0]["primitives"]}
-    assert targets == {1 + 20 + 57}  # identity keys, detail, expressions
+    assert targets == {59}  # 51 ARKit + 8 extras
+    assert not any("NORMAL" in t for p in doc["meshes"][0]["primitives"] for t in p["targets"])
+    assert doc["meshes"][0]["extras"]["targetNames"][:2] == ["eyeBlinkLeft", "eyeLookDownLeft"]
+    assert "identity_000" in bpy.data.objects["carol"].data.shape_keys.key_blocks
     lashes = next(m for m in doc["materials"] if m["name"].endswith("Eyelashes"))
     assert lashes["alphaMode"] == "BLEND"
     assert "baseColorTexture" in lashes["pbrMetallicRoughness"]

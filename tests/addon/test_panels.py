@@ -100,6 +100,8 @@ def test_panels_draw_through_the_flow(files):
     log = _draw_all()
     assert ("list", "residuals") in log
     assert any(k == "label" and t.startswith("RMS residual: ") for k, t in log)
+    for op in ("apply_identity", "import_arkit_animation", "export_head"):
+        assert ("operator", f"headrecon.{op}") in log
     scene.headrecon.live_refit = False
 
 

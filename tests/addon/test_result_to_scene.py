@@ -21,15 +21,16 @@ def fitted(files):
 
 
 def test_shapekey_blocks(model, fitted):
-    from headrecon_addon import shape_keys
+    from headrecon_addon import arkit, shape_keys
 
     scene, head, result = fitted
     keys = key_blocks(head)
     k = len(result.identity_coeffs)
+    expressions = arkit.expression_key_names(model.expression_names)
     expected = (["Basis"] + [f"identity_{i:03d}" for i in range(k)]
-                + list(result.regional_names) + ["fit_detail"] + list(model.expression_names))
+                + list(result.regional_names) + ["fit_detail"] + expressions)
     assert [kb.name for kb in keys] == expected
-    assert len(model.expression_names) == 57
+    assert expressions[:3] == ["eyeBlinkLeft", "eyeLookDownLeft", "eyeLookInLeft"]
     assert keys["Basis"] == head.data.shape_keys.reference_key
     base = shape_keys.get_key_co(keys["Basis"])
     assert np.abs(base - model.vertices).max() < 1e-6
@@ -44,8 +45,11 @@ def test_shapekey_blocks(model, fitted):
     assert np.abs(shape_keys.get_key_co(kb) - (model.vertices + model.identity.basis[0])
                   ).max() < 1e-6
     assert keys["fit_detail"].value == 1.0
-    for name in model.expression_names:
+    for name in expressions:
         assert keys[name].value == 0.0 and keys[name].slider_max == 1.0
+    names = list(model.expression_names)
+    blink = shape_keys.get_key_co(keys["eyeBlinkLeft"]) - base
+    assert np.abs(blink - model.expressions[names.index("eyeBlink_L")]).max() < 1e-6
 
 
 def test_sliders_reproduce_the_solver(model, fitted):
