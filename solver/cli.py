@@ -129,7 +129,8 @@ def _read_photo(case, view_name, texture_size):
 _OPTION_FLAGS = {"method": "--method", "n_identity": "--components", "n_regional": "--regional",
                  "lambda1": "--lambda1", "lambda2": "--lambda2", "prior": "--prior",
                  "max_iterations": "--max-iterations", "noise_px": "--noise-px",
-                 "noise": "--noise", "outline_landmarks": "--outline-landmarks"}
+                 "noise": "--noise", "outline_landmarks": "--outline-landmarks",
+                 "expressions": "--expressions"}
 
 
 def _fit_options(args, model, progress):
@@ -427,6 +428,10 @@ def build_parser():
                      help="'estimate' (default): placement noise and per-landmark weights "
                           "from the fit itself; 'fixed': every landmark placed with "
                           "--noise-px")
+    fit.add_argument("--expressions", choices=("fit", "neutral"),
+                     help="'fit' (default): each photo's expression (eyes closed, a smile) "
+                          "is estimated and taken out of its landmarks before the identity "
+                          "is fitted; 'neutral': the faces are assumed neutral")
     fit.add_argument("--outline-landmarks", choices=("vertex", "slide"),
                      help="the jaw, chin and head-side points of a front photo: 'vertex' "
                           "(default) fitted to their model vertices, 'slide' across the "
