@@ -54,6 +54,7 @@ import numpy as np
 from ..errors import rms
 from .approach1 import approach1, profile_fit
 from .approach2 import approach2
+from .checks import post_fit_warnings
 from .engine import Engine
 from .noise import MAX_ROUNDS, estimate_noise
 from .options import FitOptions, check_options
@@ -137,7 +138,8 @@ def fit_head(model, case, options=None, initial=None):
     opts = check_options(options, model)
     progress = Progress(opts.progress)
     if opts.noise == "fixed":
-        return _fit(model, case, opts, initial, None, progress, t0)[0]
+        result = _fit(model, case, opts, initial, None, progress, t0)[0]
+        return _checked(model, case, opts, result)
     # The noise from the fit's residuals, the fit again with it, until the estimate
     # settles (noise.py); each fit after the first starts where the last one ended.
     result, contour, along, effective = _fit(model, case, opts, initial, None,
@@ -159,6 +161,15 @@ def fit_head(model, case, options=None, initial=None):
     result.info["refit_state"]["noise"] = noise
     result.info["timings"] = timings
     progress(1.0, f"done ({result.info['approach']}, {rounds} fits)")
+    return _checked(model, case, opts, result)
+
+
+def _checked(model, case, opts, result):
+    """``result`` with the warnings of the checks after a fit (checks.py)."""
+    def quick_fit(c, o):
+        return _fit(model, c, o, None, None, Progress(None), time.perf_counter())[0]
+
+    result.info["warnings"] += post_fit_warnings(model, case, result, opts, quick_fit)
     return result
 
 
