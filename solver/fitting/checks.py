@@ -1,12 +1,13 @@
 """Checks after a fit that tell the user what the photos could not: a fit from one photo
 (its depth or width is the model's prior), and photos whose left and right disagree (left
 and right landmark names swapped, or a left profile labelled right), which a fit explains
-only by a head tens of millimetres off.
+only by a head turned away from its photos or tens of millimetres off.
 
-Sides are tested cheaply first (:func:`mirror_suspects`: the handedness the landmarks
-imply against the camera, microseconds); only a suspect case is fitted again with the
-suspect views mirrored, and warned about when that fit explains the photos at least
-``MIRROR_RATIO`` times better (docs/DECISIONS.md, "Swapped sides").
+Sides are tested cheaply first, on every fit (:func:`mirror_suspects`: the handedness the
+landmarks imply against the face and the cameras, under a millisecond). A view whose
+landmarks put its camera behind the head is warned about from that alone; views that only
+disagree with the others are fitted again, mirrored, and warned about when that explains
+the photos at least ``MIRROR_RATIO`` times better (docs/DECISIONS.md, "Swapped sides").
 """
 
 import dataclasses
@@ -16,14 +17,13 @@ import numpy as np
 from ..cameras import OrthographicCamera
 from ..cameras.base import is_side_camera
 
-#: The mirrored case must reproduce the landmarks this many times better (pixel RMS) to
-#: be warned about.
+#: Views that disagree are warned about when the case with them mirrored reproduces the
+#: landmarks this many times better (pixel RMS).
 MIRROR_RATIO = 2.0
-#: A view whose implied camera looks this far (cosine) toward the back of the head, or
-#: whose implied head rotation differs from another view's by more than 90 degrees, is
-#: a suspect.
+#: A view whose implied viewing direction has this cosine or less with the face's (toward
+#: the back of the head) is behind the head.
 BEHIND_COS = -0.5
-#: Iterations of the quick fit of the mirrored case.
+#: Iterations of the quick fits of the mirrored case and of the case as labelled.
 QUICK_ITERATIONS = 15
 _LEFT, _RIGHT = "_left", "_right"
 _OTHER_SIDE = {"orthographic-right": "orthographic-left", "orthographic-left": "orthographic-right"}
@@ -138,10 +138,12 @@ def claimed_rotation(camera):
 
 
 def mirror_suspects(model, case, result):
-    """Views whose landmarks look mirrored: their implied camera looks at the back of the
-    head, or (views with a given camera) the head rotation they imply differs from another
-    view's by more than 90 degrees. With two views that disagree and neither behind the
-    head, the profile is the suspect (a front photo's side is told by the first test)."""
+    """Views whose landmarks look mirrored, as (behind, disagreeing): views whose implied
+    camera looks at the back of the head (:func:`implied_frame`; the face's landmarks
+    cannot be seen from there), and views with a given camera whose implied head rotation
+    differs from the other views' by more than 90 degrees (with two such views and
+    neither behind the head, the profile: a front photo's side is told by the first
+    test). Disagreement is only looked for when no view is behind the head."""
     local = result.local_vertices
     frames, behind = {}, []
     for name, view in case.views.items():
@@ -159,17 +161,15 @@ def mirror_suspects(model, case, result):
         rot = claimed_rotation(view.camera) if view.camera is not None else None
         if rot is not None:
             frames[name] = rot.T @ frame  # the head's rotation as this view sees it
-    if behind:
-        return behind
     names = list(frames)
     agree = {n: sum(_angle_cos(frames[n], frames[m]) > 0.0 for m in names if m != n)
              for n in names}
-    if len(names) < 2 or min(agree.values()) == len(names) - 1:
-        return []
+    if behind or len(names) < 2 or min(agree.values()) == len(names) - 1:
+        return behind, []
     if len(names) == 2:
         sides = [n for n in names if is_side_camera(case.views[n].camera)]
-        return sides[:1] or names[1:]
-    return [n for n in names if agree[n] < (len(names) - 1) / 2]
+        return [], sides[:1] or names[1:]
+    return [], [n for n in names if agree[n] < (len(names) - 1) / 2]
 
 
 def _angle_cos(r1, r2):
@@ -183,9 +183,9 @@ def mirrored_case(case, views):
     out = {}
     for name, view in case.views.items():
         if name in views:
-            cam = view.camera
-            if isinstance(cam, OrthographicCamera) and cam.view in _OTHER_SIDE:
-                cam = OrthographicCamera.nominal(_OTHER_SIDE[cam.view], view.size)
+            cam, other = view.camera, _other_side(view)
+            if other is not None:
+                cam = OrthographicCamera.nominal(other, view.size)
             view = dataclasses.replace(view, camera=cam, points={
                 swap_name(n): p for n, p in view.points.items()})
         out[name] = view
@@ -201,38 +201,46 @@ def landmark_rms(result):
 
 
 def mirror_warnings(model, case, result, opts, quick_fit):
-    """A warning per suspect view (:func:`mirror_suspects`) when the case with those views
-    mirrored (:func:`mirrored_case`) reproduces the landmarks at least ``MIRROR_RATIO``
-    times better than the case as labelled, both by the same quick fit (landmarks and
-    outlines, fixed noise, ``QUICK_ITERATIONS``): the fit as labelled may have found a
-    head upside down or facing away from its photos that reproduces them well."""
-    suspects = mirror_suspects(model, case, result)
-    if not suspects:
-        return []
-    quick = dataclasses.replace(opts, noise="fixed", method="approach1", progress=None,
-                                max_iterations=QUICK_ITERATIONS)
-    try:
-        mirrored = landmark_rms(quick_fit(mirrored_case(case, suspects), quick))
-    except ValueError:  # the mirrored case cannot be fitted: no evidence for it
-        return []
-    labelled = landmark_rms(quick_fit(case, quick))
-    if labelled < MIRROR_RATIO * mirrored:
-        return []
-    sides = [n for n in case.views if n not in suspects
-             and isinstance(case.views[n].camera, OrthographicCamera)
-             and case.views[n].camera.view in _OTHER_SIDE]
+    """A warning per view whose left and right look exchanged (:func:`mirror_suspects`).
+
+    A view whose landmarks put its camera behind the head is warned about at once: the fit
+    as labelled can reproduce them about as well by turning the head away from the photo,
+    so no fit tells it better. Views that only disagree with the others are warned about
+    when the case with them mirrored (:func:`mirrored_case`) reproduces the landmarks at
+    least ``MIRROR_RATIO`` times better than the case as labelled, both by the same quick
+    fit (fixed noise, approach 1, ``QUICK_ITERATIONS``)."""
+    behind, disagree = mirror_suspects(model, case, result)
+    evidence = {}
+    if disagree:
+        quick = dataclasses.replace(opts, noise="fixed", method="approach1", progress=None,
+                                    max_iterations=QUICK_ITERATIONS)
+        try:
+            mirrored = landmark_rms(quick_fit(mirrored_case(case, disagree), quick))
+        except ValueError:  # the mirrored case cannot be fitted: no evidence for it
+            mirrored = np.inf
+        labelled = landmark_rms(quick_fit(case, quick)) if np.isfinite(mirrored) else 0.0
+        if labelled >= MIRROR_RATIO * mirrored:
+            evidence = {n: f"the landmarks are reproduced to {mirrored:.1f} px RMS against "
+                           f"{labelled:.1f} px as labelled" for n in disagree}
+    for name in behind:
+        evidence[name] = ("its landmarks are the mirror image of a face: as labelled "
+                          "they put the camera behind the head")
+    sides = [n for n in case.views if n not in evidence and _other_side(case.views[n])]
     out = []
-    for name in suspects:
-        cam = case.views[name].camera
-        what = f"the _left/_right names of view {name!r} exchanged"
-        if isinstance(cam, OrthographicCamera) and cam.view in _OTHER_SIDE:
-            what = (f"view {name!r} a {_OTHER_SIDE[cam.view][len('orthographic-'):]} "
-                    f"profile rather than {cam.view!r}")
+    for name, why in evidence.items():
+        other = _other_side(case.views[name])
+        what = f"the _left/_right names of view {name!r} exchanged" if other is None else \
+            f"view {name!r} a {other[len('orthographic-'):]} profile"
         also = f" (or view {sides[0]!r} a profile of the other side)" if sides else ""
-        out.append(f"view {name!r}: its left and right look exchanged: with {what}"
-                   f"{also}, the landmarks are reproduced to {mirrored:.1f} px RMS against "
-                   f"{labelled:.1f} px as labelled, so the head fitted as labelled is likely "
+        out.append(f"view {name!r}: its left and right look exchanged ({why}; with {what}"
+                   f"{also} they are consistent), so the head fitted as labelled is likely "
                    "wrong (turned or mirrored); check that the _left/_right names are the "
                    "subject's own sides (the image's right in a front photo) and which side "
                    "each profile photo shows")
     return out
+
+
+def _other_side(view):
+    """The other profile's camera name of an orthographic profile view, else None."""
+    cam = view.camera
+    return _OTHER_SIDE.get(cam.view) if isinstance(cam, OrthographicCamera) else None

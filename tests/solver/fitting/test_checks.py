@@ -74,6 +74,21 @@ def test_a_left_profile_labelled_right_is_detected(model):
     assert left.camera.view == "orthographic-left"  # the original is untouched
 
 
+def test_a_single_front_photo_with_its_sides_swapped_is_detected(model):
+    # the fit as labelled reproduces it as well as the truth, by a head turned away
+    case, _ = make_case(model, 3, noise_px=1.0, views=("front",))
+    res = fit_head(model, all_names_swapped(case), FitOptions(noise="fixed"))
+    (warning,) = side_warnings(res)
+    assert "behind the head" in warning and "names of view 'front' exchanged" in warning
+
+
+def test_perspective_photos_with_their_sides_swapped_are_detected(model):
+    case, _ = make_perspective_case(model, 3, n_views=3, noise_px=1.0)
+    res = fit_head(model, all_names_swapped(case), FitOptions(noise="fixed"))
+    assert {w.split(":")[0] for w in side_warnings(res)} == \
+        {f"view {n!r}" for n in case.views}
+
+
 @pytest.mark.parametrize("seed", range(5))
 def test_no_false_alarm_on_correct_cases(model, seed):
     case, _ = make_case(model, 100 + seed, noise_px=1.0)
