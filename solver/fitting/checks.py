@@ -23,6 +23,9 @@ MIRROR_RATIO = 2.0
 #: A view whose implied viewing direction has this cosine or less with the face's (toward
 #: the back of the head) is behind the head.
 BEHIND_COS = -0.5
+#: Spread of a view's landmark points (singular value, relative to the largest) below
+#: which a direction is left out of the implied camera.
+RCOND = 0.05
 #: Iterations of the quick fits of the mirrored case and of the case as labelled.
 QUICK_ITERATIONS = 15
 _LEFT, _RIGHT = "_left", "_right"
@@ -114,8 +117,10 @@ def implied_frame(local_points, pixels):
         return None
     x = local_points - local_points.mean(axis=0)
     p = pixels - pixels.mean(axis=0)
-    a, _, rank, _ = np.linalg.lstsq(x, p, rcond=None)
-    if rank < 3:
+    # a direction the points hardly spread along (a profile's midline landmarks in depth)
+    # is left out rather than guessed: u x v then rests on the two the photo shows
+    a, _, rank, _ = np.linalg.lstsq(x, p, rcond=RCOND)
+    if rank < 2:
         return None
     u, v = a[:, 0], a[:, 1]
     d = np.cross(u, v)
