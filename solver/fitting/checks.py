@@ -137,7 +137,7 @@ def claimed_rotation(camera):
     if rot is None and hasattr(camera, "as_dlt"):
         try:
             rot = camera.as_dlt().decompose()[1]
-        except (ValueError, np.linalg.LinAlgError):
+        except ValueError:  # numpy's LinAlgError too
             return None
     return None if rot is None else np.asarray(rot, dtype=np.float64).reshape(3, 3)
 
@@ -221,9 +221,9 @@ def mirror_warnings(model, case, result, opts, quick_fit):
                                     max_iterations=QUICK_ITERATIONS)
         try:
             mirrored = landmark_rms(quick_fit(mirrored_case(case, disagree), quick))
-        except ValueError:  # the mirrored case cannot be fitted: no evidence for it
-            mirrored = np.inf
-        labelled = landmark_rms(quick_fit(case, quick)) if np.isfinite(mirrored) else 0.0
+            labelled = landmark_rms(quick_fit(case, quick))
+        except (ValueError, ArithmeticError):  # a case that cannot be fitted: no evidence
+            mirrored, labelled = np.inf, 0.0
         if labelled >= MIRROR_RATIO * mirrored:
             evidence = {n: f"the landmarks are reproduced to {mirrored:.1f} px RMS against "
                            f"{labelled:.1f} px as labelled" for n in disagree}

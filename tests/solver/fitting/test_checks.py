@@ -2,6 +2,7 @@
 photos whose left and right are exchanged; a correct case gives no such warning."""
 
 import dataclasses
+import types
 
 import numpy as np
 import pytest
@@ -115,3 +116,44 @@ def test_the_mirrored_case_turns_a_right_profile_left():
     assert out.views["side"].camera.view == "orthographic-left"
     assert set(out.views["side"].points) == {"ear_top_left", "nose_tip"}
     assert out.views["front"] is front and case.views["side"] is side
+
+
+def left_profile_labelled_right(model, seed):
+    case, _ = make_case(model, seed, noise_px=1.0, views=("front", "left"), contour=False)
+    return dataclasses.replace(case, views={"front": case.views["front"],
+                                            "side": mirrored_case(case, ["left"]).views["left"]})
+
+
+@pytest.mark.parametrize("labelled_px, mirrored_px, warned", [
+    (10.0, 4.9, True), (10.0, 5.1, False), (1.2, 40.0, False)])
+def test_a_disagreeing_view_is_warned_when_mirrored_it_fits_twice_as_well(
+        model, labelled_px, mirrored_px, warned):
+    from solver.fitting.checks import mirror_warnings
+    from solver.fitting.options import check_options
+    from solver.fitting.result import ViewResidual
+
+    case = left_profile_labelled_right(model, 4)
+    head = types.SimpleNamespace(local_vertices=model.vertices)
+
+    def quick_fit(c, opts):
+        assert opts.noise == "fixed" and opts.progress is None
+        px = mirrored_px if c.views["side"].camera.view == "orthographic-left" else labelled_px
+        return types.SimpleNamespace(residuals={"side": ViewResidual(["a", "b"],
+                                                                     np.full(2, px))})
+
+    out = mirror_warnings(model, case, head, check_options(None, model), quick_fit)
+    assert bool(out) == warned
+    if warned:
+        assert out[0].startswith("view 'side':") and f"{mirrored_px:.1f} px RMS" in out[0]
+
+
+def test_a_mirrored_case_that_cannot_be_fitted_is_no_evidence(model):
+    from solver.fitting.checks import mirror_warnings
+    from solver.fitting.options import check_options
+
+    def quick_fit(c, opts):
+        raise ValueError("view 'side': too few landmarks")
+
+    head = types.SimpleNamespace(local_vertices=model.vertices)
+    assert mirror_warnings(model, left_profile_labelled_right(model, 4), head,
+                           check_options(None, model), quick_fit) == []
