@@ -54,6 +54,7 @@ import numpy as np
 from ..errors import rms
 from .approach1 import approach1, profile_fit
 from .approach2 import approach2
+from .checks import post_fit_warnings
 from .engine import Engine
 from .expression import (
     estimate_expressions,
@@ -147,7 +148,8 @@ def fit_head(model, case, options=None, initial=None):
         shown = (getattr(initial, "info", {}).get("refit_state") or {}).get("expressions")
         if shown and opts.expressions == "fit":
             case = neutral_case(model, case, initial, shown)
-        return _fit(model, case, opts, initial, None, progress, t0)[0]
+        result = _fit(model, case, opts, initial, None, progress, t0)[0]
+        return _checked(model, case, opts, result)
     # The noise from the fit's residuals (and each photo's expression, expression.py), the
     # fit again with them, until the estimates settle (noise.py); each fit after the first
     # starts where the last one ended.
@@ -179,6 +181,15 @@ def fit_head(model, case, options=None, initial=None):
         result.info["refit_state"]["expressions"] = expressions
     result.info["timings"] = timings
     progress(1.0, f"done ({result.info['approach']}, {rounds} fits)")
+    return _checked(model, case, opts, result)
+
+
+def _checked(model, case, opts, result):
+    """``result`` with the warnings of the checks after a fit (checks.py)."""
+    def quick_fit(c, o):
+        return _fit(model, c, o, None, None, Progress(None), time.perf_counter())[0]
+
+    result.info["warnings"] += post_fit_warnings(model, case, result, opts, quick_fit)
     return result
 
 
