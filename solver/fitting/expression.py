@@ -2,15 +2,15 @@
 moment, with the eyes closed or a slight smile, while the fit's identity is one neutral
 head. Left in the landmarks, an expression bends the identity (closed eyelids pull the
 eyes' shape, a smile widens the mouth). So after a fit each photo's expression is estimated
-from its landmark residuals (the model's expression shapes, per photo, with their own
-prior), the photo's landmarks are moved back to where the neutral face would put them, and
-the fit is repeated with them: the identity sees a neutral face, the expression is
-reported per photo.
+from its landmarks (PHOTO_EXPRESSIONS of the model's shapes, per photo, solved together
+with a change of the shared identity), the photo's landmarks are moved back to where the
+neutral face would put them, and the fit is repeated with them: the identity sees a
+neutral face, the expression is reported per photo.
 
 An expression weight lies in [0, 1] (0: neutral, 1: the shape at full strength) with a
-Gaussian prior of standard deviation ``EXPRESSION_SIGMA``: a weight has to explain clearly
-more than noise to be used, so a neutral photo keeps weights near 0 and the identity keeps
-what only an identity can explain.
+Gaussian prior of standard deviation ``EXPRESSION_SIGMA``, and is used from ``SHOWN`` up: a
+weight has to explain clearly more than noise, so a neutral photo keeps its landmarks and
+the identity keeps what only an identity can explain (docs/DECISIONS.md).
 """
 
 import dataclasses
