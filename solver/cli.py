@@ -1,4 +1,4 @@
-"""Command line: ``python -m solver fit|validate|landmarks ...``.
+"""Command line: ``python -m solver fit|validate|landmarks|detect ...``.
 
 The same fit the Blender add-on runs, headless: read a landmarks file, fit the head model,
 write the head as OBJ (model topology and UVs, metres), optionally bake the photos into a
@@ -352,6 +352,61 @@ def _cmd_landmarks(args):
     return EXIT_OK
 
 
+def _load_photo(path):
+    """A photo file as uint8 RGB (H, W, 3); problems name the photo."""
+    import warnings
+
+    from PIL import Image, UnidentifiedImageError
+
+    path = Path(path)
+    if not path.is_file():
+        raise CliError(f"{path}: photo not found")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
+            try:
+                im = Image.open(path)
+            finally:
+                Image.MAX_IMAGE_PIXELS = limit
+            with im:
+                w, h = im.size
+                if w * h > MAX_PHOTO_PIXELS:
+                    raise CliError(f"{path}: {w}x{h} pixels; photos up to "
+                                   f"{MAX_PHOTO_PIXELS / 1e6:.0f} megapixels are read")
+                return np.asarray(im.convert("RGB"))
+    except UnidentifiedImageError:
+        raise CliError(f"{path}: not an image Pillow can read") from None
+
+
+def _cmd_detect(args):
+    from .detect import Detector
+    from .detect.detected_case import detected_case
+    from .io.landmarks_file import save_landmarks
+
+    progress = _Progress(args.quiet)
+    detector = Detector(args.models) if args.models else Detector()
+    out = Path(args.out)
+    photos, faces, used = [], [], set()
+    for i, photo in enumerate(args.photos):
+        image = _load_photo(photo)
+        face = detector.detect(image)
+        if face is None:
+            raise CliError(f"{photo}: no face found")
+        name = Path(photo).stem or f"view{i + 1}"
+        while name in used:
+            name += "_"
+        used.add(name)
+        photos.append((name, photo, (image.shape[1], image.shape[0])))
+        faces.append(face)
+        progress((i + 1) / len(args.photos),
+                 f"{photo}: face (score {face.score:.2f}), {len(face.ibug)} landmarks")
+    save_landmarks(detected_case(photos, faces, base_dir=out.parent), out)
+    if not args.quiet:
+        print(f"wrote {out}", file=sys.stderr)
+    return EXIT_OK
+
+
 # --------------------------------------------------------------------------------------
 # Parser and entry point
 
@@ -459,6 +514,21 @@ def build_parser():
     lm.add_argument("--json", action="store_true", help="print the entries as JSON")
     lm.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     lm.set_defaults(func=_cmd_landmarks)
+
+    det = sub.add_parser(
+        "detect", help="find the face's landmarks in photos; write a landmarks file",
+        description="Detect the face in each photo (MediaPipe's face detection and face mesh "
+                    "models, run with numpy) and write its iBUG-68 landmarks, under the "
+                    "project's names, as a landmarks file: one front view per photo, named "
+                    "after the photo's file name.")
+    det.add_argument("photos", nargs="+", metavar="PHOTO")
+    det.add_argument("--out", required=True, metavar="CASE.json",
+                     help="landmarks file to write")
+    det.add_argument("--models", metavar="FOLDER",
+                     help="folder of the .tflite files (default: generated/detector/)")
+    det.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    det.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    det.set_defaults(func=_cmd_detect)
     return parser
 
 

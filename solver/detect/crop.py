@@ -34,8 +34,12 @@ class Square:
 def _shrink(image, k):
     """Mean of k×k blocks (an area filter before bilinear resampling to a much smaller
     crop, so a 1024-px photo is not aliased down to 128 px)."""
-    h, w = (image.shape[0] // k) * k, (image.shape[1] // k) * k
-    return image[:h, :w].reshape(h // k, k, w // k, k, -1).mean(axis=(1, 3))
+    h, w = image.shape[0] // k, image.shape[1] // k
+    out = np.zeros((h, w) + image.shape[2:], np.float32)
+    for a in range(k):
+        for b in range(k):
+            out += image[a:h * k:k, b:w * k:k]
+    return out / (k * k)
 
 
 def crop(image, square, n, border="zero"):
@@ -48,13 +52,21 @@ def crop(image, square, n, border="zero"):
         (the landmark model's crop, which may reach past the photo).
     """
     k = int(square.size / n / 1.5)
+    # Only the part of the photo the square covers (plus a pixel) is filtered.
+    corners = square.to_photo(np.array([[0, 0], [n, 0], [0, n], [n, n]]), n)
+    h, w = image.shape[:2]
+    lo = np.clip(np.floor(corners.min(0)).astype(int) - k - 1, 0, [w, h])
+    hi = np.clip(np.ceil(corners.max(0)).astype(int) + k + 1, 0, [w, h])
+    lo = lo - lo % max(k, 1)
+    offset = lo.astype(float)
+    image = image[lo[1]:hi[1], lo[0]:hi[0]]
     scale = 1.0
     if k >= 2:
         image = _shrink(image, k)
         scale = 1.0 / k
     idx = (np.arange(n) + 0.5)
     jj, ii = np.meshgrid(idx, idx, indexing="ij")
-    pts = square.to_photo(np.stack([ii.ravel(), jj.ravel()], axis=1), n) * scale - 0.5
+    pts = (square.to_photo(np.stack([ii.ravel(), jj.ravel()], axis=1), n) - offset) * scale - 0.5
     h, w = image.shape[:2]
     x0 = np.floor(pts[:, 0]).astype(int)
     y0 = np.floor(pts[:, 1]).astype(int)
