@@ -2,7 +2,11 @@
 for the points a model returns: the one geometry both detection stages share.
 
 Continuous pixel coordinates: the photo's pixel (row r, column c) covers
-[c, c + 1) × [r, r + 1), so its centre is (c + 0.5, r + 0.5).
+[c, c + 1) × [r, r + 1), so its centre is (c + 0.5, r + 0.5). The crop's pixel i samples
+the photo at ``corner + i * size / n`` in pixel-centre coordinates (OpenCV's warp, which
+MediaPipe uses and the models were trained with): with the centre at (i + 0.5) instead,
+the mesh came out 2 px (median) from MediaPipe's own on the sample's front photo, with
+this rule 0.9 px (docs/DECISIONS.md).
 """
 
 from dataclasses import dataclass
@@ -64,9 +68,9 @@ def crop(image, square, n, border="zero"):
     if k >= 2:
         image = _shrink(image, k)
         scale = 1.0 / k
-    idx = (np.arange(n) + 0.5)
+    idx = np.arange(n, dtype=float)
     jj, ii = np.meshgrid(idx, idx, indexing="ij")
-    pts = (square.to_photo(np.stack([ii.ravel(), jj.ravel()], axis=1), n) - offset) * scale - 0.5
+    pts = (square.to_photo(np.stack([ii.ravel(), jj.ravel()], axis=1), n) + 0.5 - offset) * scale - 0.5
     h, w = image.shape[:2]
     x0 = np.floor(pts[:, 0]).astype(int)
     y0 = np.floor(pts[:, 1]).astype(int)

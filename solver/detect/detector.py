@@ -60,7 +60,7 @@ class Detector:
         self.faces_net = Network(folder / DETECTION_MODEL)
         self.mesh_net = Network(folder / LANDMARK_MODEL)
 
-    def detect(self, image, refine=True):
+    def detect(self, image, refine=False):
         """The most confident face of ``image`` (H, W, 3) (uint8, or float in [0, 1]),
         or None when no face is found or the mesh model says the crop holds none."""
         image = np.asarray(image)
