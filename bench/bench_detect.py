@@ -33,7 +33,7 @@ def sample_truth(folder):
     truth = np.load(folder / "truth.npz", allow_pickle=True)
     names = json.loads(str(truth["landmark_names"]))["front"]
     number = {n: i for i, n in load_landmark_set().ibug.items()}
-    pts = {number[n]: p for n, p in zip(names, truth["exact_front"]) if n in number}
+    pts = {number[n]: p for n, p in zip(names, truth["exact_front"], strict=True) if n in number}
     return np.asarray(Image.open(folder / "front.png").convert("RGB")), pts
 
 
@@ -45,7 +45,7 @@ def james_truth(folder):
     out = []
     for photo, x0 in (("photo_a", 0), ("photo_b", half)):
         numbers, px = scan_landmarks(scan, calibrate(scan, photo).camera)
-        out.append((f"james {photo}", image[:, x0:x0 + half], dict(zip(numbers, px))))
+        out.append((f"james {photo}", image[:, x0:x0 + half], dict(zip(numbers, px, strict=True))))
     return out
 
 

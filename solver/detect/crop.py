@@ -70,7 +70,8 @@ def crop(image, square, n, border="zero"):
         scale = 1.0 / k
     idx = np.arange(n, dtype=float)
     jj, ii = np.meshgrid(idx, idx, indexing="ij")
-    pts = (square.to_photo(np.stack([ii.ravel(), jj.ravel()], axis=1), n) + 0.5 - offset) * scale - 0.5
+    pts = square.to_photo(np.stack([ii.ravel(), jj.ravel()], axis=1), n)
+    pts = (pts + 0.5 - offset) * scale - 0.5
     h, w = image.shape[:2]
     x0 = np.floor(pts[:, 0]).astype(int)
     y0 = np.floor(pts[:, 1]).astype(int)

@@ -1,6 +1,7 @@
 """Landmarks of the face in a photo: detection, then the face mesh on the detected
-square, then once more on the mesh's own square (MediaPipe's tracking step, which a
-single photo takes from the first pass), and the iBUG-68 points from the mesh."""
+square (as MediaPipe does for a still photo), and the iBUG-68 points from the mesh.
+Optionally the mesh once more on its own square (MediaPipe's tracking step): measured no
+better, so off by default (docs/DECISIONS.md, "Automatic landmarks")."""
 
 from dataclasses import dataclass
 from pathlib import Path
@@ -62,7 +63,8 @@ class Detector:
 
     def detect(self, image, refine=False):
         """The most confident face of ``image`` (H, W, 3) (uint8, or float in [0, 1]),
-        or None when no face is found or the mesh model says the crop holds none."""
+        or None when no face is found or the mesh model says the crop holds none.
+        ``refine``: a second mesh pass on the first mesh's square."""
         image = np.asarray(image)
         if image.ndim != 3 or image.shape[2] < 3:
             raise ValueError(f"image must be (H, W, 3), got shape {image.shape}")

@@ -11,7 +11,7 @@ from ..paths import ASSETS_DIR
 MAP_PATH = ASSETS_DIR / "mediapipe_ibug68.json"
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def ibug_map(path=MAP_PATH):
     """(68, 468) averaging matrix: row i - 1 gives iBUG point i from the mesh points."""
     data = read_json(path)

@@ -86,7 +86,7 @@ def test_models_read_and_run():
 
 @pytest.mark.parametrize("model", MODELS)
 def test_models_match_the_reference_runtime(model):
-    path = dict(zip(MODELS, _models_or_skip()))[model]
+    path = dict(zip(MODELS, _models_or_skip(), strict=True))[model]
     litert = pytest.importorskip(
         "ai_edge_litert.interpreter",
         reason="the reference runtime ai-edge-litert is not installed (pip install "
