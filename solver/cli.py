@@ -60,12 +60,26 @@ def _one_line(text):
 MAX_PHOTO_PIXELS = 200_000_000
 
 
+def _pil_open(path):
+    """``Image.open(path)`` with Pillow's own pixel limit lifted: ``MAX_PHOTO_PIXELS`` is
+    checked by the callers, with a message naming the photo."""
+    import warnings
+
+    from PIL import Image
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+        limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
+        try:
+            return Image.open(path)
+        finally:
+            Image.MAX_IMAGE_PIXELS = limit
+
+
 def _open_photo(case, view_name):
     """A view's photo opened (not decoded), checked against the pixel limit and the file's
     size; returns (Image, path)."""
-    import warnings
-
-    from PIL import Image, UnidentifiedImageError
+    from PIL import UnidentifiedImageError
 
     view = case.views[view_name]
     where = f"{case.source}: views.{view_name}.image"
@@ -73,13 +87,7 @@ def _open_photo(case, view_name):
     if not path.is_file():
         raise CliError(f"{where}: photo {view.image!r} not found ({path})")
     try:
-        with warnings.catch_warnings():  # the limit below is ours
-            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
-            limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
-            try:
-                im = Image.open(path)
-            finally:
-                Image.MAX_IMAGE_PIXELS = limit
+        im = _pil_open(path)
     except UnidentifiedImageError:
         raise CliError(f"{where}: {path.name} is not an image Pillow can read") from None
     except OSError as e:
@@ -354,29 +362,22 @@ def _cmd_landmarks(args):
 
 def _load_photo(path):
     """A photo file as uint8 RGB (H, W, 3); problems name the photo."""
-    import warnings
-
-    from PIL import Image, UnidentifiedImageError
+    from PIL import UnidentifiedImageError
 
     path = Path(path)
     if not path.is_file():
         raise CliError(f"{path}: photo not found")
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
-            limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
-            try:
-                im = Image.open(path)
-            finally:
-                Image.MAX_IMAGE_PIXELS = limit
-            with im:
-                w, h = im.size
-                if w * h > MAX_PHOTO_PIXELS:
-                    raise CliError(f"{path}: {w}x{h} pixels; photos up to "
-                                   f"{MAX_PHOTO_PIXELS / 1e6:.0f} megapixels are read")
-                return np.asarray(im.convert("RGB"))
+        with _pil_open(path) as im:
+            w, h = im.size
+            if w * h > MAX_PHOTO_PIXELS:
+                raise CliError(f"{path}: {w}x{h} pixels; photos up to "
+                               f"{MAX_PHOTO_PIXELS / 1e6:.0f} megapixels are read")
+            return np.asarray(im.convert("RGB"))
     except UnidentifiedImageError:
         raise CliError(f"{path}: not an image Pillow can read") from None
+    except OSError as e:
+        raise CliError(f"{path}: cannot read: {e}") from None
 
 
 def _cmd_detect(args):
