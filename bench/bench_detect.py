@@ -1,16 +1,19 @@
 """Automatic landmarks: time per photo, and detected vs true iBUG-68 landmarks in pixels
 (median, 90th percentile, per group; also as % of the eye-to-mouth distance).
 
-    python -m bench.bench_detect [--sample generated/sample] [--james FOLDER]
+    python -m bench.bench_detect [--sample generated/sample] [--james FOLDER] [--fit]
 
 Photos: the rendered sample's front photo (``./run sample``; truth: the exact landmark
 pixels in ``truth.npz``) and the two real photos of the scan "james" (its texture's
 halves, cut and calibrated as ``bench.realistic_cases`` does; truth: the scan's 68
 landmarks projected through each photo's DLT, those the photo shows). A missing photo
-set is reported and skipped.
+set is reported and skipped. ``--fit`` also fits the sample with the front photo's
+landmarks detected (the profile's still as placed) and compares with the exact ones
+(skin RMS in mm against the true head, ``solver.synthetic.skin_error_mm``).
 """
 
 import argparse
+import copy
 import json
 from pathlib import Path
 
@@ -75,15 +78,44 @@ def report(name, detector, image, truth):
                   f"  ({100 * np.median(e) / scale:.1f} %)")
 
 
+def fit_errors(folder, detector):
+    """Skin RMS (mm) of the sample's fit: mean head, every exact landmark, the front's 68
+    iBUG points detected or exact (the profile as placed, with its outline, in both)."""
+    from solver import fit_head, load_landmarks, load_model
+    from solver.synthetic import skin_error_mm
+
+    model = load_model()
+    folder = Path(folder)
+    case = load_landmarks(folder / "sample.json", known_names=model)
+    truth = np.load(folder / "truth.npz", allow_pickle=True)["local_vertices"]
+    print(f"fit, skin RMS vs the true head: mean head "
+          f"{skin_error_mm(model, model.vertices, truth):.2f} mm")
+    names = load_landmark_set().ibug
+    image = np.asarray(Image.open(folder / "front.png").convert("RGB"))
+    face = detector.detect(image)
+    detected, exact68 = copy.deepcopy(case), copy.deepcopy(case)
+    detected.views["front"].points = {names[i]: tuple(face.ibug[i - 1]) for i in names}
+    exact68.views["front"].points = {n: p for n, p in case.views["front"].points.items()
+                                     if n in set(names.values())}
+    for label, c in (("every exact landmark", case), ("front: 68 exact", exact68),
+                     ("front: 68 detected", detected)):
+        r = fit_head(model, c)
+        print(f"  {label:<22} {skin_error_mm(model, r.local_vertices, truth):.2f} mm")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sample", default=str(ROOT / "generated" / "sample"))
     ap.add_argument("--james", default=None)
+    ap.add_argument("--fit", action="store_true",
+                    help="also fit the sample from detected front landmarks")
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
     detector = Detector()
     if (Path(args.sample) / "truth.npz").is_file():
         report("sample front", detector, *sample_truth(args.sample))
+        if args.fit:
+            fit_errors(args.sample, detector)
     else:
         print(f"sample: {args.sample} has no truth.npz (./run sample); skipped")
     folder = Path(args.james) if args.james else james_folder(ROOT)
