@@ -64,8 +64,10 @@ def report(name, detector, image, truth):
     h, w = image.shape[:2]
     print(f"{name}: {w}x{h} px, detect median {t.median:.3f} s (min {t.min:.3f}, "
           f"CPU {t.cpu_median:.3f} s)")
-    if face is None:
-        print("  no face found")
+    if face is None or not face.is_face:
+        print("  no face found" if face is None else
+              f"  a face (score {face.score:.2f}) the mesh does not see "
+              f"(presence {face.presence:.2f})")
         return
     scale = eye_to_mouth(truth)
     err = {i: float(np.linalg.norm(face.ibug[i - 1] - truth[i])) for i in truth}
@@ -93,6 +95,9 @@ def fit_errors(folder, detector):
     names = load_landmark_set().ibug
     image = np.asarray(Image.open(folder / "front.png").convert("RGB"))
     face = detector.detect(image)
+    if face is None or not face.is_face:
+        print("  no face found in the front photo")
+        return
     detected, exact68 = copy.deepcopy(case), copy.deepcopy(case)
     detected.views["front"].points = {names[i]: tuple(face.ibug[i - 1]) for i in names}
     exact68.views["front"].points = {n: p for n, p in case.views["front"].points.items()

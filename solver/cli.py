@@ -394,6 +394,10 @@ def _cmd_detect(args):
         face = detector.detect(image)
         if face is None:
             raise CliError(f"{photo}: no face found")
+        if not face.is_face:
+            raise CliError(f"{photo}: a face was found (score {face.score:.2f}) but the face "
+                           f"mesh sees none in it (presence {face.presence:.2f}): a profile "
+                           "or a face turned away? Those are not detected yet")
         name = Path(photo).stem or f"view{i + 1}"
         while name in used:
             name += "_"

@@ -16,7 +16,8 @@ from .operators import Network
 
 DETECTION_MODEL = "face_detection_short_range.tflite"
 LANDMARK_MODEL = "face_landmark.tflite"
-#: Below this face-presence probability the mesh is not a face (a profile, a back).
+#: Below this face-presence probability the mesh is not a face (a profile, a back):
+#: the sample's profile photo gives 0.04-0.08, its front photo 1.0.
 MIN_PRESENCE = 0.5
 
 
@@ -41,6 +42,12 @@ class DetectedFace:
     score: float
     presence: float
 
+    @property
+    def is_face(self):
+        """The mesh model sees a face in the detected square (MediaPipe's threshold, 0.5):
+        a profile, a face turned away or a false detection does not pass."""
+        return self.presence >= MIN_PRESENCE
+
 
 class Detector:
     """The two MediaPipe networks, read once, run with numpy.
@@ -63,8 +70,9 @@ class Detector:
 
     def detect(self, image, refine=False):
         """The most confident face of ``image`` (H, W, 3) (uint8, or float in [0, 1]),
-        or None when no face is found or the mesh model says the crop holds none.
-        ``refine``: a second mesh pass on the first mesh's square."""
+        or None when the detector finds none. A face the mesh model does not see (a
+        profile) comes back with ``is_face`` False. ``refine``: a second mesh pass on the
+        first mesh's square."""
         image = np.asarray(image)
         if image.ndim != 3 or image.shape[2] < 3:
             raise ValueError(f"image must be (H, W, 3), got shape {image.shape}")
@@ -80,6 +88,4 @@ class Detector:
         mesh, presence = face_mesh(self.mesh_net, image, square_from_detection(face))
         if refine and presence >= MIN_PRESENCE:
             mesh, presence = face_mesh(self.mesh_net, image, square_from_mesh(mesh))
-        if presence < MIN_PRESENCE:
-            return None
         return DetectedFace(mesh, mesh_to_ibug(mesh[:, :2]), face.score, presence)

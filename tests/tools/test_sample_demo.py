@@ -90,6 +90,12 @@ def test_detected_landmarks_on_the_front_photo(sample, tmp_path):
     scale = np.linalg.norm(eyes - mouth)
     assert np.median(err) < 0.045 * scale, (np.median(err), scale)
     assert np.percentile(err, 90) < 0.12 * scale, (np.percentile(err, 90), scale)
+    # the profile photo: a face is detected, but the face mesh sees none in it
+    proc = subprocess.run([sys.executable, "-m", "solver", "detect", str(folder / "side.png"),
+                           "--out", str(tmp_path / "side.json")], cwd=ROOT,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1 and "side.png" in proc.stderr and "profile" in proc.stderr
+    assert not (tmp_path / "side.json").exists()
 
 
 def test_truth_is_consistent(sample, model):
