@@ -73,7 +73,7 @@ def test_sample_is_a_valid_landmarks_file(sample, model):
 def test_detected_landmarks_on_the_front_photo(sample, tmp_path):
     """``python -m solver detect`` on the rendered front photo: a landmarks file the fit
     reads, its iBUG-68 points near the exact ones (bench/bench_detect.py measures the
-    full-size photo: 2.9 % of the eye-to-mouth distance, median)."""
+    full-size photo: 2.5 % of the eye-to-mouth distance, median)."""
     folder, truth = sample
     out = tmp_path / "detected.json"
     _run("solver", "detect", str(folder / "front.png"), "--out", str(out), "-q")
