@@ -407,3 +407,20 @@ def test_a_fit_failure_the_checks_let_through_names_the_file():
     assert msg.startswith("case.json: the fit failed (OverflowError: ") and \
         msg.endswith("'python -m solver validate case.json' checks each view's camera and "
                      "landmarks")
+
+
+def test_detect_errors_name_the_photo(tmp_path):
+    from PIL import Image
+
+    if not (ROOT / "generated" / "detector" / "face_landmark.tflite").is_file():
+        pytest.skip("detector models missing: run ./run detector")
+    blank = tmp_path / "blank.png"
+    Image.new("RGB", (200, 300), (128, 128, 128)).save(blank)
+    proc = run_cli("detect", blank, "--out", tmp_path / "case.json")
+    assert_one_line_error(proc, "blank.png", "no face found")
+    proc = run_cli("detect", tmp_path / "missing.png", "--out", tmp_path / "case.json")
+    assert_one_line_error(proc, "missing.png", "not found")
+    (tmp_path / "text.png").write_text("not an image")
+    proc = run_cli("detect", tmp_path / "text.png", "--out", tmp_path / "case.json")
+    assert_one_line_error(proc, "text.png", "not an image")
+    assert not (tmp_path / "case.json").exists()
