@@ -6,7 +6,10 @@ their ratio), peak memory of the largest process, and the size per head of each 
 The heads are synthetic cases (``solver.synthetic.make_case``, saved with
 ``solver.io.save_landmarks``) with smooth generated photos, listed in a ``.csv`` manifest;
 each configuration runs the real command (``python -m headrecon_addon.headless``) in a
-fresh process with ``--force``, timed from start to exit (model loading included).
+fresh process with ``--force``, timed from start to exit (model loading included). The CPU
+seconds per head (all processes of the batch) say what a machine free of other work would
+do: 60 / (CPU s a head) heads per minute per core.
+
 Targets: ``--jobs 2`` at least 1.7 x the rate of ``--jobs 1``; at ``--jobs 2`` at least 40
 heads/min without a .glb (fit, texture, .blend) and 15 with the game .glb; under 800 MB a
 worker.
@@ -29,10 +32,12 @@ import numpy as np  # noqa: E402
 
 from bench.common import load_average, machine_description  # noqa: E402
 
-# Runs a command and prints the peak resident memory (KiB) of the largest process below it.
+# Runs a command; prints its exit code, the peak resident memory (KiB) of the largest
+# process below it and the CPU seconds of all of them.
 _MEASURE = ("import resource, subprocess, sys; code = subprocess.call(sys.argv[1:], "
-            "stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL); print(code, "
-            "resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)")
+            "stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL); "
+            "r = resource.getrusage(resource.RUSAGE_CHILDREN); "
+            "print(code, r.ru_maxrss, r.ru_utime + r.ru_stime)")
 
 
 def _photo(path, size, seed):
@@ -65,7 +70,8 @@ def make_heads(folder, n):
 
 
 def run_batch(manifest, out, jobs, outputs, texture_size):
-    """(seconds, exit code, peak MB of the largest process, summary rows) of one batch."""
+    """(seconds, CPU seconds, exit code, peak MB of the largest process, summary rows) of
+    one batch."""
     cmd = [sys.executable, "-m", "headrecon_addon.headless", str(manifest), "--out", str(out),
            "--jobs", str(jobs), "--outputs", outputs, "--texture-size", str(texture_size),
            "--force"]
@@ -73,9 +79,9 @@ def run_batch(manifest, out, jobs, outputs, texture_size):
     proc = subprocess.run([sys.executable, "-c", _MEASURE, *cmd], cwd=ROOT, text=True,
                           capture_output=True, env=dict(os.environ, PYTHONPATH=str(ROOT)))
     seconds = time.perf_counter() - t0
-    code, rss_kib = map(int, proc.stdout.split())
+    code, rss_kib, cpu = proc.stdout.split()
     rows = [json.loads(x) for x in (out / "summary.jsonl").read_text().splitlines()]
-    return seconds, code, rss_kib / 1024.0, rows
+    return seconds, float(cpu), int(code), int(rss_kib) / 1024.0, rows
 
 
 def sizes_per_output(rows):
@@ -107,7 +113,7 @@ def main(argv=None):
                                      ("fit, texture, .blend + game .glb", 2, "blend,glb"),
                                      ("every output", 2, "blend,glb,obj,texture,report")):
             out = work / f"out_{jobs}_{outputs.replace(',', '_')}"
-            seconds, code, peak, rows = run_batch(manifest, out, jobs, outputs,
+            seconds, cpu, code, peak, rows = run_batch(manifest, out, jobs, outputs,
                                                   args.texture_size)
             ok = sum(r["status"] == "done" for r in rows)
             rate = 60.0 * ok / seconds
@@ -115,7 +121,8 @@ def main(argv=None):
             fit_s = np.median([r["seconds"] for r in rows if r["status"] == "done"])
             print(f"--jobs {jobs} --outputs {outputs}: {ok}/{len(rows)} heads in "
                   f"{seconds:.1f} s = {rate:.1f} heads/min (median {fit_s:.1f} s a head in "
-                  f"its worker), peak {peak:.0f} MB in the largest process, exit {code}")
+                  f"its worker), {cpu / max(ok, 1):.1f} CPU s a head, peak {peak:.0f} MB in "
+                  f"the largest process, exit {code}")
             if outputs.count(",") == 4:
                 for kind, size in sizes_per_output([r for r in rows if r["status"] == "done"]
                                                    ).items():
