@@ -400,13 +400,6 @@ def _settings(args):
             "exact": args.exact}
 
 
-def _default_jobs():
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
-
-
 def _remove_stale_partials(folder):
     """Remove the temporary folders a killed batch left (their process is gone)."""
     for tmp in folder.glob(f".*{PARTIAL}*"):
@@ -503,7 +496,7 @@ def main(argv):
                  "summary.jsonl": out_dir / "summary.jsonl"},
                 {f"input {p}": p for p in args.inputs})
         rows, tasks = _tasks(heads, settings, args.force)
-        jobs = min(args.jobs or _default_jobs(), len(tasks))
+        jobs = min(args.jobs or batch_workers.cpu_count(), len(tasks))
         model = load_model() if jobs <= 1 and tasks else None
     except (ValueError, FileNotFoundError) as e:
         print(f"headless: {e}", file=sys.stderr)

@@ -196,3 +196,18 @@ def test_a_killed_batch_loses_only_heads_in_flight(heads, tmp_path):
     rows, _ = _summary(out)
     assert {n for n, r in rows.items() if r["status"] == "skipped"} == done
     assert not list(out.glob(".*"))  # the killed head's staging folder is gone
+
+
+def test_workers_share_the_cores_blas_threads(monkeypatch):
+    from headrecon_addon import batch_workers
+
+    echo = ("import json, os, sys\nprint(json.dumps({'ready': True}), flush=True)\n"
+            "for line in sys.stdin:\n"
+            "    print(json.dumps(os.environ.get('OPENBLAS_NUM_THREADS')), flush=True)\n")
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    monkeypatch.setattr(batch_workers, "cpu_count", lambda: 4)
+    got = list(batch_workers.run_pool([{}, {}], 2, None, command=[sys.executable, "-c", echo]))
+    assert [answer for _, answer in got] == ["2", "2"]
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "3")  # the environment's own choice is kept
+    got = list(batch_workers.run_pool([{}], 2, None, command=[sys.executable, "-c", echo]))
+    assert [answer for _, answer in got] == ["3"]
