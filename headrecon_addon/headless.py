@@ -257,8 +257,8 @@ def write_head(task, model):
     shutil.rmtree(staging, ignore_errors=True)
     staging.mkdir()
     try:
-        staged = _write_staged(staging, base.name, name, kinds, model, case, result, tiles,
-                               settings, targets, t0)
+        staged = _write_staged(staging, base.name, name, kinds, model, case, result, imgs,
+                               tiles, settings, targets, t0)
         for kind, tmp in staged.items():
             if tmp.is_dir():  # the .fbx's textures folder
                 shutil.rmtree(targets[kind], ignore_errors=True)
@@ -272,13 +272,14 @@ def write_head(task, model):
     return row
 
 
-def _write_staged(staging, stem, name, kinds, model, case, result, tiles, settings, targets, t0):
+def _write_staged(staging, stem, name, kinds, model, case, result, imgs, tiles, settings,
+                  targets, t0):
     """Write a head's outputs into ``staging`` under their final names; returns kind ->
-    staged path."""
+    staged path. ``imgs``: the photos as bpy images, ``tiles``: the baked texture."""
     staged = {}
     needs_scene = {"blend", "glb", "fbx"} & set(kinds)
     if needs_scene:
-        head = build_scene_from_fit(model, case, result, bake=False, textures=tiles,
+        head = build_scene_from_fit(model, case, result, imgs, bake=False, textures=tiles,
                                     name=name)
         if settings["bake_identity"]:
             apply_identity.apply_identity(head, model.expression_names)
@@ -286,7 +287,8 @@ def _write_staged(staging, stem, name, kinds, model, case, result, tiles, settin
             staged["blend"] = save_blend(staging / f"{stem}.blend")
         for fmt in ("glb", "fbx"):
             if fmt in kinds:
-                staged[fmt] = export.export_head(staging / stem, head, model.expression_names,
+                staged[fmt] = export.export_head(staging / f"{stem}.{fmt}", head,
+                                                 model.expression_names,
                                                  fmt.upper(),
                                                  morph_normals=settings["morph_normals"])
                 if fmt == "fbx" and (staging / f"{stem}_textures").is_dir():
@@ -322,16 +324,6 @@ def _write_staged(staging, stem, name, kinds, model, case, result, tiles, settin
     if files:
         _solver_module("io.atomic").write_files_atomic(files)
     return staged
-
-
-def plan_outputs(inputs, out):
-    """Output .blend path of each input: ``out`` itself for one input ending in .blend,
-    else ``out/<stem>.blend``. Raises ValueError for clashing names or a bad manifest."""
-    heads = batch_manifest.plan_heads(inputs, out)
-    for h in heads:
-        if h.error:
-            raise ValueError(h.error)
-    return [(h.landmarks, h.base.with_name(h.base.name + ".blend")) for h in heads]
 
 
 def _outputs_arg(text):
