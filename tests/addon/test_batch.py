@@ -211,3 +211,45 @@ def test_workers_share_the_cores_blas_threads(monkeypatch):
     monkeypatch.setenv("OPENBLAS_NUM_THREADS", "3")  # the environment's own choice is kept
     got = list(batch_workers.run_pool([{}], 2, None, command=[sys.executable, "-c", echo]))
     assert [answer for _, answer in got] == ["3"]
+
+
+def test_record_and_hash_say_when_a_head_is_done(tmp_path):
+    from headrecon_addon import batch_stamp
+
+    lm = tmp_path / "a.json"
+    lm.write_text('{"views": {"front": {"image": "a_front.png"}}}')
+    photo = tmp_path / "a_front.png"
+    photo.write_bytes(b"one")
+    settings = {"outputs": ["blend"], "components": 10}
+    digest = batch_stamp.content_hash(lm, settings)
+    assert batch_stamp.content_hash(lm, dict(reversed(settings.items()))) == digest
+    assert batch_stamp.content_hash(lm, {**settings, "components": 11}) != digest
+    photo.write_bytes(b"two")  # a retouched photo is a new input
+    assert batch_stamp.content_hash(lm, settings) != digest
+    photo.unlink()
+    assert batch_stamp.content_hash(lm, settings) != digest
+
+    base = tmp_path / "out" / "a"
+    base.parent.mkdir()
+    blend = base.with_name("a.blend")
+    blend.write_bytes(b"blend")
+    row = {"name": "a", "status": "done", "outputs": {"blend": str(blend)}}
+    assert batch_stamp.finished_record(base, "h1") is None  # no record yet
+    batch_stamp.write_record(base, "h1", row)
+    assert batch_stamp.stamp_path(base) == tmp_path / "out" / "a.batch.json"
+    assert batch_stamp.finished_record(base, "h1") == row
+    assert batch_stamp.finished_record(base, "h2") is None  # other inputs or settings
+    blend.unlink()
+    assert batch_stamp.finished_record(base, "h1") is None  # an output gone
+
+
+def test_a_name_with_a_dot_keeps_it_in_every_output(heads, tmp_path):
+    from headrecon_addon import headless
+
+    m = _manifest(tmp_path, [f"alice.v2,{heads / 'h3.json'},10"])
+    out = tmp_path / "out"
+    assert headless.main([str(m), "--out", str(out), "--no-texture", "--outputs",
+                          "blend,glb"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == [
+        "alice.v2.batch.json", "alice.v2.blend", "alice.v2.glb", "summary.csv",
+        "summary.jsonl"]
