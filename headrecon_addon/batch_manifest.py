@@ -169,8 +169,9 @@ def _row_head(where, row, folder, out_dir):
             return Head(name, None, base, where, error=f"{where}: column {column}: {e}")
     landmarks = row.get("landmarks", "")
     if not landmarks:
-        problem = "detection from photos is not available yet; give a landmarks file" \
-            if row.get("photos") else "column landmarks is empty"
+        problem = "the batch does not detect landmarks in photos yet; give a landmarks " \
+            "file (python -m solver detect writes one)" if row.get("photos") \
+            else "column landmarks is empty"
         return Head(name, None, base, where, options, error=f"{where}: {problem}")
     return Head(name, folder / landmarks, base, where, options)
 

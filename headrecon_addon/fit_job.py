@@ -106,6 +106,9 @@ def apply_job(scene, job, textures=True):
     ``textures`` is False); remember the result for live refits."""
     t = time.perf_counter()
     job.notes = list(job.calibration_notes) + list(job.result.info.get("warnings", ()))
+    job.notes += [f"photo {view!r} showed {', '.join(f'{n} {w:.2f}' for n, w in shown.items())}"
+                  " (taken out of its landmarks: the head is neutral)"
+                  for view, shown in job.result.info.get("expressions", {}).items() if shown]
     head = result_to_scene.apply_result(scene, job.model, job.result,
                                         job.textures if textures else None,
                                         calibration=job.calibration, notes=job.notes)

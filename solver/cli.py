@@ -1,4 +1,4 @@
-"""Command line: ``python -m solver fit|validate|landmarks ...``.
+"""Command line: ``python -m solver fit|validate|landmarks|detect ...``.
 
 The same fit the Blender add-on runs, headless: read a landmarks file, fit the head model,
 write the head as OBJ (model topology and UVs, metres), optionally bake the photos into a
@@ -60,12 +60,26 @@ def _one_line(text):
 MAX_PHOTO_PIXELS = 200_000_000
 
 
+def _pil_open(path):
+    """``Image.open(path)`` with Pillow's own pixel limit lifted: ``MAX_PHOTO_PIXELS`` is
+    checked by the callers, with a message naming the photo."""
+    import warnings
+
+    from PIL import Image
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+        limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
+        try:
+            return Image.open(path)
+        finally:
+            Image.MAX_IMAGE_PIXELS = limit
+
+
 def _open_photo(case, view_name):
     """A view's photo opened (not decoded), checked against the pixel limit and the file's
     size; returns (Image, path)."""
-    import warnings
-
-    from PIL import Image, UnidentifiedImageError
+    from PIL import UnidentifiedImageError
 
     view = case.views[view_name]
     where = f"{case.source}: views.{view_name}.image"
@@ -73,13 +87,7 @@ def _open_photo(case, view_name):
     if not path.is_file():
         raise CliError(f"{where}: photo {view.image!r} not found ({path})")
     try:
-        with warnings.catch_warnings():  # the limit below is ours
-            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
-            limit, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None
-            try:
-                im = Image.open(path)
-            finally:
-                Image.MAX_IMAGE_PIXELS = limit
+        im = _pil_open(path)
     except UnidentifiedImageError:
         raise CliError(f"{where}: {path.name} is not an image Pillow can read") from None
     except OSError as e:
@@ -129,7 +137,8 @@ def _read_photo(case, view_name, texture_size):
 _OPTION_FLAGS = {"method": "--method", "n_identity": "--components", "n_regional": "--regional",
                  "lambda1": "--lambda1", "lambda2": "--lambda2", "prior": "--prior",
                  "max_iterations": "--max-iterations", "noise_px": "--noise-px",
-                 "noise": "--noise", "outline_landmarks": "--outline-landmarks"}
+                 "noise": "--noise", "outline_landmarks": "--outline-landmarks",
+                 "expressions": "--expressions"}
 
 
 def _fit_options(args, model, progress):
@@ -352,6 +361,58 @@ def _cmd_landmarks(args):
     return EXIT_OK
 
 
+def _load_photo(path):
+    """A photo file as uint8 RGB (H, W, 3); problems name the photo."""
+    from PIL import UnidentifiedImageError
+
+    path = Path(path)
+    if not path.is_file():
+        raise CliError(f"{path}: photo not found")
+    try:
+        with _pil_open(path) as im:
+            w, h = im.size
+            if w * h > MAX_PHOTO_PIXELS:
+                raise CliError(f"{path}: {w}x{h} pixels; photos up to "
+                               f"{MAX_PHOTO_PIXELS / 1e6:.0f} megapixels are read")
+            return np.asarray(im.convert("RGB"))
+    except UnidentifiedImageError:
+        raise CliError(f"{path}: not an image Pillow can read") from None
+    except OSError as e:
+        raise CliError(f"{path}: cannot read: {e}") from None
+
+
+def _cmd_detect(args):
+    from .detect import Detector
+    from .detect.detected_case import detected_case
+    from .io.landmarks_file import save_landmarks
+
+    progress = _Progress(args.quiet)
+    detector = Detector(args.models) if args.models else Detector()
+    out = Path(args.out)
+    photos, faces, used = [], [], set()
+    for i, photo in enumerate(args.photos):
+        image = _load_photo(photo)
+        face = detector.detect(image)
+        if face is None:
+            raise CliError(f"{photo}: no face found")
+        if not face.is_face:
+            raise CliError(f"{photo}: a face was found (score {face.score:.2f}) but the face "
+                           f"mesh sees none in it (presence {face.presence:.2f}): a profile "
+                           "or a face turned away? Those are not detected yet")
+        name = Path(photo).stem or f"view{i + 1}"
+        while name in used:
+            name += "_"
+        used.add(name)
+        photos.append((name, photo, (image.shape[1], image.shape[0])))
+        faces.append(face)
+        progress((i + 1) / len(args.photos),
+                 f"{photo}: face (score {face.score:.2f}), {len(face.ibug)} landmarks")
+    save_landmarks(detected_case(photos, faces, base_dir=out.parent), out)
+    if not args.quiet:
+        print(f"wrote {out}", file=sys.stderr)
+    return EXIT_OK
+
+
 # --------------------------------------------------------------------------------------
 # Parser and entry point
 
@@ -427,6 +488,10 @@ def build_parser():
                      help="'estimate' (default): placement noise and per-landmark weights "
                           "from the fit itself; 'fixed': every landmark placed with "
                           "--noise-px")
+    fit.add_argument("--expressions", choices=("fit", "neutral"),
+                     help="'fit' (default): each photo's expression (eyes closed, a smile) "
+                          "is estimated and taken out of its landmarks before the identity "
+                          "is fitted; 'neutral': the faces are assumed neutral")
     fit.add_argument("--outline-landmarks", choices=("vertex", "slide"),
                      help="the jaw, chin and head-side points of a front photo: 'vertex' "
                           "(default) fitted to their model vertices, 'slide' across the "
@@ -459,6 +524,21 @@ def build_parser():
     lm.add_argument("--json", action="store_true", help="print the entries as JSON")
     lm.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     lm.set_defaults(func=_cmd_landmarks)
+
+    det = sub.add_parser(
+        "detect", help="find the face's landmarks in photos; write a landmarks file",
+        description="Detect the face in each photo (MediaPipe's face detection and face mesh "
+                    "models, run with numpy) and write its iBUG-68 landmarks, under the "
+                    "project's names, as a landmarks file: one front view per photo, named "
+                    "after the photo's file name.")
+    det.add_argument("photos", nargs="+", metavar="PHOTO")
+    det.add_argument("--out", required=True, metavar="CASE.json",
+                     help="landmarks file to write")
+    det.add_argument("--models", metavar="FOLDER",
+                     help="folder of the .tflite files (default: generated/detector/)")
+    det.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    det.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    det.set_defaults(func=_cmd_detect)
     return parser
 
 

@@ -6,3 +6,4 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 ASSETS_DIR = ROOT / "assets"
 DEFAULT_MODEL_PATH = ROOT / "generated" / "model" / "head_model.npz"
+DETECTOR_DIR = ROOT / "generated" / "detector"

@@ -11,7 +11,8 @@
 By default one zip per platform (``--split-platforms``: each carries only its own scipy
 wheel, ~35 MB instead of ~150 MB); ``--single`` makes one zip for all platforms.
 The head model must be built first (``./run model``): the zip carries
-``generated/model/head_model.npz`` and its MIT notice.
+``generated/model/head_model.npz`` and its MIT notice. The face detector's models are
+fetched here (``tools/fetch_detector.py``) and go in with their Apache-2.0 licence.
 """
 
 import argparse
@@ -20,6 +21,8 @@ import re
 import subprocess
 import sys
 from pathlib import Path
+
+from tools.fetch_detector import fetch as fetch_detector
 
 ROOT = Path(__file__).resolve().parent.parent
 MANIFEST = ROOT / "blender_manifest.toml"
@@ -146,6 +149,7 @@ def main(argv=None):
         print(f"build_extension: missing {', '.join(missing)}: build the head model first "
               "(./run model)", file=sys.stderr)
         return 1
+    fetch_detector(if_missing=True)
     wheels = download_wheels()
     if write_manifest_wheels(wheels):
         print("build_extension: updated the wheels list in blender_manifest.toml")

@@ -54,7 +54,14 @@ import numpy as np
 from ..errors import rms
 from .approach1 import approach1, profile_fit
 from .approach2 import approach2
+from .checks import post_fit_warnings
 from .engine import Engine
+from .expression import (
+    estimate_expressions,
+    expression_report,
+    expressions_moved,
+    neutral_case,
+)
 from .noise import MAX_ROUNDS, estimate_noise
 from .options import FitOptions, check_options
 from .outcome import (
@@ -137,28 +144,52 @@ def fit_head(model, case, options=None, initial=None):
     opts = check_options(options, model)
     progress = Progress(opts.progress)
     if opts.noise == "fixed":
-        return _fit(model, case, opts, initial, None, progress, t0)[0]
-    # The noise from the fit's residuals, the fit again with it, until the estimate
-    # settles (noise.py); each fit after the first starts where the last one ended.
+        # from a fit that took expressions out of the landmarks: the same landmarks
+        shown = (getattr(initial, "info", {}).get("refit_state") or {}).get("expressions")
+        if shown and opts.expressions == "fit":
+            case = neutral_case(model, case, initial, shown)
+        result = _fit(model, case, opts, initial, None, progress, t0)[0]
+        return _checked(model, case, opts, result)
+    # The noise from the fit's residuals (and each photo's expression, expression.py), the
+    # fit again with them, until the estimates settle (noise.py); each fit after the first
+    # starts where the last one ended.
     result, contour, along, effective = _fit(model, case, opts, initial, None,
                                              progress.part(0.0, 0.55), t0)
-    noise, rounds = None, 1
+    noise, rounds, expressions = None, 1, {}
     timings = dict(result.info["timings"])
     while rounds < MAX_ROUNDS:
         estimate = estimate_noise(result.residuals, contour, effective, opts.noise_px, along)
-        if noise is not None and noise.settled(estimate):
+        shown = expressions
+        if opts.expressions == "fit":
+            shown = estimate_expressions(model, case, result, estimate.landmark_px,
+                                         estimate.weights, opts.lambda2)
+        if noise is not None and noise.settled(estimate) \
+                and not expressions_moved(expressions, shown):
             break
-        noise = estimate
+        noise, expressions = estimate, shown
         part = 0.55 + 0.15 * (rounds - 1)
-        result, contour, along, effective = _fit(model, case, opts, result, noise,
-                                                 progress.part(part, part + 0.15), t0)
+        result, contour, along, effective = _fit(
+            model, neutral_case(model, case, result, expressions), opts, result, noise,
+            progress.part(part, part + 0.15), t0)
         rounds += 1
         for stage, seconds in result.info["timings"].items():
             timings[stage] = seconds if stage == "total" else timings.get(stage, 0.0) + seconds
     result.info["noise"] = {**noise.report(), "fits": rounds}
     result.info["refit_state"]["noise"] = noise
+    if opts.expressions == "fit":
+        result.info["expressions"] = expression_report(model, expressions)
+        result.info["refit_state"]["expressions"] = expressions
     result.info["timings"] = timings
     progress(1.0, f"done ({result.info['approach']}, {rounds} fits)")
+    return _checked(model, case, opts, result)
+
+
+def _checked(model, case, opts, result):
+    """``result`` with the warnings of the checks after a fit (checks.py)."""
+    def quick_fit(c, o):
+        return _fit(model, c, o, None, None, Progress(None), time.perf_counter())[0]
+
+    result.info["warnings"] += post_fit_warnings(model, case, result, opts, quick_fit)
     return result
 
 
@@ -301,6 +332,8 @@ def refit_landmarks(model, case, previous, options=None):
     opts = check_options(options, model)
     opts = FitOptions(**{**opts.__dict__, "n_identity": int(saved["n_identity"]),
                          "n_regional": int(saved["n_regional"]), "method": previous.method})
+    if saved.get("expressions"):
+        case = neutral_case(model, case, previous, saved["expressions"])
     views, skipped = prepare_views(model, case, opts,
                                     cameras=previous_cameras(previous, "previous"),
                                     noise=saved.get("noise"))

@@ -49,6 +49,12 @@ class FitOptions:
     noise_px : float
         Standard deviation of landmark placement the weights assume (the floor of the
         estimate), pixels.
+    expressions : {"fit", "neutral"}
+        "fit" (default): with ``noise="estimate"`` each photo's expression (eyes closed, a
+        smile) is estimated from its landmarks and taken out of them before the identity
+        is fitted again (``expression.py``; ``info["expressions"]`` reports it); with
+        ``noise="fixed"`` the expressions of ``initial``, if any, are taken out.
+        "neutral": the faces in the photos are assumed neutral.
     outline_landmarks : {"vertex", "slide"}
         How the outline points of a front photo (``assets/landmarks.json`` "outline": the
         jaw, the chin, the head's and neck's sides) are fitted. "vertex" (default): each to
@@ -100,6 +106,7 @@ class FitOptions:
     noise: str = "estimate"
     noise_px: float = 1.0
     outline_landmarks: str = "vertex"
+    expressions: str = "fit"
     contour_weight: float = 1.0
     contour_threshold_px: float = 20.0
     landmark_weights: dict | None = None
@@ -173,6 +180,8 @@ def check_options(options, model):
             raise ValueError(f"options.n_regional: {e}") from None
     if o.noise not in ("estimate", "fixed"):
         raise ValueError(f"options.noise: {o.noise!r}; use 'estimate' or 'fixed'")
+    if o.expressions not in ("fit", "neutral"):
+        raise ValueError(f"options.expressions: {o.expressions!r}; use 'fit' or 'neutral'")
     if o.outline_landmarks not in ("vertex", "slide"):
         raise ValueError(f"options.outline_landmarks: {o.outline_landmarks!r}; use 'vertex' "
                          "or 'slide'")

@@ -296,6 +296,8 @@ def plausibility(coeffs):
         warnings.append(f"the fitted head is implausible: its identity lies {norm:.1f} "
                         f"standard deviations from the mean head, beyond {percentile:.2f} % "
                         f"of the model's heads (one coefficient at "
-                        f"{info['largest_sigma']:.1f} sigma); check misplaced or mislabelled "
-                        "landmarks, swapped views, or raise the landmark noise (noise_px)")
+                        f"{info['largest_sigma']:.1f} sigma); check the flagged landmarks "
+                        "first, then for misplaced or mislabelled ones, left and right "
+                        "exchanged or a profile of the other side; if they are right, raise "
+                        "the placement noise (noise_px, --noise-px on the command line)")
     return info, warnings

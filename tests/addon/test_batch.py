@@ -69,8 +69,8 @@ def test_jsonl_manifest(tmp_path):
     assert a.options == {"exact": True, "method": "approach2"} and a.error is None
     assert broken.error.startswith(f"{m} row 3: not JSON")
     assert b.error.startswith(f"{m} row 4: unknown key 'lens'")
-    assert c.error == f"{m} row 5: detection from photos is not available yet; give a " \
-                      "landmarks file"
+    assert c.error == f"{m} row 5: the batch does not detect landmarks in photos yet; " \
+                      "give a landmarks file (python -m solver detect writes one)"
 
 
 def test_progress_line_counts_rate_and_time_left():

@@ -236,6 +236,21 @@ def test_fit_a_synthetic_case_writes_obj_texture_and_report(tmp_path, model):
     assert 0 <= report["info"]["plausibility"]["percentile"] <= 100
 
 
+def test_fit_warns_of_an_implausible_head_and_what_to_check(tmp_path, model):
+    from solver.io.landmarks_file import save_landmarks
+    from solver.synthetic import make_case
+
+    # a head four times as far from the mean as the model's own heads
+    case, _ = make_case(model, 1003, noise_px=1.0, coeff_scale=4.0, image_height=512)
+    path = tmp_path / "case.json"
+    save_landmarks(case, path)
+    proc = run_cli("fit", path, "--out", tmp_path / "head.obj", "--components", 40, "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    (line,) = [x for x in proc.stderr.splitlines() if "implausible" in x]
+    assert line.startswith("warning: the fitted head is implausible")
+    assert "check the flagged landmarks" in line and "--noise-px" in line
+
+
 def test_fit_with_fixed_noise(tmp_path, model):
     from solver.io.landmarks_file import save_landmarks
     from solver.synthetic import make_case
@@ -392,3 +407,20 @@ def test_a_fit_failure_the_checks_let_through_names_the_file():
     assert msg.startswith("case.json: the fit failed (OverflowError: ") and \
         msg.endswith("'python -m solver validate case.json' checks each view's camera and "
                      "landmarks")
+
+
+def test_detect_errors_name_the_photo(tmp_path):
+    from PIL import Image
+
+    if not (ROOT / "generated" / "detector" / "face_landmark.tflite").is_file():
+        pytest.skip("detector models missing: run ./run detector")
+    blank = tmp_path / "blank.png"
+    Image.new("RGB", (200, 300), (128, 128, 128)).save(blank)
+    proc = run_cli("detect", blank, "--out", tmp_path / "case.json")
+    assert_one_line_error(proc, "blank.png", "no face found")
+    proc = run_cli("detect", tmp_path / "missing.png", "--out", tmp_path / "case.json")
+    assert_one_line_error(proc, "missing.png", "not found")
+    (tmp_path / "text.png").write_text("not an image")
+    proc = run_cli("detect", tmp_path / "text.png", "--out", tmp_path / "case.json")
+    assert_one_line_error(proc, "text.png", "not an image")
+    assert not (tmp_path / "case.json").exists()

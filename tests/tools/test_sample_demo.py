@@ -70,6 +70,34 @@ def test_sample_is_a_valid_landmarks_file(sample, model):
     assert not [n for n in views["side"].points if n.endswith("_left")]
 
 
+def test_detected_landmarks_on_the_front_photo(sample, tmp_path):
+    """``python -m solver detect`` on the rendered front photo: a landmarks file the fit
+    reads, its iBUG-68 points near the exact ones (bench/bench_detect.py measures the
+    full-size photo: 2.5 % of the eye-to-mouth distance, median)."""
+    folder, truth = sample
+    out = tmp_path / "detected.json"
+    _run("solver", "detect", str(folder / "front.png"), "--out", str(out), "-q")
+    case = load_landmarks(out, for_fit=False)
+    points = case.views["front"].points
+    assert len(points) == 68
+    assert case.image_path("front").resolve() == (folder / "front.png").resolve()
+    names = json.loads(str(truth["landmark_names"]))["front"]
+    exact = dict(zip(names, truth["exact_front"], strict=True))
+    err = np.array([np.linalg.norm(np.subtract(points[n], exact[n])) for n in points])
+    eyes = np.mean([exact[n] for n in ("eye_outer_right", "eye_inner_right",
+                                       "eye_inner_left", "eye_outer_left")], axis=0)
+    mouth = np.mean([exact["mouth_corner_right"], exact["mouth_corner_left"]], axis=0)
+    scale = np.linalg.norm(eyes - mouth)
+    assert np.median(err) < 0.045 * scale, (np.median(err), scale)
+    assert np.percentile(err, 90) < 0.12 * scale, (np.percentile(err, 90), scale)
+    # the profile photo: a face is detected, but the face mesh sees none in it
+    proc = subprocess.run([sys.executable, "-m", "solver", "detect", str(folder / "side.png"),
+                           "--out", str(tmp_path / "side.json")], cwd=ROOT,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1 and "side.png" in proc.stderr and "profile" in proc.stderr
+    assert not (tmp_path / "side.json").exists()
+
+
 def test_truth_is_consistent(sample, model):
     _, t = sample
     local = model.identity.instance(t["identity_coeffs"])

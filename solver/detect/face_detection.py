@@ -1,0 +1,109 @@
+"""Faces in a photo with MediaPipe's short-range BlazeFace model
+(``face_detection_short_range.tflite``): the whole photo letterboxed into 128 px, 896
+SSD anchors decoded into boxes and six keypoints, weighted non-maximum suppression.
+
+The settings are those of MediaPipe's ``face_detection_short_range.pbtxt``: anchors of
+strides 8, 16, 16, 16 (fixed size), scale 128, score sigmoid clipped at ±100, minimum
+score 0.5, suppression at IoU 0.3 with score-weighted averaging.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .crop import Square, crop
+
+INPUT = 128
+MIN_SCORE = 0.5
+MIN_SUPPRESSION_IOU = 0.3
+#: The detector's keypoints, in its order (sides are the subject's own).
+KEYPOINTS = ("eye_right", "eye_left", "nose_tip", "mouth_center", "tragion_right",
+             "tragion_left")
+
+
+@dataclass
+class Face:
+    """One detected face: ``box`` (u_min, v_min, u_max, v_max) px, ``keypoints`` (6, 2)
+    px in ``KEYPOINTS`` order, ``score`` in (0, 1)."""
+
+    box: np.ndarray
+    keypoints: np.ndarray
+    score: float
+
+
+def anchors():
+    """Anchor centres (896, 2) in the unit square, in the model's output order."""
+    out = []
+    for stride, per_cell in ((8, 2), (16, 6)):
+        m = INPUT // stride
+        c = (np.arange(m) + 0.5) / m
+        yy, xx = np.meshgrid(c, c, indexing="ij")
+        xy = np.stack([xx.ravel(), yy.ravel()], axis=1)
+        out.append(np.repeat(xy, per_cell, axis=0))
+    return np.concatenate(out)
+
+
+def decode(regressors, scores):
+    """Raw outputs (896, 16) and (896,) -> boxes (N, 4) (x0, y0, x1, y1), keypoints
+    (N, 6, 2), both in the unit square, and scores (N,)."""
+    a = anchors()
+    r = np.asarray(regressors, float) / INPUT
+    centre = r[:, :2] + a
+    half = r[:, 2:4] / 2
+    boxes = np.concatenate([centre - half, centre + half], axis=1)
+    keypoints = r[:, 4:16].reshape(-1, 6, 2) + a[:, None, :]
+    score = 1 / (1 + np.exp(-np.clip(np.asarray(scores, float).ravel(), -100, 100)))
+    return boxes, keypoints, score
+
+
+def _iou(box, boxes):
+    lo = np.maximum(box[:2], boxes[:, :2])
+    hi = np.minimum(box[2:], boxes[:, 2:])
+    inter = np.prod(np.clip(hi - lo, 0, None), axis=1)
+    area = lambda b: np.prod(np.clip(b[..., 2:] - b[..., :2], 0, None), axis=-1)  # noqa: E731
+    union = area(box) + area(boxes) - inter
+    return np.where(union > 0, inter / np.where(union > 0, union, 1), 0.0)
+
+
+def weighted_nms(boxes, keypoints, score, min_score=MIN_SCORE, iou=MIN_SUPPRESSION_IOU):
+    """MediaPipe's weighted suppression: the best remaining box takes every box
+    overlapping it by more than ``iou``, averaged by score (box and keypoints).
+
+    Returns
+    -------
+    list of (box (4,), keypoints (6, 2), score)
+        Best first.
+    """
+    keep = np.flatnonzero(score >= min_score)
+    keep = keep[np.argsort(-score[keep], kind="stable")]
+    out = []
+    while keep.size:
+        overlap = _iou(boxes[keep[0]], boxes[keep]) > iou
+        group = keep[overlap]
+        w = score[group][:, None]
+        out.append(((boxes[group] * w).sum(0) / w.sum(),
+                    (keypoints[group] * w[:, :, None]).sum(0) / w.sum(),
+                    float(score[keep[0]])))
+        keep = keep[~overlap]
+    return out
+
+
+def detect_faces(network, image, min_score=MIN_SCORE):
+    """Faces in ``image`` (H, W, 3) float32 in [0, 1], best first.
+
+    Parameters
+    ----------
+    network : Network
+        The short-range face detection model.
+    """
+    h, w = image.shape[:2]
+    square = Square((w / 2, h / 2), float(max(h, w)))
+    x = crop(image, square, INPUT, border="zero") * 2 - 1
+    regressors, scores = network(x[None])
+    boxes, keypoints, score = decode(regressors[0], scores[0])
+    faces = []
+    for box, kp, s in weighted_nms(boxes, keypoints, score, min_score):
+        corners = square.to_photo(box.reshape(2, 2) * INPUT, INPUT).ravel()
+        faces.append(Face(corners, square.to_photo(kp * INPUT, INPUT), s))
+    return faces
+

@@ -1,0 +1,164 @@
+"""Expressions in the photos (issue: real faces): each photo may show the face at another
+moment, with the eyes closed or a slight smile, while the fit's identity is one neutral
+head. Left in the landmarks, an expression bends the identity (closed eyelids pull the
+eyes' shape, a smile widens the mouth). So after a fit each photo's expression is estimated
+from its landmarks (PHOTO_EXPRESSIONS of the model's shapes, per photo, solved together
+with a change of the shared identity), the photo's landmarks are moved back to where the
+neutral face would put them, and the fit is repeated with them: the identity sees a
+neutral face, the expression is reported per photo.
+
+An expression weight lies in [0, 1] (0: neutral, 1: the shape at full strength) with a
+Gaussian prior of standard deviation ``EXPRESSION_SIGMA``, and is used from ``SHOWN`` up: a
+weight has to explain clearly more than noise, so a neutral photo keeps its landmarks and
+the identity keeps what only an identity can explain (docs/DECISIONS.md).
+"""
+
+import dataclasses
+
+import numpy as np
+from scipy.optimize import lsq_linear
+
+#: Prior standard deviation of an expression weight.
+EXPRESSION_SIGMA = 0.5
+#: Weights below this are not reported (and not applied).
+SHOWN = 0.2
+#: The expressions a photo is fitted with: those people show when photographed (eyes
+#: closed or squinting, a smile, the jaw open, raised brows). The model's other shapes
+#: (a pout, the jaw pushed sideways, the eyes looking away) would mostly fit the
+#: difference between the person and the model's identities instead, and bend it.
+PHOTO_EXPRESSIONS = ("eyeBlink_L", "eyeBlink_R", "eyeSquint_L", "eyeSquint_R",
+                     "mouthSmile_L", "mouthSmile_R", "jawOpen", "browInnerUp_L",
+                     "browInnerUp_R", "browOuterUp_L", "browOuterUp_R")
+
+
+def estimate_expressions(model, case, result, noise_px, weights=None, lambda2=1.0):
+    """Each photo's expression from the landmarks of ``case`` at the fit ``result``.
+
+    The expression weights are solved together with a change of the identity, linearised
+    at ``result`` (the identity with its prior ``lambda2^2 |c|^2``, the weights in [0, 1]
+    with theirs): from the residuals alone, the part of an expression the identity had
+    already bent to would be missed. Only the weights are returned; the fit itself then
+    refits the identity to the landmarks with the expressions taken out.
+
+    Parameters
+    ----------
+    model : HeadModel
+    case : LandmarkCase
+        The landmarks as placed (with the expression).
+    result : FitResult
+        A fit of the case (its cameras and neutral head).
+    noise_px : dict of str -> float
+        Per view: the landmarks' placement noise (standard deviation, pixels).
+    weights : dict of str -> dict of str -> float, optional
+        Per view and landmark: a weight factor (the noise estimate's Student-t weights; a
+        missing landmark weighs 1; landmarks the fit left out or slid are not used).
+    lambda2 : float
+        Weight of the identity prior (``FitOptions.lambda2``).
+
+    Returns
+    -------
+    dict of str -> ndarray, shape (E,)
+        Per view with at least 3 landmarks: expression weights in [0, 1], in
+        ``model.expression_names`` order (0 but for PHOTO_EXPRESSIONS).
+    """
+    chosen = np.array([model.expression_names.index(n) for n in PHOTO_EXPRESSIONS
+                       if n in model.expression_names], dtype=np.int64)
+    expr = model.expressions[chosen]  # (E', V, 3)
+    k = len(result.identity_coeffs)
+    basis = model.identity.basis[:k]  # (K, V, 3)
+    lms = model.landmark_set
+    world = result.world_vertices
+    rot = result.scale * result.rotation.T
+    blocks = []  # per view: (name, identity columns (2n, K), expression columns (2n, E), r)
+    for name, view in case.views.items():
+        camera = result.cameras.get(name)
+        res = result.residuals.get(name)
+        if camera is None or res is None or not view.points:
+            continue
+        skip = set(res.unused) | set(res.outline)
+        keys = [key for key in view.points if lms.canonical(key) is not None
+                and lms.canonical(key) not in skip]
+        if len(keys) < 3:
+            continue
+        canon = [lms.canonical(key) for key in keys]
+        verts = np.array([lms.vertices[c] for c in canon], dtype=np.int64)
+        jac = np.asarray(camera.jacobian(world[verts]), dtype=np.float64).reshape(-1, 2, 3)
+        w = (weights or {}).get(name, {})
+        sw = np.sqrt(np.array([w.get(c, 1.0) for c in canon])) / max(
+            noise_px.get(name, 1.0), 1e-9)
+        r = np.asarray([view.points[key] for key in keys], dtype=np.float64) \
+            - camera.project(world[verts])
+        blocks.append((name, _pixel_columns(basis[:, verts] @ rot, jac, sw),
+                       _pixel_columns(expr[:, verts] @ rot, jac, sw),
+                       (r * sw[:, None]).reshape(-1)))
+    if not blocks:
+        return {}
+    n_e = len(expr)
+    cols = k + n_e * len(blocks)
+    rows = sum(len(b[3]) for b in blocks)
+    a = np.zeros((rows + cols, cols))
+    rhs = np.zeros(rows + cols)
+    at = 0
+    for j, (_, ident, shown, r) in enumerate(blocks):
+        a[at:at + len(r), :k] = ident
+        a[at:at + len(r), k + j * n_e:k + (j + 1) * n_e] = shown
+        rhs[at:at + len(r)] = r
+        at += len(r)
+    # priors: the identity stays near the mean head (c + dc), the expressions near neutral
+    a[rows:rows + k, :k] = lambda2 * np.eye(k)
+    rhs[rows:rows + k] = -lambda2 * np.asarray(result.identity_coeffs, dtype=np.float64)
+    a[rows + k:, k:] = np.eye(cols - k) / EXPRESSION_SIGMA
+    lower = np.concatenate([np.full(k, -np.inf), np.zeros(cols - k)])
+    upper = np.concatenate([np.full(k, np.inf), np.ones(cols - k)])
+    x = lsq_linear(a, rhs, bounds=(lower, upper), method="bvls").x
+    out = {}
+    for j, (name, *_) in enumerate(blocks):
+        out[name] = np.zeros(len(model.expression_names))
+        out[name][chosen] = x[k + j * n_e:k + (j + 1) * n_e]
+    return out
+
+
+def _pixel_columns(offsets, jac, sw):
+    """World offsets (S, n, 3) of n landmarks through their camera Jacobians (n, 2, 3),
+    weighted ``sw`` (n,): the (2n, S) columns of a linear least-squares problem."""
+    moved = np.einsum("nij,snj->sni", jac, offsets)
+    return (moved * sw[None, :, None]).reshape(len(offsets), -1).T
+
+
+def neutral_case(model, case, result, expressions):
+    """``case`` with each photo's landmarks moved back by its expression (``expressions``,
+    view -> weights): the pixels the neutral head of ``result`` would show them at, given
+    the expression's pixel offsets through that photo's camera. Other views unchanged."""
+    expr = model.expressions
+    lms = model.landmark_set
+    world = result.world_vertices
+    views = dict(case.views)
+    for name, e in expressions.items():
+        e = np.where(e >= SHOWN, e, 0.0)
+        if not e.any() or name not in result.cameras:
+            continue
+        view = case.views[name]
+        camera = result.cameras[name]
+        keys = [k for k in view.points if lms.canonical(k) is not None]
+        verts = np.array([lms.vertices[lms.canonical(k)] for k in keys], dtype=np.int64)
+        offset = result.scale * np.tensordot(e, expr[:, verts], axes=1) @ result.rotation.T
+        shift = camera.project(world[verts] + offset) - camera.project(world[verts])
+        points = dict(view.points)
+        for k, d in zip(keys, shift, strict=True):
+            points[k] = tuple(np.asarray(view.points[k], dtype=np.float64) - d)
+        views[name] = dataclasses.replace(view, points=points)
+    return dataclasses.replace(case, views=views)
+
+
+def expressions_moved(old, new, tolerance=SHOWN):
+    """Whether any photo's expression weight changed by more than ``tolerance``."""
+    if set(old) != set(new):
+        return bool(new) or bool(old)
+    return any(np.abs(old[k] - new[k]).max(initial=0.0) > tolerance for k in new)
+
+
+def expression_report(model, expressions):
+    """JSON-ready: per view, the expressions it showed (weight >= SHOWN) by name."""
+    names = model.expression_names
+    return {view: {names[i]: float(w) for i, w in enumerate(e) if w >= SHOWN}
+            for view, e in expressions.items()}
