@@ -1,18 +1,23 @@
-"""Fit landmarks files without the UI and write .blend files (and .glb / .fbx).
+"""Fit landmarks files without the UI and write .blend files (and .glb, .obj, texture,
+report), one head after another or many in parallel.
 
-    blender -b -P headrecon_addon/headless.py -- A.json [B.json ...] --out OUT
-        [--bake-identity] [--export glb|fbx] [--morph-normals]
-    python -m headrecon_addon.headless A.json [B.json ...] --out OUT [...]
+    blender -b -P headrecon_addon/headless.py -- INPUT [INPUT ...] --out OUT [options]
+    python -m headrecon_addon.headless INPUT [INPUT ...] --out OUT [options]
 
-``OUT`` is a ``.blend`` file for one input, or a folder (one ``<name>.blend`` per input).
-Each .blend holds the head with its shape keys, transform, uncertainty attributes and the
-baked texture packed into the file, plus the photo planes with their landmarks. A batch
-goes on past a failed file; one summary line per head (name, method, RMS residual,
-flagged landmarks, time); the exit code is 1 if any file failed, 2 for bad arguments.
+An ``INPUT`` is a landmarks file or a manifest (``.csv`` with a header row, or ``.jsonl``;
+``batch_manifest``: one head a row, with options of its own). ``OUT`` is a ``.blend`` file
+for one head, or a folder (``<name>.*`` per head, and ``summary.csv`` / ``summary.jsonl``).
+``--outputs blend,glb,fbx,obj,texture,report`` chooses the files (default ``blend``; the
+.glb and .fbx are the game export, ``export.export_head``, without morph normals unless
+``--morph-normals``); ``--jobs N`` fits on N worker processes (``batch_workers``; default:
+the cores), results streaming as they finish. A head whose inputs and settings are those
+recorded with its outputs is skipped (``batch_stamp``) unless ``--force``; every file is
+written under a temporary name and renamed, so a killed batch leaves no half file and
+loses only the heads in flight. The batch goes on past a failed head; one line per head
+(name, method, RMS residual, flagged landmarks, time) and a progress line on stderr; the
+exit code is 1 if any head failed, 2 for bad arguments or an unreadable manifest.
 ``--bake-identity`` applies the identity in the .blend (Apply Identity: the fitted face is
-the base mesh); ``--export glb|fbx`` writes the game export next to each .blend
-(``export.export_head``: fitted base, ARKit keys, texture, no morph normals unless
-``--morph-normals``); ``--glb`` is ``--export glb``.
+the base mesh); ``--export glb|fbx`` and ``--glb`` add the game export to the outputs.
 
 Other code (the demo) builds scenes with :func:`build_scene_from_fit` and writes them
 with :func:`save_blend`.
@@ -20,6 +25,8 @@ with :func:`save_blend`.
 
 import argparse
 import importlib
+import os
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -28,7 +35,17 @@ if __package__:
     import bpy
     import numpy as np
 
-    from . import apply_identity, case_to_scene, export, photos, result_to_scene
+    from . import (
+        apply_identity,
+        batch_manifest,
+        batch_stamp,
+        batch_summary,
+        batch_workers,
+        case_to_scene,
+        export,
+        photos,
+        result_to_scene,
+    )
     from .data import Transaction
     from .solver_link import (
         FitOptions,
@@ -36,6 +53,7 @@ if __package__:
         fit_head,
         load_landmarks,
         load_model,
+        solver,
     )
 
 
@@ -148,70 +166,208 @@ def save_blend(path):
     return path
 
 
-def fit_file(path, out, model, options=None, texture_size=1024, bake=True, export_format=None,
-             bake_identity=False, morph_normals=False):
-    """Fit one landmarks file and write its .blend (with the identity applied when
-    ``bake_identity``) and, with ``export_format`` ("GLB" | "FBX"), its game export next to
-    it. Returns a summary dict."""
+OUTPUTS = ("blend", "glb", "fbx", "obj", "texture", "report")
+PARTIAL = ".partial-"  # temporary folders of heads in flight: ".<name>.partial-<pid>"
+
+
+def _fit_options(settings):
+    """FitOptions of a head's settings (``ValueError`` naming the option when bad)."""
+    kw = {}
+    for key, name in (("method", "method"), ("n_identity", "components"),
+                      ("n_regional", "regional")):
+        if settings.get(name) is not None:
+            kw[key] = settings[name]
+    if settings.get("exact"):
+        kw["exact_landmarks"] = True
+    return FitOptions(**kw)
+
+
+def _solver_module(name):
+    return importlib.import_module(f"{solver.__name__}.{name}")
+
+
+def _summary_row(name, where, result, outputs, seconds):
+    noise = (result.info.get("noise") or {}).get("landmark_px") or {}
+    plaus = result.info.get("plausibility") or {}
+    percentile = plaus.get("percentile")
+    return {"name": name, "status": "done", "error": None,
+            "method": result_to_scene.fit_method(result),
+            "rms_px": round(float(result.rms_px()), 4),
+            "noise_px": {v: round(float(x), 4) for v, x in noise.items()},
+            "plausibility": None if percentile is None else round(float(percentile), 3),
+            "warnings": list(result.info.get("warnings", ())),
+            "flagged": len(result.flagged()), "seconds": round(seconds, 3),
+            "outputs": {k: str(p) for k, p in outputs.items()}, "input": where}
+
+
+def _targets(base, kinds):
+    """Output kind -> final path of a head whose outputs are ``base.*``."""
+    base = Path(base)
+    named = {"blend": ".blend", "glb": ".glb", "fbx": ".fbx", "obj": ".obj",
+             "report": ".report.json"}
+    out = {k: base.with_name(base.name + named[k]) for k in kinds if k in named}
+    if "obj" in kinds:
+        out["mtl"] = base.with_name(base.name + ".mtl")
+    if "texture" in kinds:
+        out["texture"] = base.with_name(base.name + "_texture.png")
+    return out
+
+
+def write_head(task, model):
+    """Fit one head of a batch and write its outputs; returns its summary row.
+
+    Parameters
+    ----------
+    task : dict
+        "name", "landmarks", "base" (outputs' path without suffix), "where" (the input
+        in messages), "settings" (``outputs``, ``texture_size``, ``bake``,
+        ``bake_identity``, ``morph_normals`` and the fit options), "hash" (recorded with
+        the outputs, ``batch_stamp``).
+    model : HeadModel
+
+    Every output is written into a temporary folder beside the outputs and renamed into
+    place; the record (``batch_stamp.write_record``) is written last.
+    """
     t0 = time.perf_counter()
+    name, path, base = task["name"], Path(task["landmarks"]), Path(task["base"])
+    settings = task["settings"]
+    kinds = settings["outputs"]
+    options = _fit_options(settings)
     case = load_landmarks(path)
+    targets = _targets(base, kinds)
+    inputs = {"the landmarks file": path}
+    inputs.update({f"the photo of view {v}": case.image_path(v) for v in case.views})
+    _solver_module("io.atomic").check_outputs(
+        {f"output {k}": p for k, p in targets.items()}, inputs)
     reset_scene()
     imgs = _images_for(case, None)  # fails fast on a missing photo, before the fit
-    result = fit_head(model, case, options or FitOptions())
+    result = fit_head(model, case, options)
     for message in result.info.get("warnings", ()):
-        print(f"{Path(path).stem}: warning: {message}", file=sys.stderr, flush=True)
-    head = build_scene_from_fit(model, case, result, imgs, texture_size=texture_size,
-                                bake=bake, name=Path(path).stem)
-    if bake_identity:
-        apply_identity.apply_identity(head, model.expression_names)
-    written = [save_blend(out)]
-    if export_format:
-        written.append(export.export_head(Path(out), head, model.expression_names,
-                                          export_format, morph_normals=morph_normals))
-    return {"name": Path(path).stem, "method": result_to_scene.fit_method(result),
-            "rms_px": result.rms_px(), "flagged": len(result.flagged()),
-            "seconds": time.perf_counter() - t0, "outputs": [str(p) for p in written]}
+        print(f"{name}: warning: {message}", file=sys.stderr, flush=True)
+    tiles = None
+    if settings["bake"]:
+        arrays = {v: photos.image_to_array(img) for v, img in imgs.items()
+                  if not img.get(photos.PLACEHOLDER)}
+        if arrays:
+            tiles = bake_fit_texture(model, result, arrays, size=int(settings["texture_size"]))
+    if "texture" in kinds and tiles is None:
+        raise ValueError(f"{task['where']}: no photo to bake the texture from")
+    base.parent.mkdir(parents=True, exist_ok=True)
+    staging = base.parent / f".{base.name}{PARTIAL}{os.getpid()}"
+    shutil.rmtree(staging, ignore_errors=True)
+    staging.mkdir()
+    try:
+        staged = _write_staged(staging, base.name, name, kinds, model, case, result, imgs,
+                               tiles, settings, targets, t0)
+        for kind, tmp in staged.items():
+            if tmp.is_dir():  # the .fbx's textures folder
+                shutil.rmtree(targets[kind], ignore_errors=True)
+            os.replace(tmp, targets[kind])
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    row = _summary_row(name, task["where"], result,
+                       {k: p for k, p in targets.items() if k in staged},
+                       time.perf_counter() - t0)
+    batch_stamp.write_record(base, task["hash"], row)
+    return row
 
 
-def plan_outputs(inputs, out):
-    """Output .blend path of each input: ``out`` itself for one input ending in .blend,
-    else ``out/<stem>.blend``. Raises ValueError for clashing names."""
-    out = Path(out)
-    if out.suffix.lower() == ".blend":
-        if len(inputs) != 1:
-            raise ValueError(f"--out {out}: one .blend file for {len(inputs)} inputs; give a "
-                             "folder instead")
-        return [(Path(inputs[0]), out)]
-    plan = [(Path(p), out / f"{Path(p).stem}.blend") for p in inputs]
-    seen = {}
-    for src, dst in plan:
-        if dst in seen:
-            raise ValueError(f"{src} and {seen[dst]} would both write {dst}; rename one")
-        seen[dst] = src
-    return plan
+def _write_staged(staging, stem, name, kinds, model, case, result, imgs, tiles, settings,
+                  targets, t0):
+    """Write a head's outputs into ``staging`` under their final names; returns kind ->
+    staged path. ``imgs``: the photos as bpy images, ``tiles``: the baked texture."""
+    staged = {}
+    needs_scene = {"blend", "glb", "fbx"} & set(kinds)
+    if needs_scene:
+        head = build_scene_from_fit(model, case, result, imgs, bake=False, textures=tiles,
+                                    name=name)
+        if settings["bake_identity"]:
+            apply_identity.apply_identity(head, model.expression_names)
+        if "blend" in kinds:
+            staged["blend"] = save_blend(staging / f"{stem}.blend")
+        for fmt in ("glb", "fbx"):
+            if fmt in kinds:
+                staged[fmt] = export.export_head(staging / f"{stem}.{fmt}", head,
+                                                 model.expression_names,
+                                                 fmt.upper(),
+                                                 morph_normals=settings["morph_normals"])
+                if fmt == "fbx" and (staging / f"{stem}_textures").is_dir():
+                    staged["fbx_textures"] = staging / f"{stem}_textures"
+                    targets["fbx_textures"] = targets["fbx"].with_name(f"{stem}_textures")
+    files = {}
+    if "obj" in kinds:
+        names, obj_files = _solver_module("io.export").head_obj_files(
+            staging / f"{stem}.obj", model, result.local_vertices, tiles,
+            staging / f"{stem}_texture.png" if tiles is not None else None)
+        files.update(obj_files)
+        staged.update({k: p for k, p in names.items() if k in ("obj", "mtl")})
+        if tiles is not None:
+            staged["obj_texture"] = names["texture"]
+            targets["obj_texture"] = targets["obj"].with_name(f"{stem}_texture.png")
+    if "texture" in kinds:
+        staged.pop("obj_texture", None)
+        targets.pop("obj_texture", None)
+        tex = staging / f"{stem}_texture.png"
+        if tex not in files:
+            atlas, _, _ = _solver_module("io.export").texture_atlas(model, tiles)
+            files[tex] = _solver_module("io.export").png_bytes(atlas)
+        staged["texture"] = tex
+    if "report" in kinds:
+        rep = _solver_module("io.report")
+        final = {k: targets[k] for k in ("blend", "glb", "fbx", "obj", "mtl", "texture")
+                 if k in targets}
+        final["report"] = targets["report"]
+        text = rep.report_text(rep.fit_report(case, model, result, settings, final,
+                                              {"total": time.perf_counter() - t0}))
+        files[staging / f"{stem}.report.json"] = text
+        staged["report"] = staging / f"{stem}.report.json"
+    if files:
+        _solver_module("io.atomic").write_files_atomic(files)
+    return staged
+
+
+def _outputs_arg(text):
+    kinds = [k.strip().lower() for k in text.split(",") if k.strip()]
+    bad = [k for k in kinds if k not in OUTPUTS]
+    if bad or not kinds:
+        raise argparse.ArgumentTypeError(
+            f"{bad[0] if bad else text!r}: expected a comma-separated list of "
+            f"{', '.join(OUTPUTS)}")
+    return kinds
 
 
 def _parser():
     p = argparse.ArgumentParser(
-        prog="headless", description="Fit HeadRecon landmarks files and write .blend files.")
-    p.add_argument("landmarks", nargs="+", metavar="LANDMARKS.json")
-    p.add_argument("--out", required=True, metavar="OUT",
-                   help="a .blend file (one input) or a folder (one .blend per input)")
+        prog="headless", description="Fit HeadRecon landmarks files (or manifests of them) "
+                                     "and write .blend files and other outputs.")
+    p.add_argument("inputs", nargs="*", metavar="INPUT",
+                   help="landmarks files (.json) and manifests (.csv with a header, .jsonl)")
+    p.add_argument("--out", metavar="OUT",
+                   help="a .blend file (one head) or a folder (one set of outputs per head, "
+                        "and summary.csv / summary.jsonl)")
+    p.add_argument("--outputs", type=_outputs_arg, metavar="LIST",
+                   help=f"comma-separated outputs per head: {', '.join(OUTPUTS)} "
+                        "(default: blend)")
+    p.add_argument("--jobs", type=int, metavar="N",
+                   help="worker processes (default: the number of cores)")
+    p.add_argument("--force", action="store_true",
+                   help="fit every head again, even those unchanged since their outputs")
     p.add_argument("--export", choices=("glb", "fbx"),
                    help="also write a game export (fitted base, ARKit keys, texture) next to "
-                        "each .blend")
+                        "each .blend (the same as adding it to --outputs)")
     p.add_argument("--glb", action="store_true", help="the same as --export glb")
     p.add_argument("--morph-normals", action="store_true",
                    help="write the morph targets' normals too (.glb; about doubles the file)")
     p.add_argument("--bake-identity", action="store_true",
                    help="apply the identity in the .blend: the fitted face becomes the base "
                         "mesh, the identity keys are removed, the expression keys still work")
-    p.add_argument("--method", choices=("combined", "approach1", "approach2"))
+    p.add_argument("--method", choices=batch_manifest.METHODS)
     p.add_argument("--components", type=int, help="identity components to fit")
     p.add_argument("--regional", type=int, help="regional components per region (0: none)")
     p.add_argument("--exact", action="store_true", help="make the landmarks hit exactly")
     p.add_argument("--texture-size", type=int, default=1024)
     p.add_argument("--no-texture", action="store_true", help="do not bake a texture")
+    p.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     return p
 
 
@@ -221,40 +377,154 @@ def script_args(argv):
     return argv[argv.index("--") + 1:] if "--" in argv else argv[1:]
 
 
+def _settings(args):
+    """The batch-wide settings (per-head manifest columns override them)."""
+    kinds = list(args.outputs or ["blend"])
+    for extra in (args.export, "glb" if args.glb else None):
+        if extra and extra not in kinds:
+            kinds.append(extra)
+    if args.no_texture and "texture" in kinds:
+        raise ValueError("--outputs texture: the texture is not baked with --no-texture")
+    return {"outputs": [k for k in OUTPUTS if k in kinds], "bake": not args.no_texture,
+            "texture_size": args.texture_size, "bake_identity": args.bake_identity,
+            "morph_normals": args.morph_normals, "method": args.method,
+            "components": args.components, "regional": args.regional,
+            "exact": args.exact}
+
+
+def _remove_stale_partials(folder):
+    """Remove the temporary folders a killed batch left (their process is gone)."""
+    for tmp in folder.glob(f".*{PARTIAL}*"):
+        try:
+            pid = int(tmp.name.rsplit(PARTIAL, 1)[1])
+            os.kill(pid, 0)  # still running: another batch's head in flight
+        except (ValueError, ProcessLookupError):
+            shutil.rmtree(tmp, ignore_errors=True)
+        except PermissionError:
+            pass
+
+
+def _tasks(heads, settings, force):
+    """Summary rows already known (failed rows, unchanged heads) and the tasks to run, in
+    plan order: (rows, tasks) with rows[i] None where a task will fill it."""
+    rows, tasks = [], []
+    for i, h in enumerate(heads):
+        if h.error:
+            rows.append(batch_summary.failed_row(h.name, h.where, h.error))
+            continue
+        mine = {**settings, **h.options}
+        try:
+            digest = batch_stamp.content_hash(h.landmarks, mine)
+        except OSError as e:
+            rows.append(batch_summary.failed_row(
+                h.name, h.where, f"{h.where}: landmarks {h.landmarks}: {e.strerror or e}"))
+            continue
+        done = None if force else batch_stamp.finished_record(h.base, digest)
+        if done is not None:
+            rows.append({**done, "status": "skipped", "input": h.where})
+            continue
+        rows.append(None)
+        tasks.append({"index": i, "name": h.name, "landmarks": str(h.landmarks),
+                      "base": str(h.base), "where": h.where, "settings": mine,
+                      "hash": digest})
+    return rows, tasks
+
+
+def _run_task(task, model):
+    """``write_head`` with any failure as a failed summary row."""
+    t0 = time.perf_counter()
+    try:
+        return write_head(task, model)
+    except Exception as e:  # report and go on with the batch
+        message = str(e) if task["where"] in str(e) else f"{task['where']}: {e}"
+        return batch_summary.failed_row(task["name"], task["where"], message,
+                                        time.perf_counter() - t0)
+
+
+def _worker_died(task, code):
+    return batch_summary.failed_row(
+        task["name"], task["where"],
+        f"{task['where']}: the worker process ended (exit code {code}) while fitting it")
+
+
+def _in_process(tasks, model):
+    for task in tasks:
+        yield task, _run_task(task, model)
+
+
+def _head_line(row):
+    if row["status"] == "failed":
+        return f"{row['name']}: FAILED: {row['error']}"
+    outs = ", ".join(row["outputs"].values())
+    if row["status"] == "skipped":
+        return f"{row['name']}: unchanged, skipped -> {outs}"
+    return (f"{row['name']}: method {row['method']}, RMS {row['rms_px']:.2f} px, "
+            f"{row.get('flagged', 0)} flagged, {row['seconds']:.2f} s -> {outs}")
+
+
+def serve_worker():
+    """A worker process of a batch: load the model once, then fit the heads sent to it."""
+    model = load_model()
+    batch_workers.serve(lambda task: _run_task(task, model))
+    return 0
+
+
 def main(argv):
     args = _parser().parse_args(argv)
+    if args.worker:
+        return serve_worker()
     try:
-        plan = plan_outputs(args.landmarks, args.out)
-    except ValueError as e:
-        print(f"headless: {e}", file=sys.stderr)
-        return 2
-    kw = {}
-    for key, value in (("method", args.method), ("n_identity", args.components),
-                       ("n_regional", args.regional)):
-        if value is not None:
-            kw[key] = value
-    if args.exact:
-        kw["exact_landmarks"] = True
-    try:
-        options = FitOptions(**kw)
-        model = load_model()
+        if not args.inputs or not args.out:
+            raise ValueError("give the inputs and --out OUT")
+        if args.jobs is not None and args.jobs < 1:
+            raise ValueError(f"--jobs {args.jobs}: give 1 or more")
+        settings = _settings(args)
+        _fit_options(settings)  # a bad option fails here, once, not in every head
+        heads = batch_manifest.plan_heads(args.inputs, args.out)
+        out_dir = None if Path(args.out).suffix.lower() == ".blend" else Path(args.out)
+        if out_dir is not None:
+            _solver_module("io.atomic").check_outputs(
+                {"summary.csv": out_dir / "summary.csv",
+                 "summary.jsonl": out_dir / "summary.jsonl"},
+                {f"input {p}": p for p in args.inputs})
+        rows, tasks = _tasks(heads, settings, args.force)
+        jobs = min(args.jobs or batch_workers.cpu_count(), len(tasks))
+        model = load_model() if jobs <= 1 and tasks else None
     except (ValueError, FileNotFoundError) as e:
         print(f"headless: {e}", file=sys.stderr)
         return 2
-    export_format = (args.export or ("glb" if args.glb else "")).upper() or None
-    failed = 0
-    for src, dst in plan:
-        try:
-            s = fit_file(src, dst, model, options, args.texture_size, not args.no_texture,
-                         export_format, args.bake_identity, args.morph_normals)
-        except Exception as e:  # report and go on with the batch
-            failed += 1
-            print(f"{src.stem}: FAILED: {e}", flush=True)
-            continue
-        print(f"{s['name']}: method {s['method']}, RMS {s['rms_px']:.2f} px, "
-              f"{s['flagged']} flagged, {s['seconds']:.2f} s -> {', '.join(s['outputs'])}",
-              flush=True)
-    print(f"{len(plan) - failed} of {len(plan)} heads written", flush=True)
+    folder = out_dir or Path(args.out).parent
+    folder.mkdir(parents=True, exist_ok=True)
+    _remove_stale_partials(folder)
+    progress = batch_summary.Progress(len(heads))
+    for row in rows:
+        if row is not None:
+            progress.add(row["status"], fitted=False)
+            print(_head_line(row), flush=True)
+    results = _in_process(tasks, model) if jobs <= 1 else \
+        batch_workers.run_pool(tasks, jobs, _worker_died)
+    last_write = 0.0
+    try:
+        for task, row in results:
+            rows[task["index"]] = row
+            progress.add(row["status"])
+            print(_head_line(row), flush=True)
+            print(progress.line(), file=sys.stderr, flush=True)
+            if out_dir is not None and time.monotonic() - last_write > 2.0:
+                batch_summary.write_summaries(out_dir, [r for r in rows if r is not None])
+                last_write = time.monotonic()
+    except KeyboardInterrupt:  # the heads finished so far are written and recorded
+        if out_dir is not None:
+            batch_summary.write_summaries(out_dir, [r for r in rows if r is not None])
+        print("headless: interrupted; run again to fit the heads not written",
+              file=sys.stderr, flush=True)
+        return 130
+    if out_dir is not None:
+        batch_summary.write_summaries(out_dir, rows)
+    failed = progress.counts["failed"]
+    skipped = progress.counts["skipped"]
+    note = f" ({skipped} unchanged, skipped)" if skipped else ""
+    print(f"{len(heads) - failed} of {len(heads)} heads written{note}", flush=True)
     return 1 if failed else 0
 
 

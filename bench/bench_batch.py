@@ -1,0 +1,137 @@
+"""Benchmark of the headless batch: heads per minute at ``--jobs 1`` and ``--jobs 2`` (and
+their ratio), peak memory of the largest process, and the size per head of each output.
+
+    python -m bench.bench_batch [--heads 12] [--texture-size 1024] [--keep DIR]
+
+The heads are synthetic cases (``solver.synthetic.make_case``, saved with
+``solver.io.save_landmarks``) with smooth generated photos, listed in a ``.csv`` manifest;
+each configuration runs the real command (``python -m headrecon_addon.headless``) in a
+fresh process with ``--force``, timed from start to exit (model loading included). The CPU
+seconds per head (all processes of the batch) say what a machine free of other work would
+do: 60 / (CPU s a head) heads per minute per core.
+
+Targets: ``--jobs 2`` at least 1.7 x the rate of ``--jobs 1``; at ``--jobs 2`` at least 40
+heads/min without a .glb (fit, texture, .blend) and 15 with the game .glb; under 800 MB a
+worker.
+"""
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+import numpy as np  # noqa: E402
+
+from bench.common import load_average, machine_description  # noqa: E402
+
+# Runs a command; prints its exit code, the peak resident memory (KiB) of the largest
+# process below it and the CPU seconds of all of them.
+_MEASURE = ("import resource, subprocess, sys; code = subprocess.call(sys.argv[1:], "
+            "stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL); "
+            "r = resource.getrusage(resource.RUSAGE_CHILDREN); "
+            "print(code, r.ru_maxrss, r.ru_utime + r.ru_stime)")
+
+
+def _photo(path, size, seed):
+    from PIL import Image
+
+    w, h = size
+    rng = np.random.default_rng(seed)
+    u, v = np.meshgrid(np.linspace(0, 1, w), np.linspace(0, 1, h))
+    base = rng.uniform(0.2, 0.8, 3)
+    rgb = np.stack([base[0] + 0.2 * u, base[1] + 0.2 * v, base[2] + 0.1 * (u - v)], axis=-1)
+    Image.fromarray((np.clip(rgb, 0, 1) * 255).astype(np.uint8)).save(path)
+
+
+def make_heads(folder, n):
+    """``n`` synthetic heads with photos in ``folder`` and their manifest; returns it."""
+    from solver import load_model, save_landmarks, synthetic
+
+    model = load_model()
+    rows = ["name,landmarks"]
+    for i in range(n):
+        case, _ = synthetic.make_case(model, 1000 + i)
+        for j, (vname, view) in enumerate(case.views.items()):
+            _photo(folder / f"head{i:03d}_{vname}.png", view.size, 1000 + i + j)
+            view.image = f"head{i:03d}_{vname}.png"
+        save_landmarks(case, folder / f"head{i:03d}.json")
+        rows.append(f"head{i:03d},head{i:03d}.json")
+    manifest = folder / "heads.csv"
+    manifest.write_text("\n".join(rows) + "\n")
+    return manifest
+
+
+def run_batch(manifest, out, jobs, outputs, texture_size):
+    """(seconds, CPU seconds, exit code, peak MB of the largest process, summary rows) of
+    one batch."""
+    cmd = [sys.executable, "-m", "headrecon_addon.headless", str(manifest), "--out", str(out),
+           "--jobs", str(jobs), "--outputs", outputs, "--texture-size", str(texture_size),
+           "--force"]
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-c", _MEASURE, *cmd], cwd=ROOT, text=True,
+                          capture_output=True, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    seconds = time.perf_counter() - t0
+    code, rss_kib, cpu = proc.stdout.split()
+    rows = [json.loads(x) for x in (out / "summary.jsonl").read_text().splitlines()]
+    return seconds, float(cpu), int(code), int(rss_kib) / 1024.0, rows
+
+
+def sizes_per_output(rows):
+    """Mean bytes per head of each output kind (the .obj's .mtl counted with it)."""
+    total = {}
+    for row in rows:
+        for kind, path in row["outputs"].items():
+            kind = "obj" if kind == "mtl" else kind
+            total[kind] = total.get(kind, 0) + Path(path).stat().st_size
+    return {k: v / len(rows) for k, v in total.items()}
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--heads", type=int, default=12)
+    p.add_argument("--texture-size", type=int, default=1024)
+    p.add_argument("--keep", type=Path, help="write the inputs and outputs here")
+    args = p.parse_args(argv)
+    print(f"machine: {machine_description()}")
+    with tempfile.TemporaryDirectory() as tmp:
+        work = args.keep or Path(tmp)
+        (work / "in").mkdir(parents=True, exist_ok=True)
+        manifest = make_heads(work / "in", args.heads)
+        print(f"{args.heads} synthetic heads, texture {args.texture_size} px per tile")
+        rates = {}
+        for label, jobs, outputs in (("fit, texture, .blend", 1, "blend"),
+                                     ("fit, texture, .blend", 2, "blend"),
+                                     ("fit, texture, .blend + game .glb", 1, "blend,glb"),
+                                     ("fit, texture, .blend + game .glb", 2, "blend,glb"),
+                                     ("every output", 2, "blend,glb,obj,texture,report")):
+            out = work / f"out_{jobs}_{outputs.replace(',', '_')}"
+            seconds, cpu, code, peak, rows = run_batch(manifest, out, jobs, outputs,
+                                                  args.texture_size)
+            ok = sum(r["status"] == "done" for r in rows)
+            rate = 60.0 * ok / seconds
+            rates[(label, jobs)] = rate
+            fit_s = np.median([r["seconds"] for r in rows if r["status"] == "done"])
+            print(f"--jobs {jobs} --outputs {outputs}: {ok}/{len(rows)} heads in "
+                  f"{seconds:.1f} s = {rate:.1f} heads/min (median {fit_s:.1f} s a head in "
+                  f"its worker), {cpu / max(ok, 1):.1f} CPU s a head, peak {peak:.0f} MB in "
+                  f"the largest process, exit {code}")
+            if outputs.count(",") == 4:
+                for kind, size in sizes_per_output([r for r in rows if r["status"] == "done"]
+                                                   ).items():
+                    print(f"  {kind}: {size / 1e6:.2f} MB a head")
+        for label in ("fit, texture, .blend", "fit, texture, .blend + game .glb"):
+            print(f"{label}: --jobs 2 / --jobs 1 = "
+                  f"{rates[(label, 2)] / rates[(label, 1)]:.2f} x")
+        print(f"load average at the end: {load_average()}")
+
+
+if __name__ == "__main__":
+    main()
