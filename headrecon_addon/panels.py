@@ -22,9 +22,12 @@ class HEADRECON_PT_head(_Panel, bpy.types.Panel):
         head = context.scene.headrecon.head
         if reference_head.is_head(head):
             layout.label(text=head.name, icon="USER")
+            # one head per scene: a second one only when asked for by name
+            layout.operator("headrecon.add_head", text="Add Another Head",
+                            icon="ADD").another = True
         else:
             layout.label(text="No head yet (Fit makes one too)", icon="INFO")
-        layout.operator("headrecon.add_head", icon="ADD")
+            layout.operator("headrecon.add_head", icon="ADD")
         layout.prop(context.scene.headrecon, "head")
 
 

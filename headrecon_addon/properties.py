@@ -186,7 +186,8 @@ TEXTURE_SIZES = (("256", "256", "Preview"), ("512", "512", ""), ("1024", "1024",
 class HEADRECON_PG_scene(bpy.types.PropertyGroup):
     head: PointerProperty(name="Head", type=bpy.types.Object,
                           poll=lambda self, obj: obj.type == "MESH")
-    method: EnumProperty(name="Method", items=METHODS, default=_fit_default("method"))
+    method: EnumProperty(name="Method", items=METHODS, default=_fit_default("method"),
+                         description="How the head is fitted to the landmarks")
     n_identity: IntProperty(name="Components", min=1, max=100,
                             default=_fit_default("n_identity"),
                             description="Global identity components the fit uses")
@@ -200,13 +201,16 @@ class HEADRECON_PG_scene(bpy.types.PropertyGroup):
     lambda2: FloatProperty(name="λ2 Shape Prior", min=0.0, soft_max=100.0,
                            default=_fit_default("lambda2"),
                            description="Weight of Λ: keep the coefficients plausible")
-    prior: EnumProperty(name="Prior", items=PRIORS, default=_fit_default("prior"))
+    prior: EnumProperty(name="Prior", items=PRIORS, default=_fit_default("prior"),
+                        description="How the shape prior weighs each component")
     landmark_weight: FloatProperty(name="Landmark Weight", min=0.0, soft_max=100.0,
                                    default=_fit_default("landmark_weight"),
                                    description="Weight of the landmarks against the profile")
     exact_landmarks: BoolProperty(name="Exact Landmarks", default=_fit_default("exact_landmarks"),
                                   description="Add a detail shape so the landmarks hit exactly")
-    texture_size: EnumProperty(name="Texture", items=TEXTURE_SIZES, default="1024")
+    texture_size: EnumProperty(name="Texture", items=TEXTURE_SIZES, default="1024",
+                               description="Size of the baked texture (pixels per side of "
+                                           "each tile); larger bakes take longer")
     bake_texture: BoolProperty(name="Bake Texture", default=True,
                                description="Bake the photos into the head's texture")
     live_refit: BoolProperty(name="Live Refit", default=False, update=_on_live_refit,

@@ -91,9 +91,24 @@ class HEADRECON_OT_add_head(ObjectModeOperator, bpy.types.Operator):
     bl_label = "Add Reference Head"
     bl_options = {"REGISTER", "UNDO"}
 
+    another: bpy.props.BoolProperty(
+        name="Another Head", options={"SKIP_SAVE"},
+        description="Add a second head although the scene has one (Fit updates the "
+                    "scene's head)")
+
     def execute(self, context):
         from .data import Transaction
 
+        existing = context.scene.headrecon.head
+        if not self.another and is_head(existing) and existing.name in context.scene.objects:
+            # one head per scene unless asked: select it; the redo panel offers another
+            for o in context.selected_objects:
+                o.select_set(False)
+            existing.select_set(True)
+            context.view_layer.objects.active = existing
+            self.report({"INFO"}, f"The scene has a head already ({existing.name!r}): "
+                                  "selected it; tick Another Head to add a second one")
+            return {"FINISHED"}
         try:
             with Transaction():
                 model = load_model()

@@ -36,3 +36,23 @@ def test_reference_head(model, scene):
         sample = idx[:: max(1, idx.size // 500)]
         got = np.array([g.weight(int(i)) for i in sample])
         assert np.abs(got - model.region_weights[r, sample]).max() <= 0.5 / 1024 + 1e-6
+
+
+def test_one_head_per_scene_unless_another_is_asked_for(model, scene):
+    assert bpy.ops.headrecon.add_head() == {"FINISHED"}
+    first = scene.headrecon.head
+    heads = [o for o in scene.objects if o.headrecon.role == "HEAD"]
+    # again: the scene's head is selected, no second head
+    assert bpy.ops.headrecon.add_head() == {"FINISHED"}
+    assert [o for o in scene.objects if o.headrecon.role == "HEAD"] == heads
+    assert scene.headrecon.head == first and bpy.context.view_layer.objects.active == first
+    # asked for: a second head, which becomes the scene's
+    assert bpy.ops.headrecon.add_head(another=True) == {"FINISHED"}
+    assert len([o for o in scene.objects if o.headrecon.role == "HEAD"]) == len(heads) + 1
+    assert scene.headrecon.head != first
+
+
+def test_fit_settings_say_what_they_do():
+    props = bpy.types.Scene.bl_rna.properties["headrecon"].fixed_type.properties
+    for name in ("method", "prior", "texture_size"):
+        assert props[name].description, name
