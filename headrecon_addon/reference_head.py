@@ -102,10 +102,7 @@ class HEADRECON_OT_add_head(ObjectModeOperator, bpy.types.Operator):
         existing = context.scene.headrecon.head
         if not self.another and is_head(existing) and existing.name in context.scene.objects:
             # one head per scene unless asked: select it; the redo panel offers another
-            for o in context.selected_objects:
-                o.select_set(False)
-            existing.select_set(True)
-            context.view_layer.objects.active = existing
+            _select_only(context, existing)
             self.report({"INFO"}, f"The scene has a head already ({existing.name!r}): "
                                   "selected it; tick Another Head to add a second one")
             return {"FINISHED"}
@@ -118,11 +115,16 @@ class HEADRECON_OT_add_head(ObjectModeOperator, bpy.types.Operator):
             self.report({"ERROR"}, f"Cannot load the head model: {e}")
             return {"CANCELLED"}
         context.scene.headrecon.head = obj
-        for o in context.selected_objects:
-            o.select_set(False)
-        obj.select_set(True)
-        context.view_layer.objects.active = obj
+        _select_only(context, obj)
         return {"FINISHED"}
+
+
+def _select_only(context, obj):
+    """Make ``obj`` the only selected object and the active one."""
+    for o in context.selected_objects:
+        o.select_set(False)
+    obj.select_set(True)
+    context.view_layer.objects.active = obj
 
 
 CLASSES = (HEADRECON_OT_add_head,)

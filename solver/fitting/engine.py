@@ -278,8 +278,8 @@ class Engine:
         forward = -state.rotation[:, 1]  # the face looks toward -Y
         for v in self.views:
             d = np.asarray(v.camera.toward_camera(centre[None, :]), dtype=np.float64)[0]
-            v.side = bool(abs(d @ axis) > 0.7 * np.linalg.norm(d))
             length = np.linalg.norm(d)
+            v.side = bool(abs(d @ axis) > 0.7 * length)
             frontal = d @ forward > np.cos(np.radians(FRONTAL_DEGREES)) * length
             profile = abs(d @ axis) > np.cos(np.radians(PROFILE_DEGREES)) * length
             assign_roles(v, frontal and self.slide_outline, profile)
@@ -428,10 +428,15 @@ class Engine:
         weighted 1 / noise^2 (and ``front_weight`` unless a profile photo); with ``slide``
         those that slide (``view.slide``) weigh 0: :meth:`sliding_rows` fits them."""
         n = len(view.vertices)
-        w = (1.0 if view.side else front_weight) * self.inv_var * (
+        w = self.landmark_scale(view, front_weight) * (
             view.fixed_weights if slide else view.weights)
         return ImageRows(np.arange(start, start + n), view.pixels, view.camera, weights=w,
                          name=f"landmarks {view.name}")
+
+    def landmark_scale(self, view, front_weight=1.0):
+        """What a landmark weight of ``view`` is multiplied by in its rows: 1 / noise^2,
+        and ``front_weight`` unless a profile photo."""
+        return (1.0 if view.side else front_weight) * self.inv_var
 
     def sliding_rows(self, view, start, outlines=None, front_weight=1.0):
         """Rows of ``view``'s sliding landmarks (``view.slide``), weighted as
@@ -450,7 +455,7 @@ class Engine:
         """
         cand, faces, edges = self.outline_candidates(view, outlines)
         idx = np.flatnonzero(view.slide)
-        scale = (1.0 if view.side else front_weight) * self.inv_var
+        scale = self.landmark_scale(view, front_weight)
         across = OutlinePointRows(np.arange(start, start + len(cand)), view.pixels[idx],
                                   view.camera, scale * view.weights[idx], faces, edges,
                                   max_distance=OUTLINE_POINT_REACH * self.contour_threshold,

@@ -75,13 +75,9 @@ def estimate_expressions(model, case, result, noise_px, weights=None, lambda2=1.
         res = result.residuals.get(name)
         if camera is None or res is None or not view.points:
             continue
-        skip = set(res.unused) | set(res.outline)
-        keys = [key for key in view.points if lms.canonical(key) is not None
-                and lms.canonical(key) not in skip]
+        keys, canon, verts = _known(lms, view, skip=set(res.unused) | set(res.outline))
         if len(keys) < 3:
             continue
-        canon = [lms.canonical(key) for key in keys]
-        verts = np.array([lms.vertices[c] for c in canon], dtype=np.int64)
         jac = np.asarray(camera.jacobian(world[verts]), dtype=np.float64).reshape(-1, 2, 3)
         w = (weights or {}).get(name, {})
         sw = np.sqrt(np.array([w.get(c, 1.0) for c in canon])) / max(
@@ -118,6 +114,18 @@ def estimate_expressions(model, case, result, noise_px, weights=None, lambda2=1.
     return out
 
 
+def _known(lms, view, skip=()):
+    """The view's landmarks the set knows, but for the canonical names in ``skip``: (keys
+    as given, canonical names, model vertices (n,))."""
+    keys, canon = [], []
+    for key in view.points:
+        c = lms.canonical(key)
+        if c is not None and c not in skip:
+            keys.append(key)
+            canon.append(c)
+    return keys, canon, np.array([lms.vertices[c] for c in canon], dtype=np.int64)
+
+
 def _pixel_columns(offsets, jac, sw):
     """World offsets (S, n, 3) of n landmarks through their camera Jacobians (n, 2, 3),
     weighted ``sw`` (n,): the (2n, S) columns of a linear least-squares problem."""
@@ -139,8 +147,7 @@ def neutral_case(model, case, result, expressions):
             continue
         view = case.views[name]
         camera = result.cameras[name]
-        keys = [k for k in view.points if lms.canonical(k) is not None]
-        verts = np.array([lms.vertices[lms.canonical(k)] for k in keys], dtype=np.int64)
+        keys, _, verts = _known(lms, view)
         offset = result.scale * np.tensordot(e, expr[:, verts], axes=1) @ result.rotation.T
         shift = camera.project(world[verts] + offset) - camera.project(world[verts])
         points = dict(view.points)

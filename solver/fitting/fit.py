@@ -357,7 +357,7 @@ def refit_landmarks(model, case, previous, options=None):
         if pick:
             idx = np.array([i for i, _ in pick])
             sel = np.array([j for _, j in pick])
-            w = (1.0 if v.side else opts.front_weight) * eng.inv_var * v.weights[idx]
+            w = eng.landmark_scale(v, opts.front_weight) * v.weights[idx]
             held_rows = ImageRows(np.arange(off, off + len(idx)),
                                   v.pixels[idx] - np.asarray(where["offsets"])[sel],
                                   v.camera, weights=w, name=f"outline points {v.name}")

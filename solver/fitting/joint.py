@@ -196,14 +196,8 @@ class Joint:
         pixel offset along the outline from that vertex's projection (k, 2)). The offset
         lets the drag refit hold a landmark to that vertex without pulling along the
         outline."""
-        self.sync(state)
-        x = self.world(state)
         out = {}
-        for v, kind, rows in self.groups:
-            if kind != "outline points":
-                continue
-            xs = x[rows.vertices]
-            rows.update(xs)
+        for v, rows, xs in self._current(state, "outline points"):
             r = rows.residuals(xs)
             sel = rows.selected
             gap = rows.targets - v.camera.project(xs[sel])
@@ -215,15 +209,11 @@ class Joint:
 
     def along_residuals(self, state):
         """view name -> (names, pixel residuals along the outline) of the sliding landmarks
-        that met the head's outline at ``state`` (after :meth:`outline_matches` or a
-        cost evaluation there)."""
-        x = self.world(state)
+        that met the head's outline at ``state``."""
         out = {}
-        for v, kind, rows in self.groups:
-            if kind != "outline along":
-                continue
+        for v, rows, xs in self._current(state, "outline along"):
             pts = rows.outline.points
-            r = rows.residuals(x[rows.vertices])[pts, 0]
+            r = rows.residuals(xs)[pts, 0]
             out[v.name] = ([v.names[i] for i in self.sliding[v.name][pts]], r)
         return out
 
@@ -237,16 +227,19 @@ class Joint:
     def contour_residuals(self, state):
         """view name -> pixel distances across the outline of the contour rows at
         ``state`` (correspondences refreshed)."""
+        return {v.name: np.abs(rows.residuals(xs))
+                for v, rows, xs in self._current(state, "contour")}
+
+    def _current(self, state, kind):
+        """(view, rows, world positions of their copies) of each group of ``kind`` at
+        ``state``, correspondences refreshed."""
         self.sync(state)
         x = self.world(state)
-        out = {}
-        for v, kind, rows in self.groups:
-            if kind != "contour":
-                continue
-            xs = x[rows.vertices]
-            rows.update(xs)
-            out[v.name] = np.abs(rows.residuals(xs))
-        return out
+        for v, k, rows in self.groups:
+            if k == kind:
+                xs = x[rows.vertices]
+                rows.update(xs)
+                yield v, rows, xs
 
     def reprojection_rms(self, state):
         """RMS of every landmark and contour-correspondence pixel residual at ``state``

@@ -134,6 +134,13 @@ class ContourRows(CameraRows):
         facing = np.einsum("ij,ij->i", normal, toward) > 0
         return self.edges[facing[self.edges[:, 2]] != facing[self.edges[:, 3]]]
 
+    def _projected_edges(self, world, e):
+        """Edges ``e`` (E, 2) in the photo: each one's first end and its direction,
+        ((E, 2), (E, 2)) pixels (each vertex projected once)."""
+        used, inv = np.unique(e, return_inverse=True)
+        ends = self.camera.project(world[used])[inv.reshape(-1, 2)]  # (E, 2, 2)
+        return ends[:, 0], ends[:, 1] - ends[:, 0]
+
     def _unchanged(self, world):
         """Whether ``world`` is the head of the last update through the same camera (a cost
         evaluation, then the next solve's first build): the outline found then stands."""
@@ -151,9 +158,7 @@ class ContourRows(CameraRows):
         points, ends, frac = np.zeros(0, np.intp), np.zeros((0, 2), np.intp), np.zeros(0)
         cap = self.max_distance
         if len(e):
-            used, inv = np.unique(e, return_inverse=True)
-            ends = self.camera.project(world[used])[inv.reshape(-1, 2)]  # (E', 2, 2)
-            a, d = ends[:, 0], ends[:, 1] - ends[:, 0]
+            a, d = self._projected_edges(world, e)
             # Edges whose middle is within reach of a point (max_distance plus the longest
             # half edge), as flat (point, edge) pairs.
             reach = self.max_distance + 0.5 * float(np.linalg.norm(d, axis=1).max())
@@ -306,9 +311,7 @@ class OutlinePointRows(ContourRows):
             self._updated = True
             return
         e = rim[:, :2]
-        used, inv = np.unique(e, return_inverse=True)
-        ends = self.camera.project(world[used])[inv.reshape(-1, 2)]  # (E, 2, 2)
-        a, d = ends[:, 0], ends[:, 1] - ends[:, 0]
+        a, d = self._projected_edges(world, e)
         # each landmark's nearest rim point among the edges with the nearest middles
         k = min(16, len(e))
         _, near = cKDTree(a + 0.5 * d).query(self.pixels, k=k)

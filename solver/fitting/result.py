@@ -87,7 +87,7 @@ class FitResult:
         there are none."""
         views = self.residuals.values() if view is None else [self.residuals[view]]
         px = [np.asarray(r.pixels, dtype=np.float64).reshape(-1)[
-            [n not in set(r.unused) for n in r.names]] for r in views]
+            ~np.isin(np.asarray(r.names, dtype=object), r.unused)] for r in views]
         return rms(np.concatenate(px) if px else np.zeros(0))
 
     def flagged(self):
