@@ -25,6 +25,13 @@ Groups of cases (bench/realistic_cases.py; seeds fixed):
   numbers by the geometry) are projected through it where the photo shows them. Variants:
   cameras self-calibrated pinholes (no lens known) or the calibrated DLTs (kept);
   landmarks exactly projected or placed as people give them (as above).
+- james rendered: the same scan photographed as the fit's users photograph a head, an
+  exact front and right profile (orthographic, 1024 px high), the profile's outline traced
+  from the scan's silhouette (its cut edges left out): the scan's landmarks projected or
+  placed as people give them; the front as people give them with the profile's outline
+  alone (no landmark there); and the front photo rendered with the scan's texture, its
+  landmarks found by the project's detector (``./run detector``), with the profile's
+  outline alone.
 
 Scores, per case, millimetres: RMS distance from points sampled uniformly on the true
 surface to the head's surface (point to triangle), after the similarity that lays the head
@@ -62,6 +69,8 @@ def _parse():
     p.add_argument("--james", default=None, help="folder of the scan james")
     p.add_argument("--outline-landmarks", choices=("vertex", "slide"), default="vertex",
                    help="FitOptions.outline_landmarks of every fit (default: the fit's)")
+    p.add_argument("--definition-mm", type=float, default=None,
+                   help="FitOptions.definition_mm of every fit (default: the fit's)")
     return p.parse_args()
 
 
@@ -80,6 +89,7 @@ from bench.realistic_cases import (  # noqa: E402
     Surface,
     align_icp,
     calibrate,
+    detected_front_case,
     face_frame,
     face_mask,
     james_folder,
@@ -92,9 +102,11 @@ from bench.realistic_cases import (  # noqa: E402
     part_triangles,
     sample_surface,
     scan_cases,
+    scan_render_cases,
     triangles_within,
 )
 from solver import FitOptions, fit_head, load_model  # noqa: E402
+from solver.detect.detector import Detector  # noqa: E402
 from solver.procrustes import similarity_procrustes  # noqa: E402
 
 SEEDS = {"out-of-model": 5000, "with expression": 6000}
@@ -191,7 +203,8 @@ def run_synthetic(model, group, n, samples, grid):
 
 
 def run_james(model, folder, samples, grid):
-    """Rows of the scan's variants, after printing its calibration."""
+    """Rows of the scan's variants ({"photos": its own photos, "rendered": a front and a
+    profile photo of it}), after printing its calibration."""
     scan = load_scan(folder)
     calib = {photo: calibrate(scan, photo) for photo in scan.photos}
     origin, left, _, forward = face_frame(scan.ibug)
@@ -223,26 +236,54 @@ def run_james(model, folder, samples, grid):
     print(f"  as people give them: bias {placement.bias_px:.1f} px RMS, noise "
           f"{placement.noise_px:.1f} px RMS")
 
+    rendered, moved, _ = scan_render_cases(scan)
+    try:
+        detector = Detector()
+    except ValueError as e:
+        print(f"  detected landmarks: skipped ({e})")
+    else:
+        detected, _ = detected_front_case(rendered, moved, detector)
+        if detected is None:
+            print("  detected landmarks: no face found in the rendered front photo")
+        else:
+            exact = rendered["front + profile, projected"].views["front"].points
+            d = [np.linalg.norm(np.subtract(detected.views["front"].points[n], p))
+                 for n, p in exact.items()]
+            print(f"  detected landmarks (the project's detector on the rendered front "
+                  f"photo, the scan's texture): {np.median(d):.1f} px median from the "
+                  "scan's own, projected")
+            rendered["front detected, profile outline only"] = detected
+    print(f"  rendered: front and right profile (orthographic, 1024 px high); "
+          f"{len(rendered['front + profile, projected'].views['front'].points)} and "
+          f"{len(rendered['front + profile, projected'].views['right'].points)} landmarks, "
+          "the profile's outline traced from the scan's silhouette")
+    # Everything is scored on the scan moved into the model's axes (the score aligns each
+    # head by ICP, so the frame does not matter; the oracle is found once).
     rng = np.random.default_rng(SEEDS["with expression"] + 1000)
-    region = triangles_within(scan.triangles, face_mask(scan.vertices, scan.ibug))
+    region = triangles_within(moved.triangles, face_mask(moved.vertices, moved.ibug))
     target = part_triangles(model, ("Face", "Head and Neck", "Eyeball left", "Eyeball right"))
-    t = Truth({"face": sample_surface(scan.vertices, region, samples, rng)}, target,
-              lambda v, name: landmark_start(model, v, scan.ibug))
-    cloud = sample_surface(scan.vertices, scan.triangles, 5 * samples, rng)
-    oracle = oracle_local(model, cloud, landmark_start(model, model.vertices, scan.ibug),
+    t = Truth({"face": sample_surface(moved.vertices, region, samples, rng)}, target,
+              lambda v, name: landmark_start(model, v, moved.ibug))
+    cloud = sample_surface(moved.vertices, moved.triangles, 5 * samples, rng)
+    oracle = oracle_local(model, cloud, landmark_start(model, model.vertices, moved.ibug),
                           face_only=True)[0]
     fixed = {"mean": t.score(model.vertices)["face"], "oracle": t.score(oracle)["face"]}
-    rows = []
-    for label, case in cases.items():
-        results = fits(model, case, grid)
-        face = {k: s["face"] for k, s in scored(t, results, {}).items()}
-        exact = cases["pinhole, projected"].views
-        given = [np.linalg.norm(np.subtract(p, exact[photo].points[name]))
-                 for photo, view in case.views.items() for name, p in view.points.items()]
-        rows.append(Row(label, {**face, **fixed}, landmark_px=float(np.sqrt(np.mean(
-            np.square(given)))), coeff_norm=float(np.linalg.norm(
-                results["fit"].identity_coeffs))))
-    return rows
+    exact = {"photos": cases["pinhole, projected"].views,
+             "rendered": rendered["front + profile, projected"].views}
+    out = {}
+    for group, group_cases in (("photos", cases), ("rendered", rendered)):
+        rows = out[group] = []
+        for label, case in group_cases.items():
+            results = fits(model, case, grid)
+            face = {k: s["face"] for k, s in scored(t, results, {}).items()}
+            given = [np.linalg.norm(np.subtract(p, exact[group][photo].points[name]))
+                     for photo, view in case.views.items()
+                     for name, p in view.points.items()
+                     if name in exact[group][photo].points]
+            rows.append(Row(label, {**face, **fixed}, landmark_px=float(np.sqrt(np.mean(
+                np.square(given)))), coeff_norm=float(np.linalg.norm(
+                    results["fit"].identity_coeffs))))
+    return out
 
 
 def _median(rows, region, name):
@@ -314,12 +355,15 @@ def main(args):
     grid = list(args.noise_px)
     if args.outline_landmarks != FitOptions.outline_landmarks:
         SHARED["outline_landmarks"] = args.outline_landmarks
+    if args.definition_mm is not None:
+        SHARED["definition_mm"] = args.definition_mm
     n_expr = args.cases // 2 if args.expression_cases is None else args.expression_cases
     print(f"machine: {machine_description()}")
     print(f"cases: {args.cases} out-of-model, {n_expr} with expression, the scan james' "
           f"variants; {args.samples} points sampled on the true surface per score; "
           f"noise_px grid: {', '.join(f'{x:g}' for x in grid) or 'none'}; outline landmarks: "
-          f"{args.outline_landmarks}")
+          f"{args.outline_landmarks}; definition offset: "
+          f"{SHARED.get('definition_mm', FitOptions.definition_mm):g} mm")
     groups = {}
     if args.cases > 0:
         groups["out-of-model heads"] = run_synthetic(model, "out-of-model", args.cases,
@@ -334,9 +378,13 @@ def main(args):
     folder = Path(args.james) if args.james else james_folder(ROOT)
     if (folder / "james.obj").is_file():
         print()
-        groups["james"] = run_james(model, folder, args.samples, grid)
-        print_group("james (real scan and photos; the scan covers the face)",
-                    groups["james"], grid)
+        james = run_james(model, folder, args.samples, grid)
+        groups["james"] = james["photos"]
+        print_group("james (real scan and its own photos; the scan covers the face)",
+                    james["photos"], grid)
+        groups["james rendered"] = james["rendered"]
+        print_group("james rendered (front and profile photos of the scan, the profile's "
+                    "outline traced)", james["rendered"], grid)
     else:
         print(f"\njames: not found in {folder} (set --james or $HEADRECON_REALDATA); "
               "skipped")

@@ -34,8 +34,8 @@ from solver.fitting.register import register
 from solver.geometry import rotation_from_vector, skew, vertex_normals
 from solver.io.obj import read_obj as solver_read_obj
 from solver.procrustes import Similarity, similarity_procrustes
-from solver.synthetic import random_rotation, resample_polyline, trace_silhouette
-from solver.texture.raster import depth_buffer
+from solver.synthetic import random_rotation, resample_polyline, trace_outline, trace_silhouette
+from solver.texture.raster import depth_buffer, rasterize
 
 #: iBUG numbers of the outline landmarks (jaw and chin: points of the face's outline).
 OUTLINE_IBUG = tuple(range(1, 18))
@@ -688,12 +688,18 @@ class Scan:
     photos : dict of str -> (vertex indices (m,), pixels (m, 2), size (w, h))
         Each photo of the texture and the vertex <-> pixel pairs it gives (vertices with
         one texture coordinate only: the seam's doubled ones disagree with the photos).
+    corner_uv : ndarray, (T, 3, 2), optional
+        Texture coordinates of each triangle's corners (0..1, v up).
+    texture : Path, optional
+        The texture image.
     """
 
     vertices: np.ndarray
     triangles: np.ndarray
     ibug: dict
     photos: dict
+    corner_uv: np.ndarray | None = None
+    texture: Path | None = None
 
     @property
     def landmark_array(self):
@@ -722,7 +728,8 @@ def load_scan(folder, name="james"):
     for photo, in_half, x0 in (("photo_a", px[:, 0] < half, 0), ("photo_b", px[:, 0] >= half,
                                                                   half)):
         photos[photo] = (pairs[in_half, 0], px[in_half] - [x0, 0.0], (half, height))
-    return Scan(vertices, tri, {int(k): p for k, p in zip(number, pts, strict=True)}, photos)
+    return Scan(vertices, tri, {int(k): p for k, p in zip(number, pts, strict=True)}, photos,
+                uv[tri_uv], folder / f"{name}.jpg")
 
 
 @dataclass
@@ -814,6 +821,136 @@ def scan_cases(scan, cameras, placement_seed=7000):
                                         camera_hints={"kind": "pinhole"})
             cases[f"{kind}, {points}"] = LandmarkCase(views, "<james>")
     return cases, placement
+
+
+def scan_in_model_axes(scan):
+    """The scan moved into the model's frame: menton at the origin, the subject's left
+    +X, up +Z, looking along -Y (Blender's front), by its own landmarks (a Scan)."""
+    origin, left, up, forward = face_frame(scan.ibug)
+    rot = np.array([left, -forward, up])
+    return Scan((scan.vertices - origin) @ rot.T, scan.triangles,
+                {k: (p - origin) @ rot.T for k, p in scan.ibug.items()}, scan.photos,
+                scan.corner_uv, scan.texture)
+
+
+def boundary_edges(triangles):
+    """Vertex pairs (E, 2) of a mesh's open boundary (edges of one triangle only)."""
+    e = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]],
+                                triangles[:, [2, 0]]]), axis=1)
+    uniq, count = np.unique(e, axis=0, return_counts=True)
+    return uniq[count == 1]
+
+
+def scan_render_cases(scan, placement_seed=7100, image_height=1024, contour_points=100):
+    """The scan photographed as the fit's users photograph a head: an exact front and an
+    exact right profile (orthographic, 1024 px high, 3:4, framed as the synthetic cases),
+    the profile's outline traced from the scan's silhouette (its cut edges left out). The
+    landmarks are the scan's own 68 (``ibugNN``) where a photo shows them, the profile
+    without the jaw's outline points but the menton (as the synthetic cases); "projected"
+    exactly with the outline exact, "as people give them" placed by
+    :func:`place_landmarks` (outline points on the front's apparent outline) with the
+    outline's noise; and the front as people give them with the profile's traced outline
+    alone (no landmark there, as when only a silhouette was found). Returns (name ->
+    LandmarkCase, the scan in model axes, Placement)."""
+    rng = np.random.default_rng(placement_seed)
+    placement = Placement.draw(rng)
+    moved = scan_in_model_axes(scan)
+    world, tris = moved.vertices, moved.triangles
+    normals = oriented_normals(world, tris, moved.ibug)
+    lm = moved.landmark_array
+    nearest = cKDTree(world).query(lm)[1]
+    inner = np.flatnonzero(~boundary_vertices(tris, len(world)))
+    cut = boundary_edges(tris)
+    h = int(image_height)
+    size = (int(round(0.75 * h)), h)
+    given = {"projected": {}, "as people give them": {}}
+    for view in ("front", "right"):
+        cam = _camera(rng, f"orthographic-{view}", size, world)
+        seen = visible(world, tris, cam, normals[nearest], lm, 0.0)
+        numbers = [i + 1 for i in np.flatnonzero(seen)]
+        contour = {}
+        if view == "front":
+            outline = apparent_outline(world, tris, cam, inner)
+        else:
+            numbers = [i for i in numbers
+                       if i not in OUTLINE_IBUG or i in PROFILE_OUTLINE_IBUG]
+            outline = trace_outline(world, tris, cam, cut)
+            exact = resample_polyline(outline, contour_points)
+            contour = {"projected": exact, "as people give them": np.clip(
+                exact + placement.contour_noise_px * rng.normal(size=exact.shape), 0.0, size)}
+        names = [f"ibug{i:02d}" for i in numbers]
+        nominal = cam.project(lm[np.array(numbers) - 1])
+        placed, _ = place_landmarks(names, nominal, placement, rng, outline,
+                                    dict(zip(names, numbers, strict=True)))
+        for points, pts in (("projected", dict(zip(names, nominal, strict=True))),
+                            ("as people give them", placed)):
+            given[points][view] = View(
+                view, None, size, OrthographicCamera.nominal(f"orthographic-{view}", size),
+                {n: np.clip(p, 0.0, size) for n, p in pts.items()},
+                contour=contour.get(points))
+    cases = {f"front + profile, {points}": LandmarkCase(views, "<james rendered>")
+             for points, views in given.items()}
+    people = given["as people give them"]
+    side = people["right"]
+    cases["front as people give them, profile outline only"] = LandmarkCase(
+        {"front": people["front"], "right": View("right", None, side.size, side.camera, {},
+                                                  contour=side.contour)}, "<james rendered>")
+    return cases, moved, placement
+
+
+def render_scan(scan, camera, background=0.5):
+    """A photo of a textured scan through an orthographic camera: (H, W, 3) float in
+    [0, 1], the nearest triangle per pixel (a z-buffer) coloured by its texture at the
+    pixel (nearest texel), ``background`` elsewhere. No shading: the texture is the
+    scanner's photos, lit as they were."""
+    from PIL import Image
+
+    with Image.open(scan.texture) as im:
+        tex = np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
+    w, h = camera.size
+    corner = scan.vertices[scan.triangles]
+    px = camera.project(corner.reshape(-1, 3)).reshape(-1, 3, 2)
+    depth = depth_of(camera, corner.reshape(-1, 3)).reshape(-1, 3)
+    pixel, tri, bary = rasterize(px, w, h)
+    z = np.einsum("nk,nk->n", bary, depth[tri])
+    order = np.lexsort((z, pixel))
+    first = order[np.r_[True, pixel[order][1:] != pixel[order][:-1]]]
+    uv = np.einsum("nk,nkc->nc", bary[first], scan.corner_uv[tri[first]])
+    th, tw = tex.shape[:2]
+    col = np.clip((uv[:, 0] * tw).astype(int), 0, tw - 1)
+    row = np.clip(((1.0 - uv[:, 1]) * th).astype(int), 0, th - 1)
+    out = np.full((h * w, 3), background, np.float32)
+    out[pixel[first]] = tex[row, col]
+    return out.reshape(h, w, 3)
+
+
+def detected_front_case(scan_cases_, moved, detector):
+    """The rendered front photo's landmarks found by the face detector (``detector``: a
+    ``solver.detect.Detector``), with the profile's traced outline alone: (LandmarkCase,
+    the front photo) or (None, photo) when no face is found."""
+    base = scan_cases_["front + profile, projected"]
+    front, side = base.views["front"], base.views["right"]
+    # the front camera the rendered cases drew: the landmarks' exact pixels say it
+    cam = _fit_front_camera(moved, front)
+    photo = render_scan(moved, cam)
+    face = detector.detect(photo)
+    if face is None or not face.is_face:
+        return None, photo
+    pts = {f"ibug{i + 1:02d}": p for i, p in enumerate(face.ibug)}
+    views = {"front": View("front", None, front.size, front.camera, pts),
+             "right": View("right", None, side.size, side.camera, {},
+                           contour=side.contour)}
+    return LandmarkCase(views, "<james rendered, detected>"), photo
+
+
+def _fit_front_camera(moved, front):
+    """The orthographic front camera that projects the scan's landmarks onto ``front``'s
+    pixels (a similarity fit: the rendered cases' camera, recovered exactly)."""
+    names = list(front.points)
+    x = np.array([moved.ibug[int(n[4:])] for n in names])
+    q = np.array([front.points[n] for n in names])
+    nominal = OrthographicCamera.nominal("orthographic-front", front.size)
+    return nominal.refit(x, q)
 
 
 # ---------------------------------------------------------------- the oracle

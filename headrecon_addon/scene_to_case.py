@@ -148,7 +148,8 @@ def photo_arrays(scene):
 def placed_and_needed(scene):
     """Landmarks placed and landmarks needed per view, by the solver's rule
     (``landmarks_needed``) on what the views of the scene's case say: the camera kind
-    (its ``min_refit_points``), ``calibrated`` (kept), passpoints and ``mirror_of``.
+    (its ``min_refit_points``), ``calibrated`` (kept), passpoints, ``mirror_of`` and a
+    profile's traced outline.
 
     Returns
     -------
@@ -165,7 +166,10 @@ def placed_and_needed(scene):
             cls.min_refit_points if cls is not None else 0,
             kept=extra.get("calibrated") is True,
             passpoints=bool(landmarks.passpoint_objects(plane)),
-            mirror=photos.mirror_of(plane) is not None)
+            mirror=photos.mirror_of(plane) is not None,
+            outline=landmarks.contour_pixels(plane) is not None
+            and photos.camera_kind(plane) == "orthographic"
+            and photos.view_kind(plane) != "front")
     return used, needed
 
 

@@ -138,7 +138,7 @@ _OPTION_FLAGS = {"method": "--method", "n_identity": "--components", "n_regional
                  "lambda1": "--lambda1", "lambda2": "--lambda2", "prior": "--prior",
                  "max_iterations": "--max-iterations", "noise_px": "--noise-px",
                  "noise": "--noise", "outline_landmarks": "--outline-landmarks",
-                 "expressions": "--expressions"}
+                 "expressions": "--expressions", "definition_mm": "--definition-mm"}
 
 
 def _fit_options(args, model, progress):
@@ -496,6 +496,10 @@ def build_parser():
                      help="the jaw, chin and head-side points of a front photo: 'vertex' "
                           "(default) fitted to their model vertices, 'slide' across the "
                           "head's silhouette and loosely along it")
+    fit.add_argument("--definition-mm", type=float, metavar="MM",
+                     help="how far, in mm, a landmark group (an eye, a brow, a jaw side) "
+                          "may sit off the model's points together as a convention of "
+                          "placing them (default 2; 0: every landmark independent)")
     fit.add_argument("--frame", choices=("local", "world"), default="local",
                      help="OBJ coordinates: 'local' the head upright in the model's frame "
                           "(default), 'world' posed as in the photos")

@@ -549,9 +549,36 @@ def trace_silhouette(model, world, camera, triangles=None):
         silhouette rather than on the centres of its outermost pixels.
     """
     tris = _skin_triangles(model) if triangles is None else triangles
+    neck, border = _neck_cut_vertices(model, tris)
+    is_neck = np.zeros(model.n_vertices, bool)
+    is_neck[neck] = True
+    return trace_outline(world, tris, camera, border[is_neck[border[:, 0]] & is_neck[border[:, 1]]])
+
+
+def trace_outline(world, triangles, camera, cut_edges):
+    """Outer outline of a projected mesh without the stretches that are its cut edges.
+
+    The outline a person traces on a photo follows the surface's silhouette, not where a
+    mesh (a head model's neck, a scan's edge) happens to end.
+
+    Parameters
+    ----------
+    world : ndarray, shape (V, 3), metres
+    triangles : ndarray, shape (T, 3)
+    camera : OrthographicCamera
+    cut_edges : ndarray, shape (E, 2)
+        Vertex pairs of the mesh's open boundary to leave out (outline pixels within 2 px of
+        their projections).
+
+    Returns
+    -------
+    ndarray, shape (n, 2), pixels
+        The longest stretch of the outline away from the cuts, one point per boundary
+        pixel, half a pixel outward, starting at its end toward the face (Blender's -Y).
+    """
     w, h = camera.size
     px = camera.project(world)
-    pixel, _, _ = rasterize(px[tris], w, h)
+    pixel, _, _ = rasterize(px[triangles], w, h)
     mask = np.zeros(h * w, bool)
     mask[pixel] = True
     mask = mask.reshape(h, w)
@@ -565,12 +592,8 @@ def trace_silhouette(model, world, camera, triangles=None):
     probe = np.clip(probe, 0, [w - 1, h - 1])
     normal[mask[probe[:, 1], probe[:, 0]]] *= -1.0
     pts = pts + 0.5 * normal
-    # Leave out the neck's cut: outline points near the projected boundary loop there.
-    neck, border = _neck_cut_vertices(model, tris)
-    is_neck = np.zeros(model.n_vertices, bool)
-    is_neck[neck] = True
-    seg = border[is_neck[border[:, 0]] & is_neck[border[:, 1]]]
-    near = _distance_to_segments(pts, px[seg[:, 0]], px[seg[:, 1]]) <= 2.0
+    cut = np.asarray(cut_edges, dtype=np.int64).reshape(-1, 2)
+    near = _distance_to_segments(pts, px[cut[:, 0]], px[cut[:, 1]]) <= 2.0
     keep = _longest_cyclic_run(~near)
     out = pts[keep]
     # Start at the end toward the face (drawing order of the profile chain).
@@ -642,7 +665,7 @@ def _longest_cyclic_run(flags):
     if flags.all():
         return np.arange(n)
     if not flags.any():
-        raise ValueError("silhouette: nothing left once the neck cut is removed")
+        raise ValueError("silhouette: nothing left once the cut edges are removed")
     shift = int(np.flatnonzero(~flags)[0])
     f = np.roll(flags, -shift)  # starts with False: runs do not wrap
     edges = np.diff(np.concatenate([[0], f.astype(np.int8), [0]]))

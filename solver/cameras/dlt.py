@@ -407,7 +407,7 @@ class DLTCamera(Camera):
 
     def project_ideal(self, points):
         """Pixels without lens distortion (eq. 1): (n, 3) metres -> (n, 2) pixels."""
-        x = as_points(points, "points")
+        x = as_points(points, "points", min_count=0)
         h = x @ self.matrix[:, :3].T + self.matrix[:, 3]
         return h[:, :2] / h[:, 2:3]
 

@@ -64,7 +64,7 @@ class OrthographicCamera(Camera):
     min_refit_points = 2
 
     def project(self, points):
-        x = as_points(points, "points")
+        x = as_points(points, "points", min_count=0)
         return self.scale * x @ self.rotation[:2].T + self.offset
 
     @property

@@ -57,11 +57,13 @@ def post_fit_warnings(model, case, result, opts, quick_fit):
 
 
 def used_views(result, opts):
-    """Names of the views the fit used: with a landmark of weight > 0 (the others are
-    skipped, ``views.prepare_views``)."""
+    """Names of the views the fit used: with a landmark of weight > 0 or a traced outline
+    it fitted (the others are skipped, ``views.prepare_views``)."""
     weights = opts.landmark_weights or {}
+    traced = result.info.get("contour_rms_px", {})
     return [n for n, r in result.residuals.items()
-            if any(x not in r.unused and weights.get(x, 1.0) > 0 for x in r.names)]
+            if n in traced
+            or any(x not in r.unused and weights.get(x, 1.0) > 0 for x in r.names)]
 
 
 def single_view_warnings(model, result, used):

@@ -11,12 +11,17 @@ with a mirror) cannot tell the head's size from its distance either: the head's 
 stays 1 (the model's size), which also fixes the mirror's distance.
 """
 
+import dataclasses
+
 import numpy as np
 
 from ..cameras.mirror import estimate_mirror
+from ..io.landmark_counts import MIN_LANDMARKS_PER_VIEW
 from ..memo import memo
 from ..model.linear_model import LinearModel
 from ..model.stacked import StackedModel
+from .contour_start import camera_from_outline
+from .definition import GroupedImageRows, group_offsets
 from .joint import Joint
 from .outline import (
     CONTOUR_KEEP_SIGMAS,
@@ -83,6 +88,9 @@ class Engine:
         self._by_name = {v.name: v for v in views}
         # whether a front photo's outline landmarks slide (FitOptions.outline_landmarks)
         self.slide_outline = False
+        # the head's profile line (HeadModel.profile_chain): where a photo with only a
+        # traced outline starts its camera
+        self.profile_chain = np.zeros(0, np.int64)
         self.fixed_similarity = self.gauge(views)
         self._slices = memo(lin, "slices", dict)
         # Gamma enters the cost only as Gamma^T Gamma: a factor with one row per
@@ -115,6 +123,7 @@ class Engine:
         eng = cls(lin, views, *outline_candidates(model), opts.noise_px, opts.lambda1,
                   opts.lambda2, opts.prior, opts.contour_weight, opts.contour_threshold_px)
         eng.slide_outline = opts.outline_landmarks == "slide"
+        eng.profile_chain = np.asarray(model.profile_chain, dtype=np.int64)
         return eng
 
     # ------------------------------------------------------------------ views
@@ -347,6 +356,10 @@ class Engine:
         for v in self.views:
             if not v.refit or v.mirror_of is not None:
                 continue
+            if self.outline_only(v):
+                state.cameras[v.name] = camera_from_outline(
+                    v.camera, v.contour, self.world(state, self.profile_chain))[0]
+                continue
             x = self.world(state, v.vertices)
             w = self.inv_var * v.weights
             probe = v.camera.pose_only()
@@ -364,6 +377,14 @@ class Engine:
                 state.cameras[v.name] = state.cameras[v.mirror_of].mirrored(
                     state.planes[v.name])
         self.use(state)
+
+    @staticmethod
+    def outline_only(view):
+        """Whether ``view`` is an orthographic profile photo with a traced outline and
+        fewer landmarks than a camera needs (``MIN_LANDMARKS_PER_VIEW``): its camera
+        starts from the outline (``contour_start``)."""
+        return view.contour is not None and view.side and not view.camera.perspective \
+            and np.count_nonzero(view.weights) < MIN_LANDMARKS_PER_VIEW
 
     def initial_plane(self, state, view):
         """A mirror view's plane from its real camera (seed 001 §3.2.2,
@@ -425,11 +446,16 @@ class Engine:
 
     def landmark_rows(self, view, start, front_weight=1.0, slide=False):
         """Image rows of ``view``'s landmarks on copies ``start`` ... ``start + n - 1``,
-        weighted 1 / noise^2 (and ``front_weight`` unless a profile photo); with ``slide``
-        those that slide (``view.slide``) weigh 0: :meth:`sliding_rows` fits them."""
+        weighted 1 / noise^2 (and ``front_weight`` unless a profile photo), each definition
+        group sharing an offset (``view.definition_m``); with ``slide`` those that slide
+        (``view.slide``) weigh 0: :meth:`sliding_rows` fits them."""
         n = len(view.vertices)
         w = self.landmark_scale(view, front_weight) * (
             view.fixed_weights if slide else view.weights)
+        if view.definition_m > 0.0:
+            return GroupedImageRows(np.arange(start, start + n), view.pixels, view.camera,
+                                    view.groups, view.definition_m, weights=w,
+                                    name=f"landmarks {view.name}")
         return ImageRows(np.arange(start, start + n), view.pixels, view.camera, weights=w,
                          name=f"landmarks {view.name}")
 
@@ -437,6 +463,34 @@ class Engine:
         """What a landmark weight of ``view`` is multiplied by in its rows: 1 / noise^2,
         and ``front_weight`` unless a profile photo."""
         return (1.0 if view.side else front_weight) * self.inv_var
+
+    def without_definition_offsets(self, state, local, residuals, front_weight=1.0):
+        """The landmark residuals (view name -> ViewResidual) less the offsets their
+        definition groups most likely share (``definition.group_offsets``; those matched
+        to the outline and those left out as they were): what the placement noise is
+        measured on (``noise.estimate_noise``); the parameters the offsets take up; and
+        per view the offsets' size the residuals say (metres; views with no group of
+        ``MIN_GROUP`` points left out)."""
+        world = state.scale * local @ state.rotation.T + state.translation
+        out, dof, sizes = dict(residuals), 0.0, {}
+        for v in self.views:
+            res = residuals.get(v.name)
+            if res is None or not len(v.vertices) or v.definition_m == 0.0:
+                continue
+            cam = state.cameras[v.name]
+            x = world[v.vertices]
+            r = v.pixels - cam.project(x)
+            jac = np.asarray(cam.jacobian(x), dtype=np.float64).reshape(-1, 2, 3)
+            apart = set(res.outline) | set(res.unused)
+            w = self.landmark_scale(v, front_weight) * np.where(
+                [n in apart for n in v.names], 0.0, v.weights)
+            e, taken, size = group_offsets(r, v.groups, w, jac, v.definition_m)
+            dof += taken
+            if size is not None:
+                sizes[v.name] = size
+            pixels = np.where(w > 0, np.linalg.norm(r - e, axis=1), res.pixels)
+            out[v.name] = dataclasses.replace(res, pixels=pixels)
+        return out, dof, sizes
 
     def sliding_rows(self, view, start, outlines=None, front_weight=1.0):
         """Rows of ``view``'s sliding landmarks (``view.slide``), weighted as
@@ -504,6 +558,8 @@ class Engine:
         for v in views:
             use = v.fixed_weights > 0
             n = int(use.sum())
+            if n == 0:
+                continue
             idx = inv[start:start + n]
             start += n
             cam = state.cameras[v.name]

@@ -54,6 +54,10 @@ class Noise:
         (nu + 2) / nu for none, toward 0 for an outlier).
     floor_px : float
         The least noise assumed (``FitOptions.noise_px``).
+    definition_m : dict of str -> float
+        Per view with a landmark group of at least ``definition.MIN_GROUP`` points: the
+        standard deviation of the offset a group shares there, metres
+        (``definition.group_offsets``; the next fit's ``ViewData.definition_m``).
     """
 
     landmark_px: dict = field(default_factory=dict)
@@ -63,6 +67,7 @@ class Noise:
     outline_px: dict = field(default_factory=dict)
     outline_names: dict = field(default_factory=dict)
     along_px: dict = field(default_factory=dict)
+    definition_m: dict = field(default_factory=dict)
 
     def landmark_factor(self, view, name):
         """Multiplier of a landmark's weight (relative to 1 / floor^2): its Student-t
@@ -110,13 +115,14 @@ class Noise:
         return {"landmark_px": dict(self.landmark_px), "outline_px": dict(self.outline_px),
                 "along_px": dict(self.along_px),
                 "contour_px": dict(self.contour_px), "floor_px": self.floor_px,
+                "definition_mm": {v: 1e3 * m for v, m in self.definition_m.items()},
                 "weights": {v: dict(ws) for v, ws in self.weights.items()},
                 "down_weighted": {v: {n: w for n, w in ws.items() if w < DOWN_WEIGHTED}
                                   for v, ws in self.weights.items()
                                   if any(w < DOWN_WEIGHTED for w in ws.values())}}
 
 
-def estimate_noise(residuals, contour, effective, floor_px, along=None):
+def estimate_noise(residuals, contour, effective, floor_px, along=None, definition=None):
     """The placement noise a fit's residuals say.
 
     Parameters
@@ -133,12 +139,15 @@ def estimate_noise(residuals, contour, effective, floor_px, along=None):
         Effective number of fitted parameters (the trace of the fit's hat matrix): the
         rows they account for are not counted as measurements of the noise.
     floor_px : float
+    definition : dict of str -> float, optional
+        Per view: the landmark groups' definition offset the residuals say, metres (kept
+        as ``Noise.definition_m``).
 
     Returns
     -------
     Noise
     """
-    out = Noise(floor_px=float(floor_px))
+    out = Noise(floor_px=float(floor_px), definition_m=dict(definition or {}))
     groups = []  # (view, names, residuals, dimension (2: at a vertex, 1: across))
     for view, res in residuals.items():
         r = np.asarray(res.pixels, dtype=np.float64)

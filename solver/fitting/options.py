@@ -61,6 +61,12 @@ class FitOptions:
         its model vertex, as any landmark. "slide": across the posed model's silhouette,
         loosely along it (``OutlinePointRows``, ``OutlineAlongRows``). In a profile photo
         those without a meaning there are left out either way.
+    definition_mm : float
+        Standard deviation of the offset a landmark group (an eye, a brow, one side of the
+        jaw; ``assets/landmarks.json`` "group") shares in a photo, millimetres on the
+        face: where "the brow" lies is a convention that differs between people,
+        detectors and the model, so a group's common shift is mostly not shape
+        (``definition.GroupedImageRows``). 0: every landmark's error independent.
     contour_weight : float
         Weight of one traced outline point relative to one landmark (a point that
         stands for less than 6 pixels of outline weighs that much less; see
@@ -106,6 +112,7 @@ class FitOptions:
     noise: str = "estimate"
     noise_px: float = 1.0
     outline_landmarks: str = "vertex"
+    definition_mm: float = 2.0
     expressions: str = "fit"
     contour_weight: float = 1.0
     contour_threshold_px: float = 20.0
@@ -125,6 +132,7 @@ RANGES = {
     "front_weight": (0.0, 1e6), "contour_weight": (0.0, 1e6), "flag_sigmas": (0.0, 1e3),
     "flag_min_px": (0.0, 1e6), "noise_px": (1e-3, 1e4), "contour_threshold_px": (1e-2, 1e6),
     "tolerance": (1e-12, 1.0), "camera_distance_m": (1e-2, 1e4),
+    "definition_mm": (0.0, 1e3),
 }
 #: (least, most) of each whole-number option.
 INT_RANGES = {"max_iterations": (1, 10000), "tps_iterations": (1, 1000),

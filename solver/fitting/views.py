@@ -59,6 +59,12 @@ class ViewData:
     along_weights : ndarray, shape (n,)
         A sliding landmark's weight along the outline, as ``weights`` (the estimated noise
         along it, ``noise.Noise.along_factor``).
+    groups : list of str
+        Each landmark's definition group (``LandmarkSet.group_of``): landmarks of one group
+        share one offset per photo (``definition.GroupedImageRows``).
+    definition_m : float
+        Standard deviation of that offset, metres (``FitOptions.definition_mm`` at first
+        and at most, then as the fit's residuals say, ``noise.Noise.definition_m``).
 
     A view's outline candidates are not stored here: they depend on the head they were
     found on, so each stage passes its own to :meth:`Engine.joint` (``outlines``).
@@ -80,9 +86,13 @@ class ViewData:
     slide: np.ndarray | None = None
     dropped: list = field(default_factory=list)
     along_weights: np.ndarray | None = None
+    groups: list | None = None
+    definition_m: float = 0.0
 
     def __post_init__(self):
         n = len(self.vertices)
+        if self.groups is None:
+            self.groups = list(self.names)
         if self.along_weights is None:
             self.along_weights = np.asarray(self.weights, dtype=np.float64).copy()
         for name in ("outline_point", "in_profile"):
@@ -245,12 +255,6 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
         if cam is not None and not isinstance(cam, Camera):
             raise ValueError(f"{where}: camera of unknown kind ({type(cam).__name__}); "
                              "expected a solver.cameras.Camera")
-        refit_points = 0 if cam is None else cam.min_refit_points
-        _check_count(where, used, landmarks_needed(refit_points, **rule))
-        # A camera is refitted on the head unless it is kept, follows a mirror, or comes
-        # from passpoints with too few landmarks to refine it.
-        refit = not kept and link is None and used >= landmarks_needed(refit_points)
-        total += used
         contour = None
         if view.contour is not None and len(view.contour) >= 2:
             c = np.asarray(view.contour, dtype=np.float64)
@@ -260,14 +264,27 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
                 raise ValueError(f"{where}: contour needs at least 2 distinct points")
             contour = c.reshape(-1, 2)
         side = cam is not None and is_side_camera(cam)
+        refit_points = 0 if cam is None else cam.min_refit_points
+        # An orthographic profile photo with a traced outline needs no landmark: its camera
+        # starts from the outline (contour_start.py), the head's pose from the other photos.
+        rule["outline"] = contour is not None and side and not cam.perspective \
+            and link is None
+        _check_count(where, used, landmarks_needed(refit_points, **rule))
+        # A camera is refitted on the head unless it is kept, follows a mirror, or comes
+        # from passpoints with too few landmarks to refine it.
+        refit = not kept and link is None and (
+            rule["outline"] or used >= landmarks_needed(refit_points))
+        total += used
         data = ViewData(name, cam, names, np.array(verts, dtype=np.int64),
                         np.array(px, dtype=np.float64).reshape(-1, 2), w, side, contour,
                         refit, link, 1.0 if noise is None else noise.contour_factor(name),
                         np.array([lms.outline_in(n, "front") for n in names], dtype=bool),
                         np.array([lms.has_meaning_in(n, "right")
                                   or lms.has_meaning_in(n, "left") for n in names],
-                                 dtype=bool), along_weights=along)
-        (views if used else skipped).append(data)
+                                 dtype=bool), along_weights=along,
+                        groups=[lms.group_of(n) for n in names],
+                        definition_m=_definition_m(opts, noise, name))
+        (views if used or rule["outline"] else skipped).append(data)
     for v in views:
         if v.mirror_of is not None and any(u.name == v.mirror_of for u in skipped):
             raise ValueError(f"{case.source}: view {v.name!r} mirrors view {v.mirror_of!r}, "
@@ -277,6 +294,15 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
     if problem is not None:
         raise ValueError(f"{case.source}: {problem}")
     return views, skipped
+
+
+def _definition_m(opts, noise, view):
+    """A view's landmark groups' definition offset, metres: ``FitOptions.definition_mm``
+    at first and at most, less when the last fit's residuals say so."""
+    most = 1e-3 * float(opts.definition_mm)
+    if noise is None:
+        return most
+    return min(noise.definition_m.get(view, most), most)
 
 
 def _check_count(where, used, need):

@@ -8,7 +8,14 @@ import math
 
 import numpy as np
 
-from ..cameras import ORTHO_VIEWS, Camera, OrthographicCamera, camera_class, camera_kinds
+from ..cameras import (
+    ORTHO_VIEWS,
+    Camera,
+    OrthographicCamera,
+    camera_class,
+    camera_kinds,
+    is_side_camera,
+)
 from .camera_json import (
     camera_object_problems,
     camera_range_problems,
@@ -91,8 +98,10 @@ def _landmarks_needed(view, bad_camera):
     else:
         cls = camera_class(view.camera_hints.get("kind"))
         min_refit = cls.min_refit_points if cls is not None else 0
+    outline = view.contour is not None and not bad_camera and view.camera is not None \
+        and not view.camera.perspective and is_side_camera(view.camera)
     return landmarks_needed(min_refit, kept=view.camera_fixed, passpoints=bool(view.passpoints),
-                            mirror=view.mirror_of is not None)
+                            mirror=view.mirror_of is not None, outline=outline)
 
 
 def _points_problems(view, where, lms):

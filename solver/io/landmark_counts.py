@@ -5,7 +5,8 @@ MIN_LANDMARKS_PER_VIEW = 3
 MIN_LANDMARKS_TOTAL = 6
 
 
-def landmarks_needed(min_refit_points, *, kept=False, passpoints=False, mirror=False):
+def landmarks_needed(min_refit_points, *, kept=False, passpoints=False, mirror=False,
+                     outline=False):
     """Fewest landmarks one view needs.
 
     Parameters
@@ -19,19 +20,23 @@ def landmarks_needed(min_refit_points, *, kept=False, passpoints=False, mirror=F
     mirror : bool
         A mirror view whose camera is the real one reflected: its mirror plane is found
         from landmarks seen both directly and in the mirror.
+    outline : bool
+        An orthographic profile photo with a traced outline: the outline places its camera
+        (``solver.fitting.contour_start``), so landmarks are optional there.
 
     Returns
     -------
     int
-        0 for a camera that is kept or given by passpoints (landmarks refine a passpoint
-        camera when there are enough); ``MIN_LANDMARKS_PER_VIEW`` for a mirror view; else
+        0 for a camera that is kept, given by passpoints (landmarks refine a passpoint
+        camera when there are enough) or placed by a profile's outline;
+        ``MIN_LANDMARKS_PER_VIEW`` for a mirror view; else
         what refitting the camera on the head needs, at least ``MIN_LANDMARKS_PER_VIEW``.
     """
     if kept:
         return 0
     if mirror:
         return MIN_LANDMARKS_PER_VIEW
-    if passpoints:
+    if passpoints or outline:
         return 0
     return max(MIN_LANDMARKS_PER_VIEW, int(min_refit_points))
 

@@ -120,6 +120,12 @@ class LandmarkSet:
         entry = self._entry(name)
         return "views" not in entry or kind in entry["views"]
 
+    def group_of(self, name):
+        """The definition group of landmark ``name`` (canonical): the entry's "group", the
+        landmarks whose placement shares one convention (an eye, a brow); the name itself
+        when the entry gives none."""
+        return self._entry(name).get("group", name)
+
     @functools.cached_property
     def _entries(self):
         return {e.get("name"): e for e in self.info if isinstance(e, dict)}

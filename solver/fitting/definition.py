@@ -1,0 +1,150 @@
+"""Landmark definition offsets: the landmarks of one group (an eye, a brow, one side of the
+jaw) as a person or a detector places them sit off the model's landmark vertices together,
+because where "the brow" or "the jaw line" lies is a convention that differs between people,
+detectors and the model. Independent noise per point would make such a shared shift look
+like ten consistent measurements of the head's shape; ``GroupedImageRows`` gives each group
+a shared offset per photo with its own prior instead (marginalised in closed form), so the
+shape follows what the points say relative to each other and only partly their common shift.
+"""
+
+import numpy as np
+
+from .rows import ImageRows, ScalarRows, _projected
+
+#: Standard deviation of a landmark group's shared definition offset, metres on the face
+#: (``FitOptions.definition_mm`` sets it per fit).
+DEFINITION_M = 0.002
+
+
+def group_terms(labels, weights, jac, sigma_m):
+    """What a point's group shares: ``t`` (n,), the offset's variance over the noise's for
+    the group's mean (``sigma_G^2 * sum_G w``, ``sigma_G`` in pixels through the
+    Jacobians ``jac`` (n, 2, 3), pixels per metre), and the weighted-mean matrix ``M``
+    (n, n): ``M[i, k] = w_k / sum_G w`` for k in i's group, 0 elsewhere."""
+    w = np.asarray(weights, dtype=np.float64)
+    same = labels[:, None] == labels[None, :]
+    wsum = same @ w
+    safe = np.where(wsum > 0, wsum, 1.0)
+    m = np.where(same, w[None, :], 0.0) / safe[:, None]
+    px_per_m2 = 0.5 * (np.asarray(jac) ** 2).sum(axis=(1, 2))
+    scale2 = (same @ (w * px_per_m2)) / safe
+    return np.where(wsum > 0, float(sigma_m) ** 2 * scale2 * wsum, 0.0), m
+
+
+#: Groups with fewer used points than this do not count in the estimate of the offsets'
+#: size: one point cannot tell its group's offset from its own noise.
+MIN_GROUP = 3
+
+
+def group_offsets(residuals, groups, weights, jac, sigma_m):
+    """The offsets the landmark groups of one photo most likely share, given the fit's
+    residuals, and what they say about the offsets' size.
+
+    Parameters
+    ----------
+    residuals : ndarray, shape (n, 2), pixels (placed - projected)
+    groups : sequence, shape (n,)
+    weights : ndarray, shape (n,)
+        1 / noise^2 of each point (0: not used).
+    jac : ndarray, shape (n, 2, 3)
+        The camera's Jacobians at the points, pixels per metre.
+    sigma_m : float
+        The offsets' standard deviation the fit assumed, metres.
+
+    Returns
+    -------
+    offsets : ndarray, shape (n, 2), pixels
+        Posterior mean of each point's group offset: the noise is measured on the
+        residuals less these.
+    taken : float
+        The parameters they take up (trace of their hat matrix, about two per group).
+    sigma_m : float or None
+        The offsets' standard deviation the residuals say, metres: one EM step of the
+        variance component (mean over the groups of at least ``MIN_GROUP`` points of the
+        squared posterior offset plus its posterior variance); None without such a group.
+    """
+    _, labels = np.unique(np.asarray(groups), return_inverse=True)
+    w = np.asarray(weights, dtype=np.float64)
+    t, m = group_terms(labels, w, jac, sigma_m)
+    gain = t / (1.0 + t)
+    e = gain[:, None] * (m @ np.asarray(residuals, dtype=np.float64))
+    first = np.unique(labels, return_index=True)[1]
+    used = np.bincount(labels, weights=(w > 0).astype(float))[labels[first]]
+    big = first[used >= MIN_GROUP]
+    estimate = None
+    if len(big) and sigma_m > 0:
+        # per group: sigma_G^2 (px^2) = t / sum w; posterior variance sigma_G^2 / (1 + t)
+        wsum = np.array([w[labels == labels[i]].sum() for i in big])
+        s2_px = t[big] / wsum
+        per_m2 = s2_px / sigma_m**2  # (px per metre)^2 of each group
+        stat = ((e[big] ** 2).sum(axis=1) / 2.0 + s2_px / (1.0 + t[big])) / per_m2
+        estimate = float(np.sqrt(stat.mean()))
+    return e, float(2.0 * gain[first].sum()), estimate
+
+
+class GroupedImageRows(ImageRows):
+    """Image rows of landmarks whose errors share one offset per group and image axis.
+
+    The error of landmark i of group G is ``e_G + n_i``: ``n_i`` independent with the rows'
+    weight ``w_i`` (1 / noise^2), ``e_G`` a shared 2-D offset ~ N(0, sigma_G^2) per axis,
+    ``sigma_G`` the definition offset ``sigma_m`` seen through the camera (pixels per metre
+    at the group's points). Marginalising ``e_G`` whitens the group's residuals per axis:
+    ``r_i - beta_G * mean_w(r)`` with the weights kept, ``beta_G = 1 - 1 / sqrt(1 +
+    sigma_G^2 * sum_G w)`` (Sherman-Morrison), so a row depends on all vertices of its group.
+
+    Parameters
+    ----------
+    vertices, pixels, camera, weights, name
+        As :class:`ImageRows`.
+    groups : array_like of int, shape (n,)
+        Group label of each point (points of one label share the offset).
+    sigma_m : float
+        The shared offset's standard deviation, metres (0: plain ``ImageRows``).
+    """
+
+    def __init__(self, vertices, pixels, camera, groups, sigma_m, weights=1.0,
+                 name="image"):
+        super().__init__(vertices, pixels, camera, weights=weights, name=name)
+        g = np.asarray(groups)
+        if g.shape != (len(self.vertices),):
+            raise ValueError(f"{name}: groups must have shape ({len(self.vertices)},), "
+                             f"got {g.shape}")
+        _, self.labels = np.unique(g, return_inverse=True)
+        self.sigma_m = float(sigma_m)
+        if not self.sigma_m >= 0.0:
+            raise ValueError(f"{name}: sigma_m must be >= 0, got {sigma_m!r}")
+
+    def shrink(self, jac):
+        """(beta per point (n,), weighted-mean matrix (n, n)) of the camera's Jacobians
+        ``jac`` (n, 2, 3): see :func:`group_terms`."""
+        t, m = group_terms(self.labels, self.weights, jac, self.sigma_m)
+        return 1.0 - 1.0 / np.sqrt(1.0 + t), m
+
+    def block(self, world, jacobian=True):
+        if self.sigma_m == 0.0:
+            return super().block(world, jacobian)
+        w = self.weights
+        n = len(w)
+        r = self.pixels - _projected(self.camera, world, self.name, self.vertices)
+        jac = np.asarray(self.camera.jacobian(world), dtype=np.float64).reshape(n, 2, 3)
+        beta, m = self.shrink(jac)
+        rw = r - beta[:, None] * (m @ r)  # (n, 2) whitened residuals
+        sq = float(w @ np.einsum("ij,ij->i", rw, rw))
+        nrows = 2 * int((w > 0).sum())
+        if not jacobian:
+            return ScalarRows(None, None, None, None, sq, float(w.sum()), nrows)
+        # Row (i, axis a) depends on each vertex k of i's group:
+        # d pred'_ia / d x_k = (delta_ik - beta_i M_ik) * jac[k, a]. Members padded with
+        # the point itself at coefficient 0 to the largest group's size.
+        coef = np.eye(n) - beta[:, None] * m
+        same = self.labels[:, None] == self.labels[None, :]
+        size = same.sum(axis=1)
+        c = int(size.max()) if n else 1
+        order = np.argsort(~same, axis=1, kind="stable")[:, :c]  # group members first
+        pad = np.arange(c)[None, :] >= size[:, None]
+        members = np.where(pad, np.arange(n)[:, None], order)
+        k = np.where(pad, 0.0, np.take_along_axis(coef, order, axis=1))  # (n, c)
+        g = k[:, None, :, None] * jac[members].transpose(0, 2, 1, 3)  # (n, 2, c, 3)
+        idx = np.repeat(members, 2, axis=0)
+        return ScalarRows(idx, g.reshape(2 * n, c, 3), rw.reshape(-1), np.repeat(w, 2),
+                          sq, float(w.sum()), nrows)

@@ -1,0 +1,123 @@
+"""Landmark groups' shared definition offsets (solver/fitting/definition.py)."""
+
+import numpy as np
+import pytest
+
+from solver import FitOptions, LandmarkCase, OrthographicCamera, View, fit_head
+from solver.fitting.definition import GroupedImageRows
+from solver.io.landmark_set import load_landmark_set
+from solver.synthetic import make_case, skin_error_mm
+
+GROUPS = [0, 0, 0, 1, 1, 2, 0, 1, 3]
+
+
+def _rows(sigma_m=0.003, seed=0):
+    rng = np.random.default_rng(seed)
+    cam = OrthographicCamera.nominal("orthographic-front", (768, 1024))
+    x = rng.normal(size=(len(GROUPS), 3)) * 0.05
+    px = cam.project(x) + rng.normal(size=(len(GROUPS), 2)) * 5.0
+    w = rng.uniform(0.5, 2.0, len(GROUPS))
+    return GroupedImageRows(np.arange(len(GROUPS)), px, cam, GROUPS, sigma_m, weights=w), x
+
+
+def test_cost_is_the_groups_marginal_likelihood():
+    rows, x = _rows()
+    r = rows.pixels - rows.camera.project(x)
+    jac = np.asarray(rows.camera.jacobian(x)).reshape(-1, 2, 3)
+    px_per_m = np.sqrt(0.5 * (jac**2).sum(axis=(1, 2)))
+    expected = 0.0
+    for g in set(GROUPS):
+        m = np.array(GROUPS) == g
+        cov = np.diag(1.0 / rows.weights[m]) + (0.003 * px_per_m[m].mean()) ** 2
+        expected += sum(r[m, a] @ np.linalg.solve(cov, r[m, a]) for a in range(2))
+    assert rows.block(x).sq == pytest.approx(expected, rel=1e-9)
+
+
+def test_jacobian_matches_finite_differences():
+    rows, x = _rows()
+    blk = rows.block(x)
+    n = len(GROUPS)
+    jac = np.zeros((2 * n, n, 3))
+    np.add.at(jac, (np.arange(2 * n)[:, None], blk.idx), blk.g)
+    num = np.zeros_like(jac)
+    for k in range(n):
+        for a in range(3):
+            moved = x.copy()
+            moved[k, a] += 1e-7
+            num[:, k, a] = -(rows.block(moved).r - blk.r) / 1e-7
+    assert np.abs(num - jac).max() < 1e-5 * np.abs(jac).max()
+    # A row depends only on its own group's vertices.
+    other = np.array(GROUPS)[:, None] != np.array(GROUPS)[None, :]
+    assert np.abs(jac.reshape(n, 2, n, 3)[other[:, None, :].repeat(2, 1)]).max() == 0.0
+
+
+def test_zero_offset_is_plain_image_rows():
+    rows, x = _rows(sigma_m=0.0)
+    blk = rows.block(x)
+    r = rows.pixels - rows.camera.project(x)
+    assert blk.sq == pytest.approx(float(rows.weights @ (r**2).sum(1)))
+
+
+def test_bad_groups_are_named():
+    cam = OrthographicCamera.nominal("orthographic-front", (10, 10))
+    with pytest.raises(ValueError, match=r"front: groups must have shape \(2,\)"):
+        GroupedImageRows([0, 1], np.zeros((2, 2)), cam, [0], 0.002, name="front")
+    with pytest.raises(ValueError, match="sigma_m must be >= 0"):
+        GroupedImageRows([0, 1], np.zeros((2, 2)), cam, [0, 0], -1.0, name="front")
+
+
+def test_every_landmark_has_a_group():
+    lms = load_landmark_set()
+    groups = {n: lms.group_of(n) for n in lms.names}
+    assert all(groups.values())
+    eye = {groups[lms.canonical(f"ibug{i:02d}")] for i in range(37, 43)}
+    assert eye == {"eye_right"}
+    assert groups[lms.canonical("ibug43")] == "eye_left"
+
+
+def _shifted_groups(case, rng, px):
+    """``case`` with each landmark group of each photo moved by its own random offset
+    (``px`` RMS per axis): a placement convention shared within a group."""
+    lms = load_landmark_set()
+    views = {}
+    for name, v in case.views.items():
+        off = {}
+        pts = {}
+        for n, p in v.points.items():
+            g = lms.group_of(lms.canonical(n))
+            if g not in off:
+                off[g] = rng.normal(size=2) * px
+            pts[n] = np.asarray(p) + off[g]
+        views[name] = View(name, None, v.size, v.camera, pts, contour=v.contour)
+    return LandmarkCase(views, case.source)
+
+
+def test_groups_shifted_together_are_told_from_the_shape(model):
+    """Each group of landmarks placed 8 px off (per axis) together, 1 px noise on top:
+    with the groups' offsets estimated the head is far nearer the truth than with
+    independent errors, and the offsets' size is measured."""
+    case, truth = make_case(model, 31, noise_px=1.0)
+    moved = _shifted_groups(case, np.random.default_rng(31), 8.0)
+    err, sizes = {}, {}
+    for mm in (0.0, 2.0):
+        r = fit_head(model, moved, FitOptions(definition_mm=mm))
+        err[mm] = skin_error_mm(model, r.local_vertices, truth.local_vertices)
+        sizes[mm] = r.info["noise"]["definition_mm"]
+    assert err[2.0] < 0.75 * err[0.0], err
+    assert sizes[0.0] == {}
+    cam = truth.cameras["front"]
+    expected_mm = 8.0 / (1e-3 * cam.scale)  # pixels per metre -> mm
+    assert 0.6 * expected_mm < sizes[2.0]["front"] < 1.5 * expected_mm, (sizes, expected_mm)
+
+
+def test_landmarks_on_their_vertices_keep_their_accuracy(model):
+    """Landmarks placed on their vertices (1 px noise, no shared offsets): the estimated
+    offsets shrink and the head is as good as with independent errors."""
+    case, truth = make_case(model, 32, noise_px=1.0)
+    err, sizes = {}, {}
+    for mm in (0.0, 2.0):
+        r = fit_head(model, case, FitOptions(definition_mm=mm))
+        err[mm] = skin_error_mm(model, r.local_vertices, truth.local_vertices)
+        sizes[mm] = r.info["noise"]["definition_mm"]
+    assert err[2.0] < 1.1 * err[0.0], err
+    assert max(sizes[2.0].values()) < 1.0, sizes
