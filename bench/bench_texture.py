@@ -4,7 +4,8 @@ Bakes the real head model's skin (UV tiles 1001 "Face" and 1002 "Head and Neck")
 1024 x 1024 per tile from a front and a profile photo of 768 x 1024 (synthetic photos:
 speed does not depend on their content), with nominal orthographic cameras. Prints the
 machine, the median time of cold bakes (UV rasters built) and warm bakes (rasters
-cached), a single-tile bake, and peak memory.
+cached; also without the equalisation and the seam fade, as the bake was before them), a
+single-tile bake, and peak memory.
 
 Then, on the rendered sample (``./run sample`` writes ``generated/sample/``; skipped when
 it is missing), the seams: the sample is fitted, every photo pass sampled into the
@@ -190,12 +191,16 @@ def main(argv=None):
     warm()  # make sure the rasters are cached
     texels = {t: len(uv_raster(model, args.size, tile=t).texel) for t in tiles}
     w = median_time(warm, args.repeat, warmup=0)
+    plain_opts = BakeOptions(equalise=False, seam_feather=0.0)
+    plain = median_time(lambda: bake_tiles(model, world, views, args.size, options=plain_opts),
+                        args.repeat, warmup=0)
     face = median_time(lambda: bake_texture(model, world, views, args.size, tile=tiles[0]),
                        args.repeat, warmup=0)
     print("  covered texels: " + ", ".join(f"{t}: {n}" for t, n in texels.items()))
     print(line("UV raster build (all tiles):", rt))
     print(line("cold bake (raster + bake):", c))
     print(line("warm bake, all tiles:", w))
+    print(line("  without equalise, seam fade:", plain))
     print(line(f"warm bake, tile {tiles[0]} only:", face))
     print(f"  load average during the run: {load_average()} (wall times grow with other "
           "jobs; CPU time less so)")

@@ -51,7 +51,7 @@ SHADING_MODES = ("keep", "remove")
 
 #: Overlap texels the colour equalisation is fitted on at most (every k-th is taken): the
 #: twelve numbers per photo are settled long before that.
-EQUALISE_TEXELS = 200_000
+EQUALISE_TEXELS = 50_000
 
 #: Blend weight (``cos ** power``) of both photos at which a texel counts fully as their
 #: overlap for the levelling: 0.1 is about 60 degrees off each camera at power 3.
@@ -553,14 +553,12 @@ def fit_view_gains(samples, options=None):
     p = first.colours.shape[0]
     if not opts.equalise or p < 2:
         return np.ones((p, 3)), np.zeros((p, 3))
-    cols, ws = [], []
-    for s in samples.values():
-        both = np.flatnonzero((s.seen > 0).sum(axis=0) >= 2)
-        cols.append(s.colours[:, both])
-        ws.append(s.seen[:, both])
-    c, w = np.concatenate(cols, axis=1), np.concatenate(ws, axis=1)
-    step = max(1, c.shape[1] // EQUALISE_TEXELS)
-    return fit_gains(c[:, ::step], w[:, ::step], reference=view_reference(samples))
+    both = {t: np.flatnonzero((s.seen > 0).sum(axis=0) >= 2) for t, s in samples.items()}
+    step = max(1, sum(len(b) for b in both.values()) // EQUALISE_TEXELS)
+    cols = [s.colours[:, both[t][::step]] for t, s in samples.items()]
+    ws = [s.seen[:, both[t][::step]] for t, s in samples.items()]
+    return fit_gains(np.concatenate(cols, axis=1), np.concatenate(ws, axis=1),
+                     reference=view_reference(samples))
 
 
 def view_reference(samples):

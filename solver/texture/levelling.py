@@ -15,7 +15,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .shading import vertex_areas
-from .uvs import _cotan_laplacian
+from .uvs import cotan_laplacian
 
 
 def level_field(difference, overlap, points, triangles, length):
@@ -54,7 +54,7 @@ def level_field(difference, overlap, points, triangles, length):
     local = np.searchsorted(used, tri)
     pts = np.asarray(points, dtype=np.float64)[used]
     area = vertex_areas(pts, local)
-    lap = _cotan_laplacian(pts, local)
+    lap = cotan_laplacian(pts, local)
     data = area * wv[used]
     eps = 1e-6 * max(float(area.mean()), 1e-30)
     a = (sp.diags(data + eps) + length * length * lap).tocsc()

@@ -13,7 +13,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .uvs import _cotan_laplacian
+from .uvs import cotan_laplacian
 
 #: Rec. 709 luminance of linear RGB.
 LUMA = np.array([0.2126, 0.7152, 0.0722])
@@ -66,7 +66,7 @@ def smooth_on_mesh(values, points, triangles, length):
     used = np.unique(tri)
     local = np.searchsorted(used, tri)
     pts = np.asarray(points, dtype=np.float64)[used]
-    lap = _cotan_laplacian(pts, local)
+    lap = cotan_laplacian(pts, local)
     mass = vertex_areas(pts, local)
     a = (sp.diags(mass) + length * length * lap).tocsc()
     out = f.copy()
