@@ -5,8 +5,12 @@ Each texel's surface point is projected into every photo, sampled where the phot
 (depth-buffer occlusion test) and blended by how squarely the surface faces that photo; a
 profile photo is also used mirrored across the head's mid-sagittal plane so the far cheek
 gets the near cheek's colours; what no photo sees is filled smoothly over the mesh, and the
-UV islands get a few texels of bleed so mipmapping shows no seams. :func:`bake_tiles`
-returns one texture per UDIM tile, :func:`bake_texture` one tile.
+UV islands get a few texels of bleed so mipmapping shows no seams. Before blending, the
+photos are equalised (a gain and an offset per photo pass, then a smooth levelling to the
+reference: ``equalise.py``, ``levelling.py``) and each one's weight fades in from the edge
+of what it sees (``seams.py``); the light can be divided out (``shading.py``, an option).
+:func:`bake_tiles` returns one texture per UDIM tile, :func:`bake_texture` one tile;
+:func:`bake_samples` the photo passes unblended (to measure them against each other).
 
 Photo convention: pixel (u, v) with the origin at the image's top-left corner and the
 image spanning [0, W] x [0, H], so pixel (i, j) is centred on (i + 0.5, j + 0.5) (the
@@ -53,9 +57,10 @@ SHADING_MODES = ("keep", "remove")
 #: twelve numbers per photo are settled long before that.
 EQUALISE_TEXELS = 50_000
 
-#: Blend weight (``cos ** power``) of both photos at which a texel counts fully as their
-#: overlap for the levelling: 0.1 is about 60 degrees off each camera at power 3.
-LEVEL_WEIGHT = 0.1
+#: Least blend weight (``cos ** power``, times ``mirror_weight`` for a mirrored pass) of
+#: both passes at a texel the levelling matches them on: 0.02 is about 75 degrees off each
+#: camera at power 3; grazing samples near a photo's outline are darker and blurred.
+LEVEL_WEIGHT = 0.02
 
 
 def bake_photo_size(photo_size, texture_size):
@@ -115,10 +120,11 @@ class BakeOptions:
         Texels outside the UV islands that copy their nearest island texel, so filtering
         and mipmaps never sample the background colour at a seam.
     equalise : bool
-        Fit a gain and an offset per channel to every photo but the reference (the one
-        with the most weight, normally the front) on the texels two photos both see, and
-        apply them before blending (``equalise.fit_gains``), so photos under other light or
-        exposure meet without a step.
+        Fit a gain and an offset per channel to every photo pass but the reference (the
+        pass that overlaps the others most, normally the front photo; a profile used
+        mirrored is a pass of its own) on the texels two passes both see, and apply them
+        before blending (``fit_view_gains``, ``equalise.fit_gains``), so photos under other
+        light or exposure meet without a step.
     level : bool
         With ``equalise``: then level every photo pass but the reference to it with a
         smooth additive correction over the surface (``levelling.level_field``), for the
@@ -127,6 +133,10 @@ class BakeOptions:
     level_length : float
         Smoothing length of that correction, as a fraction of the head's size (0.015: about
         7 mm; measured in docs/DECISIONS.md, "Texture seams").
+    level_decay : float
+        Distance over which that correction fades away from the overlap, as a fraction
+        of the head's size (0.1: about 5 cm), so a photo keeps its own colours far from its
+        seams.
     seam_feather : float
         Width over which a photo's weight fades in from the edge of what it sees on the
         surface (occlusion edges, where it faces away), as a fraction of the head's size
@@ -152,6 +162,7 @@ class BakeOptions:
     equalise: bool = True
     level: bool = True
     level_length: float = 0.015
+    level_decay: float = 0.1
     seam_feather: float = 0.03
     shading: str = "keep"
     shading_length: float = 0.06
@@ -165,7 +176,8 @@ class BakeOptions:
                   "bleed": self.bleed >= 0, "seam_feather": self.seam_feather >= 0,
                   "shading": self.shading in SHADING_MODES,
                   "shading_length": self.shading_length > 0,
-                  "level_length": self.level_length > 0}
+                  "level_length": self.level_length > 0,
+                  "level_decay": self.level_decay > self.level_length}
         for name, ok in checks.items():
             if not ok:
                 raise ValueError(f"BakeOptions.{name}: out of range ({getattr(self, name)!r})")
@@ -774,14 +786,16 @@ def equalised_colours(samples, world, options=None, head_size=None):
         for t, s in samples.items():
             r = s.raster
             om = np.minimum(s.seen[ref], s.seen[k])
+            om *= om >= np.float32(LEVEL_WEIGHT)  # grazing samples (an outline) say little
             diff[r.vertices] += r.gather @ (om[:, None] * (out[t][ref] - out[t][k]))
             both[r.vertices] += r.gather @ om
-            strength[r.vertices] += r.gather @ np.minimum(om / np.float32(LEVEL_WEIGHT), 1)
+            strength[r.vertices] += r.gather @ (om > 0).astype(np.float32)
         if not (both > 0).any():
             continue
         diff /= np.maximum(both, 1e-30)[:, None]
         share = np.where(cover > 0, strength / np.maximum(cover, 1e-30), 0.0)
-        field = level_field(diff, share, world, tris, opts.level_length * head_size)
+        field = level_field(diff, share, world, tris, opts.level_length * head_size,
+                            decay=opts.level_decay * head_size)
         for t, s in samples.items():
             out[t][k] += (s.raster.interp @ field.astype(np.float32)) * (s.seen[k] > 0)[:, None]
     return out

@@ -5,8 +5,9 @@ correction of each photo over the surface (after Lempitsky and Ivanov, "Seamless
 of image-based texture maps", 2007).
 
 The correction of a view is the difference to the reference view where both see the
-surface, smoothed over the mesh, and continued harmonically where only the view itself
-sees it, so the view's own region moves with its border and keeps its detail. Vertex
+surface, smoothed over the mesh, and continued smoothly where only the view itself sees
+it, fading out over a few centimetres (``decay``), so the view's own region moves
+with its border near the seam, keeps its detail, and far from it keeps its colours. Vertex
 values in, vertex values out; the mesh is points (V, 3) in metres and triangles (T, 3).
 """
 
@@ -18,13 +19,12 @@ from .shading import vertex_areas
 from .uvs import cotan_laplacian
 
 
-def level_field(difference, overlap, points, triangles, length):
+def level_field(difference, overlap, points, triangles, length, decay=None):
     """A smooth correction per vertex that matches ``difference`` where ``overlap`` is
-    high and is harmonic (continues it smoothly) where it is 0.
+    high and, where it is 0, continues it smoothly and fades out over about ``decay``.
 
-    Solves ``(A W + length^2 L + eps A) f = A W d`` with ``A`` the vertices' areas, ``W``
-    the overlap, ``L`` the cotangent Laplacian; ``eps`` only pulls parts that touch no
-    overlap to 0.
+    Solves ``(A W + length^2 L + (length / decay)^2 A) f = A W d`` with ``A`` the
+    vertices' areas, ``W`` the overlap, ``L`` the cotangent Laplacian.
 
     Parameters
     ----------
@@ -38,6 +38,10 @@ def level_field(difference, overlap, points, triangles, length):
     length : float
         Smoothing length in metres (> 0): detail of the difference finer than this is not
         followed (it is the photos' detail, not their light).
+    decay : float, optional
+        Metres over which the correction fades away from the overlap (> ``length``), so a
+        photo keeps its own colours far from its seams; default: no fading (a harmonic
+        continuation, only parts that touch no overlap go to 0).
 
     Returns
     -------
@@ -56,8 +60,10 @@ def level_field(difference, overlap, points, triangles, length):
     area = vertex_areas(pts, local)
     lap = cotan_laplacian(pts, local)
     data = area * wv[used]
-    eps = 1e-6 * max(float(area.mean()), 1e-30)
-    a = (sp.diags(data + eps) + length * length * lap).tocsc()
+    if decay is not None and not decay > length:
+        raise ValueError(f"decay: expected more than length ({length} m), got {decay}")
+    screen = 1e-6 if decay is None else (length / decay) ** 2
+    a = (sp.diags(data + screen * area) + length * length * lap).tocsc()
     rhs = data[:, None] * np.nan_to_num(d[used]).reshape(len(used), -1)
     out = np.zeros(d.shape)
     out[used] = spla.spsolve(a, rhs).reshape(d[used].shape)

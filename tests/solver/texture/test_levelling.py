@@ -22,3 +22,17 @@ def test_the_field_follows_the_overlap_and_continues_beyond_it():
     assert np.ptp(f[edge, 0]) < 0.02
     with pytest.raises(ValueError, match="overlap"):
         level_field(diff, overlap[:-1], points, tris, 0.01)
+
+
+def test_with_a_decay_the_correction_fades_away_from_the_seam():
+    points, tris = _sheet(40, 0.2)
+    x = points[:, 0]
+    overlap = (x < 0.04).astype(float)
+    diff = np.full(len(x), 0.1)
+    f = level_field(diff, overlap, points, tris, 0.005, decay=0.03)
+    np.testing.assert_allclose(f[x < 0.03], 0.1, atol=0.01)
+    assert 0.01 < f[np.isclose(x, 0.07)].mean() < 0.06  # a centimetre or three on
+    assert np.abs(f[x > 0.17]).max() < 0.005           # far away: the photo as it was
+    assert np.all(np.diff(f[np.isclose(points[:, 1], 0.1)]) <= 1e-12)  # falling, no step
+    with pytest.raises(ValueError, match="decay"):
+        level_field(diff, overlap, points, tris, 0.005, decay=0.004)
