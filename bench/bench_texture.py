@@ -11,9 +11,11 @@ Then, on the rendered sample (``./run sample`` writes ``generated/sample/``; ski
 it is missing), the seams: the sample is fitted, every photo pass sampled into the
 texture (``bake_samples``), and the colour difference between views across the seam band
 (``equalise.seam_difference``: where two passes each carry at least 20 % of a texel's
-blend weight, averaged over 16 x 16 texel cells) printed before and after the equalisation
-(``fit_view_gains``), with the fitted gains and offsets; and how much low-frequency light
-the shading removal takes out (the spread of the smoothed luminance over the skin).
+blend weight, averaged over 16 x 16 texel cells) printed before the equalisation, with
+the gains and offsets (``fit_view_gains``, printed too) and with the levelling as well
+(``equalised_colours``, the default); the back of the head's mean colour on either side
+(each seen by one profile pass only); and how much low-frequency light the shading
+removal takes out (the spread of the smoothed luminance over the skin).
 """
 
 import argparse
@@ -109,6 +111,23 @@ def light_spread(model, result, tiles, length):
     return float(s.std() / s.mean())
 
 
+def back_sides(model, result, tiles):
+    """Mean baked colour of the back of the head (behind the ears, above the neck) on the
+    subject's left (+x, local) and right: what a photo pass's global correction does to
+    the region only it sees."""
+    out = []
+    for side in (1, -1):
+        sums, n = np.zeros(3), 0
+        for tile, tex in tiles.items():
+            r = uv_raster(model, tex.shape[0], tile=tile)
+            pts = r.interp @ result.local_vertices
+            sel = (pts[:, 1] > 0.03) & (side * pts[:, 0] > 0.02) & (pts[:, 2] > 0)
+            sums += tex.reshape(-1, 3)[r.texel][sel].sum(axis=0)
+            n += int(sel.sum())
+        out.append(np.round(sums / max(n, 1), 3).tolist())
+    return f"{out[0]} / {out[1]}"
+
+
 def sample_seams(model, folder, size):
     case_path = Path(folder) / "sample.json"
     if not case_path.is_file():
@@ -140,6 +159,9 @@ def sample_seams(model, folder, size):
     for k, v in enumerate(view_of_pass):
         print(f"    pass {k} (view {names[v]}): gain {np.round(gain[k], 3).tolist()}, "
               f"offset {np.round(offset[k], 4).tolist()}")
+    tiles = bake_fit_texture(model, result, photos, size)
+    print(f"    back of the head, mean colour on the subject's left / right (the profile "
+          f"mirrored / seen directly): {back_sides(model, result, tiles)}")
     head_size = float(np.linalg.norm(np.ptp(result.world_vertices[model.skin], axis=0)))
     length = BakeOptions().shading_length * head_size
     for shading in ("keep", "remove"):

@@ -6,8 +6,8 @@ Each texel's surface point is projected into every photo, sampled where the phot
 profile photo is also used mirrored across the head's mid-sagittal plane so the far cheek
 gets the near cheek's colours; what no photo sees is filled smoothly over the mesh, and the
 UV islands get a few texels of bleed so mipmapping shows no seams. Before blending, the
-photos are equalised (a gain and an offset per photo pass, then a smooth levelling to the
-reference: ``equalise.py``, ``levelling.py``) and each one's weight fades in from the edge
+photos are equalised (a gain and an offset per photo, then a smooth levelling of each
+photo pass to the reference: ``equalise.py``, ``levelling.py``) and each one's weight fades in from the edge
 of what it sees (``seams.py``); the light can be divided out (``shading.py``, an option).
 :func:`bake_tiles` returns one texture per UDIM tile, :func:`bake_texture` one tile;
 :func:`bake_samples` the photo passes unblended (to measure them against each other).
@@ -120,11 +120,11 @@ class BakeOptions:
         Texels outside the UV islands that copy their nearest island texel, so filtering
         and mipmaps never sample the background colour at a seam.
     equalise : bool
-        Fit a gain and an offset per channel to every photo pass but the reference (the
-        pass that overlaps the others most, normally the front photo; a profile used
-        mirrored is a pass of its own) on the texels two passes both see, and apply them
-        before blending (``fit_view_gains``, ``equalise.fit_gains``), so photos under other
-        light or exposure meet without a step.
+        Fit a gain and an offset per channel to every photo but the reference (the one
+        that overlaps the others most, normally the front photo) on the texels two photos
+        see directly, and apply them before blending (a profile used mirrored takes its
+        photo's; ``fit_view_gains``, ``equalise.fit_gains``), so photos of another exposure
+        or white balance meet without a step.
     level : bool
         With ``equalise``: then level every photo pass but the reference to it with a
         smooth additive correction over the surface (``levelling.level_field``), for the
@@ -553,7 +553,11 @@ def bake_samples(model, world_vertices, views, size=1024, *, parts=None, similar
 
 def fit_view_gains(samples, options=None):
     """Each pass's gain and offset per channel (``equalise.fit_gains``) from the samples of
-    every tile (:func:`bake_samples`), fitted on the texels two passes both see.
+    every tile (:func:`bake_samples`): one gain and offset per photo, fitted on the texels
+    two photos see directly, the photo that overlaps the others most (normally the front)
+    fixed. A profile's mirrored pass takes its photo's: the exposure is the photo's, while
+    the other cheek's light it carries is the levelling's to match
+    (:func:`equalised_colours`; measured in docs/DECISIONS.md, "Texture seams").
 
     Returns
     -------
@@ -562,24 +566,25 @@ def fit_view_gains(samples, options=None):
     """
     opts = _options(options)
     first = next(iter(samples.values()))
-    p = first.colours.shape[0]
-    if not opts.equalise or p < 2:
+    view = first.view
+    p = len(view)
+    direct = np.flatnonzero(np.r_[True, view[1:] != view[:-1]])  # each view's first pass
+    if not opts.equalise or len(direct) < 2:
         return np.ones((p, 3)), np.zeros((p, 3))
-    both = {t: np.flatnonzero((s.seen > 0).sum(axis=0) >= 2) for t, s in samples.items()}
+    seen = {t: s.seen[direct] for t, s in samples.items()}
+    both = {t: np.flatnonzero((w > 0).sum(axis=0) >= 2) for t, w in seen.items()}
     step = max(1, sum(len(b) for b in both.values()) // EQUALISE_TEXELS)
-    cols = [s.colours[:, both[t][::step]] for t, s in samples.items()]
-    ws = [s.seen[:, both[t][::step]] for t, s in samples.items()]
-    return fit_gains(np.concatenate(cols, axis=1), np.concatenate(ws, axis=1),
-                     reference=view_reference(samples))
+    cols = [s.colours[direct][:, both[t][::step]] for t, s in samples.items()]
+    ws = [seen[t][:, both[t][::step]] for t in samples]
+    row = np.searchsorted(direct, np.arange(p), side="right") - 1  # pass -> its photo's row
+    gain, offset = fit_gains(np.concatenate(cols, axis=1), np.concatenate(ws, axis=1),
+                             reference=int(row[view_reference(samples)]))
+    return gain[row], offset[row]
 
 
 def view_reference(samples):
     """The pass the others are equalised to (``equalise.default_reference`` over every
-    tile's weights: the one that overlaps the others most, normally the front photo).
-
-    Each pass is a view of its own here, a profile's mirrored pass too: it carries the
-    other cheek's light, so sharing the direct pass's gain would fit neither (measured in
-    docs/DECISIONS.md, "Texture seams")."""
+    tile's weights: the one that overlaps the others most, normally the front photo)."""
     cols = [s.seen[:, ::max(1, s.seen.shape[1] // EQUALISE_TEXELS)]
             for s in samples.values()]
     return default_reference(np.concatenate(cols, axis=1))
