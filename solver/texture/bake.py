@@ -7,8 +7,9 @@ profile photo is also used mirrored across the head's mid-sagittal plane so the 
 gets the near cheek's colours; what no photo sees is filled smoothly over the mesh, and the
 UV islands get a few texels of bleed so mipmapping shows no seams. Before blending, the
 photos are equalised (a gain and an offset per photo, then a smooth levelling of each
-photo pass to the reference: ``equalise.py``, ``levelling.py``) and each one's weight fades in from the edge
-of what it sees (``seams.py``); the light can be divided out (``shading.py``, an option).
+photo pass to the reference: ``equalise.py``, ``levelling.py``) and each one's weight fades
+in from the edge of what it sees (``seams.py``); the light can be divided out
+(``shading.py``, an option).
 :func:`bake_tiles` returns one texture per UDIM tile, :func:`bake_texture` one tile;
 :func:`bake_samples` the photo passes unblended (to measure them against each other).
 
