@@ -4,10 +4,22 @@ Bakes the real head model's skin (UV tiles 1001 "Face" and 1002 "Head and Neck")
 1024 x 1024 per tile from a front and a profile photo of 768 x 1024 (synthetic photos:
 speed does not depend on their content), with nominal orthographic cameras. Prints the
 machine, the median time of cold bakes (UV rasters built) and warm bakes (rasters
-cached), a single-tile bake, and peak memory.
+cached; also without the equalisation and the seam fade, as the bake was before them), a
+single-tile bake, and peak memory.
+
+Then, on the rendered sample (``./run sample`` writes ``generated/sample/``; skipped when
+it is missing), the seams: the sample is fitted, every photo pass sampled into the
+texture (``bake_samples``), and the colour difference between views across the seam band
+(``equalise.seam_difference``: where two passes each carry at least 20 % of a texel's
+blend weight, averaged over 16 x 16 texel cells) printed before the equalisation, with
+the gains and offsets (``fit_view_gains``, printed too) and with the levelling as well
+(``equalised_colours``, the default); the back of the head's mean colour on either side
+(each seen by one profile pass only); and how much low-frequency light the shading
+removal takes out (the spread of the smoothed luminance over the skin).
 """
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 
@@ -18,9 +30,22 @@ from bench.common import (
     median_time,
     peak_memory,
 )
-from solver import OrthographicCamera, load_model
-from solver.texture.bake import bake_texture, bake_tiles
+from solver import OrthographicCamera, fit_head, load_landmarks, load_model
+from solver.texture.bake import (
+    BakeOptions,
+    bake_fit_texture,
+    bake_samples,
+    bake_texture,
+    bake_tiles,
+    equalised_colours,
+    fit_view_gains,
+)
+from solver.texture.equalise import apply_gains, seam_difference
+from solver.texture.shading import LUMA, smooth_on_mesh, srgb_to_linear
 from solver.texture.uvs import clear_raster_cache, uv_raster, uv_tiles
+
+ROOT = Path(__file__).resolve().parent.parent
+CELL = 16  # texels per side of the cells the seam difference averages over
 
 
 def photos(width=768, height=1024, seed=0):
@@ -41,14 +66,128 @@ def line(label, t):
             f"(wall min {t.min:.3f}, max {t.max:.3f})")
 
 
+def read_photo(path):
+    """A photo as (H, W, 3) float32 in [0, 1]."""
+    from PIL import Image
+
+    with Image.open(path) as im:
+        return np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
+
+
+def seam_numbers(samples, equalised):
+    """``SeamDifference`` over every tile's texels of the raw colours and of each set of
+    colours in ``equalised`` (dicts tile -> (P, N, 3))."""
+    cols, ws, cells = [], [], []
+    for tile, s in samples.items():
+        texel = s.raster.texel
+        per_row = -(-s.raster.size // CELL)
+        cells.append(tile * per_row * per_row + (texel // s.raster.size // CELL) * per_row
+                     + (texel % s.raster.size) // CELL)
+        cols.append(s.colours)
+        ws.append(s.weights)
+    w, cell = np.concatenate(ws, 1), np.concatenate(cells)
+    out = [seam_difference(np.concatenate(cols, 1), w, cell)]
+    for colours in equalised:
+        out.append(seam_difference(np.concatenate([colours[t] for t in samples], 1), w, cell))
+    return out
+
+
+def light_spread(model, result, tiles, length):
+    """Std / mean of the skin's luminance smoothed over ``length`` metres (how much
+    low-frequency light the texture holds)."""
+    colour = np.zeros((len(model.vertices), 3))
+    cover = np.zeros(len(model.vertices))
+    tris = []
+    for tile, tex in tiles.items():
+        r = uv_raster(model, tex.shape[0], tile=tile)
+        colour[r.vertices] += r.gather @ tex.reshape(-1, 3)[r.texel]
+        cover[r.vertices] += np.asarray(r.gather.sum(axis=1)).ravel()
+        tris.append(r.triangles)
+    has = cover > 0
+    lum = srgb_to_linear(colour[has] / cover[has, None]) @ LUMA
+    full = np.zeros(len(model.vertices))
+    full[has] = lum
+    s = smooth_on_mesh(full, result.world_vertices, np.concatenate(tris), length)[has]
+    return float(s.std() / s.mean())
+
+
+def back_sides(model, result, tiles):
+    """Mean baked colour of the back of the head (behind the ears, above the neck) on the
+    subject's left (+x, local) and right: what a photo pass's global correction does to
+    the region only it sees."""
+    out = []
+    for side in (1, -1):
+        sums, n = np.zeros(3), 0
+        for tile, tex in tiles.items():
+            r = uv_raster(model, tex.shape[0], tile=tile)
+            pts = r.interp @ result.local_vertices
+            sel = (pts[:, 1] > 0.03) & (side * pts[:, 0] > 0.02) & (pts[:, 2] > 0)
+            sums += tex.reshape(-1, 3)[r.texel][sel].sum(axis=0)
+            n += int(sel.sum())
+        out.append(np.round(sums / max(n, 1), 3).tolist())
+    return f"{out[0]} / {out[1]}"
+
+
+def sample_seams(model, folder, size):
+    case_path = Path(folder) / "sample.json"
+    if not case_path.is_file():
+        print(f"  sample: {case_path} is missing (./run sample); seams not measured")
+        return
+    case = load_landmarks(case_path, known_names=model)
+    result = fit_head(model, case)
+    photos = {v: read_photo(case.image_path(v)) for v in case.views}
+    views = [(photos[v], result.cameras[v]) for v in case.views]
+    sim = (result.scale, result.rotation, result.translation)
+    print(f"  sample seams ({folder}, views {', '.join(case.views)}, texture {size}^2 per "
+          f"tile; band: both passes >= 20 % of the weight, {CELL}x{CELL} texel cells):")
+    for label, opts in (("default (seam feather on)", BakeOptions()),
+                        ("seam feather off", BakeOptions(seam_feather=0.0))):
+        samples = bake_samples(model, result.world_vertices, views, size, similarity=sim,
+                               options=opts)
+        gain, offset = fit_view_gains(samples, opts)
+        gains_only = {t: apply_gains(s.colours, gain, offset) for t, s in samples.items()}
+        levelled = equalised_colours(samples, result.world_vertices, opts)
+        before, gained, after = seam_numbers(samples, [gains_only, levelled])
+        print(f"    {label}: colour difference across the seam band "
+              f"{100 * before.relative:.2f} % before equalisation, "
+              f"{100 * gained.relative:.2f} % with the gains and offsets, "
+              f"{100 * after.relative:.2f} % levelled too ({before.absolute:.4f} -> "
+              f"{gained.absolute:.4f} -> {after.absolute:.4f} of full scale, "
+              f"{before.texels} band texels)")
+    view_of_pass = next(iter(samples.values())).view
+    names = list(case.views)
+    for k, v in enumerate(view_of_pass):
+        print(f"    pass {k} (view {names[v]}): gain {np.round(gain[k], 3).tolist()}, "
+              f"offset {np.round(offset[k], 4).tolist()}")
+    tiles = bake_fit_texture(model, result, photos, size)
+    print(f"    back of the head, mean colour on the subject's left / right (the profile "
+          f"mirrored / seen directly): {back_sides(model, result, tiles)}")
+    head_size = float(np.linalg.norm(np.ptp(result.world_vertices[model.skin], axis=0)))
+    length = BakeOptions().shading_length * head_size
+    for shading in ("keep", "remove"):
+        tiles = bake_fit_texture(model, result, photos, size,
+                                 options=BakeOptions(shading=shading))
+        print(f"    shading {shading}: low-frequency light spread (std / mean of the skin's "
+              f"luminance smoothed over {100 * length:.1f} cm) "
+              f"{100 * light_spread(model, result, tiles, length):.1f} %")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=int, default=1024, help="texels per tile side")
     ap.add_argument("--repeat", type=int, default=5, help="warm bakes timed")
     ap.add_argument("--cold-repeat", type=int, default=3, help="cold bakes timed")
+    ap.add_argument("--sample", default=str(ROOT / "generated" / "sample"),
+                    help="the rendered sample whose seams are measured")
+    ap.add_argument("--seams-only", action="store_true",
+                    help="only the sample's seams (no timing)")
     args, _ = ap.parse_known_args(argv)  # `./run bench` passes its arguments to every bench
 
     model = load_model()
+    if args.seams_only:
+        print("bench_texture: seams of the texture bake")
+        sample_seams(model, args.sample, args.size)
+        return
     views = photos()
     world = model.vertices
     tiles = uv_tiles(model)
@@ -74,12 +213,16 @@ def main(argv=None):
     warm()  # make sure the rasters are cached
     texels = {t: len(uv_raster(model, args.size, tile=t).texel) for t in tiles}
     w = median_time(warm, args.repeat, warmup=0)
+    plain_opts = BakeOptions(equalise=False, seam_feather=0.0)
+    plain = median_time(lambda: bake_tiles(model, world, views, args.size, options=plain_opts),
+                        args.repeat, warmup=0)
     face = median_time(lambda: bake_texture(model, world, views, args.size, tile=tiles[0]),
                        args.repeat, warmup=0)
     print("  covered texels: " + ", ".join(f"{t}: {n}" for t, n in texels.items()))
     print(line("UV raster build (all tiles):", rt))
     print(line("cold bake (raster + bake):", c))
     print(line("warm bake, all tiles:", w))
+    print(line("  without equalise, seam fade:", plain))
     print(line(f"warm bake, tile {tiles[0]} only:", face))
     print(f"  load average during the run: {load_average()} (wall times grow with other "
           "jobs; CPU time less so)")
@@ -90,6 +233,7 @@ def main(argv=None):
     print(f"  peak traced memory: warm bake {peak_warm / 2**20:.0f} MiB, cold bake "
           f"{peak_cold / 2**20:.0f} MiB; process max RSS {max_rss_mb():.0f} MiB "
           "(model included)")
+    sample_seams(model, args.sample, args.size)
 
 
 if __name__ == "__main__":

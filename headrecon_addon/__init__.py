@@ -15,10 +15,12 @@ from . import (
     properties,
     reference_head,
     result_ops,
+    texture_ops,
 )
 
 CLASSES = (*properties.CLASSES, *reference_head.CLASSES, *photos.CLASSES,
-           *landmark_ops.CLASSES, *fit_ops.CLASSES, *result_ops.CLASSES, *panels.CLASSES)
+           *landmark_ops.CLASSES, *fit_ops.CLASSES, *result_ops.CLASSES, *texture_ops.CLASSES,
+           *panels.CLASSES)
 
 _register_classes, _unregister_classes = bpy.utils.register_classes_factory(CLASSES)
 

@@ -18,6 +18,7 @@ from pathlib import Path
 MANIFEST_SUFFIXES = (".csv", ".jsonl")
 METHODS = ("combined", "approach1", "approach2")
 TRUE, FALSE = ("1", "true", "yes"), ("0", "false", "no")
+SHADINGS = ("keep", "remove")  # the solver's BakeOptions.shading (this module imports no solver)
 
 
 def _positive_int(text):
@@ -33,6 +34,12 @@ def _positive_int(text):
 def _method(text):
     if text not in METHODS:
         raise ValueError(f"{text!r} is not one of {', '.join(METHODS)}")
+    return text
+
+
+def _shading(text):
+    if text not in SHADINGS:
+        raise ValueError(f"{text!r} is not one of {', '.join(SHADINGS)}")
     return text
 
 
@@ -52,6 +59,7 @@ OPTION_COLUMNS = {
     "regional": ("regional", _positive_int),
     "exact": ("exact", _flag),
     "texture_size": ("texture_size", _positive_int),
+    "texture_shading": ("texture_shading", _shading),
     "bake_identity": ("bake_identity", _flag),
 }
 KNOWN_COLUMNS = ("name", "landmarks", "photos", *OPTION_COLUMNS)

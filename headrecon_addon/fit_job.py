@@ -12,7 +12,14 @@ import time
 
 from . import result_to_scene, scene_to_case
 from .live_refit import LIVE
-from .solver_link import LandmarksError, bake_fit_texture, check_case, fit_head, load_model
+from .solver_link import (
+    BakeOptions,
+    LandmarksError,
+    bake_fit_texture,
+    check_case,
+    fit_head,
+    load_model,
+)
 
 
 class FitCancelled(Exception):
@@ -29,6 +36,7 @@ class FitJob:
     photos: dict
     texture_size: int = 1024
     bake: bool = True
+    texture_shading: str = "keep"
     result: object = None
     calibration: dict = dataclasses.field(default_factory=dict)
     calibration_notes: list = dataclasses.field(default_factory=list)
@@ -65,7 +73,8 @@ class FitJob:
             self.progress(1.0, "baking the texture")
             t = time.perf_counter()
             self.textures = bake_fit_texture(self.model, self.result, self.photos,
-                                             size=self.texture_size)
+                                             size=self.texture_size,
+                                             options=BakeOptions(shading=self.texture_shading))
             self.timings["bake"] = time.perf_counter() - t
         except BaseException as e:  # noqa: B036
             self.error = e
@@ -98,7 +107,8 @@ def prepare_job(scene):
         raise LandmarksError("scene", problems)
     return FitJob(model=model, case=case, options=scene_to_case.options_from_props(props),
                   photos=scene_to_case.photo_arrays(scene) if props.bake_texture else {},
-                  texture_size=int(props.texture_size), bake=props.bake_texture)
+                  texture_size=int(props.texture_size), bake=props.bake_texture,
+                  texture_shading=props.texture_shading)
 
 
 def apply_job(scene, job, textures=True):

@@ -48,6 +48,8 @@ if __package__:
     )
     from .data import Transaction
     from .solver_link import (
+        SHADING_MODES,
+        BakeOptions,
         FitOptions,
         bake_fit_texture,
         fit_head,
@@ -97,7 +99,7 @@ def _only(case, view):
 
 
 def build_scene_from_fit(model, case, result, images=None, scene=None, texture_size=1024,
-                         bake=True, name=None, textures=None):
+                         bake=True, name=None, textures=None, texture_shading="keep"):
     """Build the artist's scene for a finished fit: photo planes with landmarks (and
     contour, passpoints), a Blender camera per perspective photo set to its fitted camera,
     and the head with shape keys, transform, uncertainty and baked texture; the residual
@@ -122,6 +124,8 @@ def build_scene_from_fit(model, case, result, images=None, scene=None, texture_s
     textures : dict of int -> ndarray (S, S, 3|4), optional
         A bake the caller already has (``bake_fit_texture(model, result, ...)``, UDIM tile
         -> texture, row 0 at the top): used as it is, nothing is baked again.
+    texture_shading : str
+        ``BakeOptions.shading`` of the bake: "keep" or "remove" the photos' light.
 
     Returns
     -------
@@ -140,7 +144,8 @@ def build_scene_from_fit(model, case, result, images=None, scene=None, texture_s
             arrays = {v: photos.image_to_array(img) for v, img in imgs.items()
                       if not img.get(photos.PLACEHOLDER)}
             if arrays:
-                textures = bake_fit_texture(model, result, arrays, size=int(texture_size))
+                textures = bake_fit_texture(model, result, arrays, size=int(texture_size),
+                                            options=BakeOptions(shading=texture_shading))
         calibration, _ = result_to_scene.calibration_checks(case)
         head = result_to_scene.apply_result(scene, model, result, textures, name=name,
                                             calibration=calibration)
@@ -249,7 +254,9 @@ def write_head(task, model):
         arrays = {v: photos.image_to_array(img) for v, img in imgs.items()
                   if not img.get(photos.PLACEHOLDER)}
         if arrays:
-            tiles = bake_fit_texture(model, result, arrays, size=int(settings["texture_size"]))
+            tiles = bake_fit_texture(
+                model, result, arrays, size=int(settings["texture_size"]),
+                options=BakeOptions(shading=settings.get("texture_shading") or "keep"))
     if "texture" in kinds and tiles is None:
         raise ValueError(f"{task['where']}: no photo to bake the texture from")
     base.parent.mkdir(parents=True, exist_ok=True)
@@ -367,6 +374,9 @@ def _parser():
     p.add_argument("--exact", action="store_true", help="make the landmarks hit exactly")
     p.add_argument("--texture-size", type=int, default=1024)
     p.add_argument("--no-texture", action="store_true", help="do not bake a texture")
+    p.add_argument("--texture-shading", choices=SHADING_MODES, default="keep",
+                   help="keep the photos' light in the texture, or remove its low-frequency "
+                        "part for a flat, albedo-like texture (default keep)")
     p.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     return p
 
@@ -386,7 +396,8 @@ def _settings(args):
     if args.no_texture and "texture" in kinds:
         raise ValueError("--outputs texture: the texture is not baked with --no-texture")
     return {"outputs": [k for k in OUTPUTS if k in kinds], "bake": not args.no_texture,
-            "texture_size": args.texture_size, "bake_identity": args.bake_identity,
+            "texture_size": args.texture_size, "texture_shading": args.texture_shading,
+            "bake_identity": args.bake_identity,
             "morph_normals": args.morph_normals, "method": args.method,
             "components": args.components, "regional": args.regional,
             "exact": args.exact}

@@ -156,6 +156,9 @@ class HEADRECON_PT_fit(_Panel, bpy.types.Panel):
         sub = col.row()
         sub.enabled = props.bake_texture
         sub.prop(props, "texture_size")
+        sub = col.row()
+        sub.enabled = props.bake_texture
+        sub.prop(props, "texture_shading")
         layout.operator("headrecon.fit", icon="MOD_SHRINKWRAP")
         row = layout.row(align=True)
         row.prop(props, "live_refit", toggle=True, icon="PLAY")
@@ -224,6 +227,7 @@ class HEADRECON_PT_result(_Panel, bpy.types.Panel):
                      icon="ACTION")
         col.operator("headrecon.export_head", text="Export Head (.glb / .fbx)...",
                      icon="EXPORT")
+        col.operator("headrecon.save_texture", icon="IMAGE_DATA")
 
 
 CLASSES = (HEADRECON_PT_head, HEADRECON_PT_photos, HEADRECON_PT_calibration,

@@ -213,6 +213,13 @@ class HEADRECON_PG_scene(bpy.types.PropertyGroup):
                                            "each tile); larger bakes take longer")
     bake_texture: BoolProperty(name="Bake Texture", default=True,
                                description="Bake the photos into the head's texture")
+    texture_shading: EnumProperty(
+        name="Shading", default="keep",
+        items=(("keep", "Keep", "Keep the photos' light and shadows in the texture"),
+               ("remove", "Remove", "Divide out the photos' soft light (a smoothed "
+                                    "brightness) for a flat, albedo-like texture to light "
+                                    "in Blender; fine shadows stay")),
+        description="What the baked texture keeps of the light in the photos")
     live_refit: BoolProperty(name="Live Refit", default=False, update=_on_live_refit,
                              description="Refit while a landmark is moved, so the head "
                                          "follows (run Fit once first)")

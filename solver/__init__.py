@@ -39,13 +39,14 @@ from .io.landmarks_file import (
     save_landmarks,
 )
 from .model.head_model import HeadModel, load_model
-from .texture.bake import bake_fit_texture, bake_texture
+from .texture.bake import SHADING_MODES, BakeOptions, bake_fit_texture, bake_texture
 from .texture.uvs import orthographic_uvs, uv_raster, uv_tiles
 
 __all__ = [
     "CURRENT_VERSION", "FORMAT", "MIN_LANDMARKS_PER_VIEW", "MIN_LANDMARKS_TOTAL",
-    "MIN_PASSPOINTS", "ORTHO_VIEWS", "Camera", "DLTCamera", "FitOptions", "FitResult",
-    "HeadModel", "LandmarkCase", "LandmarksError", "OrthographicCamera", "PinholeCamera",
+    "MIN_PASSPOINTS", "ORTHO_VIEWS", "SHADING_MODES", "BakeOptions", "Camera", "DLTCamera",
+    "FitOptions", "FitResult", "HeadModel", "LandmarkCase", "LandmarksError",
+    "OrthographicCamera", "PinholeCamera",
     "View", "ViewResidual", "bake_fit_texture", "bake_texture", "blender_to_krc",
     "camera_class", "camera_from_dict", "camera_from_json", "camera_to_json", "check_case",
     "check_passpoints", "count_problems", "dlt_to_blender", "fit_dlt", "fit_head",

@@ -255,11 +255,12 @@ def _cmd_fit(args):
 
     tiles = None
     if args.texture:
-        from .texture.bake import bake_fit_texture
+        from .texture.bake import BakeOptions, bake_fit_texture
 
         progress(1.0, f"baking the texture from {len(photos)} photo(s)")
         t = time.perf_counter()
-        tiles = bake_fit_texture(model, result, photos, size=args.texture_size)
+        tiles = bake_fit_texture(model, result, photos, size=args.texture_size,
+                                 options=BakeOptions(shading=args.texture_shading))
         timings["texture"] = time.perf_counter() - t
 
     progress(1.0, f"writing {args.out}")
@@ -463,6 +464,10 @@ def build_parser():
     fit.add_argument("--texture-size", type=_texture_size, default=1024, metavar="PX",
                      help="texture height in pixels, and width per UV tile (default 1024; "
                           "the skin's two tiles make a 2048x1024 image)")
+    fit.add_argument("--texture-shading", choices=("keep", "remove"), default="keep",
+                     help="keep the photos' light in the texture, or remove its "
+                          "low-frequency part (a smoothed luminance divided out) for a flat, "
+                          "albedo-like texture (default keep)")
     fit.add_argument("--report", metavar="REPORT.json",
                      help="write residuals, coefficients, uncertainty and timings as JSON")
     fit.add_argument("--method", choices=("combined", "approach1", "approach2"),

@@ -5,8 +5,13 @@ Each texel's surface point is projected into every photo, sampled where the phot
 (depth-buffer occlusion test) and blended by how squarely the surface faces that photo; a
 profile photo is also used mirrored across the head's mid-sagittal plane so the far cheek
 gets the near cheek's colours; what no photo sees is filled smoothly over the mesh, and the
-UV islands get a few texels of bleed so mipmapping shows no seams. :func:`bake_tiles`
-returns one texture per UDIM tile, :func:`bake_texture` one tile.
+UV islands get a few texels of bleed so mipmapping shows no seams. Before blending, the
+photos are equalised (a gain and an offset per photo, then a smooth levelling of each
+photo pass to the reference: ``equalise.py``, ``levelling.py``) and each one's weight fades
+in from the edge of what it sees (``seams.py``); the light can be divided out
+(``shading.py``, an option).
+:func:`bake_tiles` returns one texture per UDIM tile, :func:`bake_texture` one tile;
+:func:`bake_samples` the photo passes unblended (to measure them against each other).
 
 Photo convention: pixel (u, v) with the origin at the image's top-left corner and the
 image spanning [0, W] x [0, H], so pixel (i, j) is centred on (i + 0.5, j + 0.5) (the
@@ -33,7 +38,11 @@ import scipy.sparse.linalg as spla
 
 from ..errors import as_points
 from ..geometry import vertex_normals
+from .equalise import apply_gains, default_reference, fit_gains
+from .levelling import level_field
 from .raster import depth_buffer
+from .seams import edge_graph, seam_fade
+from .shading import remove_shading, shading_factor
 from .uvs import BLEED, SKIN_PARTS, UVRaster, resolve_parts, selected_triangles, uv_raster, uv_tiles
 
 #: Longest photo side the bake samples, per texel of the texture's height: a photo larger
@@ -41,6 +50,18 @@ from .uvs import BLEED, SKIN_PARTS, UVRaster, resolve_parts, selected_triangles,
 #: about a quarter of a portrait photo's height, so 4 photo pixels per texel still give
 #: each texel its own pixel on a face a quarter of the photo high.
 PHOTO_PIXELS_PER_TEXEL = 4
+
+#: ``BakeOptions.shading``: keep the photos' light, or remove its low-frequency part.
+SHADING_MODES = ("keep", "remove")
+
+#: Overlap texels the colour equalisation is fitted on at most (every k-th is taken): the
+#: twelve numbers per photo are settled long before that.
+EQUALISE_TEXELS = 50_000
+
+#: Least blend weight (``cos ** power``, times ``mirror_weight`` for a mirrored pass) of
+#: both passes at a texel the levelling matches them on: 0.02 is about 75 degrees off each
+#: camera at power 3; grazing samples near a photo's outline are darker and blurred.
+LEVEL_WEIGHT = 0.02
 
 
 def bake_photo_size(photo_size, texture_size):
@@ -99,6 +120,36 @@ class BakeOptions:
     bleed : int
         Texels outside the UV islands that copy their nearest island texel, so filtering
         and mipmaps never sample the background colour at a seam.
+    equalise : bool
+        Fit a gain and an offset per channel to every photo but the reference (the one
+        that overlaps the others most, normally the front photo) on the texels two photos
+        see directly, and apply them before blending (a profile used mirrored takes its
+        photo's; ``fit_view_gains``, ``equalise.fit_gains``), so photos of another exposure
+        or white balance meet without a step.
+    level : bool
+        With ``equalise``: then level every photo pass but the reference to it with a
+        smooth additive correction over the surface (``levelling.level_field``), for the
+        step a global gain leaves where the light differs from place to place (a profile
+        used mirrored carries the other cheek's light).
+    level_length : float
+        Smoothing length of that correction, as a fraction of the head's size (0.015: about
+        7 mm; measured in docs/DECISIONS.md, "Texture seams").
+    level_decay : float
+        Distance over which that correction fades away from the overlap, as a fraction
+        of the head's size (0.1: about 5 cm), so a photo keeps its own colours far from its
+        seams.
+    seam_feather : float
+        Width over which a photo's weight fades in from the edge of what it sees on the
+        surface (occlusion edges, where it faces away), as a fraction of the head's size
+        (0.03: about 1.5 cm; 0: off; ``seams.seam_fade``). Only the shares of the photos
+        change, not the texel's total weight.
+    shading : str
+        "keep" the photos' light in the texture, or "remove" its low-frequency part (a
+        smoothed luminance over the surface, divided out: ``shading.py``) for a flat,
+        albedo-like texture.
+    shading_length : float
+        Smoothing length of the light estimate, as a fraction of the head's size (0.06:
+        about 3 cm).
     """
 
     power: float = 3.0
@@ -109,6 +160,13 @@ class BakeOptions:
     depth_tolerance: float = 0.01
     feather: float = 0.02
     bleed: int = BLEED
+    equalise: bool = True
+    level: bool = True
+    level_length: float = 0.015
+    level_decay: float = 0.1
+    seam_feather: float = 0.03
+    shading: str = "keep"
+    shading_length: float = 0.06
 
     def __post_init__(self):
         checks = {"power": self.power > 0, "mirror_weight": self.mirror_weight >= 0,
@@ -116,7 +174,11 @@ class BakeOptions:
                   "fill_weight": self.fill_weight > 0,
                   "depth_resolution": self.depth_resolution >= 8,
                   "depth_tolerance": self.depth_tolerance >= 0, "feather": self.feather >= 0,
-                  "bleed": self.bleed >= 0}
+                  "bleed": self.bleed >= 0, "seam_feather": self.seam_feather >= 0,
+                  "shading": self.shading in SHADING_MODES,
+                  "shading_length": self.shading_length > 0,
+                  "level_length": self.level_length > 0,
+                  "level_decay": self.level_decay > self.level_length}
         for name, ok in checks.items():
             if not ok:
                 raise ValueError(f"BakeOptions.{name}: out of range ({getattr(self, name)!r})")
@@ -182,15 +244,7 @@ def bake_tiles(model, world_vertices, views, size=1024, *, parts=None, similarit
         UDIM tile number -> texture.
     """
     opts = _options(options)
-    tiles = uv_tiles(model, parts)
-    rs = []
-    for t in tiles:
-        r = (rasters or {}).get(t)
-        if r is None:
-            r = uv_raster(model, size, parts=parts, tile=t, bleed=opts.bleed)
-        else:
-            _check_raster(r, model, size, parts, t)
-        rs.append(r)
+    rs = _rasters(model, size, parts, rasters, opts)
     return _bake(model, world_vertices, views, rs, parts, occluders, similarity, mirror, opts)
 
 
@@ -441,9 +495,116 @@ def _bilinear(texels, w, u, v):
     return top
 
 
-def _bake(model, world_vertices, views, rasters, parts, occluders, similarity, mirror,
-          options):
-    opts = options
+@dataclass(frozen=True, eq=False)
+class TileSamples:
+    """What every photo pass says about one UV tile's texels, before they are blended.
+
+    A pass is a photo as seen directly, or a profile photo used mirrored
+    (``BakeOptions.mirror_weight``); passes are in the order of the views, each view's
+    direct pass before its mirrored one.
+
+    Attributes
+    ----------
+    raster : UVRaster
+    colours : ndarray, shape (P, N, 3), float32
+        Each pass's colour at the raster's texels (0 where it does not see them).
+    weights : ndarray, shape (P, N), float32
+        Each pass's blend weight (after the seam fade; 0 where it does not see them).
+    seen : ndarray, shape (P, N), float32
+        The weights before the seam fade (what the pass sees, how squarely).
+    view : ndarray, shape (P,), int
+        The view (index into ``views``) of each pass.
+    """
+
+    raster: UVRaster
+    colours: np.ndarray
+    weights: np.ndarray
+    seen: np.ndarray
+    view: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class _Context:
+    world: np.ndarray
+    normals: np.ndarray
+    samplers: list
+    plane: tuple
+    head_size: float
+    opts: BakeOptions
+
+
+def bake_samples(model, world_vertices, views, size=1024, *, parts=None, similarity=None,
+                 mirror=True, occluders=None, rasters=None, options=None):
+    """Every photo pass's colours and weights on every UV tile, unblended (what
+    :func:`bake_tiles` equalises and blends; for measuring the views against each other).
+
+    Parameters are those of :func:`bake_tiles`.
+
+    Returns
+    -------
+    dict of int -> TileSamples
+        UDIM tile number -> the tile's samples.
+    """
+    opts = _options(options)
+    rs = _rasters(model, size, parts, rasters, opts)
+    ctx = _context(model, world_vertices, views, rs, parts, occluders, similarity, mirror,
+                   opts)
+    return _samples(ctx, rs)
+
+
+def fit_view_gains(samples, options=None):
+    """Each pass's gain and offset per channel (``equalise.fit_gains``) from the samples of
+    every tile (:func:`bake_samples`): one gain and offset per photo, fitted on the texels
+    two photos see directly, the photo that overlaps the others most (normally the front)
+    fixed. A profile's mirrored pass takes its photo's: the exposure is the photo's, while
+    the other cheek's light it carries is the levelling's to match
+    (:func:`equalised_colours`; measured in docs/DECISIONS.md, "Texture seams").
+
+    Returns
+    -------
+    gain, offset : ndarray, shape (P, 3)
+        Identity (ones, zeros) when ``options.equalise`` is off.
+    """
+    opts = _options(options)
+    first = next(iter(samples.values()))
+    view = first.view
+    p = len(view)
+    direct = np.flatnonzero(np.r_[True, view[1:] != view[:-1]])  # each view's first pass
+    if not opts.equalise or len(direct) < 2:
+        return np.ones((p, 3)), np.zeros((p, 3))
+    seen = {t: s.seen[direct] for t, s in samples.items()}
+    both = {t: np.flatnonzero((w > 0).sum(axis=0) >= 2) for t, w in seen.items()}
+    step = max(1, sum(len(b) for b in both.values()) // EQUALISE_TEXELS)
+    cols = [s.colours[direct][:, both[t][::step]] for t, s in samples.items()]
+    ws = [seen[t][:, both[t][::step]] for t in samples]
+    row = np.searchsorted(direct, np.arange(p), side="right") - 1  # pass -> its photo's row
+    gain, offset = fit_gains(np.concatenate(cols, axis=1), np.concatenate(ws, axis=1),
+                             reference=int(row[view_reference(samples)]))
+    return gain[row], offset[row]
+
+
+def view_reference(samples):
+    """The pass the others are equalised to (``equalise.default_reference`` over every
+    tile's weights: the one that overlaps the others most, normally the front photo)."""
+    cols = [s.seen[:, ::max(1, s.seen.shape[1] // EQUALISE_TEXELS)]
+            for s in samples.values()]
+    return default_reference(np.concatenate(cols, axis=1))
+
+
+def _rasters(model, size, parts, rasters, opts):
+    rs = []
+    for t in uv_tiles(model, parts):
+        r = (rasters or {}).get(t)
+        if r is None:
+            r = uv_raster(model, size, parts=parts, tile=t, bleed=opts.bleed)
+        else:
+            _check_raster(r, model, size, parts, t)
+        rs.append(r)
+    return rs
+
+
+def _context(model, world_vertices, views, rasters, parts, occluders, similarity, mirror,
+             opts):
     n_vertices = int(np.asarray(model.vertices).shape[0])
     world = as_points(world_vertices, "world_vertices")
     if len(world) != n_vertices:
@@ -480,30 +641,59 @@ def _bake(model, world_vertices, views, rasters, parts, occluders, similarity, m
         else:
             use_mirror = mirror_flags[i]
         samplers.append((s, use_mirror))
+    return _Context(world, normals, samplers, (point, normal_m), head_size, opts)
 
+
+def _bake(model, world_vertices, views, rasters, parts, occluders, similarity, mirror,
+          options):
+    ctx = _context(model, world_vertices, views, rasters, parts, occluders, similarity,
+                   mirror, options)
+    samples = _samples(ctx, rasters)
+    colours = equalised_colours(samples, ctx.world, ctx.opts, ctx.head_size)
+    blended = {t: _blend(s, colours[t], ctx.opts) for t, s in samples.items()}
+    if ctx.opts.shading == "remove":
+        _remove_shading(blended, rasters, ctx)
     out = {}
     for raster in rasters:
-        out[raster.tile] = _bake_tile(raster, world, normals, samplers, point, normal_m, opts)
+        size = raster.size
+        tex = np.empty((size * size, 3), np.float32)
+        acc = blended[raster.tile]
+        if len(raster.texel) == 0:
+            tex[:] = 0.5
+        else:
+            tex[:] = acc.mean(axis=0)
+            tex[raster.texel] = acc
+            tex[raster.bleed_to] = tex[raster.bleed_from]
+        out[raster.tile] = tex.reshape(size, size, 3)
     return out
 
 
-def _bake_tile(raster, world, normals, samplers, plane_point, plane_normal, opts):
-    size = raster.size
-    tex = np.empty((size * size, 3), np.float32)
-    n = len(raster.texel)
-    if n == 0:
-        tex[:] = 0.5
-        return tex.reshape(size, size, 3)
+def _samples(ctx, rasters):
+    samples = {r.tile: _sample_tile(r, ctx) for r in rasters}
+    if ctx.opts.seam_feather > 0:
+        _fade_seams(samples, rasters, ctx)
+    return samples
 
+
+def _sample_tile(raster, ctx):
+    """Colours (P, N, 3) and weights (P, N) of every pass at the raster's texels."""
+    opts = ctx.opts
+    n = len(raster.texel)
     # Every per-vertex quantity the passes need goes through the sparse interpolation in
     # one product: (normal | per pass: pixel u, v, depth [, toward x, y, z]).
-    passes = []
-    for sampler, use_mirror in samplers:
+    passes, view = [], []
+    for i, (sampler, use_mirror) in enumerate(ctx.samplers):
         passes.append((sampler, sampler.direct, 1.0))
+        view.append(i)
         if use_mirror and opts.mirror_weight > 0:
-            passes.append((sampler, sampler.mirror(world, plane_point, plane_normal),
-                           opts.mirror_weight))
-    columns = [normals.astype(np.float32)]
+            passes.append((sampler, sampler.mirror(ctx.world, *ctx.plane), opts.mirror_weight))
+            view.append(i)
+    view = np.array(view)
+    colours = np.zeros((len(passes), n, 3), np.float32)
+    weights = np.zeros((len(passes), n), np.float32)
+    if n == 0:
+        return TileSamples(raster, colours, weights, weights, view)
+    columns = [ctx.normals.astype(np.float32)]
     for _, (uvz, toward), _ in passes:
         columns.append(uvz)
         if toward.ndim == 2:
@@ -511,11 +701,8 @@ def _bake_tile(raster, world, normals, samplers, plane_point, plane_normal, opts
     values = raster.interp @ np.hstack(columns)
     nrm = values[:, :3]
     nrm /= np.maximum(np.sqrt(np.einsum("ij,ij->i", nrm, nrm)), 1e-30)[:, None]
-
-    acc = np.zeros((n, 3), np.float32)
-    wsum = np.zeros(n, np.float32)
     col = 3
-    for sampler, (_, toward), factor in passes:
+    for k, (sampler, (_, toward), factor) in enumerate(passes):
         uvz = values[:, col:col + 3]
         col += 3
         if toward.ndim == 1:
@@ -524,18 +711,134 @@ def _bake_tile(raster, world, normals, samplers, plane_point, plane_normal, opts
             cos = np.einsum("ij,ij->i", nrm, values[:, col:col + 3])
             col += 3
         idx, w, rgb = sampler.sample(nrm, cos, uvz, factor)
-        acc[idx] += w[:, None] * rgb
-        wsum[idx] += w
+        colours[k, idx] = rgb
+        weights[k, idx] = w
+    return TileSamples(raster, colours, weights, weights.copy(), view)
 
+
+def _fade_seams(samples, rasters, ctx):
+    """Fade each pass's weights over ``seam_feather`` from the edge of what it sees on the
+    surface (``seams.seam_fade``), keeping every texel's total weight."""
+    n_vertices = len(ctx.world)
+    tris = np.concatenate([r.triangles for r in rasters])
+    graph = edge_graph(ctx.world, tris)
+    cover = np.zeros(n_vertices)
+    for r in rasters:
+        cover[r.vertices] += np.asarray(r.gather.sum(axis=1)).ravel()
+    p = next(iter(samples.values())).weights.shape[0]
+    width = ctx.opts.seam_feather * ctx.head_size
+    fades = []
+    for k in range(p):
+        seen = np.zeros(n_vertices)
+        for r in rasters:
+            seen[r.vertices] += r.gather @ (samples[r.tile].seen[k] > 0).astype(np.float32)
+        unseen = (cover > 0) & (seen < 0.5 * cover)
+        fades.append(seam_fade(unseen, graph, width).astype(np.float32))
+    fade = np.stack(fades, axis=1)  # (V, P)
+    for r in rasters:
+        s = samples[r.tile]
+        if not len(r.texel):
+            continue
+        f = np.maximum(r.interp @ fade, np.float32(1e-3)).T  # (P, N)
+        w = s.seen * f
+        total, faded = s.seen.sum(axis=0), w.sum(axis=0)
+        w *= np.where(faded > 0, total / np.maximum(faded, 1e-30), 0.0)[None]
+        s.weights[:] = w
+
+
+def equalised_colours(samples, world, options=None, head_size=None):
+    """Every pass's colours after the equalisation: the gains and offsets of
+    :func:`fit_view_gains`, then each pass but the reference levelled to it
+    (``levelling.level_field``, with ``BakeOptions.level``).
+
+    Parameters
+    ----------
+    samples : dict of int -> TileSamples
+        From :func:`bake_samples`.
+    world : ndarray, shape (V, 3), metres
+        The head the samples were taken on.
+    options : BakeOptions, optional
+    head_size : float, optional
+        Metres the options' relative lengths refer to; default the rasters' vertices'
+        bounding-box diagonal.
+
+    Returns
+    -------
+    dict of int -> ndarray (P, N, 3) float32
+    """
+    opts = _options(options)
+    gain, offset = fit_view_gains(samples, opts)
+    out = {t: apply_gains(s.colours, gain, offset) for t, s in samples.items()}
+    p = len(gain)
+    if not (opts.equalise and opts.level and p > 1):
+        return out
+    world = np.asarray(world, dtype=np.float64)
+    rasters = [s.raster for s in samples.values()]
+    tris = np.concatenate([r.triangles for r in rasters])
+    if head_size is None:
+        used = np.unique(tris)
+        head_size = float(np.linalg.norm(np.ptp(world[used], axis=0)))
+    ref = view_reference(samples)
+    n_vertices = len(world)
+    cover = np.zeros(n_vertices)
+    for r in rasters:
+        cover[r.vertices] += np.asarray(r.gather.sum(axis=1)).ravel()
+    for k in range(p):
+        if k == ref:
+            continue
+        both = np.zeros(n_vertices)
+        diff = np.zeros((n_vertices, 3))
+        strength = np.zeros(n_vertices)
+        for t, s in samples.items():
+            r = s.raster
+            om = np.minimum(s.seen[ref], s.seen[k])
+            om *= om >= np.float32(LEVEL_WEIGHT)  # grazing samples (an outline) say little
+            diff[r.vertices] += r.gather @ (om[:, None] * (out[t][ref] - out[t][k]))
+            both[r.vertices] += r.gather @ om
+            strength[r.vertices] += r.gather @ (om > 0).astype(np.float32)
+        if not (both > 0).any():
+            continue
+        diff /= np.maximum(both, 1e-30)[:, None]
+        share = np.where(cover > 0, strength / np.maximum(cover, 1e-30), 0.0)
+        field = level_field(diff, share, world, tris, opts.level_length * head_size,
+                            decay=opts.level_decay * head_size)
+        for t, s in samples.items():
+            out[t][k] += (s.raster.interp @ field.astype(np.float32)) * (s.seen[k] > 0)[:, None]
+    return out
+
+
+def _blend(samples, colours, opts):
+    """The texels' colours (N, 3): the passes' (equalised) ``colours`` (P, N, 3) blended,
+    the smooth fill where they see little."""
+    raster = samples.raster
+    w = samples.weights
+    acc = np.einsum("pn,pnc->nc", w, colours)
+    wsum = w.sum(axis=0)
+    if not len(raster.texel):
+        return acc
     fill = _smooth_fill(raster, acc, wsum, opts.fill_weight)
     short = np.maximum(opts.fill_weight - wsum, 0.0)
     acc += short[:, None] * fill
     acc /= (wsum + short)[:, None]
+    return np.clip(acc, 0.0, 1.0)
 
-    tex[:] = acc.mean(axis=0)
-    tex[raster.texel] = acc
-    tex[raster.bleed_to] = tex[raster.bleed_from]
-    return tex.reshape(size, size, 3)
+
+def _remove_shading(blended, rasters, ctx):
+    """Divide the low-frequency light out of the blended texels of every tile (in place),
+    the light estimated on the surface across the tiles (``shading.shading_factor``)."""
+    n_vertices = len(ctx.world)
+    colour = np.zeros((n_vertices, 3))
+    cover = np.zeros(n_vertices)
+    for r in rasters:
+        colour[r.vertices] += r.gather @ blended[r.tile]
+        cover[r.vertices] += np.asarray(r.gather.sum(axis=1)).ravel()
+    has = cover > 0
+    colour[has] /= cover[has, None]
+    tris = np.concatenate([r.triangles for r in rasters])
+    factor = shading_factor(colour, ctx.world, tris, ctx.opts.shading_length * ctx.head_size)
+    factor[~has] = 1.0
+    for r in rasters:
+        blended[r.tile] = remove_shading(blended[r.tile], r.interp @ factor).astype(np.float32)
 
 
 def _smooth_fill(raster, acc, wsum, fill_weight):

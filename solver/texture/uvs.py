@@ -287,7 +287,7 @@ def _build_raster(model, size, idx, names, tile, bleed):
     interp.sum_duplicates()
 
     verts = np.unique(tri_vertex)
-    lap = _cotan_laplacian(np.asarray(model.vertices, dtype=np.float64)[verts],
+    lap = cotan_laplacian(np.asarray(model.vertices, dtype=np.float64)[verts],
                            np.searchsorted(verts, tri_vertex))
 
     covered = np.zeros((size, size), dtype=bool)
@@ -304,7 +304,7 @@ def _build_raster(model, size, idx, names, tile, bleed):
                     lap, bleed_to, bleed_from)
 
 
-def _cotan_laplacian(points, triangles):
+def cotan_laplacian(points, triangles):
     """Cotangent Laplacian (M, M) of a triangle mesh, weights clamped positive.
 
     Geometric weights make the hole fill follow surface distance rather than mesh

@@ -169,6 +169,27 @@ def test_output_choices(heads, tmp_path):
                           "--no-texture"]) == 2
 
 
+def test_texture_shading_option_and_column(heads, tmp_path):
+    from headrecon_addon import headless
+    from headrecon_addon.batch_manifest import plan_heads
+
+    textures = {}
+    for shading in ("keep", "remove"):
+        out = tmp_path / shading
+        assert headless.main([str(heads / "h3.json"), "--out", str(out), "--components", "10",
+                              "--texture-size", "64", "--outputs", "texture,report",
+                              "--texture-shading", shading]) == 0
+        report = json.loads((out / "h3.report.json").read_text())
+        assert report["options"]["texture_shading"] == shading
+        textures[shading] = (out / "h3_texture.png").read_bytes()
+    assert textures["keep"] != textures["remove"]  # the option reached the bake
+    m = _manifest(tmp_path, ["a,a.json,remove", "b,b.json,", "c,c.json,flat"],
+                  header="name,landmarks,texture_shading")
+    a, b, c = plan_heads([m], tmp_path / "out")
+    assert a.options == {"texture_shading": "remove"} and b.options == {}
+    assert c.error == f"{m} row 4: column texture_shading: 'flat' is not one of keep, remove"
+
+
 def test_a_killed_batch_loses_only_heads_in_flight(heads, tmp_path):
     m = _manifest(heads, [f"h{i},h{i}.json,10" for i in range(4)])
     out = tmp_path / "out"

@@ -424,3 +424,36 @@ def test_detect_errors_name_the_photo(tmp_path):
     proc = run_cli("detect", tmp_path / "text.png", "--out", tmp_path / "case.json")
     assert_one_line_error(proc, "text.png", "not an image")
     assert not (tmp_path / "case.json").exists()
+
+
+def test_texture_shading_remove_flattens_the_light_of_the_photos(tmp_path, model):
+    from PIL import Image
+
+    from solver.io.landmarks_file import save_landmarks
+    from solver.synthetic import make_case
+
+    case, _ = make_case(model, 17, noise_px=0.5, image_height=256)
+    for name, view in case.views.items():
+        view.image = f"{name}.png"
+        w, h = view.size
+        light = np.linspace(0.3, 1.0, w)[None, :, None]  # a key light from one side
+        img = np.broadcast_to(light * np.array([230, 170, 140]), (h, w, 3))
+        Image.fromarray(img.astype(np.uint8)).save(tmp_path / f"{name}.png")
+    save_landmarks(case, tmp_path / "case.json")
+    spread = {}
+    for shading in ("keep", "remove"):
+        argv = ["fit", "case.json", "--out", f"{shading}/head.obj", "--texture",
+                f"{shading}/head.png", "--texture-size", 64, "--components", 10,
+                "--noise", "fixed", "-q", "--texture-shading", shading, "--report",
+                f"{shading}/report.json"]
+        proc = run_cli(*argv, cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+        with Image.open(tmp_path / shading / "head.png") as tex:
+            lum = np.asarray(tex.convert("L"), dtype=np.float64)
+        spread[shading] = lum.std() / lum.mean()
+        report = json.loads((tmp_path / shading / "report.json").read_text(encoding="utf-8"))
+        assert report["options"]["texture_shading"] == shading
+    assert spread["remove"] < 0.5 * spread["keep"], spread
+    proc = run_cli("fit", "case.json", "--out", "h.obj", "--texture-shading", "flat",
+                   cwd=tmp_path)
+    assert proc.returncode == 2 and "--texture-shading" in proc.stderr

@@ -192,7 +192,10 @@ def test_mirror_uses_the_fitted_similarity():
     world = scale * m.vertices @ rot.T + trans
     cam = OrthographicCamera.nominal("orthographic-right", (W, H))
     img = coded_photo()
-    tex = bake_texture(m, world, [(img, cam)], 128, similarity=(scale, rot, trans))
+    # colours coded by position differ between the direct and the mirrored pass by design:
+    # no equalisation, which would match them
+    tex = bake_texture(m, world, [(img, cam)], 128, similarity=(scale, rot, trans),
+                       options=BakeOptions(equalise=False))
     r, got = texel_colours(m, tex, 128)
     local = r.interp @ m.vertices
     n_local = local / np.linalg.norm(local, axis=1, keepdims=True)
@@ -410,3 +413,69 @@ def test_bake_photo_size_reduces_big_photos_only():
     assert bake_photo_size((768, 1024), 1024) == (768, 1024)
     assert bake_photo_size((11000, 11000), 1024) == (4096, 4096)
     assert bake_photo_size((11000, 5500), 128) == (2048, 1024)
+
+
+# ---------------------------------------------------------------------------------------
+# equalisation between photos
+# ---------------------------------------------------------------------------------------
+
+def _sphere_photo(view, colour_of, size=(192, 192)):
+    """An orthographic photo of the radius-0.1 sphere at the origin coloured by
+    ``colour_of(points (n, 3)) -> (n, 3)``, the background grey."""
+    w, h = size
+    cam = OrthographicCamera.nominal(view, size)
+    yy, xx = np.mgrid[0:h, 0:w] + 0.5
+    px = np.stack([xx.ravel(), yy.ravel()], 1)
+    rot = np.asarray(cam.rotation)
+    # the pixel's line: points p with project(p) = px; p = a u-axis + b v-axis + t dir
+    u0 = cam.project(np.zeros((1, 3)))[0]
+    a = (px[:, 0] - u0[0]) / cam.scale
+    b = (px[:, 1] - u0[1]) / cam.scale
+    r2 = a * a + b * b
+    hit = r2 < 0.1 ** 2
+    depth = -np.sqrt(np.maximum(0.1 ** 2 - r2, 0))  # the near side, toward the camera
+    pts = a[:, None] * rot[0] + b[:, None] * rot[1] + depth[:, None] * rot[2]
+    img = np.full((h * w, 3), 0.5)
+    img[hit] = colour_of(pts[hit])
+    return img.reshape(h, w, 3).astype(np.float32), cam
+
+
+def test_photos_with_another_exposure_meet_without_a_step():
+    from solver.texture.bake import bake_samples, equalised_colours, view_reference
+    from solver.texture.equalise import seam_difference
+
+    m = uv_sphere(n_lon=96, n_lat=48)
+
+    def colour_of(p):  # skin-like: slow colour changes and some detail
+        return np.stack([0.65 + 0.15 * np.sin(25 * p[:, 2]), 0.45 + 0.1 * np.cos(30 * p[:, 0]),
+                         0.35 + 0.1 * np.sin(20 * p[:, 1] + 1)], 1)
+
+    front = _sphere_photo("orthographic-front", colour_of)
+    side_img, side_cam = _sphere_photo("orthographic-right",
+                                       lambda p: colour_of(p) * [0.8, 0.85, 0.9] + 0.03)
+    views = [front, (side_img, side_cam)]
+    opts = BakeOptions(mirror_weight=0.0)  # no mirrored pass: the sphere's colours are not
+    samples = bake_samples(m, m.vertices, views, 128, options=opts)  # symmetric
+    s = samples[1001]
+    cells = s.raster.texel // 4  # 4-texel runs along a row
+    before = seam_difference(s.colours, s.weights, cells)
+    after = seam_difference(equalised_colours(samples, m.vertices, opts)[1001], s.weights,
+                            cells)
+    assert before.relative > 0.08
+    assert after.relative < 0.01
+    # and so in the texture: across the band the colour changes no faster than the
+    # photos' own detail (equalised) against a visible step (not)
+    r = s.raster
+    pts = r.interp @ m.vertices
+    n = pts / np.linalg.norm(pts, axis=1, keepdims=True)
+    truth = colour_of(pts * (0.1 / np.linalg.norm(pts, axis=1, keepdims=True)))
+    if view_reference(samples) == 1:  # the views tie on a sphere: the profile may lead
+        truth = truth * [0.8, 0.85, 0.9] + 0.03
+    band = (n[:, 1] < -0.2) & (n[:, 0] < -0.2) & (np.abs(n[:, 2]) < 0.5)
+    assert band.sum() > 200
+    err = {}
+    for equalise in (False, True):
+        tex = bake_texture(m, m.vertices, views, 128,
+                           options=BakeOptions(mirror_weight=0.0, equalise=equalise))
+        err[equalise] = np.abs(tex.reshape(-1, 3)[r.texel][band] - truth[band]).mean()
+    assert err[True] < 0.01 < err[False], err
