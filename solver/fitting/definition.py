@@ -27,13 +27,26 @@ def group_terms(labels, weights, jac, sigma_m):
     safe = np.where(wsum > 0, wsum, 1.0)
     m = np.where(same, w[None, :], 0.0) / safe[:, None]
     px_per_m2 = 0.5 * (np.asarray(jac) ** 2).sum(axis=(1, 2))
-    scale2 = (same @ (w * px_per_m2)) / safe
-    return np.where(wsum > 0, float(sigma_m) ** 2 * scale2 * wsum, 0.0), m
+    sig2 = np.broadcast_to(np.asarray(sigma_m, dtype=np.float64) ** 2, w.shape)
+    scale2 = (same @ (w * px_per_m2 * sig2)) / safe
+    return np.where(wsum > 0, scale2 * wsum, 0.0), m
 
+
+#: How much larger the offset of a group of outline points (the jaw, the chin: a front
+#: photo's outline, ``ViewData.outline_point``) is than an inner group's: where along
+#: the silhouette and how high on the jaw such a point goes is less agreed on than where an
+#: eye's corner is (measured: docs/DECISIONS.md).
+OUTLINE_DEFINITION = 3.0
 
 #: Groups with fewer used points than this do not count in the estimate of the offsets'
 #: size: one point cannot tell its group's offset from its own noise.
 MIN_GROUP = 3
+
+
+def definition_sigmas(view):
+    """Each landmark's group offset standard deviation in a view (``ViewData``), metres:
+    the view's ``definition_m``, ``OUTLINE_DEFINITION`` times that for outline points."""
+    return view.definition_m * np.where(view.outline_point, OUTLINE_DEFINITION, 1.0)
 
 
 def group_offsets(residuals, groups, weights, jac, sigma_m):
@@ -48,8 +61,8 @@ def group_offsets(residuals, groups, weights, jac, sigma_m):
         1 / noise^2 of each point (0: not used).
     jac : ndarray, shape (n, 2, 3)
         The camera's Jacobians at the points, pixels per metre.
-    sigma_m : float
-        The offsets' standard deviation the fit assumed, metres.
+    sigma_m : float or ndarray, shape (n,)
+        The offsets' standard deviation the fit assumed, metres (per point: its group's).
 
     Returns
     -------
@@ -58,10 +71,11 @@ def group_offsets(residuals, groups, weights, jac, sigma_m):
         residuals less these.
     taken : float
         The parameters they take up (trace of their hat matrix, about two per group).
-    sigma_m : float or None
-        The offsets' standard deviation the residuals say, metres: one EM step of the
-        variance component (mean over the groups of at least ``MIN_GROUP`` points of the
-        squared posterior offset plus its posterior variance); None without such a group.
+    ratio : float or None
+        How many times ``sigma_m`` the residuals say the offsets are: one EM step of the
+        variance component (over the groups of at least ``MIN_GROUP`` points, the squared
+        posterior offset plus its posterior variance, over the variance assumed); None
+        without such a group.
     """
     _, labels = np.unique(np.asarray(groups), return_inverse=True)
     w = np.asarray(weights, dtype=np.float64)
@@ -71,15 +85,15 @@ def group_offsets(residuals, groups, weights, jac, sigma_m):
     first = np.unique(labels, return_index=True)[1]
     used = np.bincount(labels, weights=(w > 0).astype(float))[labels[first]]
     big = first[used >= MIN_GROUP]
-    estimate = None
-    if len(big) and sigma_m > 0:
+    ratio = None
+    if len(big) and np.any(sigma_m):
         # per group: sigma_G^2 (px^2) = t / sum w; posterior variance sigma_G^2 / (1 + t)
         wsum = np.array([w[labels == labels[i]].sum() for i in big])
         s2_px = t[big] / wsum
-        per_m2 = s2_px / sigma_m**2  # (px per metre)^2 of each group
-        stat = ((e[big] ** 2).sum(axis=1) / 2.0 + s2_px / (1.0 + t[big])) / per_m2
-        estimate = float(np.sqrt(stat.mean()))
-    return e, float(2.0 * gain[first].sum()), estimate
+        ok = s2_px > 0
+        rho = ((e[big] ** 2).sum(axis=1) / 2.0 + s2_px / (1.0 + t[big]))[ok] / s2_px[ok]
+        ratio = float(np.sqrt(rho.mean())) if ok.any() else None
+    return e, float(2.0 * gain[first].sum()), ratio
 
 
 class GroupedImageRows(ImageRows):
@@ -98,8 +112,9 @@ class GroupedImageRows(ImageRows):
         As :class:`ImageRows`.
     groups : array_like of int, shape (n,)
         Group label of each point (points of one label share the offset).
-    sigma_m : float
-        The shared offset's standard deviation, metres (0: plain ``ImageRows``).
+    sigma_m : float or array_like, shape (n,)
+        The shared offset's standard deviation, metres (0: plain ``ImageRows``); per
+        point, the group's (its points' mean square, weighted).
     """
 
     def __init__(self, vertices, pixels, camera, groups, sigma_m, weights=1.0,
@@ -110,8 +125,9 @@ class GroupedImageRows(ImageRows):
             raise ValueError(f"{name}: groups must have shape ({len(self.vertices)},), "
                              f"got {g.shape}")
         _, self.labels = np.unique(g, return_inverse=True)
-        self.sigma_m = float(sigma_m)
-        if not self.sigma_m >= 0.0:
+        self.sigma_m = np.asarray(sigma_m, dtype=np.float64) if np.ndim(sigma_m) \
+            else float(sigma_m)
+        if not np.all(np.asarray(self.sigma_m) >= 0.0):
             raise ValueError(f"{name}: sigma_m must be >= 0, got {sigma_m!r}")
 
     def shrink(self, jac):
@@ -121,7 +137,7 @@ class GroupedImageRows(ImageRows):
         return 1.0 - 1.0 / np.sqrt(1.0 + t), m
 
     def block(self, world, jacobian=True):
-        if self.sigma_m == 0.0:
+        if not np.any(self.sigma_m):
             return super().block(world, jacobian)
         w = self.weights
         n = len(w)

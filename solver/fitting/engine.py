@@ -21,7 +21,7 @@ from ..memo import memo
 from ..model.linear_model import LinearModel
 from ..model.stacked import StackedModel
 from .contour_start import camera_from_outline
-from .definition import GroupedImageRows, group_offsets
+from .definition import GroupedImageRows, definition_sigmas, group_offsets
 from .joint import Joint
 from .outline import (
     CONTOUR_KEEP_SIGMAS,
@@ -454,7 +454,7 @@ class Engine:
             view.fixed_weights if slide else view.weights)
         if view.definition_m > 0.0:
             return GroupedImageRows(np.arange(start, start + n), view.pixels, view.camera,
-                                    view.groups, view.definition_m, weights=w,
+                                    view.groups, definition_sigmas(view), weights=w,
                                     name=f"landmarks {view.name}")
         return ImageRows(np.arange(start, start + n), view.pixels, view.camera, weights=w,
                          name=f"landmarks {view.name}")
@@ -484,10 +484,10 @@ class Engine:
             apart = set(res.outline) | set(res.unused)
             w = self.landmark_scale(v, front_weight) * np.where(
                 [n in apart for n in v.names], 0.0, v.weights)
-            e, taken, size = group_offsets(r, v.groups, w, jac, v.definition_m)
+            e, taken, ratio = group_offsets(r, v.groups, w, jac, definition_sigmas(v))
             dof += taken
-            if size is not None:
-                sizes[v.name] = size
+            if ratio is not None:
+                sizes[v.name] = ratio * v.definition_m
             pixels = np.where(w > 0, np.linalg.norm(r - e, axis=1), res.pixels)
             out[v.name] = dataclasses.replace(res, pixels=pixels)
         return out, dof, sizes

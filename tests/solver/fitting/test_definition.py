@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from solver import FitOptions, LandmarkCase, OrthographicCamera, View, fit_head
-from solver.fitting.definition import GroupedImageRows
+from solver.fitting.definition import OUTLINE_DEFINITION, GroupedImageRows
 from solver.io.landmark_set import load_landmark_set
 from solver.synthetic import make_case, skin_error_mm
 
@@ -77,16 +77,19 @@ def test_every_landmark_has_a_group():
 
 def _shifted_groups(case, rng, px):
     """``case`` with each landmark group of each photo moved by its own random offset
-    (``px`` RMS per axis): a placement convention shared within a group."""
+    (``px`` RMS per axis, ``OUTLINE_DEFINITION`` times that for a front photo's outline
+    points): a placement convention shared within a group."""
     lms = load_landmark_set()
     views = {}
     for name, v in case.views.items():
         off = {}
         pts = {}
         for n, p in v.points.items():
-            g = lms.group_of(lms.canonical(n))
+            canon = lms.canonical(n)
+            g = lms.group_of(canon)
             if g not in off:
-                off[g] = rng.normal(size=2) * px
+                scale = OUTLINE_DEFINITION if lms.outline_in(canon, "front") else 1.0
+                off[g] = rng.normal(size=2) * px * scale
             pts[n] = np.asarray(p) + off[g]
         views[name] = View(name, None, v.size, v.camera, pts, contour=v.contour)
     return LandmarkCase(views, case.source)
