@@ -157,6 +157,20 @@ class State:
 
 
 
+def uncertainty_factors(view):
+    """Each landmark's weight factor from the view's given uncertainties
+    (``View.uncertainty``, px): (median / its own)^2, so a point twice as uncertain as the
+    view's typical one gets a quarter of the weight, and the view's noise as a whole stays
+    the fit's estimate (``noise.py``). 1 for a landmark without one, all 1 without any."""
+    given = getattr(view, "uncertainty", None) or {}
+    sigmas = [float(given[k]) for k in view.points if k in given]
+    if not sigmas:
+        return np.ones(len(view.points))
+    typical = float(np.median(sigmas))
+    return np.array([(typical / float(given[k])) ** 2 if k in given else 1.0
+                     for k in view.points])
+
+
 def prepare_views(model, case, opts, cameras=None, noise=None):
     """The case's views as ``ViewData``; every problem is a ValueError naming the view or
     landmark. ``cameras`` (view name -> Camera, e.g. a previous fit's) replaces the file's
@@ -221,7 +235,8 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
             names.append(canon)
             verts.append(vtx)
             px.append(uv)
-        w = opts.landmark_weight * np.array([weights.get(n, 1.0) for n in names])
+        w = opts.landmark_weight * np.array([weights.get(n, 1.0) for n in names]) \
+            * uncertainty_factors(view)
         along = w.copy()
         if noise is not None:
             along = w * np.array([noise.along_factor(name, n) for n in names])
