@@ -157,18 +157,21 @@ class State:
 
 
 
-def uncertainty_factors(view):
-    """Each landmark's weight factor from the view's given uncertainties
-    (``View.uncertainty``, px): (median / its own)^2, so a point twice as uncertain as the
-    view's typical one gets a quarter of the weight, and the view's noise as a whole stays
-    the fit's estimate (``noise.py``). 1 for a landmark without one, all 1 without any."""
+def uncertainty_factors(view, floor_px):
+    """Weight factors of a view's landmarks from their given uncertainties
+    (``View.uncertainty``, px): (relative, floor). ``relative``: (the view's median given
+    uncertainty / this one's)^2, which scales a landmark's weight against the others of its
+    group (whose noise the fit estimates, ``noise.py``); ``floor``: (``floor_px`` / this
+    one)^2, at most 1, the most weight the landmark may get (relative to 1 / floor_px^2):
+    its given uncertainty is its noise floor. Both 1 for a landmark without one."""
     given = getattr(view, "uncertainty", None) or {}
     sigmas = [float(given[k]) for k in view.points if k in given]
-    if not sigmas:
-        return np.ones(len(view.points))
-    typical = float(np.median(sigmas))
-    return np.array([(typical / float(given[k])) ** 2 if k in given else 1.0
-                     for k in view.points])
+    typical = float(np.median(sigmas)) if sigmas else 1.0
+    relative = np.array([(typical / float(given[k])) ** 2 if k in given else 1.0
+                         for k in view.points])
+    floor = np.array([min(1.0, (floor_px / float(given[k])) ** 2) if k in given else 1.0
+                      for k in view.points])
+    return relative, floor
 
 
 def prepare_views(model, case, opts, cameras=None, noise=None):
@@ -235,12 +238,16 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
             names.append(canon)
             verts.append(vtx)
             px.append(uv)
-        w = opts.landmark_weight * np.array([weights.get(n, 1.0) for n in names]) \
-            * uncertainty_factors(view)
-        along = w.copy()
+        w = opts.landmark_weight * np.array([weights.get(n, 1.0) for n in names])
+        relative, floor = uncertainty_factors(view, opts.noise_px)
+        along = w * floor
         if noise is not None:
-            along = w * np.array([noise.along_factor(name, n) for n in names])
-            w = w * np.array([noise.landmark_factor(name, n) for n in names])
+            along = w * np.minimum(floor, relative * [noise.along_factor(name, n)
+                                                      for n in names])
+            w = w * np.minimum(floor, relative * [noise.landmark_factor(name, n)
+                                                  for n in names])
+        else:
+            w = w * floor
         used = int(np.count_nonzero(w))
         rule = {"kept": kept, "passpoints": bool(view.passpoints), "mirror": link is not None}
         if cameras is not None:

@@ -57,9 +57,10 @@ class View:
     uncertainty : dict of str -> float
         Optional, per landmark (a key of ``points``): how far off it may be, the standard
         deviation in pixels (a detector's points: ``solver.detect``). The fit weighs the
-        view's landmarks relative to each other by it (``1 / uncertainty^2``, a landmark
-        without one counting as the view's median); the placement noise of the view as a
-        whole is still estimated by the fit.
+        view's landmarks relative to each other by ``1 / uncertainty^2`` (its estimate of
+        the view's noise scaled by this landmark's uncertainty over the view's median), and
+        never assumes a landmark placed more precisely than its uncertainty (its noise
+        floor). ``solver.fitting.views.uncertainty_factors``.
     """
 
     name: str
