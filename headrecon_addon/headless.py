@@ -19,6 +19,13 @@ exit code is 1 if any head failed, 2 for bad arguments or an unreadable manifest
 ``--bake-identity`` applies the identity in the .blend (Apply Identity: the fitted face is
 the base mesh); ``--export glb|fbx`` and ``--glb`` add the game export to the outputs.
 
+``--detect PHOTO [PHOTO ...]`` fits a head straight from its photos: the landmarks are
+detected (``python -m solver detect``: views named and cameras guessed from the faces) and
+written as ``<out>.landmarks.json`` beside the head's outputs, which then is fitted like
+any landmarks file. ``--detect FOLDER``: the photos in it are one head (named after the
+folder), or, with no photo but sub-folders of photos, each sub-folder is one. A photo
+without a face fails that head only.
+
 Other code (the demo) builds scenes with :func:`build_scene_from_fit` and writes them
 with :func:`save_blend`.
 """
@@ -367,6 +374,10 @@ def _parser():
     p.add_argument("--exact", action="store_true", help="make the landmarks hit exactly")
     p.add_argument("--texture-size", type=int, default=1024)
     p.add_argument("--no-texture", action="store_true", help="do not bake a texture")
+    p.add_argument("--detect", nargs="+", action="append", metavar="PHOTO",
+                   help="fit a head straight from its photos (landmarks detected, written as "
+                        "<name>.landmarks.json beside the outputs); or a folder of one "
+                        "head's photos, or of sub-folders one per head; repeatable")
     p.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     return p
 
@@ -430,6 +441,63 @@ def _tasks(heads, settings, force):
     return rows, tasks
 
 
+#: Photo files a --detect folder is read for.
+PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".bmp", ".webp")
+
+
+def _photos_in(folder):
+    return sorted(p for p in Path(folder).iterdir()
+                  if p.is_file() and p.suffix.lower() in PHOTO_SUFFIXES)
+
+
+def detect_groups(groups):
+    """(name, photos, where) of each head to detect: every ``--detect`` group is a list of
+    photos (one head, named after their folder) or a single folder (its photos one head,
+    else each sub-folder of photos one head). ``ValueError`` naming a folder without
+    photos."""
+    out = []
+    for group in groups or ():
+        paths = [Path(p) for p in group]
+        if len(paths) == 1 and paths[0].is_dir():
+            folder = paths[0]
+            photos = _photos_in(folder)
+            if photos:
+                out.append((folder.resolve().name, photos, f"--detect {folder}"))
+                continue
+            subs = [(d, _photos_in(d)) for d in sorted(folder.iterdir()) if d.is_dir()]
+            subs = [(d, ps) for d, ps in subs if ps]
+            if not subs:
+                raise ValueError(f"--detect {folder}: no photos in it nor in its sub-folders "
+                                 f"({', '.join(PHOTO_SUFFIXES)})")
+            out += [(d.name, ps, f"--detect {d}") for d, ps in subs]
+        else:
+            name = paths[0].resolve().parent.name or "head"
+            out.append((name, paths, "--detect " + " ".join(map(str, paths))))
+    return out
+
+
+def detected_heads(groups, out):
+    """Heads (``batch_manifest.Head``) from photos: each group's landmarks detected into
+    ``<base>.landmarks.json`` (``solver.cli.detect_landmarks``, the detect command's own
+    code); a head whose photos fail has the one-line error instead."""
+    out = Path(out)
+    single = out.suffix.lower() == ".blend"
+    cli = _solver_module("cli")
+    heads = []
+    for name, photos, where in detect_groups(groups):
+        base = out.with_suffix("") if single else out / name
+        landmarks = base.with_name(base.name + ".landmarks.json")
+        try:
+            base.parent.mkdir(parents=True, exist_ok=True)
+            cli.detect_landmarks([str(p) for p in photos], landmarks, quiet=True)
+        except (cli.CliError, ValueError, OSError) as e:
+            heads.append(batch_manifest.Head(name, None, base, where,
+                                             error=f"{where}: {e}"))
+            continue
+        heads.append(batch_manifest.Head(name, landmarks, base, where))
+    return heads
+
+
 def _run_task(task, model):
     """``write_head`` with any failure as a failed summary row."""
     t0 = time.perf_counter()
@@ -474,14 +542,19 @@ def main(argv):
     if args.worker:
         return serve_worker()
     try:
-        if not args.inputs or not args.out:
-            raise ValueError("give the inputs and --out OUT")
+        if not (args.inputs or args.detect) or not args.out:
+            raise ValueError("give the inputs (or --detect PHOTO ...) and --out OUT")
         if args.jobs is not None and args.jobs < 1:
             raise ValueError(f"--jobs {args.jobs}: give 1 or more")
         settings = _settings(args)
         _fit_options(settings)  # a bad option fails here, once, not in every head
-        heads = batch_manifest.plan_heads(args.inputs, args.out)
         out_dir = None if Path(args.out).suffix.lower() == ".blend" else Path(args.out)
+        n_detect = len(detect_groups(args.detect))
+        if out_dir is None and len(args.inputs) + n_detect > 1 and n_detect:
+            raise ValueError(f"--out {args.out}: one .blend file for several heads; give a "
+                             "folder instead")
+        heads = batch_manifest.plan_heads(args.inputs, args.out) if args.inputs else []
+        heads += detected_heads(args.detect, args.out)
         if out_dir is not None:
             _solver_module("io.atomic").check_outputs(
                 {"summary.csv": out_dir / "summary.csv",
