@@ -17,7 +17,9 @@ and james' two; profile: per kept point, both sides): the table of
 ``assets/mediapipe_ibug68.json`` "uncertainty". ``--fit`` also fits the sample from
 detected landmarks (``fit_errors``: with and without their uncertainty, and the case
 ``solver detect`` writes) and compares with the exact ones (skin RMS in mm against the
-true head, ``solver.synthetic.skin_error_mm``).
+true head, ``solver.synthetic.skin_error_mm``), and james from its two photos' detected
+landmarks against its 68 projected exactly (face RMS against the scan, as
+``bench.bench_realistic`` scores it).
 """
 
 import argparse
@@ -168,6 +170,43 @@ def fit_errors(folder, detector):
         print(f"  {label:<32} {skin_error_mm(model, r.local_vertices, truth):.2f} mm")
 
 
+def james_fit_errors(folder, detector, samples=4000):
+    """Face RMS (mm) against the scan james (``bench_realistic``'s scoring): the mean head,
+    the fit from its 68 landmarks projected exactly (self-calibrated pinholes), and from
+    the case ``solver detect`` writes for its two photos (three-quarter views, pinholes)."""
+    from bench.bench_realistic import Truth
+    from bench.realistic_cases import (
+        face_mask,
+        landmark_start,
+        part_triangles,
+        sample_surface,
+        scan_cases,
+        triangles_within,
+    )
+    from solver import fit_head, load_model
+    from solver.detect.detected_case import detect_photos
+
+    model = load_model()
+    scan = load_scan(folder)
+    image = np.asarray(Image.open(Path(folder) / "james.jpg").convert("RGB"))
+    half = image.shape[1] // 2
+    halves = {"photo_a": image[:, :half], "photo_b": image[:, half:2 * half]}
+    auto = detect_photos([(None, p) for p in halves], detector, halves.__getitem__)
+    cams = {p: calibrate(scan, p).camera for p in scan.photos}
+    exact = scan_cases(scan, cams)[0]["pinhole, projected"]
+    rng = np.random.default_rng(7000)
+    region = triangles_within(scan.triangles, face_mask(scan.vertices, scan.ibug))
+    target = part_triangles(model, ("Face", "Head and Neck", "Eyeball left", "Eyeball right"))
+    truth = Truth({"face": sample_surface(scan.vertices, region, samples, rng)}, target,
+                  lambda v, name: landmark_start(model, v, scan.ibug))
+    print(f"james fit, face RMS vs the scan: mean head "
+          f"{truth.score(model.vertices)['face']:.2f} mm; views detected: "
+          f"{', '.join(sorted(auto.views))}")
+    for label, c in (("68 projected exactly", exact), ("solver detect's case", auto)):
+        r = fit_head(model, c)
+        print(f"  {label:<32} {truth.score(r.local_vertices)['face']:.2f} mm")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sample", default=str(ROOT / "generated" / "sample"))
@@ -194,6 +233,8 @@ def main(argv=None):
     if (folder / "james.obj").is_file():
         for name, image, truth in james_truth(folder):
             measured.append(report(name, detector, image, truth))
+        if args.fit:
+            james_fit_errors(folder, detector)
     else:
         print(f"james: {folder} not found; skipped")
     if args.uncertainty:
