@@ -173,7 +173,9 @@ def fit_errors(folder, detector):
 def james_fit_errors(folder, detector, samples=4000):
     """Face RMS (mm) against the scan james (``bench_realistic``'s scoring): the mean head,
     the fit from its 68 landmarks projected exactly (self-calibrated pinholes), and from
-    the case ``solver detect`` writes for its two photos (three-quarter views, pinholes)."""
+    the case ``solver detect`` writes for its two photos (three-quarter views, pinholes).
+    Returns those errors by label ("mean head", "68 projected exactly", "solver detect's
+    case")."""
     from bench.bench_realistic import Truth
     from bench.realistic_cases import (
         face_mask,
@@ -199,12 +201,13 @@ def james_fit_errors(folder, detector, samples=4000):
     target = part_triangles(model, ("Face", "Head and Neck", "Eyeball left", "Eyeball right"))
     truth = Truth({"face": sample_surface(scan.vertices, region, samples, rng)}, target,
                   lambda v, name: landmark_start(model, v, scan.ibug))
-    print(f"james fit, face RMS vs the scan: mean head "
-          f"{truth.score(model.vertices)['face']:.2f} mm; views detected: "
-          f"{', '.join(sorted(auto.views))}")
+    out = {"mean head": truth.score(model.vertices)["face"]}
+    print(f"james fit, face RMS vs the scan: mean head {out['mean head']:.2f} mm; views "
+          f"detected: {', '.join(sorted(auto.views))}")
     for label, c in (("68 projected exactly", exact), ("solver detect's case", auto)):
-        r = fit_head(model, c)
-        print(f"  {label:<32} {truth.score(r.local_vertices)['face']:.2f} mm")
+        out[label] = truth.score(fit_head(model, c).local_vertices)["face"]
+        print(f"  {label:<32} {out[label]:.2f} mm")
+    return out
 
 
 def main(argv=None):
