@@ -22,7 +22,8 @@ the base mesh); ``--export glb|fbx`` and ``--glb`` add the game export to the ou
 ``--detect PHOTO [PHOTO ...]`` fits a head straight from its photos: the landmarks are
 detected (``python -m solver detect``: views named and cameras guessed from the faces) and
 written as ``<out>.landmarks.json`` beside the head's outputs, which then is fitted like
-any landmarks file. ``--detect FOLDER``: the photos in it are one head (named after the
+any landmarks file (the head named after the .blend, or in a folder ``OUT`` after the
+photos' folder). ``--detect FOLDER``: the photos in it are one head (named after the
 folder), or, with no photo but sub-folders of photos, each sub-folder is one. A photo
 without a face fails that head only.
 
@@ -485,6 +486,8 @@ def detected_heads(groups, out):
     cli = _solver_module("cli")
     heads = []
     for name, photos, where in detect_groups(groups):
+        if single:  # the head is named after its .blend
+            name = out.stem
         base = out.with_suffix("") if single else out / name
         landmarks = base.with_name(base.name + ".landmarks.json")
         try:

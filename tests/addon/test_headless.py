@@ -192,7 +192,7 @@ def test_headless_fits_straight_from_photos(sample, tmp_path):
             "blend,report"]
     proc = run_python(args)
     assert proc.returncode == 0, proc.stderr
-    assert "1 of 1 heads written" in proc.stdout
+    assert "1 of 1 heads written" in proc.stdout and "head: method" in proc.stdout
     case = load_landmarks(out.with_name("head.landmarks.json"))
     assert set(case.views) == {"front", "right"}
     assert case.image_path("front").resolve() == (photos / "front.png").resolve()
