@@ -24,7 +24,8 @@ detected (``python -m solver detect``: views named and cameras guessed from the 
 written as ``<out>.landmarks.json`` beside the head's outputs, which then is fitted like
 any landmarks file (the head named after the .blend, or in a folder ``OUT`` after the
 photos' folder). ``--detect FOLDER``: the photos in it are one head (named after the
-folder), or, with no photo but sub-folders of photos, each sub-folder is one. A photo
+folder), or, with no photo but sub-folders of photos, each sub-folder is one. A manifest's
+``photos`` column (the photos separated by ";") does the same for its row. A photo
 without a face fails that head only.
 
 Other code (the demo) builds scenes with :func:`build_scene_from_fit` and writes them
@@ -477,27 +478,37 @@ def detect_groups(groups):
     return out
 
 
+def detected_head(head):
+    """``head`` (a ``batch_manifest.Head`` with ``photos`` and no landmarks file) with its
+    landmarks detected into ``<base>.landmarks.json`` (``solver.cli.detect_landmarks``, the
+    detect command's own code), or with the one-line error when its photos fail."""
+    if head.error is not None or head.landmarks is not None or not head.photos:
+        return head
+    cli = _solver_module("cli")
+    landmarks = head.base.with_name(head.base.name + ".landmarks.json")
+    try:
+        head.base.parent.mkdir(parents=True, exist_ok=True)
+        cli.detect_landmarks([str(p) for p in head.photos], landmarks, quiet=True)
+    except (cli.CliError, ValueError, OSError) as e:
+        message = str(e) if head.where in str(e) else f"{head.where}: {e}"
+        return batch_manifest.Head(head.name, None, head.base, head.where, head.options,
+                                   error=message, photos=head.photos)
+    return batch_manifest.Head(head.name, landmarks, head.base, head.where, head.options,
+                               photos=head.photos)
+
+
 def detected_heads(groups, out):
-    """Heads (``batch_manifest.Head``) from photos: each group's landmarks detected into
-    ``<base>.landmarks.json`` (``solver.cli.detect_landmarks``, the detect command's own
-    code); a head whose photos fail has the one-line error instead."""
+    """Heads from ``--detect`` groups (``detect_groups``), each run through
+    :func:`detected_head`."""
     out = Path(out)
     single = out.suffix.lower() == ".blend"
-    cli = _solver_module("cli")
     heads = []
     for name, photos, where in detect_groups(groups):
         if single:  # the head is named after its .blend
             name = out.stem
         base = out.with_suffix("") if single else out / name
-        landmarks = base.with_name(base.name + ".landmarks.json")
-        try:
-            base.parent.mkdir(parents=True, exist_ok=True)
-            cli.detect_landmarks([str(p) for p in photos], landmarks, quiet=True)
-        except (cli.CliError, ValueError, OSError) as e:
-            heads.append(batch_manifest.Head(name, None, base, where,
-                                             error=f"{where}: {e}"))
-            continue
-        heads.append(batch_manifest.Head(name, landmarks, base, where))
+        heads.append(detected_head(batch_manifest.Head(name, None, base, where,
+                                                       photos=tuple(photos))))
     return heads
 
 
@@ -557,6 +568,7 @@ def main(argv):
             raise ValueError(f"--out {args.out}: one .blend file for several heads; give a "
                              "folder instead")
         heads = batch_manifest.plan_heads(args.inputs, args.out) if args.inputs else []
+        heads = [detected_head(h) for h in heads]  # a manifest's photos column
         heads += detected_heads(args.detect, args.out)
         if out_dir is not None:
             _solver_module("io.atomic").check_outputs(

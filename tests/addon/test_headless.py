@@ -229,3 +229,29 @@ def test_headless_detect_folder_of_heads_fails_a_photo_without_a_face(sample, tm
     proc = run_python(["-m", "headrecon_addon.headless", "--detect", tmp_path / "empty",
                        "--out", out])
     assert proc.returncode == 2 and "empty: no photos in it" in proc.stderr, proc.stderr
+
+
+def test_a_manifest_photos_column_is_detected(sample, tmp_path):
+    """A manifest row with ``photos`` (";"-separated, relative to the manifest) instead of
+    a landmarks file: detected, then fitted with the row's own options."""
+    import shutil
+
+    folder, _ = sample
+    (tmp_path / "bob").mkdir()
+    for view in ("front", "side"):
+        shutil.copy(folder / f"{view}.png", tmp_path / "bob" / f"{view}.png")
+    m = tmp_path / "heads.csv"
+    m.write_text("name,photos,components\nbob,bob/front.png;bob/side.png,12\n"
+                 "ghost,bob/missing.png,\n")
+    out = tmp_path / "out"
+    proc = run_python(["-m", "headrecon_addon.headless", m, "--out", out, "--no-texture",
+                       "--outputs", "report", "--jobs", "1"])
+    assert proc.returncode == 1, proc.stderr
+    assert "1 of 2 heads written" in proc.stdout
+    ghost = [ln for ln in proc.stdout.splitlines() if ln.startswith("ghost: FAILED")]
+    assert len(ghost) == 1 and f"{m} row 3" in ghost[0] and "missing.png" in ghost[0]
+    views = json.loads((out / "bob.landmarks.json").read_text())["views"]
+    assert set(views) == {"front", "right"}
+    report = json.loads((out / "bob.report.json").read_text())
+    assert report["options"]["components"] == 12                    # the row's own option
+    assert len(report["coefficients"]["identity"]) == 12
