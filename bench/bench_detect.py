@@ -1,15 +1,25 @@
-"""Automatic landmarks: time per photo, and detected vs true iBUG-68 landmarks in pixels
-(median, 90th percentile, per group; also as % of the eye-to-mouth distance).
+"""Automatic landmarks: time per photo, the view guessed (front, profile, three-quarter,
+with the yaw), and detected vs true iBUG-68 landmarks in pixels (median, 90th percentile,
+per group; also as % of the eye-to-mouth distance).
 
     python -m bench.bench_detect [--sample generated/sample] [--james FOLDER] [--fit]
+                                 [--uncertainty]
 
 Photos: the rendered sample's front photo (``./run sample``; truth: the exact landmark
 pixels in ``truth.npz``) and the two real photos of the scan "james" (its texture's
 halves, cut and calibrated as ``bench.realistic_cases`` does; truth: the scan's 68
 landmarks projected through each photo's DLT, those the photo shows). A missing photo
-set is reported and skipped. ``--fit`` also fits the sample with the front photo's
-landmarks detected (the profile's still as placed) and compares with the exact ones
-(skin RMS in mm against the true head, ``solver.synthetic.skin_error_mm``).
+set is reported and skipped. The sample's profile photo is measured as it is (a right
+profile) and mirrored (a left one), on the points the detector keeps there
+(``solver.detect.view_guess``). ``--uncertainty`` prints each group's median error as a
+fraction of the detector box's width, pooled over the photos (front: the sample's front
+and james' two; profile: per kept point, both sides): the table of
+``assets/mediapipe_ibug68.json`` "uncertainty". ``--fit`` also fits the sample from
+detected landmarks (``fit_errors``: with and without their uncertainty, and the case
+``solver detect`` writes) and compares with the exact ones (skin RMS in mm against the
+true head, ``solver.synthetic.skin_error_mm``), and james from its two photos' detected
+landmarks against its 68 projected exactly (face RMS against the scan, as
+``bench.bench_realistic`` scores it).
 """
 
 import argparse
@@ -23,6 +33,7 @@ from PIL import Image
 from bench.common import machine_description, median_time
 from bench.realistic_cases import calibrate, james_folder, load_scan, scan_landmarks
 from solver.detect import Detector
+from solver.detect.view_guess import guess_view, point_uncertainty
 from solver.io.landmark_set import load_landmark_set
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -30,14 +41,22 @@ GROUPS = {"jaw": range(1, 18), "brows": range(18, 28), "nose": range(28, 37),
           "eyes": range(37, 49), "mouth": range(49, 69)}
 
 
-def sample_truth(folder):
-    """(photo uint8 (H, W, 3), {iBUG number: (u, v)}) of the sample's front photo."""
+def sample_truth(folder, view="front"):
+    """(photo uint8 (H, W, 3), {iBUG number: (u, v)}) of the sample's front (or "side")
+    photo."""
     folder = Path(folder)
     truth = np.load(folder / "truth.npz", allow_pickle=True)
-    names = json.loads(str(truth["landmark_names"]))["front"]
+    names = json.loads(str(truth["landmark_names"]))[view]
     number = {n: i for i, n in load_landmark_set().ibug.items()}
-    pts = {number[n]: p for n, p in zip(names, truth["exact_front"], strict=True) if n in number}
-    return np.asarray(Image.open(folder / "front.png").convert("RGB")), pts
+    pts = {number[n]: p for n, p in zip(names, truth[f"exact_{view}"], strict=True)
+           if n in number}
+    return np.asarray(Image.open(folder / f"{view}.png").convert("RGB")), pts
+
+
+def mirrored(image, truth):
+    """The photo mirrored left to right, and its true points with it."""
+    w = image.shape[1]
+    return image[:, ::-1].copy(), {i: (w - p[0], p[1]) for i, p in truth.items()}
 
 
 def james_truth(folder):
@@ -59,18 +78,28 @@ def eye_to_mouth(pts):
 
 
 def report(name, detector, image, truth):
+    """Print the photo's timing, view and errors; returns (kind "front"/"profile", {iBUG
+    number: error / detector box width}) of the points kept, or None."""
     t = median_time(lambda: detector.detect(image), repeats=5, warmup=1)
     face = t.result
     h, w = image.shape[:2]
     print(f"{name}: {w}x{h} px, detect median {t.median:.3f} s (min {t.min:.3f}, "
           f"CPU {t.cpu_median:.3f} s)")
-    if face is None or not face.is_face:
+    guess = None if face is None else guess_view(face)
+    if guess is None:
         print("  no face found" if face is None else
-              f"  a face (score {face.score:.2f}) the mesh does not see "
+              f"  a face (score {face.score:.2f}) whose direction is not told "
               f"(presence {face.presence:.2f})")
-        return
+        return None
+    print(f"  {guess.describe()}; mesh presence {face.presence:.2f}, face box "
+          f"{face.face_size:.0f} px")
+    kept = point_uncertainty(face)
     scale = eye_to_mouth(truth)
-    err = {i: float(np.linalg.norm(face.ibug[i - 1] - truth[i])) for i in truth}
+    err = {i: float(np.linalg.norm(face.ibug[i - 1] - truth[i])) for i in truth if i in kept}
+    if guess.profile:
+        print(f"  profile: {len(err)} points kept ({sorted(kept)}), all the mesh's: median "
+              f"{np.median([np.linalg.norm(face.ibug[i - 1] - truth[i]) for i in truth]):.1f}"
+              " px")
     rows = [("all", list(err))] + [(g, [i for i in r if i in err]) for g, r in GROUPS.items()]
     print(f"  eye-to-mouth {scale:.0f} px; error px median / p90 (median % of eye-to-mouth)")
     for g, ids in rows:
@@ -78,12 +107,34 @@ def report(name, detector, image, truth):
             e = np.array([err[i] for i in ids])
             print(f"  {g:<6} n={len(ids):2d}  {np.median(e):5.1f} / {np.percentile(e, 90):5.1f}"
                   f"  ({100 * np.median(e) / scale:.1f} %)")
+    return ("profile" if guess.profile else "front",
+            {i: e / face.face_size for i, e in err.items()})
+
+
+def uncertainty_table(measured):
+    """{"front": {iBUG: fraction}, "profile": {...}} from the photos' relative errors:
+    front, each group's median over every front photo's points of that group; profile,
+    each kept point's median over the profile photos."""
+    out = {"front": {}, "profile": {}}
+    fronts = [m for kind, m in measured if kind == "front"]
+    for ids in GROUPS.values():
+        e = [m[i] for m in fronts for i in ids if i in m]
+        for i in ids:
+            out["front"][i] = round(float(np.median(e)), 4) if e else None
+    profiles = [m for kind, m in measured if kind == "profile"]
+    for i in sorted({i for m in profiles for i in m}):
+        out["profile"][i] = round(float(np.median([m[i] for m in profiles if i in m])), 4)
+    return out
 
 
 def fit_errors(folder, detector):
-    """Skin RMS (mm) of the sample's fit: mean head, every exact landmark, the front's 68
-    iBUG points detected or exact (the profile as placed, with its outline, in both)."""
+    """Skin RMS (mm) of the sample's fit against the true head: the mean head; every exact
+    landmark; the front's 68 iBUG points exact, detected as 1-px clicks, detected with
+    their uncertainty (the profile as placed, with its outline, in these); and the case
+    ``python -m solver detect front.png side.png`` writes (no click: the profile's three
+    detected points, no outline), also with the profile's traced outline added."""
     from solver import fit_head, load_landmarks, load_model
+    from solver.detect.detected_case import detect_photos
     from solver.synthetic import skin_error_mm
 
     model = load_model()
@@ -93,19 +144,70 @@ def fit_errors(folder, detector):
     print(f"fit, skin RMS vs the true head: mean head "
           f"{skin_error_mm(model, model.vertices, truth):.2f} mm")
     names = load_landmark_set().ibug
-    image = np.asarray(Image.open(folder / "front.png").convert("RGB"))
-    face = detector.detect(image)
-    if face is None or not face.is_face:
-        print("  no face found in the front photo")
+
+    def load(path):
+        return np.asarray(Image.open(path).convert("RGB"))
+
+    auto = detect_photos([(None, folder / "front.png"), (None, folder / "side.png")],
+                         detector, load, base_dir=folder)
+    if set(auto.views) != {"front", "right"}:
+        print(f"  the photos were detected as {sorted(auto.views)}, not front and right")
         return
-    detected, exact68 = copy.deepcopy(case), copy.deepcopy(case)
-    detected.views["front"].points = {names[i]: tuple(face.ibug[i - 1]) for i in names}
+    detected, clicks, exact68 = (copy.deepcopy(case) for _ in range(3))
+    detected.views["front"] = auto.views["front"]
+    clicks.views["front"] = copy.deepcopy(auto.views["front"])
+    clicks.views["front"].uncertainty = {}
     exact68.views["front"].points = {n: p for n, p in case.views["front"].points.items()
                                      if n in set(names.values())}
+    outlined = copy.deepcopy(auto)
+    outlined.views["right"].contour = case.views["side"].contour
     for label, c in (("every exact landmark", case), ("front: 68 exact", exact68),
-                     ("front: 68 detected", detected)):
+                     ("front: 68 detected as clicks", clicks),
+                     ("front: 68 detected, uncertainty", detected),
+                     ("solver detect's case", auto),
+                     ("  + the traced outline", outlined)):
         r = fit_head(model, c)
-        print(f"  {label:<22} {skin_error_mm(model, r.local_vertices, truth):.2f} mm")
+        print(f"  {label:<32} {skin_error_mm(model, r.local_vertices, truth):.2f} mm")
+
+
+def james_fit_errors(folder, detector, samples=4000):
+    """Face RMS (mm) against the scan james (``bench_realistic``'s scoring): the mean head,
+    the fit from its 68 landmarks projected exactly (self-calibrated pinholes), and from
+    the case ``solver detect`` writes for its two photos (three-quarter views, pinholes).
+    Returns those errors by label ("mean head", "68 projected exactly", "solver detect's
+    case")."""
+    from bench.bench_realistic import Truth
+    from bench.realistic_cases import (
+        face_mask,
+        landmark_start,
+        part_triangles,
+        sample_surface,
+        scan_cases,
+        triangles_within,
+    )
+    from solver import fit_head, load_model
+    from solver.detect.detected_case import detect_photos
+
+    model = load_model()
+    scan = load_scan(folder)
+    image = np.asarray(Image.open(Path(folder) / "james.jpg").convert("RGB"))
+    half = image.shape[1] // 2
+    halves = {"photo_a": image[:, :half], "photo_b": image[:, half:2 * half]}
+    auto = detect_photos([(None, p) for p in halves], detector, halves.__getitem__)
+    cams = {p: calibrate(scan, p).camera for p in scan.photos}
+    exact = scan_cases(scan, cams)[0]["pinhole, projected"]
+    rng = np.random.default_rng(7000)
+    region = triangles_within(scan.triangles, face_mask(scan.vertices, scan.ibug))
+    target = part_triangles(model, ("Face", "Head and Neck", "Eyeball left", "Eyeball right"))
+    truth = Truth({"face": sample_surface(scan.vertices, region, samples, rng)}, target,
+                  lambda v, name: landmark_start(model, v, scan.ibug))
+    out = {"mean head": truth.score(model.vertices)["face"]}
+    print(f"james fit, face RMS vs the scan: mean head {out['mean head']:.2f} mm; views "
+          f"detected: {', '.join(sorted(auto.views))}")
+    for label, c in (("68 projected exactly", exact), ("solver detect's case", auto)):
+        out[label] = truth.score(fit_head(model, c).local_vertices)["face"]
+        print(f"  {label:<32} {out[label]:.2f} mm")
+    return out
 
 
 def main(argv=None):
@@ -114,11 +216,18 @@ def main(argv=None):
     ap.add_argument("--james", default=None)
     ap.add_argument("--fit", action="store_true",
                     help="also fit the sample from detected front landmarks")
+    ap.add_argument("--uncertainty", action="store_true",
+                    help="print the per-group relative errors (the uncertainty table)")
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
     detector = Detector()
+    measured = []
     if (Path(args.sample) / "truth.npz").is_file():
-        report("sample front", detector, *sample_truth(args.sample))
+        measured.append(report("sample front", detector, *sample_truth(args.sample)))
+        side = sample_truth(args.sample, "side")
+        measured.append(report("sample side (right profile)", detector, *side))
+        measured.append(report("sample side mirrored (left profile)", detector,
+                               *mirrored(*side)))
         if args.fit:
             fit_errors(args.sample, detector)
     else:
@@ -126,9 +235,15 @@ def main(argv=None):
     folder = Path(args.james) if args.james else james_folder(ROOT)
     if (folder / "james.obj").is_file():
         for name, image, truth in james_truth(folder):
-            report(name, detector, image, truth)
+            measured.append(report(name, detector, image, truth))
+        if args.fit:
+            james_fit_errors(folder, detector)
     else:
         print(f"james: {folder} not found; skipped")
+    if args.uncertainty:
+        table = uncertainty_table([m for m in measured if m is not None])
+        print("uncertainty (median error / detector box width):")
+        print(json.dumps({k: {str(i): f for i, f in v.items()} for k, v in table.items()}))
 
 
 if __name__ == "__main__":

@@ -2,12 +2,13 @@
 ``.jsonl`` with one JSON object a line) naming one head a row with options of its own.
 
 A manifest row has ``name`` (the outputs' base name), ``landmarks`` (a landmarks file,
-relative to the manifest) and optional per-head options (``OPTION_COLUMNS``); an empty
-cell means "as on the command line". A problem with the manifest itself (unreadable, no
-header, an unknown column) raises ``ValueError`` naming the file and column; a problem
-with one row (a bad value, a name given twice, a missing file) becomes that head's
-``error``, so the rows around it still run. No bpy here: the parent of a batch reads the
-plan without Blender's data.
+relative to the manifest) or ``photos`` (the head's photos separated by ";", relative to
+the manifest: the headless script detects the landmarks in them) and optional per-head
+options (``OPTION_COLUMNS``); an empty cell means "as on the command line". A problem
+with the manifest itself (unreadable, no header, an unknown column) raises ``ValueError``
+naming the file and column; a problem with one row (a bad value, a name given twice, a
+missing file) becomes that head's ``error``, so the rows around it still run. No bpy here:
+the parent of a batch reads the plan without Blender's data.
 """
 
 import csv
@@ -71,7 +72,9 @@ class Head:
 
     ``base`` is the outputs' path without suffix (``OUT/<name>``); ``options`` the row's
     own settings (parsed); ``where`` names the input in messages ("heads.csv row 3");
-    ``error`` says why the head cannot be run (it is listed as failed, not fitted).
+    ``error`` says why the head cannot be run (it is listed as failed, not fitted);
+    ``photos`` (a row's ``photos`` column, when it gives no landmarks file) are the photos
+    to detect the landmarks in.
     """
 
     name: str
@@ -80,6 +83,7 @@ class Head:
     where: str
     options: dict = field(default_factory=dict)
     error: str | None = None
+    photos: tuple = ()
 
 
 def is_manifest(path):
@@ -176,11 +180,12 @@ def _row_head(where, row, folder, out_dir):
         except ValueError as e:
             return Head(name, None, base, where, error=f"{where}: column {column}: {e}")
     landmarks = row.get("landmarks", "")
+    photos = tuple(folder / p.strip() for p in row.get("photos", "").split(";") if p.strip())
+    if not landmarks and photos:
+        return Head(name, None, base, where, options, photos=photos)
     if not landmarks:
-        problem = "the batch does not detect landmarks in photos yet; give a landmarks " \
-            "file (python -m solver detect writes one)" if row.get("photos") \
-            else "column landmarks is empty"
-        return Head(name, None, base, where, options, error=f"{where}: {problem}")
+        return Head(name, None, base, where, options,
+                    error=f"{where}: column landmarks is empty")
     return Head(name, folder / landmarks, base, where, options)
 
 
@@ -223,13 +228,15 @@ def plan_heads(inputs, out):
             raise ValueError(f"--out {out}: one .blend file for {len(heads)} heads; give a "
                              "folder instead")
         h = heads[0]
-        heads = [Head(h.name, h.landmarks, out.with_suffix(""), h.where, h.options, h.error)]
+        heads = [Head(h.name, h.landmarks, out.with_suffix(""), h.where, h.options, h.error,
+                      h.photos)]
     seen = {}
     for i, h in enumerate(heads):
         if h.error is None and h.name in seen:
             heads[i] = Head(h.name, h.landmarks, h.base, h.where, h.options,
                             error=f"{h.where}: name {h.name!r} is also {seen[h.name]}; "
-                                  "rename one (both would write the same files)")
+                                  "rename one (both would write the same files)",
+                            photos=h.photos)
         elif h.error is None:
             seen[h.name] = h.where
     return heads

@@ -19,6 +19,15 @@ exit code is 1 if any head failed, 2 for bad arguments or an unreadable manifest
 ``--bake-identity`` applies the identity in the .blend (Apply Identity: the fitted face is
 the base mesh); ``--export glb|fbx`` and ``--glb`` add the game export to the outputs.
 
+``--detect PHOTO [PHOTO ...]`` fits a head straight from its photos: the landmarks are
+detected (``python -m solver detect``: views named and cameras guessed from the faces) and
+written as ``<out>.landmarks.json`` beside the head's outputs, which then is fitted like
+any landmarks file (the head named after the .blend, or in a folder ``OUT`` after the
+photos' folder). ``--detect FOLDER``: the photos in it are one head (named after the
+folder), or, with no photo but sub-folders of photos, each sub-folder is one. A manifest's
+``photos`` column (the photos separated by ";") does the same for its row. A photo
+without a face fails that head only.
+
 Other code (the demo) builds scenes with :func:`build_scene_from_fit` and writes them
 with :func:`save_blend`.
 """
@@ -377,6 +386,10 @@ def _parser():
     p.add_argument("--texture-shading", choices=SHADING_MODES, default="keep",
                    help="keep the photos' light in the texture, or remove its low-frequency "
                         "part for a flat, albedo-like texture (default keep)")
+    p.add_argument("--detect", nargs="+", action="append", metavar="PHOTO",
+                   help="fit a head straight from its photos (landmarks detected, written as "
+                        "<name>.landmarks.json beside the outputs); or a folder of one "
+                        "head's photos, or of sub-folders one per head; repeatable")
     p.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     return p
 
@@ -441,6 +454,75 @@ def _tasks(heads, settings, force):
     return rows, tasks
 
 
+#: Photo files a --detect folder is read for.
+PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".bmp", ".webp")
+
+
+def _photos_in(folder):
+    return sorted(p for p in Path(folder).iterdir()
+                  if p.is_file() and p.suffix.lower() in PHOTO_SUFFIXES)
+
+
+def detect_groups(groups):
+    """(name, photos, where) of each head to detect: every ``--detect`` group is a list of
+    photos (one head, named after their folder) or a single folder (its photos one head,
+    else each sub-folder of photos one head). ``ValueError`` naming a folder without
+    photos."""
+    out = []
+    for group in groups or ():
+        paths = [Path(p) for p in group]
+        if len(paths) == 1 and paths[0].is_dir():
+            folder = paths[0]
+            photos = _photos_in(folder)
+            if photos:
+                out.append((folder.resolve().name, photos, f"--detect {folder}"))
+                continue
+            subs = [(d, _photos_in(d)) for d in sorted(folder.iterdir()) if d.is_dir()]
+            subs = [(d, ps) for d, ps in subs if ps]
+            if not subs:
+                raise ValueError(f"--detect {folder}: no photos in it nor in its sub-folders "
+                                 f"({', '.join(PHOTO_SUFFIXES)})")
+            out += [(d.name, ps, f"--detect {d}") for d, ps in subs]
+        else:
+            name = paths[0].resolve().parent.name or "head"
+            out.append((name, paths, "--detect " + " ".join(map(str, paths))))
+    return out
+
+
+def detected_head(head):
+    """``head`` (a ``batch_manifest.Head`` with ``photos`` and no landmarks file) with its
+    landmarks detected into ``<base>.landmarks.json`` (``solver.cli.detect_landmarks``, the
+    detect command's own code), or with the one-line error when its photos fail."""
+    if head.error is not None or head.landmarks is not None or not head.photos:
+        return head
+    cli = _solver_module("cli")
+    landmarks = head.base.with_name(head.base.name + ".landmarks.json")
+    try:
+        head.base.parent.mkdir(parents=True, exist_ok=True)
+        cli.detect_landmarks([str(p) for p in head.photos], landmarks, quiet=True)
+    except (cli.CliError, ValueError, OSError) as e:
+        message = str(e) if head.where in str(e) else f"{head.where}: {e}"
+        return batch_manifest.Head(head.name, None, head.base, head.where, head.options,
+                                   error=message, photos=head.photos)
+    return batch_manifest.Head(head.name, landmarks, head.base, head.where, head.options,
+                               photos=head.photos)
+
+
+def detected_heads(groups, out):
+    """Heads from ``--detect`` groups (``detect_groups``), each run through
+    :func:`detected_head`."""
+    out = Path(out)
+    single = out.suffix.lower() == ".blend"
+    heads = []
+    for name, photos, where in detect_groups(groups):
+        if single:  # the head is named after its .blend
+            name = out.stem
+        base = out.with_suffix("") if single else out / name
+        heads.append(detected_head(batch_manifest.Head(name, None, base, where,
+                                                       photos=tuple(photos))))
+    return heads
+
+
 def _run_task(task, model):
     """``write_head`` with any failure as a failed summary row."""
     t0 = time.perf_counter()
@@ -485,14 +567,20 @@ def main(argv):
     if args.worker:
         return serve_worker()
     try:
-        if not args.inputs or not args.out:
-            raise ValueError("give the inputs and --out OUT")
+        if not (args.inputs or args.detect) or not args.out:
+            raise ValueError("give the inputs (or --detect PHOTO ...) and --out OUT")
         if args.jobs is not None and args.jobs < 1:
             raise ValueError(f"--jobs {args.jobs}: give 1 or more")
         settings = _settings(args)
         _fit_options(settings)  # a bad option fails here, once, not in every head
-        heads = batch_manifest.plan_heads(args.inputs, args.out)
         out_dir = None if Path(args.out).suffix.lower() == ".blend" else Path(args.out)
+        n_detect = len(detect_groups(args.detect))
+        if out_dir is None and len(args.inputs) + n_detect > 1 and n_detect:
+            raise ValueError(f"--out {args.out}: one .blend file for several heads; give a "
+                             "folder instead")
+        heads = batch_manifest.plan_heads(args.inputs, args.out) if args.inputs else []
+        heads = [detected_head(h) for h in heads]  # a manifest's photos column
+        heads += detected_heads(args.detect, args.out)
         if out_dir is not None:
             _solver_module("io.atomic").check_outputs(
                 {"summary.csv": out_dir / "summary.csv",

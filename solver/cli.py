@@ -362,7 +362,7 @@ def _cmd_landmarks(args):
     return EXIT_OK
 
 
-def _load_photo(path):
+def load_photo(path):
     """A photo file as uint8 RGB (H, W, 3); problems name the photo."""
     from PIL import UnidentifiedImageError
 
@@ -382,35 +382,57 @@ def _load_photo(path):
         raise CliError(f"{path}: cannot read: {e}") from None
 
 
-def _cmd_detect(args):
+def view_entries(photos, views):
+    """(given view name or None, photo) of each photo to detect: ``photos`` as they are,
+    then each ``NAME=PHOTO`` of ``views`` (a photo given both ways takes the name)."""
+    named = []
+    for item in views or ():
+        name, sep, photo = item.partition("=")
+        if not sep or not name.strip() or not photo:
+            raise CliError(f"--view {item!r}: expected NAME=PHOTO (e.g. right=side.jpg)")
+        named.append((name.strip(), photo))
+    given = {Path(p).resolve() for _, p in named}
+    names = [n for n, _ in named]
+    twice = {n for n in names if names.count(n) > 1}
+    if twice:
+        raise CliError(f"--view {sorted(twice)[0]}: given to two photos")
+    entries = [(None, p) for p in photos or () if Path(p).resolve() not in given] + named
+    if not entries:
+        raise CliError("give the photos (PHOTO ... or --view NAME=PHOTO)")
+    return entries
+
+
+def detect_landmarks(photos, out, views=(), models=None, quiet=False):
+    """Detect the face in each photo and write the landmarks file ``out``; the lines of
+    ``solver.detect.detected_case.detect_photos`` go to stderr ("warning:" and "note:"
+    lines even when ``quiet``). Returns the case. ``CliError`` / ``ValueError``: one line
+    naming the photo or option."""
     from .detect import Detector
-    from .detect.detected_case import detected_case
+    from .detect.detected_case import detect_photos
     from .io.landmarks_file import save_landmarks
 
-    progress = _Progress(args.quiet)
-    detector = Detector(args.models) if args.models else Detector()
-    out = Path(args.out)
-    photos, faces, used = [], [], set()
-    for i, photo in enumerate(args.photos):
-        image = _load_photo(photo)
-        face = detector.detect(image)
-        if face is None:
-            raise CliError(f"{photo}: no face found")
-        if not face.is_face:
-            raise CliError(f"{photo}: a face was found (score {face.score:.2f}) but the face "
-                           f"mesh sees none in it (presence {face.presence:.2f}): a profile "
-                           "or a face turned away? Those are not detected yet")
-        name = Path(photo).stem or f"view{i + 1}"
-        while name in used:
-            name += "_"
-        used.add(name)
-        photos.append((name, photo, (image.shape[1], image.shape[0])))
-        faces.append(face)
-        progress((i + 1) / len(args.photos),
-                 f"{photo}: face (score {face.score:.2f}), {len(face.ibug)} landmarks")
-    save_landmarks(detected_case(photos, faces, base_dir=out.parent), out)
-    if not args.quiet:
+    entries = view_entries(photos, views)
+    detector = Detector(models) if models else Detector()
+    out = Path(out)
+    progress = _Progress(quiet)
+    done = []
+
+    def echo(line):
+        if line.startswith(("warning:", "note:")):
+            print(line, file=sys.stderr, flush=True)
+        else:
+            done.append(line)
+            progress(len(done) / len(entries), line)
+
+    case = detect_photos(entries, detector, load_photo, base_dir=out.parent, echo=echo)
+    save_landmarks(case, out)
+    if not quiet:
         print(f"wrote {out}", file=sys.stderr)
+    return case
+
+
+def _cmd_detect(args):
+    detect_landmarks(args.photos, args.out, args.view, args.models, args.quiet)
     return EXIT_OK
 
 
@@ -538,9 +560,16 @@ def build_parser():
         "detect", help="find the face's landmarks in photos; write a landmarks file",
         description="Detect the face in each photo (MediaPipe's face detection and face mesh "
                     "models, run with numpy) and write its iBUG-68 landmarks, under the "
-                    "project's names, as a landmarks file: one front view per photo, named "
-                    "after the photo's file name.")
-    det.add_argument("photos", nargs="+", metavar="PHOTO")
+                    "project's names and each with its uncertainty in pixels, as a "
+                    "landmarks file: one view per photo, named and its camera guessed from "
+                    "which way the face looks: front, right or left (profiles: the few "
+                    "points trustworthy there only), three_quarter_right or _left (a "
+                    "pinhole camera the fit calibrates).")
+    det.add_argument("photos", nargs="*", metavar="PHOTO")
+    det.add_argument("--view", action="append", metavar="NAME=PHOTO",
+                     help="name a photo's view yourself (front, right, left, "
+                          "three_quarter_right, three_quarter_left also set its camera; a "
+                          "profile given the wrong side is corrected and said); repeatable")
     det.add_argument("--out", required=True, metavar="CASE.json",
                      help="landmarks file to write")
     det.add_argument("--models", metavar="FOLDER",

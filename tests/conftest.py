@@ -1,11 +1,14 @@
 """Shared pytest fixtures, and a clean exit on old Blender modules."""
 
 import os
+import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from solver import load_model
+from tests import ROOT, SAMPLE_ARGS
 
 
 @pytest.fixture(scope="session")
@@ -13,6 +16,22 @@ def model():
     """The built head model (``generated/model/head_model.npz``). A missing model is an
     error, not a skip: the loader's message says to run ``./run model``."""
     return load_model()
+
+
+@pytest.fixture(scope="session")
+def sample(tmp_path_factory):
+    """The sample case rendered once per session at a reduced size (``SAMPLE_ARGS``), in a
+    subprocess so Blender's global state never mixes with other tests: (folder, the
+    arrays of its truth.npz)."""
+    folder = tmp_path_factory.mktemp("sample") / "sample"
+    proc = subprocess.run([sys.executable, "-m", "tools.make_sample", "--out", str(folder),
+                           *SAMPLE_ARGS], cwd=ROOT, capture_output=True, text=True,
+                          timeout=900)
+    assert proc.returncode == 0, f"make_sample failed:\n{proc.stdout[-3000:]}\n" \
+                                 f"{proc.stderr[-3000:]}"
+    with np.load(folder / "truth.npz", allow_pickle=False) as t:
+        truth = {k: t[k] for k in t.files}
+    return folder, truth
 
 
 _exit_status = 0

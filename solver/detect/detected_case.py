@@ -1,19 +1,23 @@
-"""Detected faces as a landmarks case: one view per photo, its iBUG-68 points under the
-project's landmark names, so ``python -m solver detect`` writes a file the fit reads."""
+"""Detected faces as a landmarks case: one view per photo, named and its camera guessed
+from the detection (``view_guess``: front, right or left profile, three-quarter), its
+iBUG-68 points under the project's landmark names with each point's uncertainty in
+pixels, so ``python -m solver detect`` (and ``headless --detect``) write a file the fit
+reads."""
 
 import os
 from pathlib import Path
 
-from ..cameras import OrthographicCamera
 from ..io.case import LandmarkCase, View
 from ..io.landmark_set import load_landmark_set
+from .view_guess import ViewGuess, guess_view, point_uncertainty
 
-#: Every detected photo is written as a front photo for now (guessing a profile or a
-#: three-quarter view from the detection is still to come): issue 16.
-CAMERA = "orthographic-front"
+#: The view names the detection gives (and ``--view NAME=PHOTO`` may use to say one).
+VIEW_NAMES = ("front", "right", "left", "three_quarter_right", "three_quarter_left")
+_YAW = {"front": 0.0, "right": 90.0, "left": -90.0, "three_quarter_right": 45.0,
+        "three_quarter_left": -45.0}
 
 
-def detected_case(photos, faces, base_dir=None):
+def detected_case(photos, faces, base_dir=None, guesses=None):
     """A :class:`LandmarkCase` from detected faces.
 
     Parameters
@@ -23,18 +27,105 @@ def detected_case(photos, faces, base_dir=None):
         One per photo.
     base_dir : Path, optional
         Photo paths are written relative to it (the landmarks file's folder).
+    guesses : list of ViewGuess, optional
+        Each photo's view (its camera). Default: ``guess_view`` of each face (a front photo
+        where it says nothing). The points kept are the face's (``point_uncertainty``: a
+        profile keeps only those trustworthy there), whatever the view says.
     """
     names = load_landmark_set().ibug
     views = {}
-    for (name, path, size), face in zip(photos, faces, strict=True):
+    if guesses is None:
+        guesses = [guess_view(f) or ViewGuess("front", 0.0) for f in faces]
+    for (name, path, size), face, guess in zip(photos, faces, guesses, strict=True):
         w, h = size
-        points = {}
+        points, sigma = {}, {}
+        kept = point_uncertainty(face)
         for number, (u, v) in enumerate(face.ibug, start=1):
-            if number in names and 0 <= u <= w and 0 <= v <= h:
+            if number in names and number in kept and 0 <= u <= w and 0 <= v <= h:
                 points[names[number]] = (float(u), float(v))
+                if kept[number] is not None:
+                    sigma[names[number]] = round(float(kept[number]), 3)
         image = Path(path).absolute()
         if base_dir is not None:
             image = Path(os.path.relpath(image, Path(base_dir).absolute()))
-        views[name] = View(name, image.as_posix(), (w, h),
-                           OrthographicCamera.nominal(CAMERA, (w, h)), points)
+        camera, hints = guess.camera((w, h))
+        views[name] = View(name, image.as_posix(), (w, h), camera, points,
+                           camera_hints=hints, uncertainty=sigma)
     return LandmarkCase(views)
+
+
+def _side(name):
+    if name.endswith("right"):
+        return "right"
+    if name.endswith("left"):
+        return "left"
+    return None
+
+
+def detect_photos(entries, detector, load, base_dir=None, echo=None):
+    """Detect the face in each photo and make the case.
+
+    Parameters
+    ----------
+    entries : list of (str or None, path)
+        Each photo with the view name the user gave it (None: the detection names it).
+        A given name among ``VIEW_NAMES`` also says the view's camera; any other name only
+        names it.
+    detector : Detector
+    load : callable
+        path -> uint8 RGB image (H, W, 3); its errors name the photo.
+    base_dir : Path, optional
+        As for :func:`detected_case`.
+    echo : callable, optional
+        Gets each message line: per photo what was found, "warning: ..." for a given view
+        the detection contradicts, "note: ..." for a profile's few points.
+
+    Returns
+    -------
+    LandmarkCase
+
+    Raises
+    ------
+    ValueError
+        One line naming the photo: no face in it, or a face whose direction is not told.
+    """
+    echo = echo or (lambda line: None)
+    photos, faces, guesses, used = [], [], [], set()
+    for given, path in entries:
+        image = load(path)
+        face = detector.detect(image)
+        if face is None:
+            raise ValueError(f"{path}: no face found")
+        guess = guess_view(face)
+        if guess is None:
+            raise ValueError(f"{path}: a face was found (score {face.score:.2f}) but not which "
+                             "way it looks (the face mesh sees none and the nose is not beside "
+                             "the eyes); give its view with --view NAME=PHOTO")
+        name = guess.name
+        if given is not None:
+            name = given
+            if given in VIEW_NAMES and _side(given) and guess.side \
+                    and _side(given) != guess.side:
+                # a profile (or three-quarter) labelled with the other side
+                name = given.replace(_side(given), guess.side)
+                echo(f"warning: {path}: given as view {given!r}, but the face looks the other "
+                     f"way: {guess.describe()}; written as view {name!r}")
+            elif given in VIEW_NAMES and given != guess.name:
+                echo(f"warning: {path}: given as view {given!r}, detected as "
+                     f"{guess.describe()}; written as given")
+                guess = ViewGuess(given, _YAW[given])
+        base, n = name, 2
+        while name in used:
+            name, n = f"{base}_{n}", n + 1
+        used.add(name)
+        if face.is_profile:
+            echo(f"note: {path}: a profile, where the face mesh is unreliable (22-46 px median "
+                 "on the sample's profile photos): only the nose tip, subnasale and upper lip "
+                 "are kept, with their larger uncertainty; trace the profile's outline for "
+                 "the rest")
+        h, w = image.shape[:2]
+        photos.append((name, path, (w, h)))
+        faces.append(face)
+        guesses.append(guess)
+        echo(f"{path}: face (score {face.score:.2f}), {guess.describe()} -> view {name!r}")
+    return detected_case(photos, faces, base_dir=base_dir, guesses=guesses)

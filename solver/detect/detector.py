@@ -1,7 +1,12 @@
 """Landmarks of the face in a photo: detection, then the face mesh on the detected
 square (as MediaPipe does for a still photo), and the iBUG-68 points from the mesh.
 Optionally the mesh once more on its own square (MediaPipe's tracking step): measured no
-better, so off by default (docs/DECISIONS.md, "Automatic landmarks")."""
+better, so off by default (docs/DECISIONS.md, "Automatic landmarks"). Where the mesh sees
+no face on the detector's square, or the detector's two eye keypoints nearly coincide (a
+profile: the square's angle from them is arbitrary, often upside down), the mesh is run once more
+on the same square upright: on the sample's profile photo its iBUG points came 22 px
+(median) from the truth so, 177 px on the tilted square; only a few of them are kept
+there (``views.PROFILE_KEEP``)."""
 
 from dataclasses import dataclass
 from pathlib import Path
@@ -9,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..paths import DETECTOR_DIR
+from .crop import Square
 from .face_detection import detect_faces
 from .face_landmarks import face_mesh, square_from_detection, square_from_mesh
 from .ibug_map import mesh_to_ibug
@@ -19,6 +25,11 @@ LANDMARK_MODEL = "face_landmark.tflite"
 #: Below this face-presence probability the mesh is not a face (a profile, a back):
 #: the sample's profile photo gives 0.04-0.08, its front photo 1.0.
 MIN_PRESENCE = 0.5
+#: The detector's eye keypoints closer than this (fraction of its box's width) are a
+#: profile's (the sample's profile 0.05, its mirror image 0.06; front photos 0.45, james'
+#: three-quarter views at 22 and 30 degrees 0.38 and 0.35). The mesh may still report a
+#: face there (0.51 on the mirrored profile) while its points are 45 px off.
+PROFILE_EYES = 0.2
 
 
 @dataclass
@@ -35,12 +46,38 @@ class DetectedFace:
         The detector's confidence.
     presence : float
         The mesh model's face-presence probability.
+    keypoints : ndarray (6, 2) or None
+        The detector's keypoints (``face_detection.KEYPOINTS``: eyes, nose tip, mouth,
+        tragions), px.
+    box : ndarray (4,) or None
+        The detector's box (u_min, v_min, u_max, v_max), px: the face's size in the photo.
     """
 
     mesh: np.ndarray
     ibug: np.ndarray
     score: float
     presence: float
+    keypoints: np.ndarray | None = None
+    box: np.ndarray | None = None
+
+    @property
+    def face_size(self):
+        """The detector box's width, px (None without a box)."""
+        return None if self.box is None else float(self.box[2] - self.box[0])
+
+    @property
+    def eyes_apart(self):
+        """The detector's eye keypoints' distance / its box's width (None without them)."""
+        if self.keypoints is None or self.box is None:
+            return None
+        return float(np.linalg.norm(self.keypoints[1] - self.keypoints[0])) / self.face_size
+
+    @property
+    def is_profile(self):
+        """A face seen from the side: the mesh sees none, or the detector's eyes nearly
+        coincide (``PROFILE_EYES``)."""
+        apart = self.eyes_apart
+        return not self.is_face or (apart is not None and apart < PROFILE_EYES)
 
     @property
     def is_face(self):
@@ -85,7 +122,13 @@ class Detector:
         if not faces:
             return None
         face = faces[0]
-        mesh, presence = face_mesh(self.mesh_net, image, square_from_detection(face))
-        if refine and presence >= MIN_PRESENCE:
-            mesh, presence = face_mesh(self.mesh_net, image, square_from_mesh(mesh))
-        return DetectedFace(mesh, mesh_to_ibug(mesh[:, :2]), face.score, presence)
+        square = square_from_detection(face)
+        mesh, presence = face_mesh(self.mesh_net, image, square)
+        out = DetectedFace(mesh, mesh_to_ibug(mesh[:, :2]), face.score, presence,
+                           np.asarray(face.keypoints, float), np.asarray(face.box, float))
+        if out.is_profile:  # the square upright, not turned by the eyes
+            mesh, _ = face_mesh(self.mesh_net, image, Square(square.center, square.size))
+        elif refine:
+            mesh, out.presence = face_mesh(self.mesh_net, image, square_from_mesh(mesh))
+        out.mesh, out.ibug = mesh, mesh_to_ibug(mesh[:, :2])
+        return out

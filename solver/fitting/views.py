@@ -167,6 +167,23 @@ class State:
 
 
 
+def uncertainty_factors(view, floor_px):
+    """Weight factors of a view's landmarks from their given uncertainties
+    (``View.uncertainty``, px): (relative, floor). ``relative``: (the view's median given
+    uncertainty / this one's)^2, which scales a landmark's weight against the others of its
+    group (whose noise the fit estimates, ``noise.py``); ``floor``: (``floor_px`` / this
+    one)^2, at most 1, the most weight the landmark may get (relative to 1 / floor_px^2):
+    its given uncertainty is its noise floor. Both 1 for a landmark without one."""
+    given = getattr(view, "uncertainty", None) or {}
+    sigmas = [float(given[k]) for k in view.points if k in given]
+    typical = float(np.median(sigmas)) if sigmas else 1.0
+    relative = np.array([(typical / float(given[k])) ** 2 if k in given else 1.0
+                         for k in view.points])
+    floor = np.array([min(1.0, (floor_px / float(given[k])) ** 2) if k in given else 1.0
+                      for k in view.points])
+    return relative, floor
+
+
 def prepare_views(model, case, opts, cameras=None, noise=None):
     """The case's views as ``ViewData``; every problem is a ValueError naming the view or
     landmark. ``cameras`` (view name -> Camera, e.g. a previous fit's) replaces the file's
@@ -232,10 +249,15 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
             verts.append(vtx)
             px.append(uv)
         w = opts.landmark_weight * np.array([weights.get(n, 1.0) for n in names])
-        along = w.copy()
+        relative, floor = uncertainty_factors(view, opts.noise_px)
+        along = w * floor
         if noise is not None:
-            along = w * np.array([noise.along_factor(name, n) for n in names])
-            w = w * np.array([noise.landmark_factor(name, n) for n in names])
+            along = w * np.minimum(floor, relative * [noise.along_factor(name, n)
+                                                      for n in names])
+            w = w * np.minimum(floor, relative * [noise.landmark_factor(name, n)
+                                                  for n in names])
+        else:
+            w = w * floor
         used = int(np.count_nonzero(w))
         rule = {"kept": kept, "passpoints": bool(view.passpoints), "mirror": link is not None}
         if cameras is not None:

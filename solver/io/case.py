@@ -54,6 +54,13 @@ class View:
         When ``camera`` is None: the camera object as the file gives it, at least
         ``{"kind": ...}`` plus what is known (e.g. a pinhole's ``lens_mm`` from EXIF).
         Ignored when ``camera`` is set.
+    uncertainty : dict of str -> float
+        Optional, per landmark (a key of ``points``): how far off it may be, the standard
+        deviation in pixels (a detector's points: ``solver.detect``). The fit weighs the
+        view's landmarks relative to each other by ``1 / uncertainty^2`` (its estimate of
+        the view's noise scaled by this landmark's uncertainty over the view's median), and
+        never assumes a landmark placed more precisely than its uncertainty (its noise
+        floor). ``solver.fitting.views.uncertainty_factors``.
     """
 
     name: str
@@ -67,6 +74,7 @@ class View:
     mirror_of: str | None = None
     passpoints: dict = field(default_factory=dict)
     camera_hints: dict = field(default_factory=dict)
+    uncertainty: dict = field(default_factory=dict)
     # (camera, its object as the file wrote it, camera.to_dict() then): while the camera is
     # that same unchanged object it is written back as read, so loading and saving a file
     # does not move its numbers by a rounding error (a DLT's b-form is recomputed).
@@ -79,6 +87,7 @@ class View:
         self.points = _as_uv_dict(self.points)
         self.passpoints = _as_uv_dict(self.passpoints)
         self.camera_hints = dict(self.camera_hints)
+        self.uncertainty = {str(k): float(v) for k, v in self.uncertainty.items()}
         if self.contour is not None:
             self.contour = np.asarray(self.contour, dtype=np.float64).reshape(-1, 2)
 
@@ -130,6 +139,8 @@ class View:
         d["points"] = {k: list(v) for k, v in self.points.items()}
         if self.passpoints:
             d["passpoints"] = {k: list(v) for k, v in self.passpoints.items()}
+        if self.uncertainty:
+            d["uncertainty"] = dict(self.uncertainty)
         if self.contour is not None:
             d["contour"] = self.contour.tolist()
         d.update(self.extra)

@@ -123,6 +123,12 @@ def _points_problems(view, where, lms):
             else:
                 seen[ident] = key
         problems += _point_problems(at, uv, w, h)
+    for key, sigma in view.uncertainty.items():
+        at = format_path(where + ("uncertainty", key))
+        if key not in view.points:
+            problems.append((at, "no such landmark in this view's 'points'"))
+        elif not (np.isfinite(sigma) and sigma > 0):
+            problems.append((at, f"expected a finite number of pixels > 0, got {sigma!r}"))
     return problems
 
 

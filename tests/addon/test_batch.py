@@ -69,8 +69,9 @@ def test_jsonl_manifest(tmp_path):
     assert a.options == {"exact": True, "method": "approach2"} and a.error is None
     assert broken.error.startswith(f"{m} row 3: not JSON")
     assert b.error.startswith(f"{m} row 4: unknown key 'lens'")
-    assert c.error == f"{m} row 5: the batch does not detect landmarks in photos yet; " \
-                      "give a landmarks file (python -m solver detect writes one)"
+    # photos instead of a landmarks file: detected by the headless script
+    assert c.error is None and c.landmarks is None
+    assert c.photos == (tmp_path / "c_front.png", tmp_path / "c_right.png")
 
 
 def test_progress_line_counts_rate_and_time_left():

@@ -171,3 +171,87 @@ def test_headless_scene_has_fitted_cameras(model):
         [(r[2], r[3], r[4]) for r in rows]
     assert sorted(it.landmark for it in items if it.kind == "PASSPOINT") == sorted(names)
     assert not any(it.flagged for it in items if it.kind == "PASSPOINT")
+
+
+def test_headless_fits_straight_from_photos(sample, tmp_path):
+    """``--detect FRONT SIDE --out head.blend``: the landmarks detected (the detect
+    command's file, beside the .blend), then the usual fit and outputs; run again, the
+    head is unchanged and skipped."""
+    import shutil
+
+    from solver import load_landmarks
+
+    folder, _ = sample
+    photos = tmp_path / "alice"
+    photos.mkdir()
+    for view in ("front", "side"):
+        shutil.copy(folder / f"{view}.png", photos / f"{view}.png")
+    out = tmp_path / "out" / "head.blend"
+    args = ["-m", "headrecon_addon.headless", "--detect", photos / "front.png",
+            photos / "side.png", "--out", out, "--texture-size", "128", "--outputs",
+            "blend,report"]
+    proc = run_python(args)
+    assert proc.returncode == 0, proc.stderr
+    assert "1 of 1 heads written" in proc.stdout and "head: method" in proc.stdout
+    case = load_landmarks(out.with_name("head.landmarks.json"))
+    assert set(case.views) == {"front", "right"}
+    assert case.image_path("front").resolve() == (photos / "front.png").resolve()
+    report = json.loads(out.with_name("head.report.json").read_text())
+    assert "front" in json.dumps(report) and "right" in json.dumps(report)
+    head = _open(out)
+    assert head.data.shape_keys is not None and len(head.data.shape_keys.key_blocks) > 10
+    proc = run_python(args)
+    assert proc.returncode == 0 and "unchanged, skipped" in proc.stdout, proc.stdout
+
+
+def test_headless_detect_folder_of_heads_fails_a_photo_without_a_face(sample, tmp_path):
+    """``--detect FOLDER`` of sub-folders: one head each; a head whose photo shows no face
+    fails alone, its error naming the photo."""
+    import shutil
+
+    from PIL import Image
+
+    folder, _ = sample
+    heads = tmp_path / "heads"
+    (heads / "alice").mkdir(parents=True)
+    shutil.copy(folder / "front.png", heads / "alice" / "front.png")
+    (heads / "nobody").mkdir()
+    Image.new("RGB", (200, 300), (128, 128, 128)).save(heads / "nobody" / "wall.png")
+    out = tmp_path / "out"
+    proc = run_python(["-m", "headrecon_addon.headless", "--detect", heads, "--out", out,
+                       "--no-texture"])
+    assert proc.returncode == 1, proc.stderr
+    assert "1 of 2 heads written" in proc.stdout
+    failed = [ln for ln in proc.stdout.splitlines() if ln.startswith("nobody: FAILED")]
+    assert len(failed) == 1 and "wall.png: no face found" in failed[0]
+    assert (out / "alice.blend").is_file() and (out / "alice.landmarks.json").is_file()
+    (tmp_path / "empty").mkdir()                                    # a bad command line
+    proc = run_python(["-m", "headrecon_addon.headless", "--detect", tmp_path / "empty",
+                       "--out", out])
+    assert proc.returncode == 2 and "empty: no photos in it" in proc.stderr, proc.stderr
+
+
+def test_a_manifest_photos_column_is_detected(sample, tmp_path):
+    """A manifest row with ``photos`` (";"-separated, relative to the manifest) instead of
+    a landmarks file: detected, then fitted with the row's own options."""
+    import shutil
+
+    folder, _ = sample
+    (tmp_path / "bob").mkdir()
+    for view in ("front", "side"):
+        shutil.copy(folder / f"{view}.png", tmp_path / "bob" / f"{view}.png")
+    m = tmp_path / "heads.csv"
+    m.write_text("name,photos,components\nbob,bob/front.png;bob/side.png,12\n"
+                 "ghost,bob/missing.png,\n")
+    out = tmp_path / "out"
+    proc = run_python(["-m", "headrecon_addon.headless", m, "--out", out, "--no-texture",
+                       "--outputs", "report", "--jobs", "1"])
+    assert proc.returncode == 1, proc.stderr
+    assert "1 of 2 heads written" in proc.stdout
+    ghost = [ln for ln in proc.stdout.splitlines() if ln.startswith("ghost: FAILED")]
+    assert len(ghost) == 1 and f"{m} row 3" in ghost[0] and "missing.png" in ghost[0]
+    views = json.loads((out / "bob.landmarks.json").read_text())["views"]
+    assert set(views) == {"front", "right"}
+    report = json.loads((out / "bob.report.json").read_text())
+    assert report["options"]["components"] == 12                    # the row's own option
+    assert len(report["coefficients"]["identity"]) == 12

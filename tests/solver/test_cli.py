@@ -457,3 +457,39 @@ def test_texture_shading_remove_flattens_the_light_of_the_photos(tmp_path, model
     proc = run_cli("fit", "case.json", "--out", "h.obj", "--texture-shading", "flat",
                    cwd=tmp_path)
     assert proc.returncode == 2 and "--texture-shading" in proc.stderr
+
+
+def test_detect_names_the_views_and_says_a_mislabelled_profile(sample, tmp_path):
+    """``solver detect`` on the rendered sample's photos: the front and the right profile
+    told apart (whatever the order), each point with its uncertainty; ``--view`` names a
+    photo, and a profile given the wrong side is corrected in one warning line."""
+    from solver import load_landmarks
+
+    folder, _ = sample
+    front, side = folder / "front.png", folder / "side.png"
+    out = tmp_path / "case.json"
+    proc = run_cli("detect", side, front, "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    case = load_landmarks(out)                                  # ready for a fit
+    assert set(case.views) == {"front", "right"}
+    assert case.views["front"].camera.view == "orthographic-front"
+    assert case.views["right"].camera.view == "orthographic-right"
+    assert len(case.views["front"].points) == 68
+    assert set(case.views["right"].points) == {"nose_tip", "subnasale", "lip_upper_middle"}
+    assert set(case.views["front"].uncertainty) == set(case.views["front"].points)
+    assert [ln for ln in proc.stderr.splitlines() if ln.startswith("note:")] == [
+        ln for ln in proc.stderr.splitlines() if "side.png" in ln and "profile" in ln
+        and "only the nose tip" in ln]
+    # a left profile given, a right one detected: said once, written as the right one
+    proc = run_cli("detect", front, "--view", f"left={side}", "--out", out, "-q")
+    assert proc.returncode == 0, proc.stderr
+    warnings = [ln for ln in proc.stderr.splitlines() if ln.startswith("warning:")]
+    assert len(warnings) == 1 and "side.png" in warnings[0] and "'left'" in warnings[0] \
+        and "written as view 'right'" in warnings[0]
+    assert set(load_landmarks(out).views) == {"front", "right"}
+    # any other name only names the view
+    proc = run_cli("detect", "--view", f"me={front}", "--out", out, "-q")
+    assert proc.returncode == 0 and proc.stderr == ""
+    assert load_landmarks(out).views["me"].camera.view == "orthographic-front"
+    proc = run_cli("detect", front, "--view", "side.png", "--out", out)
+    assert_one_line_error(proc, "--view 'side.png'", "NAME=PHOTO")

@@ -31,6 +31,7 @@ from tests.solver.io.support import (
     W,
     assert_rejected,
     load_written,
+    make_doc,
     save_and_load,
     v2_cameras,
 )
@@ -362,3 +363,27 @@ def test_cli_validate_describes_version2_files(tmp_path, doc2, capsys):
     assert cli.main(["validate", str(path)]) == 1
     err = capsys.readouterr().err
     assert f"{path}: views.left_mirror.mirror_of: no view named 'lfet'" in err
+
+
+# --------------------------------------------------------------------------------------
+# Per-landmark uncertainty (optional, both versions)
+
+
+@pytest.mark.parametrize("version", [1, 2])
+def test_uncertainty_round_trips_and_is_checked(names, tmp_path, version):
+    doc = make_doc(names)
+    doc["version"] = version
+    first, second = list(doc["views"]["front"]["points"])[:2]
+    doc["views"]["front"]["uncertainty"] = {first: 2.5, second: 12.0}
+    case = load_written(tmp_path / "case.json", doc)
+    assert case.views["front"].uncertainty == {first: 2.5, second: 12.0}
+    assert case.views["side"].uncertainty == {}
+    again = save_and_load(case, tmp_path / "again.json")
+    assert again.views["front"].uncertainty == {first: 2.5, second: 12.0}
+    assert "uncertainty" not in json.loads((tmp_path / "again.json").read_text())[
+        "views"]["side"]
+    bad = copy.deepcopy(doc)
+    bad["views"]["front"]["uncertainty"] = {first: 0}
+    assert_rejected(bad, rf"views\.front\.uncertainty\.{first}")
+    bad["views"]["front"]["uncertainty"] = {names[-1]: 3.0}          # not placed there
+    assert_rejected(bad, rf"views\.front\.uncertainty\.{names[-1]}: no such landmark")

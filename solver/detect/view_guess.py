@@ -1,0 +1,141 @@
+"""Which way a detected face looks: the photo's view (front, right or left profile, or a
+three-quarter view between) and the camera a landmarks file starts the fit from, guessed
+from the detection itself; and which detected points to keep in a profile, with each
+point's uncertainty in pixels.
+
+The yaw (the camera's direction from the face's front, toward the subject's right
+positive, as ``orthographic-right`` is at +90) comes from the face mesh when it sees a face:
+the line between the eye corners (mesh 33 -> 263 and 133 -> 362) in the mesh's own depth,
+``atan2(depth, image length)``. On james' two real photos it gave 29.6 and -21.3 degrees,
+their calibrated cameras 29.5 and -20.9 (``bench.bench_detect``). Where the mesh sees no
+face (past about 60 degrees: the sample's profile photo, presence 0.03-0.08), or the
+detector's eye keypoints nearly coincide (``DetectedFace.is_profile``), the photo is a
+profile, its side from the detector's keypoints: the nose tip lies beyond the eyes on the
+side the face looks to (in a right profile the face points to the image's right,
+``solver.cameras.ORTHO_VIEWS``).
+"""
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..cameras import OrthographicCamera
+from ..io.json_file import read_json
+from .ibug_map import MAP_PATH
+
+#: Within this yaw (degrees) of the front a photo is written as an orthographic front
+#: photo (the fit turns the head in it); farther, as a three-quarter view whose pinhole
+#: camera the fit calibrates on the head (``{"kind": "pinhole"}``).
+FRONT_MAX_DEG = 15.0
+#: A profile's nose-tip keypoint is at least this far (fraction of the detector box's
+#: width) beyond the eyes' midpoint: 0.24 on the sample's profile; 0.02 on its front photo.
+PROFILE_MIN_NOSE = 0.1
+#: Mesh vertex pairs (subject's right, left) whose 3-D line gives the yaw: the outer and
+#: the inner eye corners.
+EYE_PAIRS = ((33, 263), (133, 362))
+#: Per coordinate standard deviation of a 2-D Gaussian error / its median length.
+MEDIAN_TO_SIGMA = 1.0 / np.sqrt(2.0 * np.log(2.0))
+
+
+@dataclass(frozen=True)
+class ViewGuess:
+    """Which way a face in a photo looks.
+
+    Attributes
+    ----------
+    name : str
+        "front", "right", "left" (profiles), "three_quarter_right", "three_quarter_left".
+    yaw_deg : float
+        The camera's direction from the face's front, degrees, toward the subject's right
+        positive (a profile: +-90, not measured).
+    """
+
+    name: str
+    yaw_deg: float
+
+    @property
+    def profile(self):
+        return self.name in ("right", "left")
+
+    @property
+    def side(self):
+        """"right", "left" (the side of the subject the camera is on) or None (front)."""
+        if self.name == "front":
+            return None
+        return "right" if self.name.endswith("right") else "left"
+
+    def camera(self, size):
+        """(camera, hints) for a view of this photo: a nominal orthographic camera for the
+        front and the profiles, or None with ``{"kind": "pinhole"}`` for a three-quarter
+        view (calibrated by the fit on the head)."""
+        if self.name in ("front", "right", "left"):
+            return OrthographicCamera.nominal(f"orthographic-{self.name}", size), {}
+        return None, {"kind": "pinhole"}
+
+    def describe(self):
+        """A few words for messages."""
+        if self.profile:
+            return (f"a {self.name} profile (the face looks to the image's "
+                    f"{self.name}, the camera at the subject's {self.name})")
+        if self.name == "front":
+            return f"a front photo (yaw {self.yaw_deg:+.0f} deg)"
+        return (f"a three-quarter view from the subject's {self.side} "
+                f"(yaw {self.yaw_deg:+.0f} deg)")
+
+
+def mesh_yaw_deg(mesh):
+    """The yaw (degrees, toward the subject's right positive) of a face mesh (468, 3)."""
+    m = np.asarray(mesh, float)
+    d = sum(m[left] - m[right] for right, left in EYE_PAIRS)
+    return float(np.degrees(np.arctan2(d[2], np.hypot(d[0], d[1]))))
+
+
+def guess_view(face):
+    """The :class:`ViewGuess` of a :class:`~.detector.DetectedFace`, or None when neither
+    the mesh nor the detector's keypoints say which way the face looks."""
+    if not face.is_profile:
+        yaw = mesh_yaw_deg(face.mesh)
+        if abs(yaw) <= FRONT_MAX_DEG:
+            return ViewGuess("front", yaw)
+        return ViewGuess("three_quarter_right" if yaw > 0 else "three_quarter_left", yaw)
+    if face.keypoints is None or face.face_size is None:
+        return None
+    kp = np.asarray(face.keypoints, float)
+    ahead = (kp[2, 0] - 0.5 * (kp[0, 0] + kp[1, 0])) / face.face_size
+    if abs(ahead) < PROFILE_MIN_NOSE:
+        return None
+    return ViewGuess("right", 90.0) if ahead > 0 else ViewGuess("left", -90.0)
+
+
+@functools.cache
+def uncertainty_table(path=MAP_PATH):
+    """{"front": {iBUG number: fraction}, "profile": {...}}: each point's median error as
+    a fraction of the detector box's width (``assets/mediapipe_ibug68.json``
+    "uncertainty"); the profile's lists only the points kept there."""
+    data = read_json(path).get("uncertainty")
+    if not isinstance(data, dict) or not all(
+            isinstance(data.get(k), dict) for k in ("front", "profile")):
+        raise ValueError(f"{path}: 'uncertainty' must give 'front' and 'profile' tables")
+    out = {}
+    for kind in ("front", "profile"):
+        table = {int(k): float(v) for k, v in data[kind].items()
+                 if not k.startswith("_")}
+        if not all(1 <= k <= 68 and v > 0 for k, v in table.items()):
+            raise ValueError(f"{path}: uncertainty.{kind}: iBUG numbers 1..68 -> fractions > 0")
+        out[kind] = table
+    if set(out["front"]) != set(range(1, 69)):
+        raise ValueError(f"{path}: uncertainty.front must give every iBUG point 1..68")
+    return out
+
+
+def point_uncertainty(face):
+    """{iBUG number: standard deviation px} of the points to keep of a face: all 68 unless
+    it is a profile (``DetectedFace.is_profile``), in a profile only those
+    ``uncertainty.profile`` lists (measured trustworthy there). Each is the measured median
+    error (a fraction of the face's size) times the detector box's width, as a
+    per-coordinate deviation; None for every point of a face without a box."""
+    if face.face_size is None:
+        return dict.fromkeys(range(1, 69))
+    table = uncertainty_table()["profile" if face.is_profile else "front"]
+    return {i: f * face.face_size * MEDIAN_TO_SIGMA for i, f in table.items()}

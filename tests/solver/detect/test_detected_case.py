@@ -1,0 +1,57 @@
+"""Detected photos as a case (solver/detect/detected_case.py), fitted: on the rendered
+sample the detected front landmarks with their uncertainty (the profile as placed by hand)
+fit the true head better than the mean head and than the same points as 1-px clicks (james:
+tests/bench/test_bench_detect.py)."""
+
+import copy
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from solver import fit_head, load_landmarks
+from solver.detect import Detector
+from solver.detect.detected_case import detect_photos
+from solver.paths import DETECTOR_DIR
+from solver.synthetic import skin_error_mm
+
+
+@pytest.fixture(scope="module")
+def detector():
+    if not (DETECTOR_DIR / "face_landmark.tflite").is_file():
+        pytest.skip(f"models missing in {DETECTOR_DIR}: run ./run detector")
+    return Detector()
+
+
+def _load(path):
+    return np.asarray(Image.open(path).convert("RGB"))
+
+
+def test_detect_photos_names_views_and_fails_naming_the_photo(sample, detector, tmp_path):
+    folder, _ = sample
+    lines = []
+    case = detect_photos([(None, folder / "side.png"), ("front", folder / "front.png")],
+                         detector, _load, base_dir=folder, echo=lines.append)
+    assert list(case.views) == ["right", "front"]
+    assert case.views["right"].image == "side.png"
+    assert sum(ln.startswith("note:") for ln in lines) == 1
+    blank = tmp_path / "wall.png"
+    Image.new("RGB", (200, 300), (90, 90, 90)).save(blank)
+    with pytest.raises(ValueError, match=r"wall\.png: no face found"):
+        detect_photos([(None, folder / "front.png"), (None, blank)], detector, _load)
+
+
+def test_the_detected_front_with_its_uncertainty_fits_the_sample(sample, detector, model):
+    folder, truth = sample
+    case = load_landmarks(folder / "sample.json", known_names=model)
+    auto = detect_photos([(None, folder / "front.png")], detector, _load, base_dir=folder)
+    given, clicks = copy.deepcopy(case), copy.deepcopy(case)
+    given.views["front"] = auto.views["front"]
+    clicks.views["front"] = copy.deepcopy(auto.views["front"])
+    clicks.views["front"].uncertainty = {}
+    true = truth["local_vertices"]
+    mean = skin_error_mm(model, model.vertices, true)
+    err = {label: skin_error_mm(model, fit_head(model, c).local_vertices, true)
+           for label, c in (("uncertainty", given), ("clicks", clicks))}
+    assert err["uncertainty"] < 0.6 * mean, (err, mean)
+    assert err["uncertainty"] < err["clicks"], err

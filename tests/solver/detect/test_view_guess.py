@@ -1,0 +1,132 @@
+"""Which way a detected face looks (solver/detect/view_guess.py), and each point's
+uncertainty, on the rendered sample's photos (front, right profile, the profile mirrored
+into a left one) and on james' two real three-quarter photos against their calibrated
+cameras."""
+
+import json
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from solver.detect import Detector
+from solver.detect.view_guess import (
+    MEDIAN_TO_SIGMA,
+    ViewGuess,
+    guess_view,
+    point_uncertainty,
+    uncertainty_table,
+)
+from solver.io.landmark_set import load_landmark_set
+from solver.paths import DETECTOR_DIR
+from tests import ROOT
+
+
+@pytest.fixture(scope="module")
+def detector():
+    if not (DETECTOR_DIR / "face_landmark.tflite").is_file():
+        pytest.skip(f"models missing in {DETECTOR_DIR}: run ./run detector")
+    return Detector()
+
+
+def _photo(folder, view, truth, mirror=False):
+    """(photo uint8, {iBUG number: true (u, v)}) of the sample's ``view``."""
+    image = np.asarray(Image.open(folder / f"{view}.png").convert("RGB"))
+    number = {n: i for i, n in load_landmark_set().ibug.items()}
+    names = json.loads(str(truth["landmark_names"]))[view]
+    pts = {number[n]: np.asarray(p, float) for n, p in zip(names, truth[f"exact_{view}"],
+                                                            strict=True) if n in number}
+    if mirror:
+        w = image.shape[1]
+        image = image[:, ::-1].copy()
+        pts = {i: np.array([w - p[0], p[1]]) for i, p in pts.items()}
+    return image, pts
+
+
+def test_the_sample_photos_are_a_front_and_both_profiles(sample, detector):
+    folder, truth = sample
+    image, _ = _photo(folder, "front", truth)
+    face = detector.detect(image)
+    guess = guess_view(face)
+    assert guess.name == "front" and abs(guess.yaw_deg) < 8.0 and not guess.profile
+    assert guess.camera((384, 512))[0].view == "orthographic-front"
+    for mirror, side in ((False, "right"), (True, "left")):
+        image, _ = _photo(folder, "side", truth, mirror)
+        face = detector.detect(image)
+        assert face is not None and face.is_profile, side
+        guess = guess_view(face)
+        assert guess.name == side and guess.profile and guess.side == side
+        camera, hints = guess.camera((384, 512))
+        assert camera.view == f"orthographic-{side}" and hints == {}
+
+
+def test_a_profile_keeps_only_its_trustworthy_points_each_within_its_uncertainty(
+        sample, detector):
+    folder, truth = sample
+    for mirror in (False, True):
+        image, pts = _photo(folder, "side", truth, mirror)
+        face = detector.detect(image)
+        kept = point_uncertainty(face)
+        assert sorted(kept) == [31, 34, 52]
+        # each kept point's error within 3 of its standard deviations (2-D: 3 sigma ~ 2.5
+        # median errors), the points left out mostly farther than that
+        for i, sigma in kept.items():
+            assert np.linalg.norm(face.ibug[i - 1] - pts[i]) < 3 * sigma, (mirror, i)
+        left_out = [np.linalg.norm(face.ibug[i - 1] - pts[i]) / face.face_size
+                    for i in pts if i not in kept]
+        assert np.median(left_out) > max(uncertainty_table()["profile"].values())
+
+
+def test_front_points_are_as_far_off_as_their_uncertainty_says(sample, detector):
+    folder, truth = sample
+    image, pts = _photo(folder, "front", truth)
+    face = detector.detect(image)
+    sigma = point_uncertainty(face)
+    assert sorted(sigma) == list(range(1, 69))
+    # the jaw (an outline, and on james under a beard) is the least certain, the mouth and
+    # eyes the most; all scale with the face's size
+    assert sigma[9] > 3 * sigma[49] and sigma[37] < sigma[20] < sigma[9]
+    assert sigma[9] == pytest.approx(uncertainty_table()["front"][9] * face.face_size
+                                     * MEDIAN_TO_SIGMA)
+    z = np.array([np.linalg.norm(face.ibug[i - 1] - p) / sigma[i] for i, p in pts.items()])
+    # errors in standard deviations: of the order of one (median of a 2-D Gaussian: 1.18)
+    assert 0.3 < np.median(z) < 2.5, np.median(z)
+
+
+def _james(folder):
+    from bench.realistic_cases import calibrate, face_frame, load_scan
+
+    scan = load_scan(folder)
+    image = np.asarray(Image.open(folder / "james.jpg").convert("RGB"))
+    half = image.shape[1] // 2
+    origin, left, _, forward = face_frame(scan.ibug)
+    out = []
+    for photo, x0 in (("photo_a", 0), ("photo_b", half)):
+        d = calibrate(scan, photo).camera.centre - origin
+        out.append((photo, image[:, x0:x0 + half],
+                    float(np.degrees(np.arctan2(d @ -left, d @ forward)))))
+    return out
+
+
+def test_james_photos_are_three_quarter_views_at_their_calibrated_yaw(detector):
+    from bench.realistic_cases import james_folder
+
+    folder = james_folder(ROOT)
+    if not (folder / "james.obj").is_file():
+        pytest.skip(f"the scan james is not in {folder} (set HEADRECON_REALDATA)")
+    for photo, image, true_yaw in _james(folder):
+        guess = guess_view(detector.detect(image))
+        side = "right" if true_yaw > 0 else "left"
+        assert guess.name == f"three_quarter_{side}", (photo, guess, true_yaw)
+        assert abs(guess.yaw_deg - true_yaw) < 4.0, (photo, guess.yaw_deg, true_yaw)
+        assert guess.camera((1200, 1600)) == (None, {"kind": "pinhole"})
+
+
+def test_view_guess_words_and_a_bad_table_names_its_file(tmp_path):
+    assert ViewGuess("right", 90.0).describe().startswith("a right profile")
+    assert "yaw -31 deg" in ViewGuess("three_quarter_left", -31.0).describe()
+    assert ViewGuess("front", 2.0).side is None
+    bad = tmp_path / "map.json"
+    bad.write_text(json.dumps({"uncertainty": {"front": {"1": 0.1}, "profile": {}}}))
+    with pytest.raises(ValueError, match="map.json: uncertainty.front must give every"):
+        uncertainty_table(bad)

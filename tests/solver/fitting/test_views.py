@@ -1,0 +1,66 @@
+"""The views of a fit (solver/fitting/views.py): a landmark's given uncertainty sets its
+weight relative to the other landmarks of its view, and is its noise floor."""
+
+import copy
+
+import numpy as np
+import pytest
+
+from solver import FitOptions, fit_head
+from solver.fitting.noise import Noise
+from solver.fitting.views import prepare_views, uncertainty_factors
+from solver.synthetic import make_case
+
+
+@pytest.fixture(scope="module")
+def case(model):
+    return make_case(model, rng=3, noise_px=0.5)[0]
+
+
+def test_a_more_uncertain_landmark_gets_less_weight(model, case):
+    front = case.views["front"]
+    names = list(front.points)
+    relative, floor = uncertainty_factors(front, 1.0)
+    assert np.all(relative == 1.0) and np.all(floor == 1.0)           # none given
+    front = copy.deepcopy(front)
+    front.uncertainty = {n: 2.0 for n in names}
+    front.uncertainty[names[0]] = 8.0
+    relative, floor = uncertainty_factors(front, 1.0)
+    assert relative[0] == pytest.approx(1 / 16) and np.allclose(relative[1:], 1.0)
+    assert floor[0] == pytest.approx(1 / 64) and np.allclose(floor[1:], 1 / 4)
+    given = copy.deepcopy(case)
+    given.views["front"] = front
+    # the first fit (no noise estimate yet): each landmark at its own floor
+    plain = {v.name: v for v in prepare_views(model, case, FitOptions())[0]}
+    views = {v.name: v for v in prepare_views(model, given, FitOptions())[0]}
+    w0, w = plain["front"].weights, views["front"].weights
+    assert w[0] == pytest.approx(w0[0] / 64) and np.allclose(w[1:], w0[1:] / 4)
+    np.testing.assert_allclose(views["right"].weights, plain["right"].weights)
+    # with the view's noise estimated at 4 px (above every floor): weighed relative to
+    # the others, 1 / 16 of theirs
+    noise = Noise(landmark_px={"front": 4.0, "right": 1.0}, floor_px=1.0)
+    plain = {v.name: v for v in prepare_views(model, case, FitOptions(), noise=noise)[0]}
+    views = {v.name: v for v in prepare_views(model, given, FitOptions(), noise=noise)[0]}
+    w0, w = plain["front"].weights, views["front"].weights
+    assert w[0] == pytest.approx(w0[0] / 16) and np.allclose(w[1:], w0[1:])
+    # estimated at 1 px (the fit's own weight 1 / 0.76), below the given 2 px: the floor
+    # holds, (1 / 2)^2
+    noise = Noise(landmark_px={"front": 1.0, "right": 1.0}, floor_px=1.0)
+    w1 = {v.name: v for v in prepare_views(model, given, FitOptions(), noise=noise)[0]}
+    assert np.allclose(w1["front"].weights[1:], 0.25)
+
+
+def test_the_fit_follows_a_misplaced_landmark_less_when_it_is_said_uncertain(model, case):
+    moved = copy.deepcopy(case)
+    front = moved.views["front"]
+    name = "nose_tip"
+    u, v = front.points[name]
+    front.points[name] = (u + 12.0, v + 9.0)                          # 15 px off
+    residual = {}
+    for label, sigma in (("as a click", 1.0), ("uncertain", 15.0)):
+        front.uncertainty = {n: 1.0 for n in front.points}
+        front.uncertainty[name] = sigma
+        r = fit_head(model, moved, FitOptions(noise="fixed")).residuals["front"]
+        residual[label] = float(r.pixels[r.names.index(name)])
+    # followed less: the misplaced point stays farther from the fitted head
+    assert residual["uncertain"] > residual["as a click"] + 2.0 and residual["uncertain"] > 14.0
