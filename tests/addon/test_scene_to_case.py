@@ -77,3 +77,24 @@ def test_fit_problem_follows_the_solver_count_rule(scene, tmp_path):
         "Too few landmarks on photo (3): place at least 4 per photo"
     landmarks.place_landmark(photo, names[3], (130.0, 150.0))
     assert scene_to_case.fit_problem(scene) is None
+
+
+def test_a_profile_with_only_its_outline_can_be_fitted(scene, tmp_path):
+    # a profile photo with a traced outline needs no landmark (the solver's rule: the
+    # outline places its camera); without the outline it needs 3
+    from headrecon_addon import landmarks, photos, scene_to_case
+
+    img = write_photo(tmp_path / "photo.png", (300, 400))
+    for view in ("front", "right"):
+        assert bpy.ops.headrecon.load_photo(filepath=str(img), view=view,
+                                            camera_view=f"orthographic-{view}") == {"FINISHED"}
+    front, side = photos.find_plane(scene, "front"), photos.find_plane(scene, "right")
+    for i, name in enumerate(d["name"] for d in landmarks.landmark_definitions("front")):
+        if i == 6:
+            break
+        landmarks.place_landmark(front, name, (100.0 + 10 * i, 150.0))
+    assert scene_to_case.fit_problem(scene) == \
+        "Too few landmarks on right (0): place at least 3 per photo"
+    landmarks.set_contour(side, np.array([[150.0, 50.0], [170.0, 200.0],
+                                          [160.0, 350.0]]))
+    assert scene_to_case.fit_problem(scene) is None
