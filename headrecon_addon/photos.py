@@ -31,7 +31,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from . import material, photo_cameras
+from . import material, photo_cameras, scene_collections
 from .polls import ObjectModeOperator, poll_result, view3d_problem
 from .solver_link import ORTHO_VIEWS, OrthographicCamera, camera_from_json, camera_to_json
 from .warm_up import warm_up
@@ -402,8 +402,7 @@ def place_plane(plane, camera=None, centre=(0.0, 0.0, 0.0)):
     obj = camera_object(plane)
     if obj is None:
         obj = photo_cameras.new_camera_object(f"HeadRecon Camera {plane.headrecon.view}")
-        for coll in plane.users_collection:
-            coll.objects.link(obj)
+        scene_collections.link_like(obj, plane)
     photo_cameras.apply_settings(obj, settings)
     photo_cameras.set_background(obj, plane.headrecon.image)
     depth = photo_cameras.camera_depth(obj, centre) + PLANE_DEPTH
@@ -535,14 +534,6 @@ def remove_objects(objects):
                 bpy.data.cameras.remove(data)
 
 
-def link_object(obj, collection):
-    """Link ``obj`` and its children (recursively) into ``collection``."""
-    if obj.name not in collection.objects:
-        collection.objects.link(obj)
-    for child in obj.children:
-        link_object(child, collection)
-
-
 def free_view_name(scene, base):
     """``base`` if no photo has that view name, else ``base2``, ``base3``, ..."""
     taken = {p.headrecon.view for p in photo_planes(scene)}
@@ -637,7 +628,7 @@ class HEADRECON_OT_load_photo(ObjectModeOperator, bpy.types.Operator):
                 else:
                     plane = new_photo_plane(image, view, self.camera_view, hints=hints,
                                             centre=head_centre(scene))
-                    link_object(view_root(plane), context.collection)
+                    scene_collections.link_tree(scene, view_root(plane))
         except ValueError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
