@@ -225,6 +225,10 @@ class HEADRECON_PG_scene(bpy.types.PropertyGroup):
                     "(passpoints, x- keys), as JSON, written back on export")
 
 
+# The Fit panel's Advanced settings, in the order shown (Reset to Defaults resets these).
+ADVANCED_FIT_SETTINGS = ("n_identity", "n_regional", "lambda1", "lambda2", "prior",
+                         "landmark_weight", "exact_landmarks")
+
 CLASSES = (HEADRECON_PG_object, HEADRECON_PG_residual, HEADRECON_PG_scene)
 
 

@@ -122,3 +122,27 @@ def test_cancelled_or_failed_fit_leaves_scene_unchanged(files):
     with pytest.raises(RuntimeError, match="Too few landmarks on front"):
         bpy.ops.headrecon.fit()
     assert snapshot() == before
+
+
+def test_reset_to_defaults_resets_the_advanced_settings_only(scene):
+    import dataclasses
+
+    from headrecon_addon.properties import ADVANCED_FIT_SETTINGS
+    from solver import FitOptions
+
+    props = scene.headrecon
+    defaults = FitOptions()
+    changed = {"n_identity": 7, "n_regional": 3, "lambda1": 42.0, "lambda2": 0.125,
+               "prior": "identity" if defaults.prior != "identity" else "eigen",
+               "landmark_weight": 9.5, "exact_landmarks": not defaults.exact_landmarks}
+    assert set(changed) == set(ADVANCED_FIT_SETTINGS)
+    for name, value in changed.items():
+        setattr(props, name, value)
+    props.method = "approach2"  # up front, not an Advanced setting
+    props.texture_size = "256"
+    assert bpy.ops.headrecon.reset_fit_settings() == {"FINISHED"}
+    for name in ADVANCED_FIT_SETTINGS:
+        want = getattr(defaults, name)
+        assert getattr(props, name) == pytest.approx(want), name
+        assert dataclasses.asdict(defaults)[name] != changed[name]
+    assert props.method == "approach2" and props.texture_size == "256"
