@@ -8,8 +8,8 @@ import bpy
 
 from . import fit_job, scene_to_case
 from .live_refit import LIVE
-from .properties import ADVANCED_FIT_SETTINGS
 from .polls import object_mode_problem, poll_result
+from .properties import ADVANCED_FIT_SETTINGS
 
 _running = {"job": None}
 
