@@ -89,7 +89,7 @@ def load_case_images(case):
             images[name] = placeholder_image(name, case.views[name].size)
             continue
         try:
-            images[name] = photos.load_image(path)
+            images[name] = photos.load_image(path, case.views[name].size)
         except ValueError as e:
             raise ValueError(f"{case.source}: view {name!r}: {e}") from None
     return images

@@ -47,6 +47,8 @@ class HEADRECON_PT_photos(_Panel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         planes = photos.photo_planes(context.scene)
+        # several photos at once, each into its view by its name and shape
+        _load_photo(layout, "Load Photos...", "FILE_IMAGE", "", "ORTHOGRAPHIC", photos.AUTO)
         kinds = set()
         for plane in planes:
             props = plane.headrecon
@@ -64,6 +66,9 @@ class HEADRECON_PT_photos(_Panel, bpy.types.Panel):
                         float(photos.lens_hint(plane) or 0.0))
             box.label(text=photos.camera_label(plane),
                       icon="CAMERA_DATA" if perspective else "VIEW_ORTHO")
+            if photos.camera_kind(plane) == "pinhole":
+                box.prop(props, "lens_mm", text="Focal Length (EXIF)" if props.lens_from_exif
+                         else "Focal Length")
             if not props.camera_json and not landmarks.passpoint_objects(plane):
                 # the nominal camera, or where a camera to compute starts (passpoints place
                 # theirs)
