@@ -179,6 +179,13 @@ def _first(entries, tag):
     return v if math.isfinite(v) and v > 0 else None
 
 
+def _whole(entries, tag, default=None):
+    """The tag's first value as a whole number, or ``default`` when it is absent or not
+    one (an entry of the wrong type or without values)."""
+    v = _first(entries, tag)
+    return int(v) if v is not None and v == int(v) else default
+
+
 def parse_exif(data):
     """The EXIF of a JPEG file's bytes.
 
@@ -192,20 +199,30 @@ def parse_exif(data):
     ValueError
         The EXIF is there but cut short or malformed (the message says where).
     """
-    tiff_bytes = _jpeg_app1(bytes(data))
+    try:
+        return _parse(bytes(data))
+    except (IndexError, TypeError, OverflowError, struct.error) as e:  # a case not foreseen
+        raise ValueError(f"EXIF malformed ({type(e).__name__}: {e})") from None
+
+
+def _parse(data):
+    tiff_bytes = _jpeg_app1(data)
     if tiff_bytes is None:
         return None
     tiff = _Tiff(tiff_bytes)
     ifd0 = tiff.ifd(tiff.first)
     sub = {}
     if EXIF_IFD in ifd0:
-        sub = tiff.ifd(int(ifd0[EXIF_IFD][0]))
-    orientation = int(ifd0.get(ORIENTATION, (1,))[0] or 1)
+        where = _whole(ifd0, EXIF_IFD)
+        if where is None:
+            raise ValueError("EXIF sub-directory pointer is not an offset")
+        sub = tiff.ifd(where)
+    orientation = _whole(ifd0, ORIENTATION, 1)
     if not 1 <= orientation <= 8:
         orientation = 1  # outside EXIF's eight: treated as upright
     xres, yres = _first(sub, FOCAL_PLANE_X_RES), _first(sub, FOCAL_PLANE_Y_RES)
     px, py = _first(sub, PIXEL_X), _first(sub, PIXEL_Y)
-    unit = sub.get(FOCAL_PLANE_UNIT, (2,))[0]
+    unit = _whole(sub, FOCAL_PLANE_UNIT, 2)
     return Exif(
         orientation=orientation,
         focal_length_mm=_first(sub, FOCAL_LENGTH),
@@ -232,7 +249,7 @@ def read_photo_exif(path):
     try:
         with open(p, "rb") as f:
             return parse_exif(f.read()), None
-    except (OSError, ValueError, struct.error) as e:
+    except (OSError, ValueError) as e:
         return None, f"{p.name}: EXIF not read ({e}); the photo is used as stored, " \
                      "without a focal length"
 

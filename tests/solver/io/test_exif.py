@@ -83,6 +83,21 @@ def test_read_photo_exif_of_a_missing_file_names_it(tmp_path):
     assert got is None and problem.startswith("gone.jpg: EXIF not read")
 
 
+def test_entries_of_the_wrong_type_fall_back_or_raise_value_error():
+    # orientation as a rational, no values, a unit that is a fraction: defaults
+    e = exif.parse_exif(jpeg(tiff([(exif.ORIENTATION, 5, [(13, 2)])],
+                                  [(exif.FOCAL_PLANE_X_RES, 5, [(720, 1)]),
+                                   (exif.FOCAL_PLANE_Y_RES, 5, [(720, 1)]),
+                                   (exif.FOCAL_PLANE_UNIT, 5, [(7, 2)])])))
+    assert e.orientation == 1 and e.focal_plane_unit_mm == 25.4
+    e = exif.parse_exif(jpeg(tiff([(exif.ORIENTATION, 3, [])])))
+    assert e.orientation == 1
+    # the sub-directory pointer as a rational with a zero denominator
+    data = tiff([(exif.EXIF_IFD, 5, [(8, 0)])])
+    with pytest.raises(ValueError, match="pointer"):
+        exif.parse_exif(jpeg(data))
+
+
 def test_odd_values_fall_back():
     # an orientation outside 1-8 is upright; a zero denominator is no focal length
     e = exif.parse_exif(jpeg(tiff([(exif.ORIENTATION, 3, [9])],
@@ -106,3 +121,29 @@ def test_orient_agrees_with_pillow(orientation, tmp_path):
     assert ours.shape == upright.shape
     assert ours.shape[1::-1] == exif.oriented_size(as_stored.shape[1::-1], orientation)
     np.testing.assert_array_equal(ours, upright)
+
+
+def test_random_damage_never_raises_anything_but_value_error():
+    good = jpeg(tiff([(exif.ORIENTATION, 3, [6])],
+                     [(exif.FOCAL_LENGTH, 5, [(42, 10)]), (exif.FOCAL_35MM, 3, [26]),
+                      (exif.FOCAL_PLANE_X_RES, 5, [(4032000, 5600)]),
+                      (exif.PIXEL_X, 4, [4032])], ">"))
+    start = good.index(b"Exif")
+    rng = np.random.default_rng(7)
+    outcomes = set()
+    for _ in range(2000):
+        data = bytearray(good)
+        for _ in range(rng.integers(1, 6)):
+            data[rng.integers(start, start + 120)] = rng.integers(0, 256)
+        if rng.random() < 0.2:
+            data = data[:rng.integers(0, start + 120)]
+        try:
+            got = exif.parse_exif(bytes(data))
+        except ValueError:
+            outcomes.add("error")
+            continue
+        outcomes.add("none" if got is None else "exif")
+        if got is not None:
+            assert 1 <= got.orientation <= 8
+            got.lens_36mm((4032, 3024))  # whatever was read, no exception
+    assert {"error", "exif"} <= outcomes
