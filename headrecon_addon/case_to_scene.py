@@ -7,7 +7,7 @@ import json
 
 import bpy
 
-from . import landmarks, photos
+from . import landmarks, photos, scene_collections
 from .data import Transaction
 from .solver_link import MIN_PASSPOINTS, fit_dlt, landmarks_to_dict, load_landmarks
 
@@ -89,7 +89,7 @@ def load_case_images(case):
             images[name] = placeholder_image(name, case.views[name].size)
             continue
         try:
-            images[name] = photos.load_image(path)
+            images[name] = photos.load_image(path, case.views[name].size)
         except ValueError as e:
             raise ValueError(f"{case.source}: view {name!r}: {e}") from None
     return images
@@ -121,6 +121,6 @@ def import_landmarks(context, path):
             if old is not None:
                 photos.remove_objects(photos.view_objects(old))
         for plane in planes:
-            photos.link_object(photos.view_root(plane), scene.collection)
+            scene_collections.link_tree(scene, photos.view_root(plane))
         store_case_level(scene, case)
     return planes

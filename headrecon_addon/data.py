@@ -5,7 +5,8 @@ operator leaves no half-made objects, meshes, materials or images behind."""
 import bpy
 
 # Removal order: users first, so the data they used is free to go.
-_KINDS = ("objects", "meshes", "curves", "cameras", "materials", "images", "node_groups")
+_KINDS = ("objects", "meshes", "curves", "cameras", "materials", "images", "node_groups",
+          "collections")
 
 
 class Transaction:

@@ -1,5 +1,5 @@
 """The Fit operator (in a thread, with progress and Esc to cancel, or at once in the
-background) and the Quick Refit operator."""
+background), Reset to Defaults (the Advanced fit settings) and the Quick Refit operator."""
 
 import threading
 import time
@@ -9,6 +9,7 @@ import bpy
 from . import fit_job, scene_to_case
 from .live_refit import LIVE
 from .polls import object_mode_problem, poll_result
+from .properties import ADVANCED_FIT_SETTINGS
 
 _running = {"job": None}
 
@@ -109,6 +110,21 @@ class HEADRECON_OT_fit(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class HEADRECON_OT_reset_fit_settings(bpy.types.Operator):
+    """Set the Advanced fit settings (components, λ1, λ2, prior, landmark weight, exact
+    landmarks) back to their defaults"""
+
+    bl_idname = "headrecon.reset_fit_settings"
+    bl_label = "Reset to Defaults"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        props = context.scene.headrecon
+        for name in ADVANCED_FIT_SETTINGS:
+            props.property_unset(name)
+        return {"FINISHED"}
+
+
 class HEADRECON_OT_live_refit_now(bpy.types.Operator):
     """Refit from the current landmark positions with the fast path (no new texture)"""
 
@@ -133,4 +149,4 @@ class HEADRECON_OT_live_refit_now(bpy.types.Operator):
         return {"FINISHED"}
 
 
-CLASSES = (HEADRECON_OT_fit, HEADRECON_OT_live_refit_now)
+CLASSES = (HEADRECON_OT_fit, HEADRECON_OT_reset_fit_settings, HEADRECON_OT_live_refit_now)

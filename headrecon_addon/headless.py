@@ -54,6 +54,7 @@ if __package__:
         export,
         photos,
         result_to_scene,
+        scene_collections,
     )
     from .data import Transaction
     from .solver_link import (
@@ -147,7 +148,7 @@ def build_scene_from_fit(model, case, result, images=None, scene=None, texture_s
         imgs = _images_for(case, images)
         planes = case_to_scene.build_view_planes(case, imgs)
         for plane in planes:
-            photos.link_object(photos.view_root(plane), scene.collection)
+            scene_collections.link_tree(scene, photos.view_root(plane))
         case_to_scene.store_case_level(scene, case)
         if textures is None and bake:
             arrays = {v: photos.image_to_array(img) for v, img in imgs.items()

@@ -358,7 +358,8 @@ class HEADRECON_OT_clear_landmarks(bpy.types.Operator):
     bl_label = "Clear Landmarks"
     bl_options = {"REGISTER", "UNDO"}
 
-    view: StringProperty(name="View", options={"SKIP_SAVE"})
+    view: StringProperty(name="View", options={"SKIP_SAVE"},
+                         description="Photo view name (empty: the active object's photo)")
 
     @classmethod
     def poll(cls, context):
@@ -466,8 +467,8 @@ class HEADRECON_OT_select_landmark(ObjectModeOperator, bpy.types.Operator):
     bl_label = "Select Landmark"
     bl_options = {"REGISTER", "UNDO"}
 
-    view: StringProperty(name="View")
-    landmark: StringProperty(name="Landmark")
+    view: StringProperty(name="View", description="Photo view name of the landmark")
+    landmark: StringProperty(name="Landmark", description="Landmark or passpoint name")
 
     def execute(self, context):
         if landmarks.select_landmark(context, self.view, self.landmark) is None:

@@ -11,7 +11,7 @@ import bmesh
 import bpy
 import numpy as np
 
-from . import material, photos
+from . import material, photos, scene_collections
 from .solver_link import load_landmark_set
 
 MARKER_RADIUS = 0.0025  # metres (plane space): about 7 px on a 1024 px photo
@@ -78,12 +78,6 @@ def passpoint_objects(plane):
     return marker_objects(plane, "PASSPOINT")
 
 
-def _link_like(obj, plane):
-    for coll in plane.users_collection:
-        if obj.name not in coll.objects:
-            coll.objects.link(obj)
-
-
 def set_landmark_state(obj, flagged, residual_px=-1.0):
     """Colour a marker as placed (landmarks green, passpoints blue) or flagged (red)."""
     obj.headrecon.flagged = bool(flagged)
@@ -114,7 +108,7 @@ def place_marker_local(plane, name, xy, role="LANDMARK"):
         obj.show_in_front = True
         obj.hide_render = True
         obj.lock_location[2] = True  # grabbing keeps it on the photo
-        _link_like(obj, plane)
+        scene_collections.link_like(obj, plane)
     obj.location = (float(xy[0]), float(xy[1]), LIFT)
     return obj
 
@@ -224,7 +218,7 @@ def set_contour_local(plane, xy):
         obj.show_in_front = True
         obj.hide_render = True
         obj.lock_location[2] = True
-        _link_like(obj, plane)
+        scene_collections.link_like(obj, plane)
     curve = obj.data
     curve.splines.clear()
     spline = curve.splines.new("POLY")

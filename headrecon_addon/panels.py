@@ -5,6 +5,7 @@ import bpy
 
 from . import calibration_object, landmarks, photos, reference_head
 from .live_refit import LIVE
+from .properties import ADVANCED_FIT_SETTINGS
 
 
 class _Panel:
@@ -46,6 +47,8 @@ class HEADRECON_PT_photos(_Panel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         planes = photos.photo_planes(context.scene)
+        # several photos at once, each into its view by its name and shape
+        _load_photo(layout, "Load Photos...", "FILE_IMAGE", "", "ORTHOGRAPHIC", photos.AUTO)
         kinds = set()
         for plane in planes:
             props = plane.headrecon
@@ -63,6 +66,9 @@ class HEADRECON_PT_photos(_Panel, bpy.types.Panel):
                         float(photos.lens_hint(plane) or 0.0))
             box.label(text=photos.camera_label(plane),
                       icon="CAMERA_DATA" if perspective else "VIEW_ORTHO")
+            if photos.camera_kind(plane) == "pinhole":
+                box.prop(props, "lens_mm", text="Focal Length (EXIF)" if props.lens_from_exif
+                         else "Focal Length")
             if not props.camera_json and not landmarks.passpoint_objects(plane):
                 # the nominal camera, or where a camera to compute starts (passpoints place
                 # theirs)
@@ -145,13 +151,6 @@ class HEADRECON_PT_fit(_Panel, bpy.types.Panel):
         col.use_property_split = True
         col.use_property_decorate = False
         col.prop(props, "method")
-        col.prop(props, "n_identity")
-        col.prop(props, "n_regional")
-        col.prop(props, "lambda1")
-        col.prop(props, "lambda2")
-        col.prop(props, "landmark_weight")
-        col.prop(props, "prior")
-        col.prop(props, "exact_landmarks")
         col.prop(props, "bake_texture")
         sub = col.row()
         sub.enabled = props.bake_texture
@@ -173,6 +172,25 @@ class HEADRECON_PT_fit(_Panel, bpy.types.Panel):
                 layout.label(text=f"Last refit: {stats['ms']:.0f} ms", icon="TIME")
         if props.status:
             layout.label(text=props.status, icon="CHECKMARK")
+
+
+class HEADRECON_PT_fit_advanced(_Panel, bpy.types.Panel):
+    """The fit's model and weights (the defaults work): components, λ1, λ2, prior,
+    landmark weight, exact landmarks, and a reset to the defaults."""
+
+    bl_label = "Advanced"
+    bl_parent_id = "HEADRECON_PT_fit"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        props = context.scene.headrecon
+        col = layout.column()
+        col.use_property_split = True
+        col.use_property_decorate = False
+        for name in ADVANCED_FIT_SETTINGS:
+            col.prop(props, name)
+        layout.operator("headrecon.reset_fit_settings", icon="LOOP_BACK")
 
 
 class HEADRECON_UL_residuals(bpy.types.UIList):
@@ -231,5 +249,5 @@ class HEADRECON_PT_result(_Panel, bpy.types.Panel):
 
 
 CLASSES = (HEADRECON_PT_head, HEADRECON_PT_photos, HEADRECON_PT_calibration,
-           HEADRECON_PT_landmarks, HEADRECON_PT_fit,
+           HEADRECON_PT_landmarks, HEADRECON_PT_fit, HEADRECON_PT_fit_advanced,
            HEADRECON_UL_residuals, HEADRECON_PT_result)

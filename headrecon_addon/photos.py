@@ -24,6 +24,7 @@ camera object of ``view_json`` (``camera_hints``: kind and what is known, the pa
 be computed), else the nominal orthographic camera of ``camera_view``.
 """
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -31,12 +32,24 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from . import material, photo_cameras
+from . import material, photo_cameras, scene_collections
+from .photo_sorting import sort_photos
 from .polls import ObjectModeOperator, poll_result, view3d_problem
-from .solver_link import ORTHO_VIEWS, OrthographicCamera, camera_from_json, camera_to_json
+from .solver_link import (
+    ORTHO_VIEWS,
+    OrthographicCamera,
+    camera_from_json,
+    camera_to_json,
+    orient,
+    oriented_size,
+    read_photo_exif,
+)
 from .warm_up import warm_up
 
 PLACEHOLDER = "headrecon_placeholder"  # custom property on stand-in images (no photo)
+# custom properties on a photo turned upright (EXIF Orientation): its file, the orientation
+UPRIGHT_SOURCE = "headrecon_source"
+UPRIGHT_ORIENTATION = "headrecon_orientation"
 PLANE_DEPTH = photo_cameras.PLANE_DEPTH  # metres behind the head's centre, along the view
 VIEW_KINDS = {"orthographic-front": "front", "orthographic-right": "right",
               "orthographic-left": "left"}
@@ -69,8 +82,35 @@ def plane_of(obj):
 # Images
 
 
-def load_image(path):
-    """Load a photo (reusing an already loaded one of the same file).
+@dataclasses.dataclass
+class LoadedPhoto:
+    """A photo file as loaded: its Blender image (upright), what its EXIF says (None:
+    nothing), and the one line naming the file when its EXIF could not be read."""
+
+    image: object
+    exif: object = None
+    problem: str | None = None
+
+    def lens_mm(self):
+        """The focal length EXIF gives (mm, 36 mm equivalent across the long side), or
+        None."""
+        if self.exif is None:
+            return None
+        size = tuple(self.image.size)
+        stored = oriented_size(size, self.exif.orientation)  # (its own inverse)
+        lens = self.exif.lens_36mm(stored)
+        return round(lens, 1) if lens else None
+
+
+def load_photo(path, size=None):
+    """Load a photo (reusing an already loaded one of the same file), turned upright as
+    its EXIF Orientation says (Blender shows the pixels as stored), with its EXIF.
+
+    Parameters
+    ----------
+    size : (int, int), optional
+        The size a landmarks file gives the photo: a photo turned by 90° whose stored size
+        is this one (a file written before orientation was applied) is loaded as stored.
 
     Raises
     ------
@@ -89,7 +129,51 @@ def load_image(path):
         if img.users == 0:
             bpy.data.images.remove(img)
         raise ValueError(f"{p}: cannot read the photo (not an image Blender understands)")
-    return img
+    exif, problem = read_photo_exif(p)
+    turn = exif.orientation if exif is not None else 1
+    if size is not None and tuple(size) == (w, h) != oriented_size((w, h), turn):
+        turn = 1
+    if turn != 1:
+        img = _upright_image(img, turn, p)
+    return LoadedPhoto(img, exif, problem)
+
+
+def load_image(path, size=None):
+    """The Blender image of ``load_photo`` (upright)."""
+    return load_photo(path, size).image
+
+
+def _upright_image(img, orientation, path):
+    """The photo ``img`` (as stored) turned upright: a packed image of its own, made once
+    per file and orientation (the stored one is removed when nothing uses it)."""
+    key = str(path.resolve())
+    upright = next((i for i in bpy.data.images if i.get(UPRIGHT_SOURCE) == key
+                    and i.get(UPRIGHT_ORIENTATION) == orientation), None)
+    if upright is None:
+        pixels = np.ascontiguousarray(orient(image_to_array(img), orientation))
+        h, w = pixels.shape[:2]
+        upright = bpy.data.images.new(path.name, w, h, alpha=False)
+        upright.colorspace_settings.name = img.colorspace_settings.name
+        upright.pixels.foreach_set(pixels[::-1].ravel())
+        upright.update()
+        upright.pack()  # its pixels are ours: saved in the .blend
+        upright[UPRIGHT_SOURCE] = key
+        upright[UPRIGHT_ORIENTATION] = orientation
+    if img.users == 0:
+        bpy.data.images.remove(img)
+    return upright
+
+
+def photo_source(image):
+    """The file a photo came from: the original of an upright copy, else its own file (an
+    absolute path), or None."""
+    if image is None:
+        return None
+    if image.get(UPRIGHT_SOURCE):
+        return str(image[UPRIGHT_SOURCE])
+    if image.source != "FILE" or not image.filepath:
+        return None
+    return bpy.path.abspath(image.filepath, library=image.library)
 
 
 def image_to_array(image):
@@ -402,8 +486,7 @@ def place_plane(plane, camera=None, centre=(0.0, 0.0, 0.0)):
     obj = camera_object(plane)
     if obj is None:
         obj = photo_cameras.new_camera_object(f"HeadRecon Camera {plane.headrecon.view}")
-        for coll in plane.users_collection:
-            coll.objects.link(obj)
+        scene_collections.link_like(obj, plane)
     photo_cameras.apply_settings(obj, settings)
     photo_cameras.set_background(obj, plane.headrecon.image)
     depth = photo_cameras.camera_depth(obj, centre) + PLANE_DEPTH
@@ -535,14 +618,6 @@ def remove_objects(objects):
                 bpy.data.cameras.remove(data)
 
 
-def link_object(obj, collection):
-    """Link ``obj`` and its children (recursively) into ``collection``."""
-    if obj.name not in collection.objects:
-        collection.objects.link(obj)
-    for child in obj.children:
-        link_object(child, collection)
-
-
 def free_view_name(scene, base):
     """``base`` if no photo has that view name, else ``base2``, ``base3``, ..."""
     taken = {p.headrecon.view for p in photo_planes(scene)}
@@ -571,35 +646,50 @@ PROJECTIONS = (
 )
 
 
+AUTO = "AUTO"  # the operator's direction: each photo's from its name and shape
+
+
 class HEADRECON_OT_load_photo(ObjectModeOperator, bpy.types.Operator):
-    """Choose a photo for a view: it becomes an image plane behind the head, or for a
-    perspective photo a camera looking at the head with the photo in its view (a photo
-    already there is swapped and its landmarks stay)"""
+    """Choose photos: each becomes an image plane behind the head, or for a perspective
+    photo a camera looking at the head with the photo in its view; several photos are
+    sorted into views (front, profile) by their names and shapes; photos are turned
+    upright as their EXIF says and a perspective photo takes its focal length from it (a
+    photo already in its view is swapped and its landmarks stay)"""
 
     bl_idname = "headrecon.load_photo"
-    bl_label = "Load Photo"
+    bl_label = "Load Photos"
     bl_options = {"REGISTER", "UNDO"}
 
-    filepath: bpy.props.StringProperty(subtype="FILE_PATH", options={"SKIP_SAVE"})
+    filepath: bpy.props.StringProperty(subtype="FILE_PATH", options={"SKIP_SAVE"},
+                                       description="The photo file")
+    files: bpy.props.CollectionProperty(type=bpy.types.OperatorFileListElement,
+                                        options={"HIDDEN", "SKIP_SAVE"})
+    directory: bpy.props.StringProperty(subtype="DIR_PATH", options={"HIDDEN", "SKIP_SAVE"})
     filter_image: bpy.props.BoolProperty(default=True, options={"HIDDEN", "SKIP_SAVE"})
     filter_folder: bpy.props.BoolProperty(default=True, options={"HIDDEN", "SKIP_SAVE"})
     view: bpy.props.StringProperty(
         name="View", default="", options={"SKIP_SAVE"},
-        description="View name in the landmarks file (empty: a new view, named after its "
-                    "camera)")
+        description="View name in the landmarks file (empty, or several photos: each a new "
+                    "view, named after its camera)")
     projection: bpy.props.EnumProperty(name="Projection", items=PROJECTIONS,
-                                       default="ORTHOGRAPHIC")
+                                       default="ORTHOGRAPHIC",
+                                       description="How the photos were taken: from far "
+                                                   "away (orthographic) or by any camera")
     camera_view: bpy.props.EnumProperty(
         name="Direction", items=(
+            (AUTO, "From the Photos",
+             "Each photo's direction from its file name (front, side, profile, right, "
+             "left), else its shape: the narrowest is the front, the widest the profile"),
             ("orthographic-front", "Front", "Photo taken from the front"),
             ("orthographic-right", "Right Profile", "The subject's right side"),
             ("orthographic-left", "Left Profile", "The subject's left side")),
+        default="orthographic-front",
         description="Where the camera stood (for a perspective photo: roughly; the fit "
                     "finds the camera)")
     lens_mm: bpy.props.FloatProperty(
         name="Focal Length", default=0.0, min=0.0, soft_max=300.0, unit="CAMERA",
         description="Perspective photo: the lens's focal length in mm, full-frame (36 mm) "
-                    "equivalent, e.g. from the photo's EXIF data (0: unknown)")
+                    "equivalent (0: from the photo's EXIF data, else unknown)")
 
     def invoke(self, context, event):
         context.window_manager.fileselect_add(self)
@@ -615,49 +705,103 @@ class HEADRECON_OT_load_photo(ObjectModeOperator, bpy.types.Operator):
         row.enabled = self.projection == "PERSPECTIVE"
         row.prop(self, "lens_mm")
 
-    def _hints(self):
+    def _paths(self):
+        names = sorted(f.name for f in self.files if f.name)
+        if names and self.directory:
+            folder = Path(bpy.path.abspath(self.directory))
+            return [str(folder / n) for n in names]
+        return [bpy.path.abspath(self.filepath)]
+
+    def _hints(self, photo):
+        """The camera to compute for a perspective photo, with the operator's focal length
+        or else the EXIF's; and whether the EXIF's was taken."""
         if self.projection != "PERSPECTIVE":
-            return {}
-        return {"kind": "pinhole", **({"lens_mm": self.lens_mm} if self.lens_mm > 0 else {})}
+            return {}, False
+        lens, exif = self.lens_mm, False
+        if lens <= 0:
+            lens, exif = photo.lens_mm() or 0.0, True
+        return {"kind": "pinhole", **({"lens_mm": lens} if lens > 0 else {})}, exif and lens > 0
+
+    def _directions(self, scene, paths, loaded):
+        if self.camera_view != AUTO:
+            return [self.camera_view] * len(paths)
+        existing = find_plane(scene, self.view.strip()) if len(paths) == 1 else None
+        if existing is not None:
+            return [existing.headrecon.camera_view]
+        taken = {p.headrecon.camera_view for p in photo_planes(scene)}
+        return sort_photos([(Path(p).name, tuple(ph.image.size))
+                            for p, ph in zip(paths, loaded, strict=True)], taken)
 
     def execute(self, context):
         from .data import Transaction
 
         scene = context.scene
-        hints = self._hints()
-        view = self.view.strip() or free_view_name(
-            scene, "photo" if hints else VIEW_KINDS[self.camera_view].replace("right", "side"))
+        paths = self._paths()
+        done = []
         try:
             with Transaction():
-                image = load_image(bpy.path.abspath(self.filepath))
-                plane = find_plane(scene, view)
-                if plane is not None:
-                    set_plane_image(plane, image)
-                    self._retarget(plane, hints, scene)
-                else:
-                    plane = new_photo_plane(image, view, self.camera_view, hints=hints,
-                                            centre=head_centre(scene))
-                    link_object(view_root(plane), context.collection)
+                loaded = [load_photo(p) for p in paths]
+                directions = self._directions(scene, paths, loaded)
+                for photo, direction in zip(loaded, directions, strict=True):
+                    done.append(self._place(scene, photo, direction, len(paths) == 1))
         except ValueError as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
-        self.report({"INFO"}, f"{view}: {image.name} ({image.size[0]}x{image.size[1]})")
+        for photo in loaded:
+            if photo.problem:
+                self.report({"WARNING"}, photo.problem)
+        self.report({"INFO"}, "; ".join(done))
         warm_up(scene.headrecon.texture_size)
         return {"FINISHED"}
 
-    def _retarget(self, plane, hints, scene):
+    def _place(self, scene, photo, direction, single):
+        """Put one loaded photo into its view (a new one, or the view named); returns a
+        line saying where it went."""
+        image = photo.image
+        hints, from_exif = self._hints(photo)
+        view = (self.view.strip() if single else "") or free_view_name(
+            scene, "photo" if hints else VIEW_KINDS[direction].replace("right", "side"))
+        plane = find_plane(scene, view)
+        if plane is not None:
+            set_plane_image(plane, image)
+            self._retarget(plane, hints, scene, direction)
+        else:
+            plane = new_photo_plane(image, view, direction, hints=hints,
+                                    centre=head_centre(scene))
+            scene_collections.link_tree(scene, view_root(plane))
+        plane.headrecon.lens_from_exif = from_exif and lens_hint(plane) is not None
+        lens = f", {hints['lens_mm']:.0f} mm{' (EXIF)' if from_exif else ''}" \
+            if "lens_mm" in hints else ""
+        return f"{view}: {image.name} ({image.size[0]}x{image.size[1]}{lens})"
+
+    def _retarget(self, plane, hints, scene, direction):
         """A swapped photo's camera as asked: another projection or direction makes the
         view's camera one to compute again; a known camera of the same kind stays."""
         props = plane.headrecon
         same = bool(hints) == is_perspective(plane)
-        if same and (props.camera_json or props.camera_view == self.camera_view):
+        if same and (props.camera_json or props.camera_view == direction):
             if hints and "lens_mm" in hints and camera_hints(plane):
                 set_camera_hints(plane, {**camera_hints(plane), **hints})
                 place_plane(plane, centre=head_centre(scene))
             return
         set_camera_hints(plane, hints)
-        props.camera_view = self.camera_view
+        props.camera_view = direction
         place_plane(plane, centre=head_centre(scene))
+
+
+def set_lens_hint(plane, lens_mm, scene=None):
+    """The artist's focal length (mm, 36 mm equivalent; 0: unknown) for a pinhole photo:
+    its camera becomes one to compute from this focal length (a fitted camera too), and
+    the provisional camera shows it. Other cameras take none."""
+    if camera_kind(plane) != "pinhole":
+        return
+    hints = {k: v for k, v in camera_hints(plane).items() if k != "lens_mm"}
+    hints["kind"] = "pinhole"
+    if lens_mm > 0:
+        hints["lens_mm"] = float(lens_mm)
+    set_camera_hints(plane, hints)
+    plane.headrecon.lens_from_exif = False
+    place_plane(plane, centre=head_centre(scene or bpy.context.scene))
 
 
 def head_centre(scene):
@@ -696,7 +840,7 @@ class HEADRECON_OT_view_photo(bpy.types.Operator):
     bl_label = "View Photo"
     bl_options = {"REGISTER"}
 
-    view: bpy.props.StringProperty(name="View")
+    view: bpy.props.StringProperty(name="View", description="Photo view name to look through")
 
     @classmethod
     def poll(cls, context):

@@ -44,7 +44,7 @@ CAMERA_VIEWS = (
 )
 
 ROLES = (
-    ("NONE", "None", ""),
+    ("NONE", "None", "Not made by HeadRecon"),
     ("HEAD", "Head", "The fitted head"),
     ("PHOTO", "Photo", "A photo plane"),
     ("LANDMARK", "Landmark", "A landmark on a photo plane"),
@@ -101,12 +101,32 @@ def _set_mirror(self, value):
             return
 
 
+def _get_lens(self):
+    from . import photos
+
+    if self.role != "PHOTO" or photos.camera_kind(self.id_data) != "pinhole":
+        return 0.0
+    return float(photos.lens_hint(self.id_data) or 0.0)
+
+
+def _set_lens(self, value):
+    from . import photos
+
+    if self.role == "PHOTO":
+        photos.set_lens_hint(self.id_data, value)
+
+
 class HEADRECON_PG_object(bpy.types.PropertyGroup):
-    role: EnumProperty(name="Role", items=ROLES, default="NONE")
+    role: EnumProperty(name="Role", items=ROLES, default="NONE",
+                       description="What the object is to HeadRecon (how the add-on finds "
+                                   "it, whichever collection it is in)")
     view: StringProperty(name="View", description="Name of the photo's view, e.g. 'front'")
     landmark: StringProperty(name="Landmark", description="Landmark name")
     camera_view: EnumProperty(name="Camera", items=CAMERA_VIEWS, default="orthographic-front",
-                              update=_on_camera_view)
+                              update=_on_camera_view,
+                              description="Which side of the head the photo shows (for a "
+                                          "perspective photo: roughly, the fit finds its "
+                                          "camera)")
     camera_json: StringProperty(
         name="Camera Parameters",
         description="The view's camera as JSON when it is not the nominal one (from an "
@@ -121,7 +141,9 @@ class HEADRECON_PG_object(bpy.types.PropertyGroup):
         description="This view is the subject's mirror image inside another view's photo "
                     "(same photo; landmarks named as the subject's true side). Stored in "
                     "the view's data (mirror_of), checked on export and fit")
-    image_size: IntVectorProperty(name="Image Size", size=2, min=0)
+    image_size: IntVectorProperty(name="Image Size", size=2, min=0,
+                                  description="Width and height of the photo in pixels "
+                                              "(upright, as the landmarks are placed)")
     pixel_aspect: FloatVectorProperty(
         name="Pixel Aspect", size=2, default=(1.0, 1.0), min=1e-6,
         description="Camera of a perspective photo: its pixel aspect (a render setting in "
@@ -131,13 +153,28 @@ class HEADRECON_PG_object(bpy.types.PropertyGroup):
                                     "the camera shown sees the photo flipped left-right")
     plane_height: FloatProperty(name="Plane Height", unit="LENGTH", default=0.375, min=1e-6,
                                 description="Height of the photo plane (its local units)")
-    image: PointerProperty(name="Image", type=bpy.types.Image)
+    image: PointerProperty(name="Image", type=bpy.types.Image,
+                           description="The photo shown on the plane")
+    lens_mm: FloatProperty(
+        name="Focal Length", min=0.0, soft_max=300.0, unit="CAMERA", get=_get_lens,
+        set=_set_lens,
+        description="Perspective photo: the focal length the fit starts its camera from, in "
+                    "mm, full-frame (36 mm across the long side) equivalent (0: unknown); "
+                    "from the photo's EXIF when it has one, yours to change")
+    lens_from_exif: BoolProperty(
+        name="Focal Length from EXIF",
+        description="The focal length was read from the photo's EXIF data")
     flagged: BoolProperty(name="Flagged", description="The last fit flagged this landmark")
-    residual_px: FloatProperty(name="Residual", subtype="PIXEL", default=-1.0)
+    residual_px: FloatProperty(name="Residual", subtype="PIXEL", default=-1.0,
+                               description="The last fit's distance from this landmark to "
+                                           "the head's point in the photo (-1: not fitted)")
     uncertainty_max_mm: FloatProperty(name="Uncertainty Scale", default=0.0,
                                       description="Uncertainty shown red (mm)")
-    fit_method: StringProperty(name="Method")
-    fit_rms_px: FloatProperty(name="RMS Residual", subtype="PIXEL", default=-1.0)
+    fit_method: StringProperty(name="Method",
+                               description="The approach that made the last fit of the head")
+    fit_rms_px: FloatProperty(name="RMS Residual", subtype="PIXEL", default=-1.0,
+                              description="Root mean square landmark residual of the last fit "
+                                          "(-1: not fitted)")
 
 
 RESIDUAL_KINDS = (
@@ -148,11 +185,14 @@ RESIDUAL_KINDS = (
 
 
 class HEADRECON_PG_residual(bpy.types.PropertyGroup):
-    view: StringProperty(name="View")
+    view: StringProperty(name="View", description="The photo's view name")
     landmark: StringProperty(name="Name", description="Landmark or passpoint name")
-    kind: EnumProperty(name="Kind", items=RESIDUAL_KINDS, default="LANDMARK")
-    pixels: FloatProperty(name="Residual", subtype="PIXEL")
-    flagged: BoolProperty(name="Flagged")
+    kind: EnumProperty(name="Kind", items=RESIDUAL_KINDS, default="LANDMARK",
+                       description="A landmark of the fit or a passpoint of a calibration")
+    pixels: FloatProperty(name="Residual", subtype="PIXEL",
+                          description="Distance in the photo in pixels")
+    flagged: BoolProperty(name="Flagged",
+                          description="Far off the others: probably misplaced")
     message: StringProperty(name="Message", description="Why it is flagged")
 
 
@@ -179,13 +219,17 @@ PRIORS = (
     ("eigen", "Eigenvalues", "Shape prior scaled by each component's variance (eq. 42)"),
     ("identity", "Identity", "Equal prior on every coefficient"),
 )
-TEXTURE_SIZES = (("256", "256", "Preview"), ("512", "512", ""), ("1024", "1024", ""),
+TEXTURE_SIZES = (("256", "256", "Preview"), ("512", "512", "Quick to bake"),
+                 ("1024", "1024", "The default: the photos' detail for a head of about "
+                                  "1000 pixels"),
                  ("2048", "2048", "Slow to bake"))
 
 
 class HEADRECON_PG_scene(bpy.types.PropertyGroup):
     head: PointerProperty(name="Head", type=bpy.types.Object,
-                          poll=lambda self, obj: obj.type == "MESH")
+                          poll=lambda self, obj: obj.type == "MESH",
+                          description="The head Fit updates (made by Add Reference Head or "
+                                      "the first fit)")
     method: EnumProperty(name="Method", items=METHODS, default=_fit_default("method"),
                          description="How the head is fitted to the landmarks")
     n_identity: IntProperty(name="Components", min=1, max=100,
@@ -223,14 +267,22 @@ class HEADRECON_PG_scene(bpy.types.PropertyGroup):
     live_refit: BoolProperty(name="Live Refit", default=False, update=_on_live_refit,
                              description="Refit while a landmark is moved, so the head "
                                          "follows (run Fit once first)")
-    residuals: CollectionProperty(type=HEADRECON_PG_residual)
-    residual_index: IntProperty(name="Residual", default=-1, update=_on_residual_index)
-    status: StringProperty(name="Status")
+    residuals: CollectionProperty(type=HEADRECON_PG_residual, name="Residuals",
+                                  description="Every landmark's residual of the last fit, "
+                                              "flagged ones first")
+    residual_index: IntProperty(name="Residual", default=-1, update=_on_residual_index,
+                                description="The residual chosen in the list (its landmark "
+                                            "is selected)")
+    status: StringProperty(name="Status", description="What the last fit did")
     case_json: StringProperty(
         name="Case Data",
         description="Top-level keys of the imported landmarks file besides the views "
                     "(passpoints, x- keys), as JSON, written back on export")
 
+
+# The Fit panel's Advanced settings, in the order shown (Reset to Defaults resets these).
+ADVANCED_FIT_SETTINGS = ("n_identity", "n_regional", "lambda1", "lambda2", "prior",
+                         "landmark_weight", "exact_landmarks")
 
 CLASSES = (HEADRECON_PG_object, HEADRECON_PG_residual, HEADRECON_PG_scene)
 

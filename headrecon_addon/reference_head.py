@@ -6,7 +6,7 @@ model (weights = the region blend weights). Built with foreach_set throughout.
 import bpy
 import numpy as np
 
-from . import material
+from . import material, scene_collections
 from .polls import ObjectModeOperator
 from .solver_link import load_model
 
@@ -110,7 +110,7 @@ class HEADRECON_OT_add_head(ObjectModeOperator, bpy.types.Operator):
             with Transaction():
                 model = load_model()
                 obj = new_head_object(model)
-                context.collection.objects.link(obj)
+                scene_collections.link(context.scene, obj)
         except (FileNotFoundError, ValueError) as e:
             self.report({"ERROR"}, f"Cannot load the head model: {e}")
             return {"CANCELLED"}

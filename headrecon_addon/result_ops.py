@@ -71,7 +71,8 @@ class HEADRECON_OT_export_head(bpy.types.Operator):
     bl_label = "Export Head"
     bl_options = {"REGISTER", "UNDO"}
 
-    filepath: StringProperty(subtype="FILE_PATH", options={"SKIP_SAVE"})
+    filepath: StringProperty(subtype="FILE_PATH", options={"SKIP_SAVE"},
+                             description="Where the .glb or .fbx is written")
     filter_glob: StringProperty(default="*.glb;*.fbx", options={"HIDDEN"})
     export_format: EnumProperty(name="Format", items=_FORMAT_ITEMS,
                                 description="The file format to write")
@@ -115,7 +116,8 @@ class HEADRECON_OT_import_arkit_animation(bpy.types.Operator):
     bl_label = "Import ARKit Animation"
     bl_options = {"REGISTER", "UNDO"}
 
-    filepath: StringProperty(subtype="FILE_PATH", options={"SKIP_SAVE"})
+    filepath: StringProperty(subtype="FILE_PATH", options={"SKIP_SAVE"},
+                             description="The Live Link Face CSV take to import")
     filter_glob: StringProperty(default="*.csv", options={"HIDDEN"})
     timecode_fps: EnumProperty(
         name="Timecode Rate",

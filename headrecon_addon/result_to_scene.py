@@ -12,7 +12,15 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from . import landmarks, material, photo_cameras, photos, reference_head, shape_keys
+from . import (
+    landmarks,
+    material,
+    photo_cameras,
+    photos,
+    reference_head,
+    scene_collections,
+    shape_keys,
+)
 from .data import Transaction
 from .solver_link import check_passpoints
 
@@ -211,7 +219,7 @@ def apply_result(scene, model, result, textures=None, head=None, name=None, cali
             write_textures(head, model, textures)
         head.headrecon.uncertainty_max_mm = write_uncertainty(head.data, result.uncertainty)
         if created:
-            scene.collection.objects.link(head)
+            scene_collections.link(scene, head)
     scene.headrecon.head = head
     head.matrix_world = similarity_matrix(result)
     head.headrecon.fit_method = fit_method(result)

@@ -10,8 +10,6 @@ import json
 import os
 from pathlib import Path
 
-import bpy
-
 from . import landmarks, photos
 from .solver_link import (
     CURRENT_VERSION,
@@ -28,9 +26,10 @@ from .solver_link import (
 
 def _image_ref(image, base_dir):
     """Path of a photo for the file: relative to ``base_dir`` when possible."""
-    if image is None or image.source != "FILE" or not image.filepath:
+    source = photos.photo_source(image)
+    if source is None:
         return None
-    path = Path(bpy.path.abspath(image.filepath, library=image.library))
+    path = Path(source)
     if base_dir is None:
         return str(path)
     try:

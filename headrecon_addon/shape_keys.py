@@ -4,7 +4,8 @@ Basis is the model's mean; one key per identity component ("identity_000"...) an
 regional component ("<region>_NN") whose value is the fitted coefficient (sliders -3..3,
 wider if a coefficient lies outside); "fit_detail" (value 1) carries what the model cannot
 express (FitResult.detail); the expression keys (Apple's ARKit names, then the model's
-extras: ``arkit.key_plan``) start at 0. With the
+extras: ``arkit.key_plan``) start at 0, and a re-fit keeps the values (and slider ranges,
+mutes, vertex groups) the artist gave them, and the artist's own keys with their shapes. With the
 values set, the evaluated mesh is exactly FitResult.local_vertices (float32), the terms of
 ``local = mean + identity + regional + detail``.
 
@@ -114,6 +115,7 @@ def write_fit_keys(obj, model, result):
         raise ValueError(f"object {obj.name!r}: has {len(obj.data.vertices)} vertices, the "
                          f"head model {n}; use a head made by HeadRecon")
     mean = model.vertices
+    kept = _ArtistKeys(obj, model)
     remove_fit_keys(obj)
     if obj.data.shape_keys is not None and LIVE_MUTED in obj.data.shape_keys:
         del obj.data.shape_keys[LIVE_MUTED]
@@ -155,8 +157,64 @@ def write_fit_keys(obj, model, result):
             add(name, mean + delta, 0.0, slider=False)
     finally:
         obj.data.shape_keys[FIT_KEYS] = names
+        kept.restore(obj, mean)
     obj.data.update()
     return names
+
+
+# What an expression key keeps across fits: the artist's settings, not its shape.
+_EXPRESSION_SETTINGS = ("value", "slider_min", "slider_max", "mute", "vertex_group",
+                        "interpolation")
+
+
+class _ArtistKeys:
+    """What a re-fit must not lose, read before the previous fit's keys are removed: the
+    expression keys' settings (the values the artist posed, slider ranges, mutes, vertex
+    groups) and the artist's own keys' offsets from the Basis and their relative keys.
+
+    The artist's keys are stored as positions; a re-fit that changes the Basis (after
+    Apply Identity) moves them with it, so each keeps its offset, the shape it adds."""
+
+    def __init__(self, obj, model):
+        key = obj.data.shape_keys
+        self.expressions, self.own, self.basis = {}, {}, None
+        if key is None:
+            return
+        fit = set(fit_key_names(obj))
+        expressions = set(arkit.expression_key_names(model.expression_names))
+        ref = key.reference_key
+        for kb in key.key_blocks:
+            if kb.name in fit and kb.name in expressions:
+                self.expressions[kb.name] = {a: getattr(kb, a) for a in _EXPRESSION_SETTINGS}
+            elif kb.name not in fit and kb != ref:
+                self.own[kb.name] = kb.relative_key.name
+        if self.own:
+            self.basis = get_key_co(ref)
+
+    def restore(self, obj, mean):
+        """Put the settings back on the keys of the new fit (``mean``: its Basis)."""
+        blocks = obj.data.shape_keys.key_blocks
+        for name, settings in self.expressions.items():
+            kb = blocks.get(name)
+            if kb is None:
+                continue
+            kb.slider_min = min(settings["slider_min"], kb.slider_min)
+            kb.slider_max = max(settings["slider_max"], kb.slider_max)
+            for attr, value in settings.items():
+                setattr(kb, attr, value)
+        shift = None
+        if self.basis is not None:
+            shift = np.asarray(mean, dtype=np.float32) - self.basis
+            if not np.any(shift):
+                shift = None
+        for name, relative in self.own.items():
+            kb = blocks.get(name)
+            if kb is None:
+                continue
+            if shift is not None:
+                set_key_co(kb, get_key_co(kb) + shift)
+            if relative in blocks:
+                kb.relative_key = blocks[relative]
 
 
 def update_fit_values(obj, model, result):

@@ -22,6 +22,7 @@ from .fitting.result import FitResult, ViewResidual
 from .io.camera_json import camera_from_json, camera_to_json
 from .io.case import LandmarkCase, View
 from .io.case_check import MIN_PASSPOINTS, check_case
+from .io.exif import Exif, orient, oriented_size, read_photo_exif
 from .io.landmark_counts import (
     MIN_LANDMARKS_PER_VIEW,
     MIN_LANDMARKS_TOTAL,
@@ -45,12 +46,12 @@ from .texture.uvs import orthographic_uvs, uv_raster, uv_tiles
 __all__ = [
     "CURRENT_VERSION", "FORMAT", "MIN_LANDMARKS_PER_VIEW", "MIN_LANDMARKS_TOTAL",
     "MIN_PASSPOINTS", "ORTHO_VIEWS", "SHADING_MODES", "BakeOptions", "Camera", "DLTCamera",
-    "FitOptions", "FitResult", "HeadModel", "LandmarkCase", "LandmarksError",
+    "Exif", "FitOptions", "FitResult", "HeadModel", "LandmarkCase", "LandmarksError",
     "OrthographicCamera", "PinholeCamera",
     "View", "ViewResidual", "bake_fit_texture", "bake_texture", "blender_to_krc",
     "camera_class", "camera_from_dict", "camera_from_json", "camera_to_json", "check_case",
     "check_passpoints", "count_problems", "dlt_to_blender", "fit_dlt", "fit_head",
     "landmarks_needed", "landmarks_to_dict", "load_landmark_set", "load_landmarks",
-    "load_model", "orthographic_uvs", "parse_landmarks", "refit_landmarks", "save_landmarks",
-    "uv_raster", "uv_tiles",
+    "load_model", "orient", "oriented_size", "orthographic_uvs", "parse_landmarks",
+    "read_photo_exif", "refit_landmarks", "save_landmarks", "uv_raster", "uv_tiles",
 ]

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .io.camera_json import camera_to_json
+from .io.exif import orient, oriented_size, read_photo_exif
 from .io.landmark_counts import MIN_LANDMARKS_PER_VIEW, MIN_LANDMARKS_TOTAL
 from .io.landmark_set import load_landmark_set
 from .io.landmarks_file import LandmarksError, load_landmarks
@@ -76,9 +77,24 @@ def _pil_open(path):
             Image.MAX_IMAGE_PIXELS = limit
 
 
+def _orientation(path, stored_size=None, size=None):
+    """The EXIF Orientation to turn a photo upright by (1: as stored), as Blender's Load
+    Photos does; a photo turned by 90° whose stored size is the landmarks file's ``size``
+    (a file written before orientation was applied) stays as stored. Unreadable EXIF is
+    one warning line naming the file."""
+    exif, problem = read_photo_exif(path)
+    if problem:
+        print(f"warning: {problem}", file=sys.stderr)
+    turn = exif.orientation if exif is not None else 1
+    if size is not None and tuple(size) == tuple(stored_size) != oriented_size(stored_size,
+                                                                               turn):
+        return 1
+    return turn
+
+
 def _open_photo(case, view_name):
     """A view's photo opened (not decoded), checked against the pixel limit and the file's
-    size; returns (Image, path)."""
+    size once upright; returns (Image, path, EXIF orientation to apply)."""
     from PIL import UnidentifiedImageError
 
     view = case.views[view_name]
@@ -98,13 +114,14 @@ def _open_photo(case, view_name):
         raise CliError(f"{where}: {path.name} is {w}x{h} pixels ({w * h / 1e6:.0f} "
                        f"megapixels); photos up to {MAX_PHOTO_PIXELS / 1e6:.0f} megapixels "
                        "are read")
-    # EXIF orientation is deliberately not applied: Blender ignores it too, and the
-    # landmarks were placed on the pixels as stored.
-    if (w, h) != tuple(view.size):
+    turn = _orientation(path, (w, h), view.size)
+    uw, uh = oriented_size((w, h), turn)
+    if (uw, uh) != tuple(view.size):
         im.close()
         raise CliError(f"{case.source}: views.{view_name}.size: the file says "
-                       f"{view.size[0]}x{view.size[1]} but {path.name} is {w}x{h} pixels")
-    return im, path
+                       f"{view.size[0]}x{view.size[1]} but {path.name} is {uw}x{uh} pixels"
+                       + (" upright" if turn != 1 else ""))
+    return im, path, turn
 
 
 def _read_photo(case, view_name, texture_size):
@@ -115,7 +132,7 @@ def _read_photo(case, view_name, texture_size):
 
     from .texture.bake import bake_photo_size
 
-    im, path = _open_photo(case, view_name)
+    im, path, turn = _open_photo(case, view_name)
     where = f"{case.source}: views.{view_name}.image"
     try:
         with im:
@@ -127,7 +144,7 @@ def _read_photo(case, view_name, texture_size):
             rgb = im if im.mode == mode else im.convert(mode)
             if rgb.size != target:
                 rgb = rgb.resize(target, Image.Resampling.BOX, reducing_gap=2.0)
-            arr = np.asarray(rgb, dtype=np.float32)
+            arr = np.ascontiguousarray(orient(np.asarray(rgb, dtype=np.float32), turn))
     except OSError as e:
         raise CliError(f"{where}: cannot read {path.name}: {e}") from None
     return arr / np.float32(255.0)
@@ -363,7 +380,8 @@ def _cmd_landmarks(args):
 
 
 def load_photo(path):
-    """A photo file as uint8 RGB (H, W, 3); problems name the photo."""
+    """A photo file as uint8 RGB (H, W, 3), upright as its EXIF says; problems name the
+    photo."""
     from PIL import UnidentifiedImageError
 
     path = Path(path)
@@ -375,7 +393,8 @@ def load_photo(path):
             if w * h > MAX_PHOTO_PIXELS:
                 raise CliError(f"{path}: {w}x{h} pixels; photos up to "
                                f"{MAX_PHOTO_PIXELS / 1e6:.0f} megapixels are read")
-            return np.asarray(im.convert("RGB"))
+            return np.ascontiguousarray(orient(np.asarray(im.convert("RGB")),
+                                               _orientation(path)))
     except UnidentifiedImageError:
         raise CliError(f"{path}: not an image Pillow can read") from None
     except OSError as e:

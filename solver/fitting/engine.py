@@ -329,6 +329,8 @@ class Engine:
             if not v.refit or v.mirror_of is not None:
                 continue
             x, q, w = self._camera_points(state, v, extra)
+            if np.count_nonzero(w) < v.camera.min_refit_points:
+                continue  # a profile with only its outline, and none of it matched here
             state.cameras[v.name] = v.camera.refit(x, q, w)
             names.update(u.name for u in self.mirrors_of(v))
         for u in self.views:

@@ -140,3 +140,23 @@ def test_panels_draw_perspective_photos(model, tmp_path):
     labels = [t for k, t in log if k == "label"]
     assert "Suspect passpoints: 1" in labels
     assert any("misplaced or mislabelled" in t for t in labels)
+
+
+def _draw(cls):
+    log = []
+    cls.draw(types.SimpleNamespace(layout=Layout(log)), bpy.context)
+    return log
+
+
+def test_fit_panel_shows_the_defaults_up_front_and_the_rest_under_advanced():
+    from headrecon_addon import panels
+    from headrecon_addon.properties import ADVANCED_FIT_SETTINGS
+
+    empty_scene()
+    main = {n for k, n in _draw(panels.HEADRECON_PT_fit) if k == "prop"}
+    advanced = _draw(panels.HEADRECON_PT_fit_advanced)
+    assert {"method", "bake_texture", "texture_size", "live_refit"} <= main
+    assert not main & set(ADVANCED_FIT_SETTINGS)
+    assert [n for k, n in advanced if k == "prop"] == list(ADVANCED_FIT_SETTINGS)
+    assert ("operator", "headrecon.reset_fit_settings") in advanced
+    assert panels.HEADRECON_PT_fit_advanced.bl_parent_id == "HEADRECON_PT_fit"

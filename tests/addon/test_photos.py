@@ -1,6 +1,8 @@
-"""A photo plane lines up with its camera (bpy module, background)."""
+"""A photo plane lines up with its camera; photos load upright with their EXIF focal
+length, several at once sorted into views (bpy module, background)."""
 
 import numpy as np
+import pytest
 from mathutils import Vector
 
 
@@ -27,3 +29,116 @@ def test_photo_plane_lines_up_with_its_camera(files, scene):
     mat = plane.data.materials[0]
     assert any(n.type == "EMISSION" for n in mat.node_tree.nodes)
     assert not any(n.type == "BSDF_PRINCIPLED" for n in mat.node_tree.nodes)
+
+
+def _photo_jpeg(path, size, orientation=None, focal_35mm=None, seed=0):
+    """A JPEG of stored ``size`` (w, h): a grey photo with a white square in its stored
+    top-left corner, with EXIF Orientation and FocalLengthIn35mmFilm when given."""
+    from solver.io import exif
+    from tests.solver.io.exif_jpeg import jpeg, tiff
+
+    w, h = size
+    pixels = np.full((h, w, 3), 60 + 20 * seed, np.uint8)
+    pixels[:16, :16] = 255
+    ifd0 = [(exif.ORIENTATION, 3, [orientation])] if orientation else []
+    sub = [(exif.FOCAL_35MM, 3, [focal_35mm])] if focal_35mm else None
+    path.write_bytes(jpeg(tiff(ifd0, sub) if ifd0 or sub else None, pixels=pixels))
+    return path
+
+
+def test_load_photos_sorts_several_files_into_views(scene, tmp_path):
+    import bpy
+
+    from headrecon_addon import photos
+
+    # a portrait phone photo stored sideways (orientation 6) and a wide one: the upright
+    # portrait is the front, the wide one the profile
+    _photo_jpeg(tmp_path / "IMG_1.jpg", (96, 64), orientation=6)
+    _photo_jpeg(tmp_path / "IMG_2.jpg", (128, 96), seed=1)
+    assert bpy.ops.headrecon.load_photo(
+        directory=str(tmp_path), files=[{"name": "IMG_2.jpg"}, {"name": "IMG_1.jpg"}],
+        camera_view=photos.AUTO) == {"FINISHED"}
+    front, side = photos.find_plane(scene, "front"), photos.find_plane(scene, "side")
+    assert front is not None and side is not None and len(photos.photo_planes(scene)) == 2
+    assert photos.photo_source(front.headrecon.image) == str(tmp_path / "IMG_1.jpg")
+    assert tuple(front.headrecon.image_size) == (64, 96)  # upright
+    assert tuple(front.headrecon.image.size) == (64, 96)
+    assert front.headrecon.camera_view == "orthographic-front"
+    assert side.headrecon.camera_view == "orthographic-right"
+    # the white corner, stored top-left, is top-right once turned 90° clockwise
+    arr = photos.image_to_array(front.headrecon.image)
+    assert arr[:12, -12:, :3].min() > 0.9 and arr[:12, :12, :3].max() < 0.5
+    assert front.headrecon.image.packed_file is not None  # saved with the .blend
+    # the landmarks file names the photo's own file, and reads back upright
+    from headrecon_addon import scene_to_case
+
+    d = scene_to_case.view_dict_from_plane(front, tmp_path)
+    assert d["image"] == "IMG_1.jpg" and d["size"] == [64, 96]
+    # a second load of the same file reuses the upright copy
+    n_images = len(bpy.data.images)
+    assert photos.load_image(tmp_path / "IMG_1.jpg") == front.headrecon.image
+    assert len(bpy.data.images) == n_images
+
+
+def test_a_file_of_an_older_version_keeps_its_photo_as_stored(scene, tmp_path):
+    from headrecon_addon import photos
+
+    _photo_jpeg(tmp_path / "old.jpg", (96, 64), orientation=6)
+    # landmarks placed on the stored pixels (96 x 64): loaded as stored
+    assert tuple(photos.load_image(tmp_path / "old.jpg", (96, 64)).size) == (96, 64)
+    assert tuple(photos.load_image(tmp_path / "old.jpg", (64, 96)).size) == (64, 96)
+
+
+def test_a_perspective_photo_takes_its_focal_length_from_exif(scene, tmp_path):
+    import bpy
+
+    from headrecon_addon import photos
+
+    _photo_jpeg(tmp_path / "phone.jpg", (120, 90), focal_35mm=26)
+    assert bpy.ops.headrecon.load_photo(filepath=str(tmp_path / "phone.jpg"),
+                                        projection="PERSPECTIVE") == {"FINISHED"}
+    plane = photos.photo_planes(scene)[0]
+    # 26 mm by the diagonal of a 4:3 photo is 27.0 mm across its long side
+    assert photos.lens_hint(plane) == pytest.approx(27.0)
+    assert plane.headrecon.lens_from_exif and plane.headrecon.lens_mm == pytest.approx(27.0)
+    assert "27 mm" in photos.camera_label(plane)
+    assert photos.camera_object(plane).data.lens > 0
+    # the artist's value overrides it, and the shown camera follows
+    plane.headrecon.lens_mm = 50.0
+    assert photos.lens_hint(plane) == pytest.approx(50.0)
+    assert not plane.headrecon.lens_from_exif
+    assert "50 mm" in photos.camera_label(plane)
+    # a focal length given in the operator wins over the EXIF
+    assert bpy.ops.headrecon.load_photo(filepath=str(tmp_path / "phone.jpg"), view="p2",
+                                        projection="PERSPECTIVE", lens_mm=85.0) == {"FINISHED"}
+    p2 = photos.find_plane(scene, "p2")
+    assert photos.lens_hint(p2) == pytest.approx(85.0) and not p2.headrecon.lens_from_exif
+    # an orthographic photo has no focal length to set
+    assert bpy.ops.headrecon.load_photo(filepath=str(tmp_path / "phone.jpg"),
+                                        view="front") == {"FINISHED"}
+    front = photos.find_plane(scene, "front")
+    assert front.headrecon.lens_mm == 0.0 and photos.lens_hint(front) is None
+
+
+def test_bad_exif_loads_the_photo_as_stored_with_one_line(scene, tmp_path):
+    import bpy
+
+    from headrecon_addon import photos
+    from tests.addon.support import snapshot
+    from tests.solver.io.exif_jpeg import jpeg
+
+    path = tmp_path / "broken exif.jpg"
+    path.write_bytes(jpeg(b"MM\x00*\x00\x00\xff\xff", size=(40, 30)))
+    photo = photos.load_photo(path)
+    assert tuple(photo.image.size) == (40, 30) and photo.exif is None
+    assert photo.problem.startswith("broken exif.jpg: EXIF not read")
+    assert bpy.ops.headrecon.load_photo(filepath=str(path), projection="PERSPECTIVE",
+                                        view="p") == {"FINISHED"}
+    assert photos.lens_hint(photos.find_plane(scene, "p")) is None
+    # one missing file among several: nothing is loaded
+    before = snapshot()
+    with pytest.raises(RuntimeError, match="missing.jpg: photo not found"):
+        bpy.ops.headrecon.load_photo(directory=str(tmp_path), camera_view=photos.AUTO,
+                                     files=[{"name": "broken exif.jpg"},
+                                            {"name": "missing.jpg"}])
+    assert snapshot() == before

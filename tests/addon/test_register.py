@@ -69,3 +69,47 @@ def test_extension_root_imports_as_a_package(tmp_path):
     proc = run_python(["-c", code, str(tmp_path)], cwd=tmp_path, env={"PYTHONPATH": ""})
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split()[-3:] == ["True", "headrecon.solver", "False"]
+
+
+def _tooltip_gaps(cls):
+    """What of a registered class shows no tooltip: the operator itself, its or the
+    property group's properties (those shown: not HIDDEN), and their enum items."""
+    if issubclass(cls, bpy.types.Operator):
+        cat, name = cls.bl_idname.split(".")
+        rna = getattr(getattr(bpy.ops, cat), name).get_rna_type()
+        gaps = [] if rna.description.strip() else [cls.__name__]
+    elif issubclass(cls, bpy.types.PropertyGroup):
+        rna, gaps = cls.bl_rna, []
+    else:
+        return []
+    for prop in rna.properties:
+        if prop.identifier == "rna_type" or prop.is_hidden:
+            continue
+        if not prop.description.strip():
+            gaps.append(f"{cls.__name__}.{prop.identifier}")
+        if prop.type == "ENUM" and not prop.is_enum_flag:
+            gaps += [f"{cls.__name__}.{prop.identifier}: {item.identifier}"
+                     for item in prop.enum_items if not item.description.strip()]
+    return gaps
+
+
+def test_every_operator_and_property_has_a_tooltip():
+    from tests.addon.support import addon
+
+    pkg = addon()
+    gaps = [gap for cls in pkg.CLASSES for gap in _tooltip_gaps(cls)]
+    assert gaps == []
+    # and the check sees a missing one
+    class HEADRECON_OT_tooltip_probe(bpy.types.Operator):
+        bl_idname = "headrecon.tooltip_probe"
+        bl_label = "Probe"
+        value: bpy.props.IntProperty(name="Value")
+
+        def execute(self, context):
+            return {"FINISHED"}
+
+    bpy.utils.register_class(HEADRECON_OT_tooltip_probe)
+    try:
+        assert "HEADRECON_OT_tooltip_probe.value" in _tooltip_gaps(HEADRECON_OT_tooltip_probe)
+    finally:
+        bpy.utils.unregister_class(HEADRECON_OT_tooltip_probe)

@@ -363,6 +363,30 @@ def test_a_big_photo_is_read_reduced_for_the_bake(tmp_path, case_doc):
     assert _read_photo(case, "front", 2048).shape == (3000, 6000, 3)  # needed whole
 
 
+def test_photos_are_read_upright_as_their_exif_says(tmp_path):
+    from solver.cli import _load_photo, _read_photo
+    from solver.io import exif
+    from solver.io.landmarks_file import load_landmarks
+    from tests.solver.io.exif_jpeg import jpeg, tiff
+
+    stored = np.full((240, 320, 3), 40, np.uint8)
+    stored[:40, :40] = 255  # top-left as stored: top-right once turned 90° clockwise
+    (tmp_path / "front.jpg").write_bytes(jpeg(tiff([(exif.ORIENTATION, 3, [6])]),
+                                              pixels=stored))
+    for size, shape in (((240, 320), (320, 240, 3)),  # upright
+                        ((320, 240), (240, 320, 3))):  # as stored: a file of before
+        doc = landmarks_doc(w=min(size), h=min(size), margin=10)
+        doc["views"]["front"].update(image="front.jpg", size=list(size))
+        case = load_landmarks(write_case(tmp_path, doc))
+        assert _read_photo(case, "front", 128).shape == shape
+    photo = _read_photo(load_landmarks(write_case(tmp_path, {
+        **doc, "views": {**doc["views"], "front": {**doc["views"]["front"],
+                                                   "size": [240, 320]}}})), "front", 128)
+    for arr in (photo, _load_photo(tmp_path / "front.jpg") / 255.0):
+        assert arr.shape == (320, 240, 3)
+        assert arr[:30, -30:].min() > 0.9 and arr[:30, :30].max() < 0.5
+
+
 def test_a_failed_write_leaves_the_old_output_set_and_names_the_file(tmp_path, model):
     import resource
 
