@@ -30,6 +30,7 @@ from scipy.spatial import cKDTree
 
 from solver import DLTCamera, LandmarkCase, OrthographicCamera, View, fit_dlt
 from solver.cameras import ORTHO_VIEWS
+from solver.detect.view_guess import point_uncertainty
 from solver.fitting.register import register
 from solver.geometry import rotation_from_vector, skew, vertex_normals
 from solver.io.obj import read_obj as solver_read_obj
@@ -926,8 +927,9 @@ def render_scan(scan, camera, background=0.5):
 
 def detected_front_case(scan_cases_, moved, detector):
     """The rendered front photo's landmarks found by the face detector (``detector``: a
-    ``solver.detect.Detector``), with the profile's traced outline alone: (LandmarkCase,
-    the front photo) or (None, photo) when no face is found."""
+    ``solver.detect.Detector``) with their uncertainty as ``solver detect`` gives it, and
+    the profile's traced outline alone: (LandmarkCase, the front photo) or (None, photo)
+    when no face is found."""
     base = scan_cases_["front + profile, projected"]
     front, side = base.views["front"], base.views["right"]
     # the front camera the rendered cases drew: the landmarks' exact pixels say it
@@ -936,8 +938,11 @@ def detected_front_case(scan_cases_, moved, detector):
     face = detector.detect(photo)
     if face is None or not face.is_face:
         return None, photo
+    sigma = point_uncertainty(face)
     pts = {f"ibug{i + 1:02d}": p for i, p in enumerate(face.ibug)}
-    views = {"front": View("front", None, front.size, front.camera, pts),
+    given = {f"ibug{i:02d}": s for i, s in sigma.items() if s is not None}
+    views = {"front": View("front", None, front.size, front.camera, pts,
+                           uncertainty=given),
              "right": View("right", None, side.size, side.camera, {},
                            contour=side.contour)}
     return LandmarkCase(views, "<james rendered, detected>"), photo
