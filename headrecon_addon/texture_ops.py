@@ -115,7 +115,9 @@ class HEADRECON_OT_save_texture(bpy.types.Operator):
     bl_label = "Save Texture"
     bl_options = {"REGISTER", "UNDO"}
 
-    filepath: StringProperty(subtype="FILE_PATH", options={"SKIP_SAVE"})
+    filepath: StringProperty(subtype="FILE_PATH", options={"SKIP_SAVE"},
+                             description="The PNG file to write the baked texture to "
+                                         "(never a photo the scene uses)")
     filter_glob: StringProperty(default="*.png", options={"HIDDEN"})
 
     @classmethod

@@ -38,6 +38,11 @@ def group_terms(labels, weights, jac, sigma_m):
 #: eye's corner is (measured: docs/DECISIONS.md).
 OUTLINE_DEFINITION = 3.0
 
+#: Reweighting steps of a group's offset against a misplaced point of it, and the
+#: Student-t degrees of freedom of that weighting (as the placement noise's).
+ROBUST_STEPS = 5
+STUDENT_NU = 5.0
+
 #: Groups with fewer used points than this do not count in the estimate of the offsets'
 #: size: one point cannot tell its group's offset from its own noise.
 MIN_GROUP = 3
@@ -79,16 +84,28 @@ def group_offsets(residuals, groups, weights, jac, sigma_m):
     """
     _, labels = np.unique(np.asarray(groups), return_inverse=True)
     w = np.asarray(weights, dtype=np.float64)
-    t, m = group_terms(labels, w, jac, sigma_m)
-    gain = t / (1.0 + t)
-    e = gain[:, None] * (m @ np.asarray(residuals, dtype=np.float64))
+    r = np.asarray(residuals, dtype=np.float64)
+    # A misplaced point must not drag its group's offset (its neighbours would then look
+    # misplaced too): the offset is a Student-t mean of the group, its points reweighted
+    # by how far each sits from it against the photo's typical distance.
+    robust = np.ones_like(w)
+    for _ in range(ROBUST_STEPS):
+        t, m = group_terms(labels, w * robust, jac, sigma_m)
+        gain = t / (1.0 + t)
+        e = gain[:, None] * (m @ r)
+        sq = ((r - e) ** 2).sum(axis=1)
+        typical = float(np.median(sq[w > 0])) if np.any(w > 0) else 0.0
+        if not typical > 0:
+            break
+        robust = (STUDENT_NU + 2.0) / (STUDENT_NU + sq / typical)
     first = np.unique(labels, return_index=True)[1]
     used = np.bincount(labels, weights=(w > 0).astype(float))[labels[first]]
     big = first[used >= MIN_GROUP]
     ratio = None
     if len(big) and np.any(sigma_m):
         # per group: sigma_G^2 (px^2) = t / sum w; posterior variance sigma_G^2 / (1 + t)
-        wsum = np.array([w[labels == labels[i]].sum() for i in big])
+        wr = w * robust
+        wsum = np.array([wr[labels == labels[i]].sum() for i in big])
         s2_px = t[big] / wsum
         ok = s2_px > 0
         rho = ((e[big] ** 2).sum(axis=1) / 2.0 + s2_px / (1.0 + t[big]))[ok] / s2_px[ok]

@@ -305,7 +305,8 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
                                   or lms.has_meaning_in(n, "left") for n in names],
                                  dtype=bool), along_weights=along,
                         groups=[lms.group_of(n) for n in names],
-                        definition_m=_definition_m(opts, noise, name))
+                        definition_m=0.0 if cam is None or cam.perspective
+                        else _definition_m(opts, noise, name))
         (views if used or rule["outline"] else skipped).append(data)
     for v in views:
         if v.mirror_of is not None and any(u.name == v.mirror_of for u in skipped):
@@ -320,7 +321,8 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
 
 def _definition_m(opts, noise, view):
     """A view's landmark groups' definition offset, metres: ``FitOptions.definition_mm``
-    at first and at most, less when the last fit's residuals say so."""
+    at first and at most, less when the last fit's residuals say so. (The caller gives a
+    perspective photo none: measured worse there, docs/DECISIONS.md.)"""
     most = 1e-3 * float(opts.definition_mm)
     if noise is None:
         return most

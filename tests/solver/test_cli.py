@@ -364,7 +364,7 @@ def test_a_big_photo_is_read_reduced_for_the_bake(tmp_path, case_doc):
 
 
 def test_photos_are_read_upright_as_their_exif_says(tmp_path):
-    from solver.cli import _load_photo, _read_photo
+    from solver.cli import _read_photo, load_photo
     from solver.io import exif
     from solver.io.landmarks_file import load_landmarks
     from tests.solver.io.exif_jpeg import jpeg, tiff
@@ -382,7 +382,7 @@ def test_photos_are_read_upright_as_their_exif_says(tmp_path):
     photo = _read_photo(load_landmarks(write_case(tmp_path, {
         **doc, "views": {**doc["views"], "front": {**doc["views"]["front"],
                                                    "size": [240, 320]}}})), "front", 128)
-    for arr in (photo, _load_photo(tmp_path / "front.jpg") / 255.0):
+    for arr in (photo, load_photo(tmp_path / "front.jpg") / 255.0):
         assert arr.shape == (320, 240, 3)
         assert arr[:30, -30:].min() > 0.9 and arr[:30, :30].max() < 0.5
 

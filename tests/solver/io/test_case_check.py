@@ -74,11 +74,17 @@ def test_duplicate_landmark_through_its_ibug_alias(doc, lms):
 def test_too_few_landmarks(doc, names):
     keep = names[:MIN_LANDMARKS_PER_VIEW - 1]
     doc["views"]["side"]["points"] = {n: doc["views"]["side"]["points"][n] for n in keep}
+    contour = doc["views"]["side"].pop("contour", None)
     assert_rejected(doc, rf"case\.json: views\.side\.points: {len(keep)} "
                          rf"usable landmarks; the fit needs at least "
                          rf"{MIN_LANDMARKS_PER_VIEW} in this view")
     # work in progress is fine when not fitting
     assert parse_landmarks(doc, "case.json", for_fit=False).views["side"].points
+    # a profile's traced outline places its camera: then no landmark is needed there
+    doc["views"]["side"]["contour"] = contour or [[300.0, 100.0], [320.0, 500.0],
+                                                  [310.0, 900.0]]
+    doc["views"]["side"]["points"] = {}
+    assert parse_landmarks(doc, "case.json").views["side"].contour is not None
 
 
 def test_too_few_landmarks_in_all(doc):
