@@ -115,7 +115,8 @@ class HEADRECON_OT_save_texture(bpy.types.Operator):
     bl_label = "Save Texture"
     bl_options = {"REGISTER", "UNDO"}
 
-    filepath: StringProperty(subtype="FILE_PATH", options={"SKIP_SAVE"})
+    filepath: StringProperty(subtype="FILE_PATH", options={"SKIP_SAVE"},
+                              description="The PNG file to write the texture to")
     filter_glob: StringProperty(default="*.png", options={"HIDDEN"})
 
     @classmethod
