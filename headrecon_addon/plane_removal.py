@@ -135,10 +135,18 @@ class HEADRECON_OT_remove_photo(ObjectModeOperator, bpy.types.Operator):
         return {"FINISHED"}
 
 
+_seen = {}  # scene pointer -> how many objects it had at the last sweep
+
+
 @persistent
 def _on_depsgraph_update(scene, depsgraph):
     if getattr(scene, "headrecon", None) is None or not depsgraph.id_type_updated("OBJECT"):
         return
+    # Only when objects came or went (a deleted plane, a new one): not on every drag.
+    count = len(scene.objects)
+    if _seen.get(scene.as_pointer()) == count:
+        return
+    _seen[scene.as_pointer()] = count
     try:
         parked, rehomed = sweep(scene)
         if parked or rehomed:
@@ -153,6 +161,7 @@ def register_handlers():
 
 
 def unregister_handlers():
+    _seen.clear()
     while _on_depsgraph_update in bpy.app.handlers.depsgraph_update_post:
         bpy.app.handlers.depsgraph_update_post.remove(_on_depsgraph_update)
 
