@@ -112,7 +112,7 @@ def prepare_job(scene):
                   texture_size=int(props.texture_size), bake=props.bake_texture,
                   texture_shading=props.texture_shading,
                   scene_notes=plane_removal.orphan_notes(scene),
-                  deleted_views=sorted(plane_removal.orphan_markers(scene)))
+                  deleted_views=plane_removal.deleted_views(scene))
 
 
 def apply_job(scene, job, textures=True):

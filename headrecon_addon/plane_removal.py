@@ -7,8 +7,9 @@ position in the gone plane's space: it jumps to near the world origin, inside th
 fit never reads such a marker (the scene is read plane by plane, ``scene_to_case``), but
 the artist would see it. So a depsgraph handler parks these orphans: hidden, kept as they
 are (their plane-space position and view name), and re-attached when a photo is loaded
-into that view again (``sweep``, ``rehome``: the landmarks keep their place relative to the photo's
-centre and height, as a swapped photo's do). Undo brings the plane back with its markers
+into that view again (``sweep``, ``rehome``: the landmarks keep their place relative to the
+photo's centre and height, as a swapped photo's do; a name the new plane has already, e.g.
+from an imported file, stays hidden). Undo brings the plane back with its markers
 (the handler runs after the delete's undo step). The Fit's report names the parked ones.
 """
 
@@ -66,11 +67,24 @@ def sweep(scene):
     return parked, rehomed
 
 
+def deleted_views(scene):
+    """Views whose photo plane is gone but whose markers are parked (sorted names)."""
+    return sorted(v for v in orphan_markers(scene) if photos.find_plane(scene, v) is None)
+
+
 def orphan_notes(scene):
-    """One line per view whose photo plane is gone and whose markers are parked."""
-    return [f"view {view!r}: its photo plane was deleted; {_what(objs)} kept hidden, not "
-            f"fitted (load a photo into {view!r} to get them back, or Remove Photo)"
-            for view, objs in sorted(orphan_markers(scene).items())]
+    """One line per view with parked markers: its photo plane is gone, or the photo
+    loaded since has markers of those names."""
+    notes = []
+    for view, objs in sorted(orphan_markers(scene).items()):
+        if photos.find_plane(scene, view) is None:
+            notes.append(f"view {view!r}: its photo plane was deleted; {_what(objs)} kept "
+                         f"hidden, not fitted (load a photo into {view!r} to get them back, "
+                         "or Remove Photo)")
+        else:
+            notes.append(f"view {view!r}: {_what(objs)} of a deleted photo plane kept hidden, "
+                         "not fitted (its photo has its own; Remove Photo removes both)")
+    return notes
 
 
 def rehome(scene, plane):

@@ -204,3 +204,29 @@ def test_the_fit_report_names_skipped_and_deleted_views(files, capfd):
     assert "view 'right' not fitted (its photo plane was deleted)" in line
     assert f"view 'right': its photo plane was deleted; {n} landmarks and the contour kept " \
         "hidden, not fitted" in out
+
+
+def test_a_file_imported_after_a_deletion_keeps_its_own_landmarks(files):
+    from headrecon_addon import landmarks, photos, plane_removal
+
+    path, _, _ = files
+    scene = imported_scene(path)
+    points, _ = _pixels(scene)
+    bpy.data.objects.remove(photos.find_plane(scene, "right"), do_unlink=True)
+    bpy.context.view_layer.update()
+    parked = _markers("right")
+    assert bpy.ops.headrecon.import_landmarks(filepath=str(path)) == {"FINISHED"}
+    bpy.context.view_layer.update()
+    plane = photos.find_plane(scene, "right")
+    # the file's landmarks on the new plane; the old ones stay hidden, said so, and go with
+    # Remove Photo
+    assert _pixels(scene)[0] == points
+    assert not set(parked) & {o.name for o in plane.children}
+    assert all(bpy.data.objects[n].hide_viewport for n in parked)
+    assert plane_removal.deleted_views(scene) == []
+    n = len(landmarks.landmark_objects(plane))
+    assert plane_removal.orphan_notes(scene) == [
+        f"view 'right': {n} landmarks and the contour of a deleted photo plane kept hidden, "
+        "not fitted (its photo has its own; Remove Photo removes both)"]
+    assert bpy.ops.headrecon.remove_photo(view="right") == {"FINISHED"}
+    assert _markers("right") == [] and not plane_removal.orphan_markers(scene)
