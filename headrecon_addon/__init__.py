@@ -12,6 +12,7 @@ from . import (
     live_refit,
     panels,
     photos,
+    plane_removal,
     properties,
     reference_head,
     result_ops,
@@ -19,8 +20,8 @@ from . import (
 )
 
 CLASSES = (*properties.CLASSES, *reference_head.CLASSES, *photos.CLASSES,
-           *landmark_ops.CLASSES, *fit_ops.CLASSES, *result_ops.CLASSES, *texture_ops.CLASSES,
-           *panels.CLASSES)
+           *plane_removal.CLASSES, *landmark_ops.CLASSES, *fit_ops.CLASSES,
+           *result_ops.CLASSES, *texture_ops.CLASSES, *panels.CLASSES)
 
 _register_classes, _unregister_classes = bpy.utils.register_classes_factory(CLASSES)
 
@@ -33,9 +34,11 @@ def register():
     _register_classes()
     properties.register_properties()
     live_refit.register_handlers()
+    plane_removal.register_handlers()
 
 
 def unregister():
+    plane_removal.unregister_handlers()
     live_refit.unregister_handlers()
     properties.unregister_properties()
     _unregister_classes()

@@ -10,7 +10,7 @@ import dataclasses
 import threading
 import time
 
-from . import result_to_scene, scene_to_case
+from . import plane_removal, result_to_scene, scene_to_case
 from .live_refit import LIVE
 from .solver_link import (
     BakeOptions,
@@ -47,6 +47,8 @@ class FitJob:
     message: str = "starting"
     timings: dict = dataclasses.field(default_factory=dict)
     notes: list = dataclasses.field(default_factory=list)
+    scene_notes: list = dataclasses.field(default_factory=list)
+    deleted_views: list = dataclasses.field(default_factory=list)
 
     def progress(self, fraction, message):
         if self.cancelled:
@@ -108,14 +110,17 @@ def prepare_job(scene):
     return FitJob(model=model, case=case, options=scene_to_case.options_from_props(props),
                   photos=scene_to_case.photo_arrays(scene) if props.bake_texture else {},
                   texture_size=int(props.texture_size), bake=props.bake_texture,
-                  texture_shading=props.texture_shading)
+                  texture_shading=props.texture_shading,
+                  scene_notes=plane_removal.orphan_notes(scene),
+                  deleted_views=plane_removal.deleted_views(scene))
 
 
 def apply_job(scene, job, textures=True):
     """Main-thread half of a fit: write the job's result (and its baked texture unless
     ``textures`` is False); remember the result for live refits."""
     t = time.perf_counter()
-    job.notes = list(job.calibration_notes) + list(job.result.info.get("warnings", ()))
+    job.notes = list(job.scene_notes) + list(job.calibration_notes) \
+        + list(job.result.info.get("warnings", ()))
     job.notes += [f"photo {view!r} showed {', '.join(f'{n} {w:.2f}' for n, w in shown.items())}"
                   " (taken out of its landmarks: the head is neutral)"
                   for view, shown in job.result.info.get("expressions", {}).items() if shown]
@@ -126,6 +131,19 @@ def apply_job(scene, job, textures=True):
     LIVE.remember(scene, head, job.model, job.result, job.options, job.calibration)
     _status(scene, head, job)
     return head
+
+
+def unused_line(job):
+    """What the fit left out, naming each view (for the Fit's report), or None: the views
+    it skipped (no usable landmark), the landmarks it dropped per view, and the views
+    whose photo plane was deleted (their markers not read)."""
+    unused = job.result.info.get("unused", {}) if job.result is not None else {}
+    parts = [f"view {v!r} skipped (no usable landmark)" for v in unused.get("skipped", ())]
+    parts += [f"view {v!r}: {', '.join(names)} left out"
+              for v, names in unused.get("dropped", {}).items()]
+    parts += [f"view {v!r} not fitted (its photo plane was deleted)"
+              for v in job.deleted_views]
+    return "; ".join(parts) or None
 
 
 def _status(scene, head, job):

@@ -36,8 +36,10 @@ class HEADRECON_OT_fit(bpy.types.Operator):
             self.report({"ERROR"}, f"The fit failed: {type(e).__name__}: {e}")
 
     def _done(self, context, head, job):
-        level = "WARNING" if job.error is not None else "INFO"
-        self.report({level}, f"Fitted {head.name}: {context.scene.headrecon.status}")
+        unused = fit_job.unused_line(job)
+        level = "WARNING" if job.error is not None or unused else "INFO"
+        self.report({level}, f"Fitted {head.name}: {context.scene.headrecon.status}"
+                    + (f"; {unused}" if unused else ""))
         if job.notes:
             self.report({"WARNING"}, "; ".join(job.notes))
 

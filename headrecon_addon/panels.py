@@ -64,6 +64,7 @@ class HEADRECON_PT_photos(_Panel, bpy.types.Panel):
             _load_photo(row, "", "FILEBROWSER", props.view,
                         "PERSPECTIVE" if perspective else "ORTHOGRAPHIC", props.camera_view,
                         float(photos.lens_hint(plane) or 0.0))
+            row.operator("headrecon.remove_photo", text="", icon="X").view = props.view
             box.label(text=photos.camera_label(plane),
                       icon="CAMERA_DATA" if perspective else "VIEW_ORTHO")
             if photos.camera_kind(plane) == "pinhole":

@@ -81,6 +81,7 @@ from .views import (
     previous_cameras,
     saved_state,
     skip_warnings,
+    unused_views,
 )
 
 
@@ -129,7 +130,8 @@ def fit_head(model, case, options=None, initial=None):
         "noise" (the estimated placement noise per view, every landmark's weight and the
         number of fits, ``noise.Noise.report``; not with ``noise="fixed"``),
         "plausibility" (the identity's Mahalanobis norm and its percentile under the
-        model, ``outcome.plausibility``), "warnings"
+        model, ``outcome.plausibility``), "unused" (the views skipped and the
+        landmarks left out per view, ``views.unused_views``), "warnings"
         (messages for the user) and "refit_state" (what :func:`refit_landmarks`
         continues from).
 
@@ -290,6 +292,7 @@ def _fit(model, case, opts, initial, noise, progress, t0):
     # which views it skipped: a dragged landmark can make a skipped view usable.
     info["refit_state"]["warnings"] = list(fitted)
     info["plausibility"], implausible = plausibility(result.identity_coeffs)
+    info["unused"] = unused_views(skipped, eng.views)
     info["warnings"] = skip_warnings(skipped) + drop_warnings(eng.views) + fitted \
         + implausible
     timings["result"] = time.perf_counter() - t
@@ -389,6 +392,7 @@ def refit_landmarks(model, case, previous, options=None):
                for n, (idx, r) in held.items()}
     info = {"approach": previous.info.get("approach", previous.method), "refit": True,
             "refit_state": {**saved, "coeffs": state.coeffs.copy()},
+            "unused": unused_views(skipped, views),
             "warnings": skip_warnings(skipped) + drop_warnings(views)
             + list(saved.get("warnings", []))}
     info["plausibility"], implausible = plausibility(state.coeffs[:int(opts.n_identity)])

@@ -335,6 +335,14 @@ def _check_count(where, used, need):
         raise ValueError(f"{where}: {problem}")
 
 
+def unused_views(skipped, views):
+    """What a fit left out, by view: ``{"skipped": [view names], "dropped": {view name:
+    [landmark names]}}`` (the fit's ``info["unused"]``; the warnings say the same in
+    words, ``skip_warnings`` and ``drop_warnings``)."""
+    return {"skipped": [v.name for v in skipped],
+            "dropped": {v.name: list(v.dropped) for v in views if v.dropped}}
+
+
 def skip_warnings(skipped):
     return [f"view {v.name!r}: no usable landmark, so it adds nothing to the head fit"
             f"{' (its outline is not used)' if v.contour is not None else ''}; its camera is "
