@@ -9,13 +9,15 @@ outputs written atomically through a hidden staging folder, the record last) and
 the summary row; the client streams the rows as they finish, into the same summaries,
 progress line and resume records as a local batch.
 
-The model is loaded once per worker process, not sent per task: a worker plugin
-(``batch_cluster_plugin.ModelPlugin``, registered once per batch) loads it from the model file when the
-worker starts (and on a worker that joins later), into a cache in this module keyed by
-the file's path; every task on that worker takes it from there. Every worker therefore
-needs the repository on its ``PYTHONPATH``, the bpy module, the model file at the same
-path as the client (or ``HEADRECON_MODEL``), and the inputs and ``OUT`` at the same paths
-(a shared file system): the tasks carry paths, not data.
+The model is loaded once per Dask worker process, not sent per task: bpy must run on a
+process's main thread and a Dask task runs on a thread of the worker's pool, so each Dask
+worker keeps one HeadRecon worker process (``batch_workers``, the one ``--jobs`` starts:
+``headless --worker``), started at its first head; it loads the model from the file once
+and fits every head the Dask worker is given (a cache in this module keyed by the model
+file's path). Every worker therefore needs the repository (on ``PYTHONPATH``), the bpy
+module, the model file at the client's path (or ``HEADRECON_MODEL``), and the inputs and
+``OUT`` at the same paths as the client (a shared file system): the tasks carry paths,
+not data.
 """
 
 import importlib
