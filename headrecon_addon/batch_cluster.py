@@ -20,6 +20,7 @@ module, the model file at the client's path (or ``HEADRECON_MODEL``), and the in
 not data.
 """
 
+import atexit
 import importlib
 import logging
 import os
@@ -70,6 +71,14 @@ def _fitter(path):
         fitter = _fitters[path] = batch_workers._Worker(batch_workers.worker_command(), env)
         _loads[path] = _loads.get(path, 0) + 1
     return fitter
+
+
+@atexit.register
+def _close_fitters():
+    """End this worker's HeadRecon worker with it (its input closed: it stops)."""
+    for fitter in list(_fitters.values()):
+        fitter.close()
+    _fitters.clear()
 
 
 def model_loads():
