@@ -660,10 +660,15 @@ def _run_batch(args, heads, rows, tasks, jobs, model, out_dir, client):
     note = f" ({skipped} unchanged, skipped)" if skipped else ""
     print(f"{len(heads) - failed} of {len(heads)} heads written{note}", flush=True)
     if client is not None:
-        loads = cluster.loads_per_worker(client)
-        counts = [sum(v.values()) for v in loads.values()]
-        print(f"cluster: {len(loads)} workers, the model loaded "
-              f"{'/'.join(map(str, counts))} times on them", file=sys.stderr, flush=True)
+        try:
+            loads = importlib.import_module(f"{__package__}.batch_cluster").loads_per_worker(
+                client)
+        except Exception as e:  # a worker gone at the end: the batch is done anyway
+            print(f"cluster: the workers' model loads unknown ({e})", file=sys.stderr)
+        else:
+            counts = [sum(v.values()) for v in loads.values()]
+            print(f"cluster: {len(loads)} workers, the model loaded "
+                  f"{'/'.join(map(str, counts))} times on them", file=sys.stderr, flush=True)
     return 1 if failed else 0
 
 
