@@ -1,7 +1,12 @@
 """Benchmark of the headless batch: heads per minute at ``--jobs 1`` and ``--jobs 2`` (and
-their ratio), peak memory of the largest process, and the size per head of each output.
+their ratio), through a local Dask cluster of 2 workers (``--cluster local --jobs 2``),
+peak memory of the largest process, and the size per head of each output.
 
-    python -m bench.bench_batch [--heads 12] [--texture-size 1024] [--keep DIR]
+    python -m bench.bench_batch [--heads 12] [--texture-size 1024] [--keep DIR] [--blend-only]
+
+``--blend-only`` measures the .blend batches only (``--jobs 1``, ``--jobs 2``, the local
+cluster), not the .glb and every-output ones. The cluster batch is left out when Dask
+distributed is not installed.
 
 The heads are synthetic cases (``solver.synthetic.make_case``, saved with
 ``solver.io.save_landmarks``) with smooth generated photos, listed in a ``.csv`` manifest;
@@ -69,12 +74,12 @@ def make_heads(folder, n):
     return manifest
 
 
-def run_batch(manifest, out, jobs, outputs, texture_size):
+def run_batch(manifest, out, jobs, outputs, texture_size, cluster=None):
     """(seconds, CPU seconds, exit code, peak MB of the largest process, summary rows) of
-    one batch."""
+    one batch (``cluster``: its ``--cluster`` address, e.g. "local")."""
     cmd = [sys.executable, "-m", "headrecon_addon.headless", str(manifest), "--out", str(out),
            "--jobs", str(jobs), "--outputs", outputs, "--texture-size", str(texture_size),
-           "--force"]
+           "--force"] + (["--cluster", cluster] if cluster else [])
     t0 = time.perf_counter()
     proc = subprocess.run([sys.executable, "-c", _MEASURE, *cmd], cwd=ROOT, text=True,
                           capture_output=True, env=dict(os.environ, PYTHONPATH=str(ROOT)))
@@ -99,7 +104,14 @@ def main(argv=None):
     p.add_argument("--heads", type=int, default=12)
     p.add_argument("--texture-size", type=int, default=1024)
     p.add_argument("--keep", type=Path, help="write the inputs and outputs here")
+    p.add_argument("--blend-only", action="store_true",
+                   help="only the .blend batches: --jobs 1, --jobs 2, the local cluster")
     args = p.parse_args(argv)
+    try:
+        import distributed  # noqa: F401
+        has_dask = True
+    except ImportError:
+        has_dask = False
     print(f"machine: {machine_description()}")
     with tempfile.TemporaryDirectory() as tmp:
         work = args.keep or Path(tmp)
@@ -107,19 +119,24 @@ def main(argv=None):
         manifest = make_heads(work / "in", args.heads)
         print(f"{args.heads} synthetic heads, texture {args.texture_size} px per tile")
         rates = {}
-        for label, jobs, outputs in (("fit, texture, .blend", 1, "blend"),
-                                     ("fit, texture, .blend", 2, "blend"),
-                                     ("fit, texture, .blend + game .glb", 1, "blend,glb"),
-                                     ("fit, texture, .blend + game .glb", 2, "blend,glb"),
-                                     ("every output", 2, "blend,glb,obj,texture,report")):
-            out = work / f"out_{jobs}_{outputs.replace(',', '_')}"
+        configs = [("fit, texture, .blend", 1, "blend", None),
+                   ("fit, texture, .blend", 2, "blend", None)]
+        if has_dask:
+            configs.append(("fit, texture, .blend", 2, "blend", "local"))
+        if not args.blend_only:
+            configs += [("fit, texture, .blend + game .glb", 1, "blend,glb", None),
+                        ("fit, texture, .blend + game .glb", 2, "blend,glb", None),
+                        ("every output", 2, "blend,glb,obj,texture,report", None)]
+        for label, jobs, outputs, cluster in configs:
+            out = work / f"out_{jobs}_{outputs.replace(',', '_')}{'_' + cluster if cluster else ''}"
             seconds, cpu, code, peak, rows = run_batch(manifest, out, jobs, outputs,
-                                                  args.texture_size)
+                                                       args.texture_size, cluster)
             ok = sum(r["status"] == "done" for r in rows)
             rate = 60.0 * ok / seconds
-            rates[(label, jobs)] = rate
+            rates[(label, jobs, cluster)] = rate
             fit_s = np.median([r["seconds"] for r in rows if r["status"] == "done"])
-            print(f"--jobs {jobs} --outputs {outputs}: {ok}/{len(rows)} heads in "
+            where = f"--cluster {cluster} " if cluster else ""
+            print(f"{where}--jobs {jobs} --outputs {outputs}: {ok}/{len(rows)} heads in "
                   f"{seconds:.1f} s = {rate:.1f} heads/min (median {fit_s:.1f} s a head in "
                   f"its worker), {cpu / max(ok, 1):.1f} CPU s a head, peak {peak:.0f} MB in "
                   f"the largest process, exit {code}")
@@ -128,8 +145,14 @@ def main(argv=None):
                                                    ).items():
                     print(f"  {kind}: {size / 1e6:.2f} MB a head")
         for label in ("fit, texture, .blend", "fit, texture, .blend + game .glb"):
-            print(f"{label}: --jobs 2 / --jobs 1 = "
-                  f"{rates[(label, 2)] / rates[(label, 1)]:.2f} x")
+            if (label, 1, None) in rates:
+                print(f"{label}: --jobs 2 / --jobs 1 = "
+                      f"{rates[(label, 2, None)] / rates[(label, 1, None)]:.2f} x")
+        if ("fit, texture, .blend", 2, "local") in rates:
+            label = "fit, texture, .blend"
+            print(f"{label}: --cluster local --jobs 2 / --jobs 1 = "
+                  f"{rates[(label, 2, 'local')] / rates[(label, 1, None)]:.2f} x, "
+                  f"/ --jobs 2 = {rates[(label, 2, 'local')] / rates[(label, 2, None)]:.2f} x")
         print(f"load average at the end: {load_average()}")
 
 

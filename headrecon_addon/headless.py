@@ -33,6 +33,7 @@ with :func:`save_blend`.
 """
 
 import argparse
+import contextlib
 import importlib
 import os
 import shutil
@@ -391,6 +392,11 @@ def _parser():
                    help="fit a head straight from its photos (landmarks detected, written as "
                         "<name>.landmarks.json beside the outputs); or a folder of one "
                         "head's photos, or of sub-folders one per head; repeatable")
+    p.add_argument("--cluster", metavar="ADDRESS",
+                   help="run the heads on a Dask distributed cluster: its scheduler "
+                        "(tcp://host:8786, or a scheduler file .json), or 'local' for a "
+                        "one-machine cluster of --jobs worker processes (needs "
+                        "dask[distributed], not bundled)")
     p.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     return p
 
@@ -541,6 +547,12 @@ def _worker_died(task, code):
         f"{task['where']}: the worker process ended (exit code {code}) while fitting it")
 
 
+def _cluster_failed(task, message):
+    return batch_summary.failed_row(
+        task["name"], task["where"],
+        f"{task['where']}: the cluster could not fit it ({message})")
+
+
 def _in_process(tasks, model):
     for task in tasks:
         yield task, _run_task(task, model)
@@ -589,10 +601,27 @@ def main(argv):
                 {f"input {p}": p for p in args.inputs})
         rows, tasks = _tasks(heads, settings, args.force)
         jobs = min(args.jobs or batch_workers.cpu_count(), len(tasks))
-        model = load_model() if jobs <= 1 and tasks else None
+        if args.cluster:
+            cluster = importlib.import_module(f"{__package__}.batch_cluster")
+            cluster.distributed()  # not installed: one line, before anything runs
+        model = load_model() if jobs <= 1 and tasks and not args.cluster else None
     except (ValueError, FileNotFoundError) as e:
         print(f"headless: {e}", file=sys.stderr)
         return 2
+    with contextlib.ExitStack() as stack:
+        client = None
+        if args.cluster and tasks:
+            try:
+                client = stack.enter_context(cluster.client_for(args.cluster, max(jobs, 1)))
+            except (OSError, ValueError) as e:  # no scheduler there, a bad address
+                print(f"headless: --cluster {args.cluster}: {e}", file=sys.stderr)
+                return 2
+        return _run_batch(args, heads, rows, tasks, jobs, model, out_dir, client)
+
+
+def _run_batch(args, heads, rows, tasks, jobs, model, out_dir, client):
+    """The batch once planned: the known rows, then the tasks' rows as they finish (in
+    this process, on local workers, or on the cluster of ``client``)."""
     folder = out_dir or Path(args.out).parent
     folder.mkdir(parents=True, exist_ok=True)
     _remove_stale_partials(folder)
@@ -601,8 +630,13 @@ def main(argv):
         if row is not None:
             progress.add(row["status"], fitted=False)
             print(_head_line(row), flush=True)
-    results = _in_process(tasks, model) if jobs <= 1 else \
-        batch_workers.run_pool(tasks, jobs, _worker_died)
+    if client is not None:
+        cluster = importlib.import_module(f"{__package__}.batch_cluster")
+        results = cluster.run_cluster(tasks, client, _cluster_failed)
+    elif jobs <= 1:
+        results = _in_process(tasks, model)
+    else:
+        results = batch_workers.run_pool(tasks, jobs, _worker_died)
     last_write = 0.0
     try:
         for task, row in results:
@@ -625,6 +659,16 @@ def main(argv):
     skipped = progress.counts["skipped"]
     note = f" ({skipped} unchanged, skipped)" if skipped else ""
     print(f"{len(heads) - failed} of {len(heads)} heads written{note}", flush=True)
+    if client is not None:
+        try:
+            loads = importlib.import_module(f"{__package__}.batch_cluster").loads_per_worker(
+                client)
+        except Exception as e:  # a worker gone at the end: the batch is done anyway
+            print(f"cluster: the workers' model loads unknown ({e})", file=sys.stderr)
+        else:
+            counts = [sum(v.values()) for v in loads.values()]
+            print(f"cluster: {len(loads)} workers, the model loaded "
+                  f"{'/'.join(map(str, counts))} times on them", file=sys.stderr, flush=True)
     return 1 if failed else 0
 
 

@@ -1,0 +1,81 @@
+"""The batch on a Dask distributed cluster (``--cluster local``: a scheduler here and two
+``dask worker`` processes): the same outputs and summary rows as ``--jobs 2``, a broken
+row reported alone, the model loaded once per worker, a clear line without Dask."""
+
+import json
+import sys
+
+import pytest
+
+from tests.addon.support import run_python, synthetic_files
+
+pytest.importorskip("distributed", reason="--cluster needs dask[distributed]")
+
+
+@pytest.fixture(scope="module")
+def heads(model, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("cluster_heads")
+    for i in range(3):
+        synthetic_files(model, folder, seed=60 + i, name=f"c{i}")
+    manifest = folder / "heads.csv"
+    manifest.write_text("name,landmarks,components\nc0,c0.json,10\nc1,c1.json,10\n"
+                        "broken,missing.json,10\nc2,c2.json,10\n")
+    return manifest
+
+
+def _rows(out):
+    return {r["name"]: r for r in map(json.loads, (out / "summary.jsonl").read_text()
+                                      .splitlines())}
+
+
+def _same(row):
+    """A summary row without what differs between runs (time, the output folder)."""
+    return {k: v for k, v in row.items() if k not in ("seconds", "outputs")} | {
+        "outputs": {k: p.rsplit("/", 1)[-1] for k, p in row["outputs"].items()}}
+
+
+def test_local_cluster_matches_jobs_2(heads, tmp_path):
+    args = [heads, "--no-texture", "--force", "--jobs", "2"]
+    local = run_python(["-m", "headrecon_addon.headless", *args, "--out", tmp_path / "jobs"])
+    cluster = run_python(["-m", "headrecon_addon.headless", *args, "--out",
+                          tmp_path / "cluster", "--cluster", "local"])
+    for proc in (local, cluster):
+        assert proc.returncode == 1, proc.stderr  # the broken row
+        assert "3 of 4 heads written" in proc.stdout
+        assert "4/4 heads, 1 failed, 0 skipped" in proc.stderr
+    # two workers, each loaded the model once for its heads
+    assert "cluster: 2 workers, the model loaded 1/1 times on them" in cluster.stderr
+    a, b = _rows(tmp_path / "jobs"), _rows(tmp_path / "cluster")
+    assert list(a) == list(b) == ["c0", "c1", "broken", "c2"]  # manifest order
+    assert {n: _same(r) for n, r in a.items()} == {n: _same(r) for n, r in b.items()}
+    assert b["broken"]["status"] == "failed" and "missing.json" in b["broken"]["error"]
+    out = tmp_path / "cluster"
+    for name in ("c0", "c1", "c2"):
+        assert b[name]["status"] == "done"
+        assert (out / f"{name}.blend").is_file() and (out / f"{name}.batch.json").is_file()
+    assert not list(out.glob(".*"))  # no staging folder left
+
+    # resuming works the same through the cluster: nothing changed, nothing fitted
+    again = run_python(["-m", "headrecon_addon.headless", heads, "--no-texture", "--out",
+                        out, "--cluster", "local", "--jobs", "2"])
+    assert again.returncode == 1 and "(3 unchanged, skipped)" in again.stdout
+
+
+def test_a_dead_worker_process_fails_its_head_only(monkeypatch):
+    from headrecon_addon import batch_cluster, batch_workers
+
+    monkeypatch.setattr(batch_workers, "worker_command",
+                        lambda: [sys.executable, "-c", "import sys; sys.exit(3)"])
+    monkeypatch.setattr(batch_cluster, "_fitters", {})
+    task = {"name": "x", "where": "heads.csv row 2"}
+    row = batch_cluster.run_head(task, "/no/model.npz")
+    assert row["status"] == "failed" and "exit code 3" in row["error"]
+    assert batch_cluster._fitters == {}  # the next head starts a new one
+
+
+def test_without_dask_one_line(monkeypatch):
+    from headrecon_addon import batch_cluster
+
+    monkeypatch.setitem(sys.modules, "dask.distributed", None)
+    with pytest.raises(ValueError, match=r"--cluster needs Dask distributed.*pip install"):
+        batch_cluster.distributed()
