@@ -97,11 +97,13 @@ class Noise:
         return self.floor_px ** 2 / (sigma ** 2 * consistency(dim))
 
     def settled(self, other):
-        """Whether every sigma of ``other`` is within SETTLED of this one's."""
+        """Whether every sigma of ``other`` is within SETTLED of this one's (the landmark
+        groups' definition offsets too)."""
         for mine, theirs in ((self.landmark_px, other.landmark_px),
                              (self.outline_px, other.outline_px),
                              (self.along_px, other.along_px),
-                             (self.contour_px, other.contour_px)):
+                             (self.contour_px, other.contour_px),
+                             (self.definition_m, other.definition_m)):
             if set(mine) != set(theirs):
                 return False
             for k, s in mine.items():
