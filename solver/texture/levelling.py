@@ -15,8 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .shading import vertex_areas
-from .uvs import cotan_laplacian
+from .shading import mesh_operators
 
 
 def level_field(difference, overlap, points, triangles, length, decay=None):
@@ -53,12 +52,7 @@ def level_field(difference, overlap, points, triangles, length, decay=None):
         raise ValueError(f"overlap: expected shape ({d.shape[0]},), got {wv.shape}")
     if length <= 0:
         raise ValueError(f"length: expected > 0 metres, got {length}")
-    tri = np.asarray(triangles, dtype=np.int64)
-    used = np.unique(tri)
-    local = np.searchsorted(used, tri)
-    pts = np.asarray(points, dtype=np.float64)[used]
-    area = vertex_areas(pts, local)
-    lap = cotan_laplacian(pts, local)
+    used, _, area, lap = mesh_operators(points, triangles)
     data = area * wv[used]
     if decay is not None and not decay > length:
         raise ValueError(f"decay: expected more than length ({length} m), got {decay}")

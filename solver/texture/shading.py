@@ -40,6 +40,17 @@ def vertex_areas(points, triangles):
     return np.bincount(tri.ravel(), np.repeat(area / 3.0, 3), minlength=len(pts))
 
 
+def mesh_operators(points, triangles):
+    """The surface operators of the vertices ``triangles`` use: (those vertices (U,), the
+    triangles in their numbering (T, 3), lumped areas (U,) m^2, cotangent Laplacian (U, U)
+    sparse), for smoothing and levelling on the mesh."""
+    tri = np.asarray(triangles, dtype=np.int64)
+    used = np.unique(tri)
+    local = np.searchsorted(used, tri)
+    pts = np.asarray(points, dtype=np.float64)[used]
+    return used, local, vertex_areas(pts, local), cotan_laplacian(pts, local)
+
+
 def smooth_on_mesh(values, points, triangles, length):
     """Values per vertex smoothed over the surface with length scale ``length``.
 
@@ -62,12 +73,7 @@ def smooth_on_mesh(values, points, triangles, length):
     f = np.asarray(values, dtype=np.float64)
     if length <= 0:
         raise ValueError(f"length: expected > 0 metres, got {length}")
-    tri = np.asarray(triangles, dtype=np.int64)
-    used = np.unique(tri)
-    local = np.searchsorted(used, tri)
-    pts = np.asarray(points, dtype=np.float64)[used]
-    lap = cotan_laplacian(pts, local)
-    mass = vertex_areas(pts, local)
+    used, _, mass, lap = mesh_operators(points, triangles)
     a = (sp.diags(mass) + length * length * lap).tocsc()
     out = f.copy()
     out[used] = spla.spsolve(a, mass[:, None] * f[used].reshape(len(used), -1)).reshape(

@@ -225,10 +225,13 @@ def test_bad_input_is_named(model, noisy):
         fit_head(model, LandmarkCase({}))
     with pytest.raises(ValueError, match="previous: expected a FitResult"):
         refit_landmarks(model, case, None)
-    # a down-weighted landmark does not count
+    # a down-weighted landmark does not count (in a profile without its traced outline,
+    # which would place the camera on its own)
     weak = FitOptions(landmark_weights={n: 0.0 for n in list(case.views["right"].points)[2:]})
+    bare = copy.deepcopy(case)
+    bare.views["right"].contour = None
     with pytest.raises(ValueError, match=r"view 'right': 2 usable landmarks"):
-        fit_head(model, case, weak)
+        fit_head(model, bare, weak)
 
 
 def test_fixed_camera_keeps_the_given_calibration(model):
