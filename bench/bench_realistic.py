@@ -236,13 +236,13 @@ def run_james(model, folder, samples, grid):
     print(f"  as people give them: bias {placement.bias_px:.1f} px RMS, noise "
           f"{placement.noise_px:.1f} px RMS")
 
-    rendered, moved, _ = scan_render_cases(scan)
+    rendered, moved, _, cameras = scan_render_cases(scan)
     try:
         detector = Detector()
     except ValueError as e:
         print(f"  detected landmarks: skipped ({e})")
     else:
-        detected, _ = detected_front_case(rendered, moved, detector)
+        detected, _ = detected_front_case(rendered, moved, cameras["front"], detector)
         if detected is None:
             print("  detected landmarks: no face found in the rendered front photo")
         else:

@@ -768,12 +768,9 @@ def oriented_normals(vertices, triangles, ibug):
 
 
 def boundary_vertices(triangles, n):
-    """Bool per vertex: on the mesh's open boundary (an edge of one triangle only)."""
-    e = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]],
-                                triangles[:, [2, 0]]]), axis=1)
-    uniq, count = np.unique(e, axis=0, return_counts=True)
+    """Bool per vertex: on the mesh's open boundary (:func:`boundary_edges`)."""
     out = np.zeros(n, bool)
-    out[uniq[count == 1].ravel()] = True
+    out[boundary_edges(triangles).ravel()] = True
     return out
 
 
@@ -852,7 +849,8 @@ def scan_render_cases(scan, placement_seed=7100, image_height=1024, contour_poin
     :func:`place_landmarks` (outline points on the front's apparent outline) with the
     outline's noise; and the front as people give them with the profile's traced outline
     alone (no landmark there, as when only a silhouette was found). Returns (name ->
-    LandmarkCase, the scan in model axes, Placement)."""
+    LandmarkCase, the scan in model axes, Placement, the cameras that took the photos:
+    view name -> OrthographicCamera)."""
     rng = np.random.default_rng(placement_seed)
     placement = Placement.draw(rng)
     moved = scan_in_model_axes(scan)
@@ -865,8 +863,9 @@ def scan_render_cases(scan, placement_seed=7100, image_height=1024, contour_poin
     h = int(image_height)
     size = (int(round(0.75 * h)), h)
     given = {"projected": {}, "as people give them": {}}
+    cams = {}
     for view in ("front", "right"):
-        cam = _camera(rng, f"orthographic-{view}", size, world)
+        cam = cams[view] = _camera(rng, f"orthographic-{view}", size, world)
         seen = visible(world, tris, cam, normals[nearest], lm, 0.0)
         numbers = [i + 1 for i in np.flatnonzero(seen)]
         contour = {}
@@ -896,7 +895,7 @@ def scan_render_cases(scan, placement_seed=7100, image_height=1024, contour_poin
     cases["front as people give them, profile outline only"] = LandmarkCase(
         {"front": people["front"], "right": View("right", None, side.size, side.camera, {},
                                                   contour=side.contour)}, "<james rendered>")
-    return cases, moved, placement
+    return cases, moved, placement, cams
 
 
 def render_scan(scan, camera, background=0.5):
@@ -925,16 +924,15 @@ def render_scan(scan, camera, background=0.5):
     return out.reshape(h, w, 3)
 
 
-def detected_front_case(scan_cases_, moved, detector):
-    """The rendered front photo's landmarks found by the face detector (``detector``: a
-    ``solver.detect.Detector``) with their uncertainty as ``solver detect`` gives it, and
+def detected_front_case(scan_cases_, moved, front_camera, detector):
+    """The rendered front photo (taken by ``front_camera``, as :func:`scan_render_cases`
+    gives it) with its landmarks found by the face detector (``detector``: a
+    ``solver.detect.Detector``) and their uncertainty as ``solver detect`` gives it, and
     the profile's traced outline alone: (LandmarkCase, the front photo) or (None, photo)
     when no face is found."""
     base = scan_cases_["front + profile, projected"]
     front, side = base.views["front"], base.views["right"]
-    # the front camera the rendered cases drew: the landmarks' exact pixels say it
-    cam = _fit_front_camera(moved, front)
-    photo = render_scan(moved, cam)
+    photo = render_scan(moved, front_camera)
     face = detector.detect(photo)
     if face is None or not face.is_face:
         return None, photo
@@ -946,16 +944,6 @@ def detected_front_case(scan_cases_, moved, detector):
              "right": View("right", None, side.size, side.camera, {},
                            contour=side.contour)}
     return LandmarkCase(views, "<james rendered, detected>"), photo
-
-
-def _fit_front_camera(moved, front):
-    """The orthographic front camera that projects the scan's landmarks onto ``front``'s
-    pixels (a similarity fit: the rendered cases' camera, recovered exactly)."""
-    names = list(front.points)
-    x = np.array([moved.ibug[int(n[4:])] for n in names])
-    q = np.array([front.points[n] for n in names])
-    nominal = OrthographicCamera.nominal("orthographic-front", front.size)
-    return nominal.refit(x, q)
 
 
 # ---------------------------------------------------------------- the oracle

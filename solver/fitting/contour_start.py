@@ -57,10 +57,10 @@ def camera_from_outline(camera, contour, chain):
                 new = cam.refit(chain[j[keep]], contour[keep])
             except ValueError:
                 break
-            moved = abs(new.scale / cam.scale - 1.0) < 1e-6 and np.allclose(
+            settled = abs(new.scale / cam.scale - 1.0) < 1e-6 and np.allclose(
                 new.offset, cam.offset, atol=1e-3)
             cam = new
-            if moved:
+            if settled:
                 break
         d = cKDTree(cam.project(chain)).query(contour)[0]
         rms = float(np.sqrt(np.mean(d**2)))

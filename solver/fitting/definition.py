@@ -9,11 +9,8 @@ shape follows what the points say relative to each other and only partly their c
 
 import numpy as np
 
+from .noise import STUDENT_NU
 from .rows import ImageRows, ScalarRows, _projected
-
-#: Standard deviation of a landmark group's shared definition offset, metres on the face
-#: (``FitOptions.definition_mm`` sets it per fit).
-DEFINITION_M = 0.002
 
 
 def group_terms(labels, weights, jac, sigma_m):
@@ -38,10 +35,9 @@ def group_terms(labels, weights, jac, sigma_m):
 #: eye's corner is (measured: docs/DECISIONS.md).
 OUTLINE_DEFINITION = 3.0
 
-#: Reweighting steps of a group's offset against a misplaced point of it, and the
-#: Student-t degrees of freedom of that weighting (as the placement noise's).
+#: Reweighting steps of a group's offset against a misplaced point of it (Student-t, with
+#: the placement noise's degrees of freedom).
 ROBUST_STEPS = 5
-STUDENT_NU = 5.0
 
 #: Groups with fewer used points than this do not count in the estimate of the offsets'
 #: size: one point cannot tell its group's offset from its own noise.
@@ -104,8 +100,7 @@ def group_offsets(residuals, groups, weights, jac, sigma_m):
     ratio = None
     if len(big) and np.any(sigma_m):
         # per group: sigma_G^2 (px^2) = t / sum w; posterior variance sigma_G^2 / (1 + t)
-        wr = w * robust
-        wsum = np.array([wr[labels == labels[i]].sum() for i in big])
+        wsum = np.bincount(labels, weights=w * robust)[labels[big]]
         s2_px = t[big] / wsum
         ok = s2_px > 0
         rho = ((e[big] ** 2).sum(axis=1) / 2.0 + s2_px / (1.0 + t[big]))[ok] / s2_px[ok]
