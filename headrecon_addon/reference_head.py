@@ -119,6 +119,21 @@ class HEADRECON_OT_add_head(ObjectModeOperator, bpy.types.Operator):
         return {"FINISHED"}
 
 
+
+def scene_head(context):
+    """The scene's reference head (``scene.headrecon.head``), or None when it is unset or
+    no longer a head."""
+    head = context.scene.headrecon.head
+    return head if is_head(head) else None
+
+
+def fitted_head_problem(context):
+    """"Fit a head first" while the scene has no fitted head (a head with shape keys)."""
+    head = scene_head(context)
+    if head is None or head.data.shape_keys is None:
+        return "Fit a head first"
+    return None
+
 def _select_only(context, obj):
     """Make ``obj`` the only selected object and the active one."""
     for o in context.selected_objects:

@@ -4,21 +4,10 @@ presets) and Import ARKit Animation (a Live Link Face CSV on the expression keys
 import bpy
 from bpy.props import BoolProperty, EnumProperty, StringProperty
 
-from . import apply_identity, arkit_animation, export, reference_head
+from . import apply_identity, arkit_animation, export
 from .polls import object_mode_problem, poll_result
+from .reference_head import fitted_head_problem, scene_head
 from .solver_link import load_model
-
-
-def _head(context):
-    head = context.scene.headrecon.head
-    return head if reference_head.is_head(head) else None
-
-
-def _fitted_head_problem(context):
-    head = _head(context)
-    if head is None or head.data.shape_keys is None:
-        return "Fit a head first"
-    return None
 
 
 class HEADRECON_OT_apply_identity(bpy.types.Operator):
@@ -38,14 +27,14 @@ class HEADRECON_OT_apply_identity(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        problem = object_mode_problem(context) or _fitted_head_problem(context)
+        problem = object_mode_problem(context) or fitted_head_problem(context)
         if problem is None:
-            problem = apply_identity.identity_problem(_head(context),
+            problem = apply_identity.identity_problem(scene_head(context),
                                                       load_model().expression_names)
         return poll_result(cls, problem)
 
     def execute(self, context):
-        head = _head(context)
+        head = scene_head(context)
         try:
             names = apply_identity.apply_identity(head, load_model().expression_names,
                                                   keep_muted=self.keep_muted)
@@ -84,11 +73,11 @@ class HEADRECON_OT_export_head(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return poll_result(cls, object_mode_problem(context) or _fitted_head_problem(context))
+        return poll_result(cls, object_mode_problem(context) or fitted_head_problem(context))
 
     def invoke(self, context, event):
         if not self.filepath:  # next to the .blend when it is saved
-            name = bpy.path.clean_name(_head(context).name) + export.SUFFIX[self.export_format]
+            name = bpy.path.clean_name(scene_head(context).name) + export.SUFFIX[self.export_format]
             self.filepath = bpy.path.abspath("//" + name) if bpy.data.filepath else name
         context.window_manager.fileselect_add(self)
         return {"RUNNING_MODAL"}
@@ -98,7 +87,7 @@ class HEADRECON_OT_export_head(bpy.types.Operator):
             self.report({"ERROR"}, "Export Head: no file given")
             return {"CANCELLED"}
         try:
-            path = export.export_head(bpy.path.abspath(self.filepath), _head(context),
+            path = export.export_head(bpy.path.abspath(self.filepath), scene_head(context),
                                       load_model().expression_names, self.export_format,
                                       morph_normals=self.morph_normals, scene=context.scene)
         except Exception as e:
@@ -128,7 +117,7 @@ class HEADRECON_OT_import_arkit_animation(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return poll_result(cls, object_mode_problem(context) or _fitted_head_problem(context))
+        return poll_result(cls, object_mode_problem(context) or fitted_head_problem(context))
 
     def invoke(self, context, event):
         context.window_manager.fileselect_add(self)
@@ -137,7 +126,7 @@ class HEADRECON_OT_import_arkit_animation(bpy.types.Operator):
     def execute(self, context):
         try:
             take = arkit_animation.read_live_link_csv(self.filepath, int(self.timecode_fps))
-            action, skipped = arkit_animation.apply_take(_head(context), take, context.scene)
+            action, skipped = arkit_animation.apply_take(scene_head(context), take, context.scene)
         except ValueError as e:  # the file's problem, said with its line and column
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}

@@ -16,6 +16,7 @@ from bpy.props import StringProperty
 
 from . import material, photos, reference_head, result_to_scene
 from .polls import poll_result
+from .reference_head import fitted_head_problem, scene_head
 from .solver_link import load_model, solver
 
 SUFFIX = "_texture.png"
@@ -90,17 +91,12 @@ def save_texture(head, path, model=None):
     return path
 
 
-def _head(context):
-    head = context.scene.headrecon.head
-    return head if reference_head.is_head(head) else None
-
-
 def texture_problem(context):
     """Why Save Texture cannot run (no fitted head, nothing baked), or None."""
-    head = _head(context)
-    if head is None or head.data.shape_keys is None:
-        return "Fit a head first"
-    for mat in head.data.materials:
+    problem = fitted_head_problem(context)
+    if problem:
+        return problem
+    for mat in scene_head(context).data.materials:
         img = material.skin_texture(mat) if mat is not None else None
         if img is not None and img.get(result_to_scene.BAKED):
             return None
@@ -127,7 +123,7 @@ class HEADRECON_OT_save_texture(bpy.types.Operator):
     def invoke(self, context, event):
         if self.filepath or bpy.data.filepath:
             return self.execute(context)
-        self.filepath = bpy.path.clean_name(_head(context).name) + SUFFIX
+        self.filepath = bpy.path.clean_name(scene_head(context).name) + SUFFIX
         context.window_manager.fileselect_add(self)
         return {"RUNNING_MODAL"}
 
@@ -137,7 +133,7 @@ class HEADRECON_OT_save_texture(bpy.types.Operator):
             self.report({"ERROR"}, "Save Texture: save the .blend first, or give a file path")
             return {"CANCELLED"}
         try:
-            written = save_texture(_head(context), path)
+            written = save_texture(scene_head(context), path)
         except (ValueError, OSError) as e:
             self.report({"ERROR"}, f"Save Texture: {e}")
             return {"CANCELLED"}
