@@ -27,6 +27,7 @@ def _parse():
     p.add_argument("--noise", type=float, nargs="+", default=[0.0, 1.0, 2.0],
                    help="landmark noise levels, pixels")
     p.add_argument("--methods", nargs="+", default=["approach1", "approach2", "combined"])
+    blas_threads.option_argument(p)
     return p.parse_args()
 
 
@@ -38,16 +39,23 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from bench.common import machine_description, max_rss_mb, peak_memory  # noqa: E402
+from bench.common import (  # noqa: E402
+    machine_description,
+    max_rss_mb,
+    option_values,
+    peak_memory,
+)
 from solver import FitOptions, fit_head, load_model, refit_landmarks  # noqa: E402
 from solver.synthetic import make_case, skin_error_mm  # noqa: E402
 
 
 def main(args):
     model = load_model()
+    shared = option_values(args.set)
     print(f"machine: {machine_description()}")
     print(f"cases: {args.cases} per noise level, rotation <= 5 deg, 1024-px photos, "
-          "front + right with contour\n")
+          "front + right with contour"
+          + "".join(f"; {k}={v!r}" for k, v in shared.items()) + "\n")
     methods = list(args.methods)
     table = {}
     fit_times, refit_times = [], []
@@ -59,7 +67,7 @@ def main(args):
             errs["mean head"].append(skin_error_mm(model, model.vertices, truth.local_vertices))
             for m in methods:
                 t = time.perf_counter()
-                res = fit_head(model, case, FitOptions(method=m))
+                res = fit_head(model, case, FitOptions(method=m, **shared))
                 dt = time.perf_counter() - t
                 errs[m].append(skin_error_mm(model, res.local_vertices, truth.local_vertices))
                 if m == "combined":
@@ -71,7 +79,7 @@ def main(args):
                         moved.views["front"].points["nose_tip"] = (u + 5.0, v)
                         for _ in range(3):
                             t = time.perf_counter()
-                            refit_landmarks(model, moved, res)
+                            refit_landmarks(model, moved, res, FitOptions(**shared))
                             refit_times.append(time.perf_counter() - t)
         table[sigma] = errs
         print(f"sigma = {sigma:g} px: RMS skin error after similarity alignment, mm")
@@ -84,7 +92,7 @@ def main(args):
 
     # Memory of one full fit (numpy reports its buffers to tracemalloc).
     case, _ = make_case(model, 999, noise_px=1.0)
-    _, peak = peak_memory(lambda: fit_head(model, case, FitOptions()))
+    _, peak = peak_memory(lambda: fit_head(model, case, FitOptions(**shared)))
     rss = max_rss_mb()
     print("\nspeed and memory")
     if fit_times:

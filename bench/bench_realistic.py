@@ -71,6 +71,7 @@ def _parse():
                    help="FitOptions.outline_landmarks of every fit (default: the fit's)")
     p.add_argument("--definition-mm", type=float, default=None,
                    help="FitOptions.definition_mm of every fit (default: the fit's)")
+    blas_threads.option_argument(p)
     return p.parse_args()
 
 
@@ -83,7 +84,7 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from bench.common import load_average, machine_description  # noqa: E402
+from bench.common import load_average, machine_description, option_values  # noqa: E402
 from bench.realistic_cases import (  # noqa: E402
     EXPRESSIONS,
     Surface,
@@ -357,13 +358,16 @@ def main(args):
         SHARED["outline_landmarks"] = args.outline_landmarks
     if args.definition_mm is not None:
         SHARED["definition_mm"] = args.definition_mm
+    SHARED.update(option_values(args.set))
     n_expr = args.cases // 2 if args.expression_cases is None else args.expression_cases
     print(f"machine: {machine_description()}")
     print(f"cases: {args.cases} out-of-model, {n_expr} with expression, the scan james' "
           f"variants; {args.samples} points sampled on the true surface per score; "
           f"noise_px grid: {', '.join(f'{x:g}' for x in grid) or 'none'}; outline landmarks: "
           f"{args.outline_landmarks}; definition offset: "
-          f"{SHARED.get('definition_mm', FitOptions.definition_mm):g} mm")
+          f"{SHARED.get('definition_mm', FitOptions.definition_mm):g} mm"
+          + "".join(f"; {k}={v!r}" for k, v in SHARED.items()
+                    if k not in ("outline_landmarks", "definition_mm")))
     groups = {}
     if args.cases > 0:
         groups["out-of-model heads"] = run_synthetic(model, "out-of-model", args.cases,

@@ -40,3 +40,11 @@ def parser(prog, description):
                         "the environment; the fit's matrices are small, so one thread is "
                         "fastest and steadiest ('default' leaves the library's choice)")
     return p
+
+
+def option_argument(p):
+    """Add ``--set NAME=VALUE`` (repeatable) to a benchmark's parser: any FitOptions field
+    of every fit it runs (``common.option_values`` reads them)."""
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   help="a FitOptions field of every fit (a JSON value, else a string), "
+                        "e.g. --set lambda2=1.5; repeatable")

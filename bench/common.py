@@ -15,6 +15,7 @@ load, which ``machine_description`` reports with the core count and library vers
 """
 
 import dataclasses
+import json
 import os
 import platform
 import resource
@@ -127,3 +128,20 @@ def max_rss_mb():
     """Peak resident memory of this process so far (everything it loaded), MB."""
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     return rss / (2**20 if sys.platform == "darwin" else 1024.0)  # bytes on macOS, else KiB
+
+
+def option_values(pairs):
+    """FitOptions fields from ``--set NAME=VALUE`` strings (the value read as JSON, else
+    kept as a string); an unknown name stops the benchmark, naming it."""
+    from solver import FitOptions
+
+    out = {}
+    for pair in pairs:
+        name, _, text = pair.partition("=")
+        if name not in FitOptions.__dataclass_fields__:
+            raise SystemExit(f"--set {pair}: FitOptions has no field {name!r}")
+        try:
+            out[name] = json.loads(text)
+        except json.JSONDecodeError:
+            out[name] = text
+    return out

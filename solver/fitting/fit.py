@@ -155,13 +155,14 @@ def fit_head(model, case, options=None, initial=None):
     # The noise from the fit's residuals (and each photo's expression, expression.py), the
     # fit again with them, until the estimates settle (noise.py); each fit after the first
     # starts where the last one ended.
-    result, contour, along, effective, measured = _fit(model, case, opts, initial, None,
-                                                       progress.part(0.0, 0.55), t0)
+    result, contour, along, effective, measured, rim = _fit(model, case, opts, initial,
+                                                            None, progress.part(0.0, 0.55),
+                                                            t0)
     noise, rounds, expressions = None, 1, {}
     timings = dict(result.info["timings"])
     while rounds < MAX_ROUNDS:
         estimate = estimate_noise(measured[0], contour, effective, opts.noise_px, along,
-                                  definition=measured[2])
+                                  definition=measured[2], rim=rim)
         shown = expressions
         if opts.expressions == "fit":
             shown = estimate_expressions(model, case, result, estimate.landmark_px,
@@ -171,7 +172,7 @@ def fit_head(model, case, options=None, initial=None):
             break
         noise, expressions = estimate, shown
         part = 0.55 + 0.15 * (rounds - 1)
-        result, contour, along, effective, measured = _fit(
+        result, contour, along, effective, measured, rim = _fit(
             model, neutral_case(model, case, result, expressions), opts, result, noise,
             progress.part(part, part + 0.15), t0)
         rounds += 1
@@ -200,9 +201,10 @@ def _fit(model, case, opts, initial, noise, progress, t0):
     """One fit of the case with landmark and outline weights from ``noise`` (None: all
     placed with ``noise_px``), from ``initial``'s state when given. Returns (result,
     contour residuals per view, the sliding landmarks' residuals along the outline per
-    view, effective number of fitted parameters, and
+    view, effective number of fitted parameters,
     ``Engine.without_definition_offsets``: the landmark residuals the noise is measured on
-    and the definition offsets' size per view)."""
+    and the definition offsets' size per view, and per view the outline landmarks tied to
+    their vertices)."""
     cams = None if initial is None else previous_cameras(initial, "initial")
     views, skipped = prepare_views(model, case, opts, cameras=cams, noise=noise)
     eng = Engine.for_fit(model, views, opts)
@@ -301,7 +303,9 @@ def _fit(model, case, opts, initial, noise, progress, t0):
     progress(1.0, f"done ({chosen})")
     measured = eng.without_definition_offsets(state, result.local_vertices,
                                               result.residuals, opts.front_weight)
-    return result, contour, along, eng.effective_parameters(cov) + measured[1], measured
+    rim = {v.name: {n for n, o in zip(v.names, v.outline_point & ~v.slide, strict=True) if o}
+           for v in eng.views}
+    return result, contour, along, eng.effective_parameters(cov) + measured[1], measured, rim
 
 
 def refit_landmarks(model, case, previous, options=None):

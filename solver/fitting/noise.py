@@ -4,8 +4,10 @@ Real landmarks (an artist's clicks, a detector's points) sit several pixels from
 landmark vertices even on a perfect head, because a landmark's definition differs between
 people, detectors and the model. A fit that assumed 1-px placement chases them and bends
 the head. So the fit estimates the placement noise from its own residuals: one standard
-deviation per view for each group of rows: the landmarks tied to their vertices, the
-landmarks on the head's outline (their distance across it) and the traced outline
+deviation per view for each group of rows: the inner landmarks tied to their vertices, the
+outline landmarks tied to theirs (a front photo's jaw and chin: where along the silhouette
+they go is far less certain than an eye's corner), the landmarks on the head's outline
+(their distance across it) and the traced outline
 (variance components: the weighted squared residuals over the rows that the data, not
 the fitted parameters, account for), with ``noise_px`` as the floor; and a Student-t weight per
 landmark, so a misplaced one loses its weight on its own. The fit is repeated with these
@@ -58,6 +60,12 @@ class Noise:
         Per view with a landmark group of at least ``definition.MIN_GROUP`` points: the
         standard deviation of the offset a group shares there, metres
         (``definition.group_offsets``; the next fit's ``ViewData.definition_m``).
+    rim_px : dict of str -> float
+        Per view with at least 3 outline landmarks tied to their vertices (``rim_names``):
+        standard deviation of their coordinates, pixels.
+    rim_names : dict of str -> frozenset
+        Per view: the outline landmarks tied to their vertices (``ViewData.outline_point``
+        and not sliding) whose noise was estimated apart from the inner landmarks'.
     """
 
     landmark_px: dict = field(default_factory=dict)
@@ -68,6 +76,8 @@ class Noise:
     outline_names: dict = field(default_factory=dict)
     along_px: dict = field(default_factory=dict)
     definition_m: dict = field(default_factory=dict)
+    rim_px: dict = field(default_factory=dict)
+    rim_names: dict = field(default_factory=dict)
 
     def landmark_factor(self, view, name):
         """Multiplier of a landmark's weight (relative to 1 / floor^2): its Student-t
@@ -76,8 +86,10 @@ class Noise:
             # too few on the outline for an estimate of their own: the view's landmarks'
             sigma = self.outline_px.get(view, self.landmark_px.get(view))
             return self._factor(sigma, 1) * self.weights.get(view, {}).get(name, 1.0)
-        return self._factor(self.landmark_px.get(view), 2) \
-            * self.weights.get(view, {}).get(name, 1.0)
+        sigma = self.landmark_px.get(view)
+        if name in self.rim_names.get(view, ()):
+            sigma = self.rim_px.get(view, sigma)
+        return self._factor(sigma, 2) * self.weights.get(view, {}).get(name, 1.0)
 
     def along_factor(self, view, name):
         """Multiplier of a sliding landmark's weight along the outline (relative to
@@ -103,6 +115,7 @@ class Noise:
                              (self.outline_px, other.outline_px),
                              (self.along_px, other.along_px),
                              (self.contour_px, other.contour_px),
+                             (self.rim_px, other.rim_px),
                              (self.definition_m, other.definition_m)):
             if set(mine) != set(theirs):
                 return False
@@ -116,7 +129,8 @@ class Noise:
         that lost most of theirs."""
         return {"landmark_px": dict(self.landmark_px), "outline_px": dict(self.outline_px),
                 "along_px": dict(self.along_px),
-                "contour_px": dict(self.contour_px), "floor_px": self.floor_px,
+                "contour_px": dict(self.contour_px), "rim_px": dict(self.rim_px),
+                "floor_px": self.floor_px,
                 "definition_mm": {v: 1e3 * m for v, m in self.definition_m.items()},
                 "weights": {v: dict(ws) for v, ws in self.weights.items()},
                 "down_weighted": {v: {n: w for n, w in ws.items() if w < DOWN_WEIGHTED}
@@ -124,7 +138,8 @@ class Noise:
                                   if any(w < DOWN_WEIGHTED for w in ws.values())}}
 
 
-def estimate_noise(residuals, contour, effective, floor_px, along=None, definition=None):
+def estimate_noise(residuals, contour, effective, floor_px, along=None, definition=None,
+                   rim=None):
     """The placement noise a fit's residuals say.
 
     Parameters
@@ -144,31 +159,44 @@ def estimate_noise(residuals, contour, effective, floor_px, along=None, definiti
     definition : dict of str -> float, optional
         Per view: the landmark groups' definition offset the residuals say, metres (kept
         as ``Noise.definition_m``).
+    rim : dict of str -> set of str, optional
+        Per view: the outline landmarks tied to their vertices; with at least 3 of them
+        used their noise is a group of its own (``Noise.rim_px``).
 
     Returns
     -------
     Noise
     """
     out = Noise(floor_px=float(floor_px), definition_m=dict(definition or {}))
-    groups = []  # (view, names, residuals, dimension (2: at a vertex, 1: across))
+    # (view, names, residuals, dimension (2: at a vertex, 1: across), the Noise dict)
+    groups = []
     for view, res in residuals.items():
         r = np.asarray(res.pixels, dtype=np.float64)
         skip, across = set(res.unused), set(res.outline)
-        for dim in (2, 1):
-            keep = [i for i, n in enumerate(res.names)
-                    if n not in skip and (n in across) == (dim == 1)]
-            if dim == 1 and keep:
-                out.outline_names[view] = frozenset(res.names[i] for i in keep)
-            if len(keep) >= (1 if dim == 2 else 3):
-                groups.append((view, [res.names[i] for i in keep], r[keep], dim))
+        at_rim = set((rim or {}).get(view, ())) - across
+        used = [i for i, n in enumerate(res.names) if n not in skip]
+        rims = [i for i in used if res.names[i] in at_rim]
+        if len(rims) < 3:
+            rims = []  # too few for an estimate: with the inner landmarks
+        else:
+            out.rim_names[view] = frozenset(res.names[i] for i in rims)
+        inner = [i for i in used if res.names[i] not in across and i not in rims]
+        on = [i for i in used if res.names[i] in across]
+        if on:
+            out.outline_names[view] = frozenset(res.names[i] for i in on)
+        for keep, dim, where, least in ((inner, 2, out.landmark_px, 1),
+                                        (rims, 2, out.rim_px, 3),
+                                        (on, 1, out.outline_px, 3)):
+            if len(keep) >= least:
+                groups.append((view, [res.names[i] for i in keep], r[keep], dim, where))
     along = {v: np.asarray(a[1], dtype=np.float64) for v, a in (along or {}).items()}
     n_rows = sum(g[3] * len(g[2]) for g in groups) + sum(len(c) for c in contour.values()) \
         + sum(len(a) for a in along.values())
     # each group's variance from its own rows, inflated as all rows share the parameters
     inflate = n_rows / max(n_rows - effective, 0.5 * n_rows) if n_rows else 1.0
-    for view, names, r, dim in groups:
+    for view, names, r, dim, where in groups:
         sigma, w = _student_t(r ** 2, dim, inflate, floor_px)
-        (out.landmark_px if dim == 2 else out.outline_px)[view] = sigma
+        where[view] = sigma
         out.weights.setdefault(view, {}).update(zip(names, w.tolist(), strict=True))
     for view, c in contour.items():
         c = np.asarray(c, dtype=np.float64)

@@ -281,9 +281,12 @@ def test_outline_landmarks_slide_along_the_heads_outline(model):
         return skin_error_mm(model, res.local_vertices, truth.local_vertices)
 
     # moved 12 px along the outline, the jaw and chin say about the same: the same head,
-    # where tied to their vertices they pull it out of shape
-    assert err(b) < err(a) + 0.3 and err(b) < 0.8 * err(tied)
+    # where tied to their vertices they pull it out of shape, though less with their own
+    # estimated noise (0.96 against 1.16 mm; 1.5 mm when they shared the inner points')
+    assert err(b) < err(a) + 0.3 and err(b) < 0.9 * err(tied)
     assert tied.residuals["front"].outline == []
+    rim = tied.info["noise"]["rim_px"]["front"]
+    assert rim > 5.0 * tied.info["noise"]["landmark_px"]["front"]
     res = b.residuals["front"]
     assert set(names) <= set(res.outline)  # measured across the outline
     across = dict(zip(res.names, res.pixels, strict=True))

@@ -117,3 +117,26 @@ def test_sliding_landmarks_are_a_group_of_their_own_and_unused_ones_do_not_count
     assert noise.along_factor("front", "j3") == pytest.approx(
         1.0 / (noise.along_px["front"] ** 2 * consistency(1)))
     assert noise.along_factor("front", "p3") == noise.landmark_factor("front", "p3")
+
+
+def test_outline_landmarks_on_their_vertices_are_a_group_of_their_own():
+    rng = np.random.default_rng(3)
+    inner = [f"p{i}" for i in range(60)]
+    jaw = [f"j{i}" for i in range(17)]
+    r = np.concatenate([np.linalg.norm(rng.normal(scale=2.0, size=(60, 2)), axis=1),
+                        np.linalg.norm(rng.normal(scale=8.0, size=(17, 2)), axis=1)])
+    res = ViewResidual(inner + jaw, r)
+    noise = estimate_noise({"front": res}, {}, 0.0, 1.0, rim={"front": set(jaw)})
+    # the jaw's 8 px do not make the eyes and the nose look 4 px off
+    assert noise.landmark_px["front"] == pytest.approx(2.0, rel=0.2)
+    assert noise.rim_px["front"] == pytest.approx(8.0, rel=0.35)
+    assert noise.landmark_factor("front", "j3") == pytest.approx(
+        noise.weights["front"]["j3"] / (noise.rim_px["front"] ** 2 * consistency(2)))
+    assert noise.landmark_factor("front", "p3") == pytest.approx(
+        noise.weights["front"]["p3"] / (noise.landmark_px["front"] ** 2 * consistency(2)))
+    assert noise.report()["rim_px"] == {"front": noise.rim_px["front"]}
+    # fewer than three: with the inner landmarks (no estimate of their own)
+    few = estimate_noise({"front": ViewResidual(inner + jaw[:2], r[:62])}, {}, 0.0, 1.0,
+                         rim={"front": set(jaw)})
+    assert few.rim_px == {} and few.rim_names == {}
+    assert "j1" in few.weights["front"]
