@@ -11,12 +11,15 @@ into that view again (``sweep``, ``rehome``: the landmarks keep their place rela
 photo's centre and height, as a swapped photo's do; a name the new plane has already, e.g.
 from an imported file, stays hidden). Undo brings the plane back with its markers
 (the handler runs after the delete's undo step). The Fit's report names the parked ones.
+
+A perspective photo's Blender camera deleted alone (its plane kept) is made again from the
+view's stored camera (``restore_camera``).
 """
 
 import bpy
 from bpy.app.handlers import persistent
 
-from . import photos
+from . import photo_cameras, photos
 from .live_refit import LIVE
 from .polls import ObjectModeOperator
 
@@ -46,10 +49,34 @@ def orphan_markers(scene):
     return out
 
 
+def cameraless_planes(scene):
+    """Perspective photo planes of ``scene`` whose Blender camera is gone."""
+    return [p for p in photos.photo_planes(scene)
+            if photos.is_perspective(p) and photos.camera_object(p) is None]
+
+
+def restore_camera(plane):
+    """Make a perspective photo's Blender camera again after it alone was deleted (which
+    leaves the plane at its camera-space transform, off in the world): from the view's
+    stored camera (the last fit's, the file's, or a provisional one for a camera still to
+    compute), the plane at the distance it had. The view stays as it was rather than
+    leaving the fit like a deleted plane's: its photo and landmarks are still in the scene,
+    and the camera object only shows the camera the view keeps (the fit reads that one);
+    Remove Photo takes the whole view."""
+    depth = photo_cameras.plane_depth(plane)  # its basis is still its camera-space matrix
+    photos.place_plane(plane)
+    if depth > photo_cameras.MIN_DEPTH:
+        (w, h), big_h = photos.plane_size(plane)
+        photo_cameras.attach_plane(plane, photos.camera_object(plane), (w, h), big_h, depth)
+
+
 def sweep(scene):
     """Tidy the orphaned markers of ``scene`` (idempotent): those of a view that has a
-    photo plane again are re-attached to it (``rehome``), the others hidden. Returns
-    (parked, rehomed): how many markers were newly hidden and re-attached."""
+    photo plane again are re-attached to it (``rehome``), the others hidden; a perspective
+    photo whose camera was deleted gets it again (``restore_camera``). Returns (parked,
+    rehomed): how many markers were newly hidden and re-attached."""
+    for plane in cameraless_planes(scene):
+        restore_camera(plane)
     orphans = orphan_markers(scene)
     if not orphans:
         return 0, 0
@@ -166,7 +193,7 @@ def _on_depsgraph_update(scene, depsgraph):
         if parked or rehomed:
             LIVE.forget()  # the fit in memory had another set of views
     except Exception as e:  # noqa: BLE001  (a handler must not raise)
-        print(f"HeadRecon: parking the landmarks of a deleted photo failed: {e}")
+        print(f"HeadRecon: tidying after a deleted photo or camera failed: {e}")
 
 
 def register_handlers():

@@ -9,7 +9,7 @@ import numpy as np
 from ..cameras import Camera, PinholeCamera, camera_class, fit_dlt, is_side_camera
 from ..cameras.mirror import MirrorPlane
 from ..io.case import LandmarkCase
-from ..io.landmark_counts import landmarks_needed, too_few, too_few_in_all
+from ..io.landmark_counts import landmarks_needed, too_few, too_few_distinct, too_few_in_all
 from ..io.landmark_set import as_landmark_set
 
 
@@ -194,7 +194,9 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
     mirrors: its camera is that view's camera reflected in a mirror plane the fit
     estimates, so the file's camera for it (often just ``{"kind": "dlt"}``) is not used.
 
-    Landmarks per view and in all follow the one rule of ``io/landmark_counts.py``. A
+    Landmarks per view and in all follow the one rule of ``io/landmark_counts.py`` (with
+    ``outline_landmarks="slide"`` a front photo's outline points, which may slide, are not
+    counted among the different landmarks the case needs). A
     passpoint camera with too few landmarks to refine it is kept as computed. A view with
     no usable landmark adds nothing to the head fit: it is returned in ``skipped`` (its
     camera still goes into the result).
@@ -228,6 +230,8 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
     n_vertices = model.n_vertices
     views, skipped = [], []
     total = 0
+    tied = {}  # model vertex -> name of the landmarks tied to their vertex, over all views
+    sliding = opts.outline_landmarks == "slide"
     for name, view in case.views.items():
         where = f"{case.source}: view {name!r}"
         kept = bool(getattr(view, "camera_fixed", False)) or name in fixed
@@ -286,6 +290,8 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
                 raise ValueError(f"{where}: contour needs at least 2 distinct points")
             contour = c.reshape(-1, 2)
         side = cam is not None and is_side_camera(cam)
+        tied.update((v, n) for n, v, wv in zip(names, verts, w, strict=True) if wv > 0 and not (
+            sliding and not side and lms.outline_in(n, "front")))
         refit_points = 0 if cam is None else cam.min_refit_points
         # An orthographic profile photo with a traced outline needs no landmark: its camera
         # starts from the outline (contour_start.py), the head's pose from the other photos.
@@ -313,7 +319,7 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
             raise ValueError(f"{case.source}: view {v.name!r} mirrors view {v.mirror_of!r}, "
                              "which has no usable landmark; the mirror is found from "
                              "landmarks placed in both")
-    problem = too_few_in_all(total)
+    problem = too_few_in_all(total) or too_few_distinct(list(tied.values()), sliding)
     if problem is not None:
         raise ValueError(f"{case.source}: {problem}")
     return views, skipped

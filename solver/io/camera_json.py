@@ -93,9 +93,12 @@ def _px_per_mm(size):
 def camera_range_problems(value, size, where):
     """The fields of a camera object (as the file stores it, or ``Camera.to_dict()``)
     outside their plausible range: a pinhole's focal length (``LENS_MM_RANGE``), its
-    principal point (inside the photo) and k1 (``K1_RANGE``). Returns (path, message)
+    principal point (inside the photo) and k1 (``K1_RANGE``); a DLT's focal lengths and
+    principal point, read from its parameters, against the same. Returns (path, message)
     pairs naming the range."""
     kind = value.get("kind")
+    if kind == "dlt":
+        return _dlt_range_problems(value, size, where)
     w, h = (float(v) for v in size)
     lo, hi = LENS_MM_RANGE
     problems = []
@@ -180,4 +183,32 @@ def camera_object_problems(value, size, where):
         problems.append((format_path(where + ("size",)),
                          f"camera size {list(value['size'])} differs from the view size "
                          f"{list(size)}"))
+    return problems
+
+
+def _dlt_range_problems(value, size, where):
+    """``camera_range_problems`` of a DLT with parameters: its intrinsics (``decompose``)
+    as a pinhole's. A kept DLT with a focal length of 1e12 px ended the fit in a singular
+    system naming no view, one with its principal point far outside the photo in a head
+    hundreds of pixels off without a warning."""
+    if not has_parameters(value):
+        return []
+    try:
+        k = camera_from_dict({**value, "size": value.get("size", list(size))}).decompose()[0]
+    except (ValueError, TypeError, KeyError, np.linalg.LinAlgError):
+        return []  # not a camera: reported where it is built
+    lo, hi = LENS_MM_RANGE
+    ppm = _px_per_mm(size)
+    w, h = (float(v) for v in size)
+    at = format_path(where)
+    problems = []
+    focal = np.array([k[0, 0], k[1, 1]])
+    if not (np.isfinite(k).all() and (lo * ppm <= focal).all() and (focal <= hi * ppm).all()):
+        problems.append((at, f"its parameters give a focal length of "
+                             f"{' x '.join(f'{f:.4g}' for f in focal)} px, outside "
+                             f"{lo * ppm:.4g}..{hi * ppm:.4g} px, the lenses of {lo:g}..{hi:g} "
+                             f"mm (36 mm equivalent) on this {size[0]}x{size[1]} photo"))
+    elif not (0.0 <= k[0, 2] <= w and 0.0 <= k[1, 2] <= h):
+        problems.append((at, f"its parameters put the principal point at ({k[0, 2]:.4g}, "
+                             f"{k[1, 2]:.4g}), outside the {size[0]}x{size[1]} photo"))
     return problems

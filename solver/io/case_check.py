@@ -25,7 +25,7 @@ from .camera_json import (
 )
 from .consistency import consistency_problems, is_mirrored
 from .jsonschema_lite import format_path
-from .landmark_counts import count_problems, landmarks_needed
+from .landmark_counts import count_problems, landmarks_needed, too_few_distinct
 from .landmark_set import as_landmark_set
 
 #: Fewest passpoints from which a view's DLT camera is computed (11 unknowns, seed 000 §2).
@@ -46,7 +46,8 @@ def check_case(case, known_names=None, for_fit=True):
         (undefined names, not finite, outside the image, on an orthographic view), and
         (``for_fit``) fewer landmarks than the fit needs (``landmark_counts``: none for a
         kept camera or one from passpoints, except in a mirror view) or passpoints that
-        cannot give a camera.
+        cannot give a camera, or fewer than ``MIN_DISTINCT_LANDMARKS`` different landmarks
+        in all.
     """
     return case_problems(case, as_landmark_set(known_names), for_fit)
 
@@ -56,6 +57,7 @@ def case_problems(case, landmark_set, for_fit, bad_cameras=frozenset()):
     (whose camera the reader could not build, and has reported) skip the camera checks."""
     per_view = {}
     used, needed = {}, {}
+    distinct = {}  # ("v", model vertex) or ("n", name) -> canonical name, over all views
     for vname, view in case.views.items():
         where = ("views", vname)
         w, h = view.size
@@ -67,6 +69,11 @@ def case_problems(case, landmark_set, for_fit, bad_cameras=frozenset()):
         found += _mirror_problems(case, view, where)
         found += _passpoint_problems(case, view, where, for_fit and vname not in bad_cameras)
         per_view[vname] = found
+        for key in view.points:
+            canon = landmark_set.canonical(key)
+            if canon is not None:
+                vertex = landmark_set.vertices.get(canon, -1)
+                distinct[("v", vertex) if vertex >= 0 else ("n", canon)] = canon
         used[vname] = len(view.points)
         needed[vname] = _landmarks_needed(view, vname in bad_cameras)
     top = []
@@ -85,6 +92,9 @@ def case_problems(case, landmark_set, for_fit, bad_cameras=frozenset()):
             total.append(("views", message))
         else:  # after the view's other problems
             per_view[name].append((format_path(("views", name, "points")), message))
+    few = too_few_distinct(list(distinct.values())) if for_fit and not total else None
+    if few is not None:
+        total.append(("views", few))
     return [p for found in per_view.values() for p in found] + top + total
 
 
@@ -270,11 +280,15 @@ def _passpoint_problems(case, view, where, for_fit):
         else:
             _, xyz, uv = case.passpoint_arrays(view.name)
             try:
-                fit_dlt(xyz, uv, view.size)
+                cam = fit_dlt(xyz, uv, view.size).camera
             except ValueError as e:
                 msg = str(e)
                 msg = msg[len("points: "):] if msg.startswith("points: ") else msg
                 problems.append((at, f"cannot compute the camera: {msg}"))
+            else:
+                problems += [(at, f"cannot compute the camera: the camera they give: {msg}")
+                             for _, msg in camera_range_problems(cam.to_dict(), view.size,
+                                                                 where + ("camera",))]
     return problems
 
 

@@ -6,8 +6,9 @@ tens of millimetres off (a v1 rotation with determinant -1: 370 mm; two front ph
 
 import numpy as np
 
-from ..cameras import OrthographicCamera
+from ..cameras import OrthographicCamera, is_side_camera
 from .jsonschema_lite import format_path
+from .landmark_counts import MIN_LANDMARKS_PER_VIEW
 
 #: Two orthographic views whose viewing directions are within this angle look the same way.
 SAME_DIRECTION_DEG = 5.0
@@ -64,7 +65,32 @@ def consistency_problems(case, for_fit, bad_cameras=frozenset()):
                 directions.append((name, d / np.linalg.norm(d), label))
         if for_fit:
             problems += _layout_problems(view, ("views", name, "points"))
+            if _placed_by_outline(view, name in bad_cameras):
+                problems += _outline_problems(view.contour, ("views", name, "contour"))
     return problems
+
+
+def _placed_by_outline(view, bad_camera):
+    """Whether the fit places ``view``'s camera by its traced outline alone
+    (``fitting/contour_start.py``): an orthographic profile photo with a contour and fewer
+    than ``MIN_LANDMARKS_PER_VIEW`` landmarks."""
+    cam = view.camera
+    return (view.contour is not None and not bad_camera and cam is not None
+            and not cam.perspective and is_side_camera(cam)
+            and len(view.points) < MIN_LANDMARKS_PER_VIEW)
+
+
+def _outline_problems(contour, where):
+    """An outline that places a camera but is one place or one line: it has no profile to
+    lay the head's onto (a horizontal one ended the fit naming no view, one within a pixel
+    gave that photo a camera 8 px per metre and no warning)."""
+    c = np.asarray(contour, dtype=np.float64).reshape(-1, 2)
+    if len(c) < 2 or not np.isfinite(c).all():
+        return []  # reported as not finite, or by the fit's own count
+    why = (f"with fewer than {MIN_LANDMARKS_PER_VIEW} landmarks this photo's camera is "
+           "placed by its outline alone, which must trace the head's profile")
+    found = _spread_problem(c, "points", f"; {why}", f"; {why}")
+    return [(format_path(where), found)] if found else []
 
 
 def _nominal_rotation(view):
@@ -80,15 +106,21 @@ def _layout_problems(view, where):
     px = np.array(list(view.points.values()), dtype=np.float64).reshape(-1, 2)
     if not np.isfinite(px).all():
         return []  # reported as not finite
+    found = _spread_problem(px, "landmarks", "; a fit needs them spread over the face (were "
+                            "they placed on one pixel?)",
+                            "; a face's landmarks spread in two directions")
+    return [(format_path(where), found)] if found else []
+
+
+def _spread_problem(px, what, one_place, one_line):
+    """The message for points ``px`` (n >= 2, 2) all within ``MIN_SPREAD_PX`` of one point
+    or all on one line, ending with ``one_place`` or ``one_line`` (the reason), or None."""
     n = len(px)
     mean = px.mean(axis=0)
     s = np.linalg.svd(px - mean, compute_uv=False) / np.sqrt(n)
-    at = format_path(where)
     if s[0] < MIN_SPREAD_PX:
-        return [(at, f"all {n} landmarks lie within {MIN_SPREAD_PX:g} px of "
-                     f"({mean[0]:.1f}, {mean[1]:.1f}); a fit needs them spread over the "
-                     "face (were they placed on one pixel?)")]
+        return (f"all {n} {what} lie within {MIN_SPREAD_PX:g} px of ({mean[0]:.1f}, "
+                f"{mean[1]:.1f})" + one_place)
     if s[1] < max(LINE_PX, LINE_RATIO * s[0]):
-        return [(at, f"all {n} landmarks lie on one line (RMS {s[1]:.2g} px off it); a "
-                     "face's landmarks spread in two directions")]
-    return []
+        return f"all {n} {what} lie on one line (RMS {s[1]:.2g} px off it)" + one_line
+    return None

@@ -3,6 +3,9 @@ file's check, the fit and the add-on's Fit button apply."""
 
 MIN_LANDMARKS_PER_VIEW = 3
 MIN_LANDMARKS_TOTAL = 6
+#: Different landmarks (a landmark placed in several photos counts once) a case needs: the
+#: fit's thin-plate spline takes the landmarks' 3-D targets, and in 3-D it needs four.
+MIN_DISTINCT_LANDMARKS = 4
 
 
 def landmarks_needed(min_refit_points, *, kept=False, passpoints=False, mirror=False,
@@ -55,6 +58,19 @@ def too_few_in_all(total):
         return None
     return (f"{total} usable landmark{'s' * (total != 1)} in all; the fit needs at least "
             f"{MIN_LANDMARKS_TOTAL}")
+
+
+def too_few_distinct(names, sliding=False):
+    """The message for a case whose landmarks are only ``names`` (the different ones, each
+    counted once however many photos show it), or None. ``sliding``: a front photo's
+    outline points were left out of ``names`` (they slide along the outline)."""
+    if len(names) >= MIN_DISTINCT_LANDMARKS:
+        return None
+    listed = f" ({', '.join(sorted(names))})" if names else ""
+    left_out = "; a front photo's outline points slide and do not count" if sliding else ""
+    return (f"{len(names)} different landmark{'s' * (len(names) != 1)} in all{listed}; the "
+            f"fit needs at least {MIN_DISTINCT_LANDMARKS} different ones (a landmark placed "
+            f"in several photos counts once{left_out})")
 
 
 def count_problems(used, needed):

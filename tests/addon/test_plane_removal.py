@@ -230,3 +230,54 @@ def test_a_file_imported_after_a_deletion_keeps_its_own_landmarks(files):
         "not fitted (its photo has its own; Remove Photo removes both)"]
     assert bpy.ops.headrecon.remove_photo(view="right") == {"FINISHED"}
     assert _markers("right") == [] and not plane_removal.orphan_markers(scene)
+
+
+def test_deleting_a_photos_camera_alone_makes_it_again_from_the_view(files):
+    """The camera object only shows the camera the view keeps (the fit reads that one):
+    deleted alone it comes back as it was, and the plane and its landmarks stay in place
+    (before, the plane took its camera-space transform as its world one)."""
+    from headrecon_addon import landmarks, photo_cameras, photos
+    from solver import PinholeCamera
+
+    path, case, _ = files
+    scene = imported_scene(path)
+    assert bpy.ops.headrecon.load_photo(filepath=str(case.image_path("front")), view="extra",
+                                        projection="PERSPECTIVE", lens_mm=50.0) == {"FINISHED"}
+    plane = photos.find_plane(scene, "extra")
+    names = list(_pixels(scene)[0]["front"])[:8]
+    for i, name in enumerate(names):
+        landmarks.place_landmark(plane, name, (100.0 + 20 * i, 200.0 + 10 * i))
+    (w, h), _ = photos.plane_size(plane)
+    # the view's camera as a fit leaves it (stored, and shown)
+    fitted = PinholeCamera.look_at([0.2, -0.9, 0.05], [0, 0, 0], (w, h), lens_mm=70)
+    photos.store_fitted_camera(plane, fitted)
+    photos.place_plane(plane, fitted)
+    bpy.context.view_layer.update()
+    points, _ = _pixels(scene)
+    shown = photo_cameras.settings_of(photos.camera_object(plane), (w, h))
+    world = {o.name: np.array(o.matrix_world) for o in [plane, *plane.children]}
+    for _ in range(2):  # a provisional camera too, then the fitted one
+        bpy.data.objects.remove(photos.camera_object(plane), do_unlink=True)
+        bpy.context.view_layer.update()  # the depsgraph handler runs
+        bpy.context.view_layer.update()  # and the world matrices follow what it did
+        camera = photos.camera_object(plane)
+        assert camera is not None and camera.name in scene.objects
+        assert camera.data.background_images[0].image == plane.headrecon.image
+        again = photo_cameras.settings_of(camera, (w, h))
+        for key in ("lens", "sensor_width", "shift_x", "shift_y"):
+            assert again[key] == pytest.approx(shown[key]), key
+        np.testing.assert_allclose(again["matrix_world"], shown["matrix_world"], atol=1e-6)
+        for name, m in world.items():
+            np.testing.assert_allclose(np.array(bpy.data.objects[name].matrix_world), m,
+                                       atol=1e-5, err_msg=name)
+        assert _pixels(scene)[0] == points
+        if not photos.plane_camera(plane):
+            break
+        # a camera still to compute: its provisional camera comes back
+        photos.set_camera_hints(plane, {"kind": "pinhole", "lens_mm": 50.0})
+        photos.place_plane(plane)
+        bpy.context.view_layer.update()
+        shown = photo_cameras.settings_of(photos.camera_object(plane), (w, h))
+        world = {o.name: np.array(o.matrix_world) for o in [plane, *plane.children]}
+    assert photos.plane_camera(plane) is None  # both rounds ran
+    assert len([o for o in scene.objects if photo_cameras.is_camera_object(o)]) == 1

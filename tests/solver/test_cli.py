@@ -433,6 +433,80 @@ def test_a_fit_failure_the_checks_let_through_names_the_file():
                      "landmarks")
 
 
+def test_a_refit_that_names_its_orthographic_view_names_the_files_view():
+    from types import SimpleNamespace
+
+    from solver import OrthographicCamera
+    from solver.cli import _fit_failure
+
+    views = {name: SimpleNamespace(camera=OrthographicCamera.nominal(label, (W, H)))
+             for name, label in (("front", "orthographic-front"),
+                                 ("side", "orthographic-right"))}
+    case = SimpleNamespace(source="case.json", views=views)
+    error = ValueError("camera refit (orthographic-right): source/target: points are "
+                       "degenerate; the rotation is undetermined")
+    assert _fit_failure(case, error) == "case.json: view 'side': camera refit " \
+        "(orthographic-right): source/target: points are degenerate; the rotation is " \
+        "undetermined"
+
+
+def _dlt_of_focal(focal_px):
+    from solver import DLTCamera, PinholeCamera
+
+    pin = PinholeCamera.look_at([0.3, -1.2, 0.0], [0, 0, 0], (W, H), lens_mm=50)
+    k = pin.intrinsics
+    k[0, 0] = k[1, 1] = focal_px
+    return DLTCamera.from_krc(k, pin.rotation, pin.centre, (W, H)).to_dict()
+
+
+def _three_landmarks_twice(doc):
+    names = list(doc["views"]["front"]["points"])[:3]
+    doc["views"]["side"]["points"] = {n: doc["views"]["front"]["points"][n] for n in names}
+    doc["views"]["front"]["points"] = dict(doc["views"]["side"]["points"])
+
+
+def _flat_outline_alone(doc):
+    doc["views"]["side"]["points"] = {}
+    doc["views"]["side"]["contour"] = [[100.0 + 3 * i, 400.0] for i in range(50)]
+
+
+def _side_camera(camera, calibrated=None):
+    def change(doc):
+        doc["version"] = 2
+        doc["views"]["side"]["camera"] = camera
+        if calibrated is not None:
+            doc["views"]["side"]["calibrated"] = calibrated
+    return change
+
+
+@pytest.mark.parametrize("change, fragments", [
+    # pinhole fields that once ended in "points: row 3 is not finite", "SVD did not
+    # converge in Linear Least Squares" and "singular system: ... identity_002 ..."
+    (_side_camera({"kind": "pinhole", "lens_mm": 1e-9}),
+     ["views.side.camera.lens_mm: 1e-09 mm is outside 2..5000 mm"]),
+    (_side_camera({"kind": "pinhole", "focal_px": 1e300}),
+     ["views.side.camera.focal_px: 1e+300 px is outside"]),
+    (_side_camera({"kind": "pinhole", "lens_mm": 50, "principal_point": [1e5, 10.0]}),
+     ["views.side.camera.principal_point: (100000, 10) lies outside the 600x800 photo"]),
+    # a kept DLT of 1e12 px: "singular system: the rows do not determine 'translation x'"
+    (_side_camera(_dlt_of_focal(1e12), calibrated=True),
+     ["views.side.camera: its parameters give a focal length of 1e+12 x 1e+12 px"]),
+    # "source: needs at least 4 points, got 3"
+    (_three_landmarks_twice, ["views: 3 different landmarks in all"]),
+    # "outline: it has no height to lay the head's profile onto"
+    (_flat_outline_alone, ["views.side.contour: all 50 points lie on one line"]),
+])
+def test_inputs_that_once_failed_in_the_fit_naming_nothing_are_named(tmp_path, case_doc,
+                                                                     change, fragments):
+    doc = json.loads(json.dumps(case_doc))
+    change(doc)
+    case = write_case(tmp_path, doc)
+    for command in (["validate", case], ["fit", case, "--out", tmp_path / "h.obj"]):
+        proc = run_cli(*command)
+        assert_one_line_error(proc, "case.json: ", *fragments)
+    assert not (tmp_path / "h.obj").exists()
+
+
 def test_detect_errors_name_the_photo(tmp_path):
     from PIL import Image
 

@@ -2,6 +2,7 @@
 weight relative to the other landmarks of its view, and is its noise floor."""
 
 import copy
+import re
 
 import numpy as np
 import pytest
@@ -66,3 +67,21 @@ def test_the_fit_follows_a_misplaced_landmark_less_when_it_is_said_uncertain(mod
         residual[label] = float(r.pixels[r.names.index(name)])
     # followed less: the misplaced point stays farther from the fitted head
     assert residual["uncertain"] > residual["as a click"] + 2.0 and residual["uncertain"] > 14.0
+
+
+def test_a_case_needs_four_different_landmarks_tied_to_the_head(model, case):
+    """With ``outline_landmarks="slide"`` a front photo's outline points slide along the
+    outline, so a front photo of jaw points and three profile landmarks gave the
+    thin-plate spline three points ("source: needs at least 4 points, got 3")."""
+    few = copy.deepcopy(case)
+    front, side = few.views["front"], few.views["right"]
+    front.points = {n: uv for n, uv in front.points.items() if n.startswith("jaw")}
+    side.points = {n: side.points[n] for n in ("nose_tip", "nasion", "pogonion")}
+    prepare_views(model, few, FitOptions())  # tied to their vertices: 3 + 14 different
+    with pytest.raises(ValueError, match=re.escape(
+            "<synthetic>: 3 different landmarks in all (nasion, nose_tip, pogonion); the fit "
+            "needs at least 4 different ones (a landmark placed in several photos counts "
+            "once; a front photo's outline points slide and do not count)")):
+        prepare_views(model, few, FitOptions(outline_landmarks="slide"))
+    side.points["subnasale"] = case.views["right"].points["subnasale"]
+    prepare_views(model, few, FitOptions(outline_landmarks="slide"))

@@ -95,6 +95,20 @@ def test_too_few_landmarks_in_all(doc):
                          "usable landmarks in all; the fit needs at least")
 
 
+def test_too_few_different_landmarks_in_all(doc, names):
+    """Three landmarks placed in both photos passed as six and ended the fit in "source:
+    needs at least 4 points, got 3" (the thin-plate spline's), naming nothing."""
+    three = names[:3]
+    for view in doc["views"].values():
+        view["points"] = {n: view["points"][n] for n in three}
+    assert_rejected(doc, re.escape(
+        f"case.json: views: 3 different landmarks in all ({', '.join(sorted(three))}); the "
+        "fit needs at least 4 different ones (a landmark placed in several photos counts "
+        "once)"))
+    doc["views"]["side"]["points"][names[3]] = [200.0, 300.0]
+    parse_landmarks(doc, "case.json")
+
+
 def test_all_problems_are_listed(doc, names):
     doc["views"]["front"]["points"]["nope_one"] = [1.0, 1.0]
     doc["views"]["side"]["points"][names[0]] = [-5.0, 1.0]
