@@ -16,6 +16,10 @@ import time
 from . import landmarks, photo_faces, photos
 
 
+def _count(n):
+    return f"{n} landmark{'s' * (n != 1)}"
+
+
 class DetectCancelled(Exception):
     """Raised from the progress report to stop a detection the artist cancelled."""
 
@@ -69,7 +73,7 @@ class PhotoTask:
             return [("WARNING", f"{where}: no face found")]
         place, _, kept = detection_plan(self.hand, self.detected, self.face.points, replace)
         what = self.face.guess.describe() if self.face.guess else "its direction unknown"
-        line = f"{self.view}: {len(place)} landmarks, {what}"
+        line = f"{self.view}: {_count(len(place))}, {what}"
         if kept:
             line += f", {len(kept)} kept as placed by hand"
         if self.face.profile:
@@ -160,7 +164,7 @@ def prepare_detection(scene, view="", replace=False, skip_hand_placed=False):
             continue
         hand = set(landmarks.hand_placed_landmarks(plane))
         if skip_hand_placed and hand and not replace:
-            skipped.append(f"{name}: kept as placed by hand ({len(hand)} landmarks)")
+            skipped.append(f"{name}: kept as placed by hand ({_count(len(hand))})")
             continue
         tasks.append(PhotoTask(name, img.name, photos.view_kind(plane),
                                photos.is_perspective(plane),

@@ -180,3 +180,51 @@ def test_uncertainty_goes_through_export_import_and_the_fit(sample, tmp_path):
     assert landmarks.landmark_uncertainty(plane) == sigma
     assert set(landmarks.hand_placed_landmarks(plane)) == {"nose_tip"}
     assert scene_to_case.case_from_scene(scene).views["front"].uncertainty == sigma
+
+
+def test_auto_fit_detects_only_photos_without_hand_placed_landmarks(sample):
+    # the front photo has a landmark placed by hand: left as it is (its points fitted as
+    # placed), the profile detected; with Replace Hand-Placed both are detected
+    from headrecon_addon import auto_fit_job, landmarks
+
+    folder, _ = sample
+    scene = empty_scene()
+    front = _load(folder / "front.png", "front", "orthographic-front")
+    _load(folder / "side.png", "side", "orthographic-right")
+    landmarks.place_landmark(front, "nose_tip", (190.0, 300.0))
+    before = snapshot()
+    job = auto_fit_job.prepare_auto_fit(scene)
+    assert [t.view for t in job.detect.tasks] == ["side"]
+    assert job.detect.skipped == ["front: kept as placed by hand (1 landmark)"]
+    job.detect.run()
+    case = job.merged_case()
+    assert case.views["front"].points == {"nose_tip": (190.0, 300.0)}
+    assert case.views["front"].uncertainty == {}
+    assert set(case.views["side"].points) == set(case.views["side"].uncertainty) \
+        == {"nose_tip", "subnasale", "lip_upper_middle"}
+    job = auto_fit_job.prepare_auto_fit(scene, replace=True)
+    assert [t.view for t in job.detect.tasks] == ["front", "side"]
+    job.detect.run()
+    case = job.merged_case()
+    assert len(case.views["front"].points) == 68
+    assert case.views["front"].points["nose_tip"] != (190.0, 300.0)
+    assert len(case.views["front"].uncertainty) == 68
+    assert snapshot() == before  # nothing placed until the job is applied
+
+
+def test_a_face_against_the_view_its_photo_was_loaded_as():
+    from headrecon_addon.photo_faces import loaded_as_problem
+    from solver import ViewGuess
+
+    right, front = ViewGuess("right", 90.0), ViewGuess("front", 3.0)
+    quarter = ViewGuess("three_quarter_left", -30.0)
+    assert loaded_as_problem("right", False, right) is None
+    assert loaded_as_problem("front", False, front) is None
+    assert "loaded as a left profile" in loaded_as_problem("left", False, right)
+    assert "loaded as a front photo" in loaded_as_problem("front", False, right)
+    assert "Add Photo (Any Camera)" in loaded_as_problem("front", False, quarter)
+    # a perspective photo's direction is rough: only its side can be wrong
+    assert loaded_as_problem("front", True, quarter) is None
+    assert loaded_as_problem("left", True, quarter) is None
+    assert "set its Direction" in loaded_as_problem("right", True, quarter)
+    assert loaded_as_problem("front", False, None) is None
