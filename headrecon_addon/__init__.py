@@ -7,8 +7,10 @@
 import bpy
 
 from . import (
+    detect_ops,
     fit_ops,
     landmark_ops,
+    landmarks,
     live_refit,
     panels,
     photos,
@@ -20,7 +22,7 @@ from . import (
 )
 
 CLASSES = (*properties.CLASSES, *reference_head.CLASSES, *photos.CLASSES,
-           *plane_removal.CLASSES, *landmark_ops.CLASSES, *fit_ops.CLASSES,
+           *plane_removal.CLASSES, *landmark_ops.CLASSES, *detect_ops.CLASSES, *fit_ops.CLASSES,
            *result_ops.CLASSES, *texture_ops.CLASSES, *panels.CLASSES)
 
 _register_classes, _unregister_classes = bpy.utils.register_classes_factory(CLASSES)
@@ -35,9 +37,11 @@ def register():
     properties.register_properties()
     live_refit.register_handlers()
     plane_removal.register_handlers()
+    landmarks.register_handlers()
 
 
 def unregister():
+    landmarks.unregister_handlers()
     plane_removal.unregister_handlers()
     live_refit.unregister_handlers()
     properties.unregister_properties()

@@ -1,6 +1,7 @@
 """A LandmarkCase read into the scene: one photo plane per view (with its Blender camera
-for a perspective photo), its landmarks, passpoints and contour, and the case's top-level
-keys; importing a landmarks file builds it all or nothing.
+for a perspective photo), its landmarks (those with an uncertainty as detected ones),
+passpoints and contour, and the case's top-level keys; importing a landmarks file builds it
+all or nothing.
 """
 
 import json
@@ -13,7 +14,7 @@ from .solver_link import MIN_PASSPOINTS, fit_dlt, landmarks_to_dict, load_landma
 
 # The keys of a view the scene holds as its own data (the plane, its photo, camera and
 # markers); the rest of the view is kept as the file had it (``view_json``).
-_EDITED = ("image", "size", "points", "contour", "camera", "passpoints")
+_EDITED = ("image", "size", "points", "contour", "camera", "passpoints", "uncertainty")
 
 
 def store_case_level(scene, case):
@@ -57,7 +58,10 @@ def build_view_planes(case, images, centre=(0.0, 0.0, 0.0)):
             plane.headrecon.camera_json = json.dumps(vd["camera"])
         plane.headrecon.view_json = json.dumps(keep) if keep else ""
         for lm, uv in view.points.items():
-            landmarks.place_landmark(plane, lm, uv)
+            if lm in view.uncertainty:  # a detector's point (shown as detected)
+                landmarks.place_detected(plane, lm, uv, view.uncertainty[lm])
+            else:
+                landmarks.place_landmark(plane, lm, uv)
         for pp, uv in view.passpoints.items():
             landmarks.place_landmark(plane, pp, uv, "PASSPOINT")
         if view.contour is not None and len(view.contour):

@@ -100,19 +100,35 @@ def prepare_job(scene):
     problem = scene_to_case.fit_problem(scene)
     if problem:
         raise ValueError(problem)
+    job = job_from_scene(scene, scene_to_case.case_from_scene(scene))
+    check_for_fit(job.case, job.model)
+    return job
+
+
+def job_from_scene(scene, case):
+    """A FitJob of ``case`` with the scene's settings, photos and notes (main thread; the
+    head model loaded). Auto Fit gives the case later (None here), once detected."""
     props = scene.headrecon
-    case = scene_to_case.case_from_scene(scene)
-    model = load_model()
-    # The solver's own checks (names, bounds, counts), with its messages.
-    problems = check_case(case, model, for_fit=True)
-    if problems:
-        raise LandmarksError("scene", problems)
-    return FitJob(model=model, case=case, options=scene_to_case.options_from_props(props),
+    return FitJob(model=load_model(), case=case,
+                  options=scene_to_case.options_from_props(props),
                   photos=scene_to_case.photo_arrays(scene) if props.bake_texture else {},
                   texture_size=int(props.texture_size), bake=props.bake_texture,
                   texture_shading=props.texture_shading,
                   scene_notes=plane_removal.orphan_notes(scene),
                   deleted_views=plane_removal.deleted_views(scene))
+
+
+def check_for_fit(case, model):
+    """The solver's own checks of a case to fit (names, bounds, counts; any thread).
+
+    Raises
+    ------
+    LandmarksError
+        With the solver's messages, naming view and landmark.
+    """
+    problems = check_case(case, model, for_fit=True)
+    if problems:
+        raise LandmarksError("scene", problems)
 
 
 def apply_job(scene, job, textures=True):

@@ -1,115 +1,76 @@
 """The Fit operator (in a thread, with progress and Esc to cancel, or at once in the
 background), Reset to Defaults (the Advanced fit settings) and the Quick Refit operator."""
 
-import threading
-import time
-
 import bpy
 
 from . import fit_job, scene_to_case
+from .job_operator import JobOperator, interactive, running_problem
 from .live_refit import LIVE
 from .polls import object_mode_problem, poll_result
 from .properties import ADVANCED_FIT_SETTINGS
 
-_running = {"job": None}
+
+def report_fit_error(op, e):
+    """Report a fit's error on operator ``op``: cancelled, bad input (its own message), or
+    anything else (named as a failure)."""
+    if isinstance(e, fit_job.FitCancelled):
+        op.report({"WARNING"}, "Fit cancelled; the scene is as it was")
+    elif isinstance(e, FileNotFoundError | ValueError):
+        op.report({"ERROR"}, str(e))
+    else:
+        op.report({"ERROR"}, f"The fit failed: {type(e).__name__}: {e}")
 
 
-class HEADRECON_OT_fit(bpy.types.Operator):
+def report_fitted(op, context, head, job):
+    """The Fit's report: the status line, what the fit left out, its notes."""
+    unused = fit_job.unused_line(job)
+    level = "WARNING" if job.error is not None or unused else "INFO"
+    op.report({level}, f"Fitted {head.name}: {context.scene.headrecon.status}"
+              + (f"; {unused}" if unused else ""))
+    if job.notes:
+        op.report({"WARNING"}, "; ".join(job.notes))
+
+
+class HEADRECON_OT_fit(JobOperator, bpy.types.Operator):
     """Fit the head model to the landmarks on the photos: shape keys, texture, uncertainty"""
 
     bl_idname = "headrecon.fit"
     bl_label = "Fit Head"
     bl_options = {"REGISTER", "UNDO"}
+    CANCELLED_LINE = "Fit cancelled; the scene is as it was"
+    THREAD_NAME = "HeadRecon fit"
 
     @classmethod
     def poll(cls, context):
-        running = "A fit is running (Esc cancels it)" if _running["job"] is not None else None
-        return poll_result(cls, object_mode_problem(context) or running
+        return poll_result(cls, object_mode_problem(context) or running_problem()
                            or scene_to_case.fit_problem(context.scene))
 
-    def _report_error(self, e):
-        if isinstance(e, fit_job.FitCancelled):
-            self.report({"WARNING"}, "Fit cancelled; the scene is as it was")
-        elif isinstance(e, FileNotFoundError | ValueError):
-            self.report({"ERROR"}, str(e))
-        else:
-            self.report({"ERROR"}, f"The fit failed: {type(e).__name__}: {e}")
-
-    def _done(self, context, head, job):
-        unused = fit_job.unused_line(job)
-        level = "WARNING" if job.error is not None or unused else "INFO"
-        self.report({level}, f"Fitted {head.name}: {context.scene.headrecon.status}"
-                    + (f"; {unused}" if unused else ""))
-        if job.notes:
-            self.report({"WARNING"}, "; ".join(job.notes))
+    def report_error(self, e):
+        report_fit_error(self, e)
 
     def execute(self, context):
         try:
             head, job = fit_job.run_fit(context.scene)
         except Exception as e:
-            self._report_error(e)
+            self.report_error(e)
             return {"CANCELLED"}
-        self._done(context, head, job)
+        report_fitted(self, context, head, job)
         return {"FINISHED"}
 
     def invoke(self, context, event):
-        if bpy.app.background or context.window is None:
+        if not interactive(context):
             return self.execute(context)
         try:
             job = fit_job.prepare_job(context.scene)
         except Exception as e:
-            self._report_error(e)
+            self.report_error(e)
             return {"CANCELLED"}
-        self.job = job
-        self.t0 = time.perf_counter()
-        _running["job"] = job
-        self.thread = threading.Thread(target=job.run, name="HeadRecon fit", daemon=True)
-        self.thread.start()
-        wm = context.window_manager
-        self.timer = wm.event_timer_add(0.05, window=context.window)
-        wm.progress_begin(0, 100)
-        wm.modal_handler_add(self)
-        self._status(context)
-        return {"RUNNING_MODAL"}
+        return self.start_job(context, job)
 
-    def _status(self, context):
-        pct = int(round(100 * min(max(self.job.fraction, 0.0), 1.0)))
-        context.window_manager.progress_update(pct)
-        if context.workspace is not None:
-            context.workspace.status_text_set(
-                f"HeadRecon: {self.job.message} ({pct} %)   Esc: cancel")
-
-    def _cleanup(self, context):
-        wm = context.window_manager
-        wm.event_timer_remove(self.timer)
-        wm.progress_end()
-        if context.workspace is not None:
-            context.workspace.status_text_set(None)
-        _running["job"] = None
-
-    def modal(self, context, event):
-        if event.type == "ESC":
-            self.job.cancelled = True  # the thread stops at its next progress report
-            self._cleanup(context)
-            self.report({"WARNING"}, "Fit cancelled; the scene is as it was")
-            return {"CANCELLED"}
-        if event.type != "TIMER":
-            return {"RUNNING_MODAL"}  # the scene must not change under a running fit
-        if self.thread.is_alive():
-            self._status(context)
-            return {"RUNNING_MODAL"}
-        self._cleanup(context)
-        if self.job.error is not None:
-            self._report_error(self.job.error)
-            return {"CANCELLED"}
-        try:
-            self.job.timings["total"] = time.perf_counter() - self.t0
-            head = fit_job.apply_job(context.scene, self.job)
-        except Exception as e:
-            self._report_error(e)
-            return {"CANCELLED"}
-        self._done(context, head, self.job)
-        return {"FINISHED"}
+    def finish_job(self, context, job, seconds):
+        job.timings["total"] = seconds
+        head = fit_job.apply_job(context.scene, job)
+        report_fitted(self, context, head, job)
 
 
 class HEADRECON_OT_reset_fit_settings(bpy.types.Operator):

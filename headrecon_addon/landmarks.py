@@ -5,11 +5,18 @@ be grabbed, undone and is saved in the .blend), its position in plane space bein
 source of truth for its pixel coordinates (see photos.py). A passpoint (where a point of a
 calibration object, whose 3-D position the file gives, is seen) is the same kind of marker
 in another colour and role. The contour is a poly curve parented to the plane the same way.
+
+A landmark is hand-placed or detected. A detected one (Detect Landmarks, or a file's point
+with an uncertainty) has its own colour, keeps the detector's uncertainty for the fit and
+remembers where it was put: moved from there (grabbed, placed again with the tool) it is
+hand-placed, which ``is_detected`` reads from its position (so no event can be missed) and
+a depsgraph handler shows by its colour.
 """
 
 import bmesh
 import bpy
 import numpy as np
+from bpy.app.handlers import persistent
 
 from . import material, photos, scene_collections
 from .solver_link import load_landmark_set
@@ -18,6 +25,9 @@ MARKER_RADIUS = 0.0025  # metres (plane space): about 7 px on a 1024 px photo
 LIFT = 0.001  # landmarks and contour float this far in front of the photo (plane +z)
 MARKER_MESH = "HeadRecon Landmark Marker"
 PIXEL_DECIMALS = 3
+#: A detected landmark farther than this (metres, plane space) from where the detector put
+#: it was moved by hand (a marker's location is float32: about 1e-8 m at a photo's edge).
+MOVED_M = 1e-6
 
 
 # --------------------------------------------------------------------------------------
@@ -78,14 +88,87 @@ def passpoint_objects(plane):
     return marker_objects(plane, "PASSPOINT")
 
 
+def marker_state(obj):
+    """A marker's state as its colour shows it: "FLAGGED" (by the last fit), "PASSPOINT",
+    "DETECTED" (``is_detected``) or "PLACED" (by hand)."""
+    if obj.headrecon.flagged:
+        return "FLAGGED"
+    if obj.headrecon.role == "PASSPOINT":
+        return "PASSPOINT"
+    return "DETECTED" if is_detected(obj) else "PLACED"
+
+
+def show_state(obj):
+    """Colour a marker by ``marker_state`` (its material only changes when the state does)."""
+    state = marker_state(obj)
+    mat = material.landmark_material(state)
+    if obj.material_slots[0].material != mat:
+        obj.material_slots[0].material = mat
+        obj.color = material.LANDMARK_COLOURS[state]
+
+
 def set_landmark_state(obj, flagged, residual_px=-1.0):
-    """Colour a marker as placed (landmarks green, passpoints blue) or flagged (red)."""
+    """Set a marker's fit flag and residual and colour it: placed by hand (landmarks green,
+    passpoints blue), detected (orange), flagged (red)."""
     obj.headrecon.flagged = bool(flagged)
     obj.headrecon.residual_px = float(residual_px)
-    base = "PASSPOINT" if obj.headrecon.role == "PASSPOINT" else "PLACED"
-    state = "FLAGGED" if flagged else base
-    obj.material_slots[0].material = material.landmark_material(state)
-    obj.color = material.LANDMARK_COLOURS[state]
+    show_state(obj)
+
+
+def is_detected(obj):
+    """A landmark the detector placed (or a file gave with its uncertainty), still where it
+    was put: not hand-placed."""
+    props = obj.headrecon
+    if not props.detected or props.role != "LANDMARK":
+        return False
+    x, y = _plane_xy(obj)
+    return float(np.hypot(x - props.detected_at[0], y - props.detected_at[1])) <= MOVED_M
+
+
+def set_hand_placed(obj):
+    """Make a landmark hand-placed: the detector's mark and uncertainty forgotten."""
+    obj.headrecon.detected = False
+    obj.headrecon.uncertainty_px = 0.0
+    show_state(obj)
+
+
+def place_detected(plane, name, uv, uncertainty_px=None):
+    """Put landmark ``name`` at pixel ``uv`` as detected, with its uncertainty (standard
+    deviation, pixels; None: none). Returns it."""
+    obj = place_landmark(plane, name, uv)
+    props = obj.headrecon
+    props.detected = True
+    props.uncertainty_px = float(uncertainty_px or 0.0)
+    props.detected_at = _plane_xy(obj)
+    set_landmark_state(obj, False)  # a new point: the last fit's flag was for another
+    return obj
+
+
+def detected_landmarks(plane):
+    """Landmarks of a plane that are detected (``is_detected``): dict name -> object."""
+    return {n: o for n, o in landmark_objects(plane).items() if is_detected(o)}
+
+
+def hand_placed_landmarks(plane):
+    """Landmarks of a plane placed (or moved) by hand: dict name -> object."""
+    return {n: o for n, o in landmark_objects(plane).items() if not is_detected(o)}
+
+
+def landmark_uncertainty(plane):
+    """The uncertainty (pixels) of each detected landmark of a plane that has one: dict
+    name -> px (the landmarks file's per-view ``uncertainty``)."""
+    return {n: round(float(o.headrecon.uncertainty_px), PIXEL_DECIMALS)
+            for n, o in detected_landmarks(plane).items() if o.headrecon.uncertainty_px > 0}
+
+
+def settle_moved(objects):
+    """Detected landmarks among ``objects`` that were moved become hand-placed (their
+    colour too). Returns how many."""
+    moved = [o for o in objects if o.headrecon.role == "LANDMARK" and o.headrecon.detected
+             and not is_detected(o)]
+    for obj in moved:
+        set_hand_placed(obj)
+    return len(moved)
 
 
 def place_marker_local(plane, name, xy, role="LANDMARK"):
@@ -110,6 +193,8 @@ def place_marker_local(plane, name, xy, role="LANDMARK"):
         obj.lock_location[2] = True  # grabbing keeps it on the photo
         scene_collections.link_like(obj, plane)
     obj.location = (float(xy[0]), float(xy[1]), LIFT)
+    if obj.headrecon.detected:  # placed again by hand
+        set_hand_placed(obj)
     return obj
 
 
@@ -267,3 +352,29 @@ def add_contour_point_local(plane, xy):
 def remove_last_contour_point(plane):
     pts = contour_local(plane)
     return set_contour_local(plane, pts[:-1])
+
+
+# --------------------------------------------------------------------------------------
+# A detected landmark moved by hand shows it at once
+
+
+@persistent
+def _on_depsgraph_update(scene, depsgraph):
+    if not depsgraph.id_type_updated("OBJECT"):
+        return
+    try:
+        moved = [u.id.original for u in depsgraph.updates
+                 if u.is_updated_transform and isinstance(u.id, bpy.types.Object)]
+        settle_moved([o for o in moved if o.headrecon.role == "LANDMARK"])
+    except Exception as e:  # noqa: BLE001  (a handler must not raise)
+        print(f"HeadRecon: recolouring a moved landmark failed: {e}")
+
+
+def register_handlers():
+    if _on_depsgraph_update not in bpy.app.handlers.depsgraph_update_post:
+        bpy.app.handlers.depsgraph_update_post.append(_on_depsgraph_update)
+
+
+def unregister_handlers():
+    while _on_depsgraph_update in bpy.app.handlers.depsgraph_update_post:
+        bpy.app.handlers.depsgraph_update_post.remove(_on_depsgraph_update)

@@ -57,6 +57,7 @@ LANDMARK_COLOURS = {
     "PLACED": (0.1, 0.85, 0.2, 1.0),
     "FLAGGED": (1.0, 0.08, 0.05, 1.0),
     "PASSPOINT": (0.1, 0.45, 1.0, 1.0),  # passpoints: blue, red too when flagged
+    "DETECTED": (1.0, 0.55, 0.0, 1.0),  # placed by the detector, not checked by hand yet
 }
 
 
@@ -456,8 +457,8 @@ def set_photo_image(mat, image):
 
 
 def landmark_material(state):
-    """The shared material of landmarks in ``state`` ("PLACED", "FLAGGED" or "PASSPOINT"),
-    unlit so the state colour reads the same in every viewport mode."""
+    """The shared material of landmarks in ``state`` ("PLACED", "FLAGGED", "PASSPOINT" or
+    "DETECTED"), unlit so the state colour reads the same in every viewport mode."""
     name = f"HeadRecon Landmark {state.title()}"
     mat = bpy.data.materials.get(name)
     if mat is not None and mat.library is None:

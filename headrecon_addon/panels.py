@@ -116,15 +116,21 @@ class HEADRECON_PT_landmarks(_Panel, bpy.types.Panel):
         case_passpoints = calibration_object.case_passpoints(context.scene)
         if not planes:
             layout.label(text="Load the photos first", icon="INFO")
+        replace = context.scene.headrecon.replace_hand_placed
         for plane in planes:
             view = plane.headrecon.view
             placed = len(landmarks.landmark_objects(plane))
+            detected = len(landmarks.detected_landmarks(plane))
             total = len(landmarks.landmark_definitions(photos.view_kind(plane)))
             box = layout.box()
-            box.label(text=f"{view}: {placed} / {total} placed", icon="EMPTY_AXIS")
+            box.label(text=f"{view}: {placed} / {total} placed"
+                      + (f" ({detected} detected)" if detected else ""), icon="EMPTY_AXIS")
             row = box.row(align=True)
             row.operator("headrecon.place_landmarks", text="Place",
                          icon="RESTRICT_SELECT_OFF").view = view
+            op = row.operator("headrecon.detect_landmarks", text="Detect", icon="VIEWZOOM")
+            op.view = view
+            op.replace_hand_placed = replace
             if photos.view_kind(plane) != "front":
                 n = len(landmarks.contour_local(plane))
                 row.operator("headrecon.draw_contour", text=f"Contour ({n})",
@@ -137,6 +143,13 @@ class HEADRECON_PT_landmarks(_Panel, bpy.types.Panel):
                                   icon="PIVOT_CURSOR")
                 op.view = view
                 op.passpoints = True
+        if planes:
+            col = layout.column(align=True)
+            op = col.operator("headrecon.detect_landmarks", text="Detect on All Photos",
+                              icon="VIEWZOOM")
+            op.replace_hand_placed = replace
+            col.operator("headrecon.auto_fit", icon="AUTO").replace_hand_placed = replace
+            col.prop(context.scene.headrecon, "replace_hand_placed")
         row = layout.row(align=True)
         row.operator("headrecon.import_landmarks", text="Import...", icon="IMPORT")
         row.operator("headrecon.export_landmarks", text="Export...", icon="EXPORT")

@@ -32,7 +32,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from . import material, photo_cameras, scene_collections
+from . import material, photo_cameras, photo_faces, scene_collections
 from .photo_sorting import sort_photos
 from .polls import ObjectModeOperator, poll_result, view3d_problem
 from .solver_link import (
@@ -51,6 +51,8 @@ PLACEHOLDER = "headrecon_placeholder"  # custom property on stand-in images (no 
 UPRIGHT_SOURCE = "headrecon_source"
 UPRIGHT_ORIENTATION = "headrecon_orientation"
 PLANE_DEPTH = photo_cameras.PLANE_DEPTH  # metres behind the head's centre, along the view
+#: Blender colour spaces whose float pixels are not scene-linear colour.
+_RAW_SPACES = ("Non-Color", "Raw", "Generic Data")
 VIEW_KINDS = {"orthographic-front": "front", "orthographic-right": "right",
               "orthographic-left": "left"}
 
@@ -191,6 +193,16 @@ def image_to_array(image):
     out = np.ones((h, w, 4), dtype=np.float32)
     out[..., :min(3, image.channels)] = arr[..., :3]
     return out
+
+
+def detector_pixels(image):
+    """A Blender image's pixels as the detector reads a photo: (H, W, 3) float32 in [0, 1],
+    row 0 at the top, sRGB-encoded (a float image, which Blender holds in linear light, is
+    encoded; an 8-bit one is as stored)."""
+    rgb = np.clip(image_to_array(image)[:, :, :3], 0.0, 1.0)
+    if image.is_float and image.colorspace_settings.name not in _RAW_SPACES:
+        rgb = np.where(rgb <= 0.0031308, 12.92 * rgb, 1.055 * rgb ** (1 / 2.4) - 0.055)
+    return np.ascontiguousarray(rgb, dtype=np.float32)
 
 
 def array_to_image(array, name, image=None):
@@ -730,7 +742,9 @@ class HEADRECON_OT_load_photo(ObjectModeOperator, bpy.types.Operator):
             return [existing.headrecon.camera_view]
         taken = {p.headrecon.camera_view for p in photo_planes(scene)}
         return sort_photos([(Path(p).name, tuple(ph.image.size))
-                            for p, ph in zip(paths, loaded, strict=True)], taken)
+                            for p, ph in zip(paths, loaded, strict=True)], taken,
+                           face_direction=lambda i: photo_faces.face_direction(
+                               detector_pixels(loaded[i].image)))
 
     def execute(self, context):
         from .data import Transaction

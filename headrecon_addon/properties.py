@@ -164,6 +164,19 @@ class HEADRECON_PG_object(bpy.types.PropertyGroup):
     lens_from_exif: BoolProperty(
         name="Focal Length from EXIF",
         description="The focal length was read from the photo's EXIF data")
+    detected: BoolProperty(
+        name="Detected",
+        description="Placed by Detect Landmarks (or read from a file with its uncertainty), "
+                    "shown in its own colour: detecting again may replace it; moved by hand "
+                    "it becomes hand-placed")
+    uncertainty_px: FloatProperty(
+        name="Uncertainty", subtype="PIXEL", default=0.0, min=0.0,
+        description="A detected landmark: how far off it may be (standard deviation in "
+                    "pixels), which the fit weighs it by; 0: none (placed by hand)")
+    detected_at: FloatVectorProperty(
+        name="Detected At", size=2, options={"HIDDEN"},
+        description="Where the detector put the landmark (plane space): moved from there, "
+                    "it is hand-placed")
     flagged: BoolProperty(name="Flagged", description="The last fit flagged this landmark")
     residual_px: FloatProperty(name="Residual", subtype="PIXEL", default=-1.0,
                                description="The last fit's distance from this landmark to "
@@ -264,6 +277,11 @@ class HEADRECON_PG_scene(bpy.types.PropertyGroup):
                                     "brightness) for a flat, albedo-like texture to light "
                                     "in Blender; fine shadows stay")),
         description="What the baked texture keeps of the light in the photos")
+    replace_hand_placed: BoolProperty(
+        name="Replace Hand-Placed", default=False,
+        description="Detect Landmarks and Auto Fit replace the landmarks placed or moved by "
+                    "hand too (off: they stay, and Auto Fit detects only on photos without "
+                    "them)")
     live_refit: BoolProperty(name="Live Refit", default=False, update=_on_live_refit,
                              description="Refit while a landmark is moved, so the head "
                                          "follows (run Fit once first)")

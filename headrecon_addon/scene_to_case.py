@@ -40,8 +40,8 @@ def _image_ref(image, base_dir):
 
 def view_dict_from_plane(plane, base_dir=None):
     """A photo plane as a view of the landmarks file (its JSON form): size, photo,
-    camera and the landmark and contour pixels from the scene; every other key as the
-    imported file had it (``view_json``)."""
+    camera, the landmark and contour pixels and the detected landmarks' uncertainty from
+    the scene; every other key as the imported file had it (``view_json``)."""
     (w, h), _ = photos.plane_size(plane)
     props = plane.headrecon
     d = json.loads(props.view_json) if props.view_json else {}
@@ -56,6 +56,11 @@ def view_dict_from_plane(plane, base_dir=None):
         d["image"] = image
     d["size"] = [w, h]
     d["points"] = {k: list(v) for k, v in landmarks.landmark_pixels(plane).items()}
+    uncertainty = landmarks.landmark_uncertainty(plane)  # detected points, as detected
+    if uncertainty:
+        d["uncertainty"] = uncertainty
+    else:
+        d.pop("uncertainty", None)
     passpoints = landmarks.landmark_pixels(plane, "PASSPOINT")
     if passpoints:
         d["passpoints"] = {k: list(v) for k, v in passpoints.items()}

@@ -8,8 +8,8 @@ Blender.
 
 What the add-on, the command line and the tools use is imported here, by name; the
 subpackages are ``cameras`` (one module per camera kind, and what is computed from
-cameras), ``model`` (the statistical head model), ``fitting`` (the fit), ``io`` (files) and
-``texture``.
+cameras), ``model`` (the statistical head model), ``fitting`` (the fit), ``io`` (files),
+``texture`` and ``detect`` (automatic landmarks).
 """
 
 from .cameras import ORTHO_VIEWS, Camera, OrthographicCamera, camera_class, camera_from_dict
@@ -17,6 +17,9 @@ from .cameras.blender import blender_to_krc, dlt_to_blender
 from .cameras.calib_errors import check_passpoints
 from .cameras.dlt import DLTCamera, fit_dlt
 from .cameras.pinhole import PinholeCamera
+from .detect.detected_case import detected_points
+from .detect.detector import DetectedFace, Detector
+from .detect.view_guess import ViewGuess, guess_view
 from .fitting.fit import FitOptions, fit_head, refit_landmarks
 from .fitting.result import FitResult, ViewResidual
 from .io.camera_json import camera_from_json, camera_to_json
@@ -46,12 +49,13 @@ from .texture.uvs import orthographic_uvs, uv_raster, uv_tiles
 __all__ = [
     "CURRENT_VERSION", "FORMAT", "MIN_LANDMARKS_PER_VIEW", "MIN_LANDMARKS_TOTAL",
     "MIN_PASSPOINTS", "ORTHO_VIEWS", "SHADING_MODES", "BakeOptions", "Camera", "DLTCamera",
-    "Exif", "FitOptions", "FitResult", "HeadModel", "LandmarkCase", "LandmarksError",
-    "OrthographicCamera", "PinholeCamera",
-    "View", "ViewResidual", "bake_fit_texture", "bake_texture", "blender_to_krc",
+    "DetectedFace", "Detector", "Exif", "FitOptions", "FitResult", "HeadModel",
+    "LandmarkCase", "LandmarksError", "OrthographicCamera", "PinholeCamera", "View",
+    "ViewGuess", "ViewResidual", "bake_fit_texture", "bake_texture", "blender_to_krc",
     "camera_class", "camera_from_dict", "camera_from_json", "camera_to_json", "check_case",
-    "check_passpoints", "count_problems", "dlt_to_blender", "fit_dlt", "fit_head",
-    "landmarks_needed", "landmarks_to_dict", "load_landmark_set", "load_landmarks",
-    "load_model", "orient", "oriented_size", "orthographic_uvs", "parse_landmarks",
-    "read_photo_exif", "refit_landmarks", "save_landmarks", "uv_raster", "uv_tiles",
+    "check_passpoints", "count_problems", "detected_points", "dlt_to_blender", "fit_dlt",
+    "fit_head", "guess_view", "landmarks_needed", "landmarks_to_dict", "load_landmark_set",
+    "load_landmarks", "load_model", "orient", "oriented_size", "orthographic_uvs",
+    "parse_landmarks", "read_photo_exif", "refit_landmarks", "save_landmarks", "uv_raster",
+    "uv_tiles",
 ]

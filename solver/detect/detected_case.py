@@ -17,6 +17,29 @@ _YAW = {"front": 0.0, "right": 90.0, "left": -90.0, "three_quarter_right": 45.0,
         "three_quarter_left": -45.0}
 
 
+def detected_points(face, size):
+    """The points of a detected face to keep, under the project's landmark names: those
+    ``point_uncertainty`` keeps (a profile's few) that lie on the photo of ``size`` (w, h).
+
+    Returns
+    -------
+    points : dict of str -> (float, float)
+        Landmark name -> (u, v) px.
+    uncertainty : dict of str -> float
+        Landmark name -> standard deviation px (rounded to 1/1000 px, as files store it).
+    """
+    names = load_landmark_set().ibug
+    w, h = size
+    points, sigma = {}, {}
+    kept = point_uncertainty(face)
+    for number, (u, v) in enumerate(face.ibug, start=1):
+        if number in names and number in kept and 0 <= u <= w and 0 <= v <= h:
+            points[names[number]] = (float(u), float(v))
+            if kept[number] is not None:
+                sigma[names[number]] = round(float(kept[number]), 3)
+    return points, sigma
+
+
 def detected_case(photos, faces, base_dir=None, guesses=None):
     """A :class:`LandmarkCase` from detected faces.
 
@@ -32,19 +55,12 @@ def detected_case(photos, faces, base_dir=None, guesses=None):
         where it says nothing). The points kept are the face's (``point_uncertainty``: a
         profile keeps only those trustworthy there), whatever the view says.
     """
-    names = load_landmark_set().ibug
     views = {}
     if guesses is None:
         guesses = [guess_view(f) or ViewGuess("front", 0.0) for f in faces]
     for (name, path, size), face, guess in zip(photos, faces, guesses, strict=True):
         w, h = size
-        points, sigma = {}, {}
-        kept = point_uncertainty(face)
-        for number, (u, v) in enumerate(face.ibug, start=1):
-            if number in names and number in kept and 0 <= u <= w and 0 <= v <= h:
-                points[names[number]] = (float(u), float(v))
-                if kept[number] is not None:
-                    sigma[names[number]] = round(float(kept[number]), 3)
+        points, sigma = detected_points(face, size)
         image = Path(path).absolute()
         if base_dir is not None:
             image = Path(os.path.relpath(image, Path(base_dir).absolute()))

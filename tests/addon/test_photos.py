@@ -1,5 +1,5 @@
 """A photo plane lines up with its camera; photos load upright with their EXIF focal
-length, several at once sorted into views (bpy module, background)."""
+length, several at once sorted into views (by name, face or shape; bpy module, background)."""
 
 import numpy as np
 import pytest
@@ -142,3 +142,27 @@ def test_bad_exif_loads_the_photo_as_stored_with_one_line(scene, tmp_path):
                                      files=[{"name": "broken exif.jpg"},
                                             {"name": "missing.jpg"}])
     assert snapshot() == before
+
+
+def test_load_photos_sorts_photos_whose_names_say_nothing_by_the_face(sample, scene, tmp_path):
+    # two photos of one shape: by shape the first would be the front; the faces say the
+    # first is a right profile and the second the front
+    import shutil
+
+    import bpy
+
+    from headrecon_addon import photos
+    from solver.paths import DETECTOR_DIR
+
+    if not (DETECTOR_DIR / "face_landmark.tflite").is_file():
+        pytest.skip(f"detector models missing in {DETECTOR_DIR}: run ./run detector")
+    folder, _ = sample
+    shutil.copy(folder / "side.png", tmp_path / "IMG_1.png")
+    shutil.copy(folder / "front.png", tmp_path / "IMG_2.png")
+    assert bpy.ops.headrecon.load_photo(
+        directory=str(tmp_path), files=[{"name": "IMG_1.png"}, {"name": "IMG_2.png"}],
+        camera_view=photos.AUTO) == {"FINISHED"}
+    front, side = photos.find_plane(scene, "front"), photos.find_plane(scene, "side")
+    assert photos.photo_source(front.headrecon.image) == str(tmp_path / "IMG_2.png")
+    assert photos.photo_source(side.headrecon.image) == str(tmp_path / "IMG_1.png")
+    assert side.headrecon.camera_view == "orthographic-right"

@@ -29,13 +29,15 @@ def test_register_unregister_leaves_nothing_behind():
     headrecon_addon.register()
     during = _state()
     assert during["scene_prop"] and during["object_prop"]
-    assert during["depsgraph"] == before["depsgraph"] + 2  # live refit, deleted photos
+    # live refit, deleted photos, a detected landmark moved by hand
+    assert during["depsgraph"] == before["depsgraph"] + 3
     assert during["load_post"] == before["load_post"] + 1
     assert during["save_pre"] == before["save_pre"] + 1
     for name in ("HEADRECON_OT_add_head", "HEADRECON_OT_load_photo",
                  "HEADRECON_OT_place_landmarks", "HEADRECON_OT_draw_contour",
                  "HEADRECON_OT_import_landmarks", "HEADRECON_OT_export_landmarks",
-                 "HEADRECON_OT_fit", "HEADRECON_PT_head", "HEADRECON_PT_photos",
+                 "HEADRECON_OT_fit", "HEADRECON_OT_detect_landmarks",
+                 "HEADRECON_OT_auto_fit", "HEADRECON_PT_head", "HEADRECON_PT_photos",
                  "HEADRECON_PT_landmarks", "HEADRECON_PT_fit", "HEADRECON_PT_result",
                  "HEADRECON_UL_residuals"):
         assert name in during["types"], name

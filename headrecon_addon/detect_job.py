@@ -1,0 +1,216 @@
+"""Detect Landmarks in three steps, as the Fit (fit_job.py): ``prepare_detection`` (main
+thread: each photo's pixels and which of its landmarks the artist placed), ``DetectJob.run``
+(any thread: the detector only, no bpy), ``apply_detection`` (main thread: the landmarks
+placed as detected, and the report's lines). Until the last step the scene is untouched,
+so Esc (or an error) leaves it as it was.
+
+What a detection changes on a photo is one rule, ``detection_plan``: every landmark the
+detector found is placed as detected, except over one the artist placed or moved by hand
+(unless asked to replace those); the photo's earlier detected landmarks the detector no
+longer finds go. Auto Fit applies the same plan to the landmarks file it fits.
+"""
+
+import dataclasses
+import time
+
+from . import landmarks, photo_faces, photos
+
+
+def _count(n):
+    return f"{n} landmark{'s' * (n != 1)}"
+
+
+class DetectCancelled(Exception):
+    """Raised from the progress report to stop a detection the artist cancelled."""
+
+
+def detection_plan(hand, detected, found, replace):
+    """What a detection does to one photo's landmarks.
+
+    Parameters
+    ----------
+    hand, detected : collection of str
+        The photo's landmarks placed by hand, and its detected ones.
+    found : collection of str
+        The landmarks the detector found.
+    replace : bool
+        Replace hand-placed landmarks the detector found too.
+
+    Returns
+    -------
+    place : list of str
+        To place (or move) as detected.
+    remove : list of str
+        Earlier detected landmarks the detector no longer finds.
+    kept : list of str
+        Found, but kept as placed by hand.
+    """
+    place = [n for n in found if replace or n not in hand]
+    kept = [n for n in found if n in hand and not replace]
+    remove = [n for n in detected if n not in found]
+    return place, remove, kept
+
+
+@dataclasses.dataclass
+class PhotoTask:
+    """One photo to detect on: read from the scene, then what the detector found."""
+
+    view: str
+    photo: str  # the image's name, for messages
+    kind: str  # "front", "right", "left"
+    perspective: bool
+    pixels: object
+    hand: set
+    detected: set
+    face: object = None
+    seconds: float = 0.0
+
+    def lines(self, replace):
+        """(level, line) for the report: what was found (or that no face was), and a face
+        that contradicts the view the photo was loaded as."""
+        where = f"view {self.view!r} ({self.photo})"
+        if self.face is None:
+            return [("WARNING", f"{where}: no face found")]
+        place, _, kept = detection_plan(self.hand, self.detected, self.face.points, replace)
+        what = self.face.guess.describe() if self.face.guess else "its direction unknown"
+        line = f"{self.view}: {_count(len(place))}, {what}"
+        if kept:
+            line += f", {len(kept)} kept as placed by hand"
+        if self.face.profile:
+            line += (" (in a profile only the nose tip, subnasale and upper lip are "
+                     "detected: trace its outline for the rest)")
+        out = [("INFO", line)]
+        problem = photo_faces.loaded_as_problem(self.kind, self.perspective, self.face.guess)
+        if problem:
+            out.append(("WARNING", f"{where}: {problem}"))
+        return out
+
+
+@dataclasses.dataclass
+class DetectJob:
+    """The photos to detect on, read from the scene; ``run`` touches no bpy data."""
+
+    tasks: list
+    replace: bool = False
+    skipped: list = dataclasses.field(default_factory=list)
+    error: BaseException = None
+    cancelled: bool = False
+    fraction: float = 0.0
+    message: str = "starting"
+
+    def progress(self, fraction, message):
+        if self.cancelled:
+            raise DetectCancelled()
+        self.fraction = float(fraction)
+        self.message = str(message)
+
+    def run(self):
+        """Detect the face on every photo. Errors are kept in ``error``, never raised."""
+        try:
+            photo_faces.detector()  # a missing model: one error before any photo
+            for i, task in enumerate(self.tasks):
+                self.progress(i / len(self.tasks), f"detecting the face on {task.photo}")
+                t = time.perf_counter()
+                task.face = photo_faces.find_face(task.pixels)
+                task.seconds = time.perf_counter() - t
+            self.progress(1.0, "placing the landmarks")
+        except BaseException as e:  # noqa: B036  (kept for the main thread to report)
+            self.error = e
+
+    @property
+    def found_any(self):
+        return any(t.face is not None for t in self.tasks)
+
+    def lines(self):
+        """(level, line) for the report, photo by photo, then the photos left out."""
+        out = [line for t in self.tasks for line in t.lines(self.replace)]
+        return out + [("INFO", line) for line in self.skipped]
+
+
+def prepare_detection(scene, view="", replace=False, skip_hand_placed=False):
+    """Read the photos to detect on (main thread).
+
+    Parameters
+    ----------
+    view : str
+        One photo's view name; empty: every photo.
+    replace : bool
+        Hand-placed landmarks the detector finds are replaced too.
+    skip_hand_placed : bool
+        Leave out the photos with a landmark placed by hand (Auto Fit, unless ``replace``).
+
+    Raises
+    ------
+    ValueError
+        One line: no photo of that view, or the view has no photo to detect on.
+    """
+    if view:
+        plane = photos.find_plane(scene, view)
+        if plane is None:
+            raise ValueError(f"No photo for view {view!r}")
+        planes = [plane]
+    else:
+        planes = photos.photo_planes(scene)
+        if not planes:
+            raise ValueError("Load the photos first (Photos panel)")
+    tasks, skipped = [], []
+    for plane in planes:
+        img = plane.headrecon.image
+        name = plane.headrecon.view
+        if img is None or img.get(photos.PLACEHOLDER) or img.size[0] == 0:
+            if view:
+                raise ValueError(f"view {name!r}: no photo to detect the face on")
+            skipped.append(f"{name}: no photo to detect on")
+            continue
+        hand = set(landmarks.hand_placed_landmarks(plane))
+        if skip_hand_placed and hand and not replace:
+            skipped.append(f"{name}: kept as placed by hand ({_count(len(hand))})")
+            continue
+        tasks.append(PhotoTask(name, img.name, photos.view_kind(plane),
+                               photos.is_perspective(plane),
+                               photos.detector_pixels(img), hand,
+                               set(landmarks.detected_landmarks(plane))))
+    return DetectJob(tasks, replace=replace, skipped=skipped)
+
+
+def apply_detection(scene, job):
+    """Place what the job found (main thread): each photo's landmarks as
+    ``detection_plan`` says. Returns the landmarks placed."""
+    n = 0
+    for task in job.tasks:
+        plane = photos.find_plane(scene, task.view)
+        if task.face is None or plane is None:
+            continue
+        hand = landmarks.hand_placed_landmarks(plane)
+        detected = landmarks.detected_landmarks(plane)
+        place, remove, _ = detection_plan(hand, detected, task.face.points, job.replace)
+        for name in place:
+            landmarks.place_detected(plane, name, task.face.points[name],
+                                     task.face.uncertainty.get(name))
+        photos.remove_objects([detected[name] for name in remove])
+        n += len(place)
+    return n
+
+
+def run_detection(scene, view="", replace=False):
+    """Detect and place at once (background mode, scripts, tests).
+
+    Returns
+    -------
+    DetectJob
+        Its ``lines()`` are the report.
+
+    Raises
+    ------
+    ValueError
+        As ``prepare_detection``; a missing detector model; no face on any photo (one line
+        per photo): the scene is unchanged then.
+    """
+    job = prepare_detection(scene, view, replace)
+    job.run()
+    if job.error is not None:
+        raise job.error
+    if not job.found_any:
+        raise ValueError("; ".join(line for _, line in job.lines()))
+    apply_detection(scene, job)
+    return job

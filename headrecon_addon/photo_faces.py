@@ -1,0 +1,93 @@
+"""The solver's face detector on the scene's photos (their pixels from
+``photos.detector_pixels``): one detector for the session, and what a face tells: its
+landmarks under the project's names with each one's uncertainty, the view it looks like,
+whether that is the view the photo was loaded as, and the direction Load Photos sorts a
+photo by. No bpy: the photos come as arrays.
+"""
+
+import dataclasses
+import functools
+
+from .solver_link import Detector, detected_points, guess_view
+
+
+@functools.cache
+def detector():
+    """MediaPipe's two networks, read once a session.
+
+    Raises
+    ------
+    ValueError
+        A model file is missing (the message names it and says ``./run detector``).
+    """
+    return Detector()
+
+
+@dataclasses.dataclass
+class Face:
+    """The face found on a photo: its landmarks and which way it looks.
+
+    Attributes
+    ----------
+    points : dict of str -> (float, float)
+        Landmark name -> (u, v) px: those the detector is trusted with (a profile's three)
+        that lie on the photo.
+    uncertainty : dict of str -> float
+        Landmark name -> standard deviation px.
+    guess : solver ViewGuess or None
+        The view the face looks like (None: the detector cannot tell).
+    profile : bool
+        Seen from the side (only the nose tip, subnasale and upper lip kept).
+    score : float
+        The face detector's confidence.
+    """
+
+    points: dict
+    uncertainty: dict
+    guess: object
+    profile: bool
+    score: float
+
+
+def find_face(pixels):
+    """The most confident face in ``pixels`` ((H, W, 3) float in [0, 1], row 0 at the top,
+    sRGB: ``photos.detector_pixels``), or None when there is none."""
+    found = detector().detect(pixels)
+    if found is None:
+        return None
+    h, w = pixels.shape[:2]
+    points, sigma = detected_points(found, (w, h))
+    return Face(points, sigma, guess_view(found), found.is_profile, float(found.score))
+
+
+def loaded_as_problem(kind, perspective, guess):
+    """Why a face that looks like ``guess`` contradicts the view its photo was loaded as
+    (``kind``: "front", "right", "left"; ``perspective``: any camera, its direction rough),
+    a sentence, or None. A perspective photo only contradicts by its side."""
+    if guess is None:
+        return None
+    if perspective:
+        if kind in ("right", "left") and guess.side not in (None, kind):
+            return (f"loaded as seen from the subject's {kind}, but the face looks like "
+                    f"{guess.describe()}: set its Direction")
+        return None
+    if guess.name == kind:
+        return None
+    names = {"front": "a front photo", "right": "a right profile", "left": "a left profile"}
+    fix = ("set its Direction" if guess.name in names
+           else "load it with Add Photo (Any Camera)")
+    return f"loaded as {names[kind]}, but the face looks like {guess.describe()}: {fix}"
+
+
+def face_direction(pixels):
+    """The direction (``photo_sorting``: "orthographic-front", "-right", "-left") the face
+    in a photo's pixels shows, or None: no face, a three-quarter view, a face whose
+    direction the detector cannot tell, or no detector models (the photos' shapes decide
+    then)."""
+    try:
+        face = find_face(pixels)
+    except ValueError:
+        return None
+    if face is None or face.guess is None or face.guess.name not in ("front", "right", "left"):
+        return None
+    return f"orthographic-{face.guess.name}"

@@ -1,0 +1,230 @@
+"""Detect Landmarks and Auto Fit on the rendered sample's photos (bpy module, background):
+detected landmarks land near the truth, with their uncertainty and colour; hand-placed
+ones stay unless replaced; a photo without a face is one line and changes nothing; Auto Fit
+fits a head; the uncertainty goes through export, import and the fit's case."""
+
+import json
+import shutil
+
+import bpy
+import numpy as np
+import pytest
+from PIL import Image
+
+from solver.paths import DETECTOR_DIR
+from tests.addon.support import empty_scene, snapshot
+
+
+@pytest.fixture(autouse=True)
+def _models():
+    if not (DETECTOR_DIR / "face_landmark.tflite").is_file():
+        pytest.skip(f"detector models missing in {DETECTOR_DIR}: run ./run detector")
+
+
+def _load(path, view, direction):
+    assert bpy.ops.headrecon.load_photo(filepath=str(path), view=view,
+                                        camera_view=direction) == {"FINISHED"}
+    from headrecon_addon import photos
+
+    return photos.find_plane(bpy.context.scene, view)
+
+
+def _truth(folder, view):
+    return json.loads((folder / "sample.json").read_text())["views"][view]["points"]
+
+
+def test_detect_places_the_front_landmarks_near_the_truth(sample):
+    from headrecon_addon import landmarks, material
+
+    folder, _ = sample
+    empty_scene()
+    plane = _load(folder / "front.png", "front", "orthographic-front")
+    assert bpy.ops.headrecon.detect_landmarks(view="front") == {"FINISHED"}
+    placed = landmarks.landmark_pixels(plane)
+    truth = _truth(folder, "front")
+    common = sorted(set(placed) & set(truth))
+    assert len(placed) == 68 and len(common) >= 60
+    err = np.array([np.hypot(*np.subtract(placed[n], truth[n])) for n in common])
+    eyes = np.mean([truth[n] for n in truth if n.startswith("eye_")], axis=0)
+    mouth = np.mean([truth[n] for n in truth if n.startswith("lip_")], axis=0)
+    scale = float(np.hypot(*(mouth - eyes)))  # the eye-to-mouth distance, px
+    assert np.median(err) < 0.05 * scale, (np.median(err), scale)
+    # each one detected: its colour, and its uncertainty kept for the fit
+    sigma = landmarks.landmark_uncertainty(plane)
+    assert set(sigma) == set(placed) and all(s > 0 for s in sigma.values())
+    obj = landmarks.landmark_objects(plane)["nose_tip"]
+    assert landmarks.marker_state(obj) == "DETECTED"
+    assert obj.material_slots[0].material == material.landmark_material("DETECTED")
+
+
+def test_hand_placed_landmarks_stay_unless_replaced(sample):
+    from headrecon_addon import detect_job, landmarks, photos
+
+    folder, _ = sample
+    scene = empty_scene()
+    plane = _load(folder / "front.png", "front", "orthographic-front")
+    landmarks.place_landmark(plane, "nose_tip", (10.0, 20.0))  # by hand, far off
+    job = detect_job.run_detection(scene, "front")
+    objs = landmarks.landmark_objects(plane)
+    assert landmarks.landmark_pixels(plane)["nose_tip"] == (10.0, 20.0)
+    assert not landmarks.is_detected(objs["nose_tip"])
+    assert "nose_tip" not in landmarks.landmark_uncertainty(plane)
+    assert any("67 landmarks" in line and "1 kept as placed by hand" in line
+               for _, line in job.lines())
+    # a detected landmark the artist moves becomes hand-placed (and shows it)
+    chin = objs["chin_bottom"] if "chin_bottom" in objs else objs[sorted(objs)[0]]
+    chin.location.x += 0.01
+    bpy.context.view_layer.update()  # the depsgraph handler recolours it
+    assert not chin.headrecon.detected and landmarks.marker_state(chin) == "PLACED"
+    moved = landmarks.landmark_pixels(plane)[chin.headrecon.landmark]
+    before = snapshot()
+    assert bpy.ops.headrecon.detect_landmarks(view="front") == {"FINISHED"}
+    assert landmarks.landmark_pixels(plane)[chin.headrecon.landmark] == moved
+    assert landmarks.landmark_pixels(plane)["nose_tip"] == (10.0, 20.0)
+    assert snapshot() == before  # the same objects, moved where detected
+    # asked to, detection replaces them too
+    assert bpy.ops.headrecon.detect_landmarks(view="front",
+                                              replace_hand_placed=True) == {"FINISHED"}
+    assert landmarks.hand_placed_landmarks(plane) == {}
+    assert np.hypot(*np.subtract(landmarks.landmark_pixels(plane)["nose_tip"],
+                                 (10.0, 20.0))) > 50
+    assert len(landmarks.detected_landmarks(photos.find_plane(scene, "front"))) == 68
+
+
+def test_a_photo_without_a_face_is_one_line_and_changes_nothing(tmp_path):
+    from headrecon_addon import detect_job
+
+    wall = tmp_path / "wall.png"
+    Image.new("RGB", (300, 400), (120, 120, 120)).save(wall)
+    scene = empty_scene()
+    _load(wall, "front", "orthographic-front")
+    before = snapshot()
+    with pytest.raises(RuntimeError, match=r"view 'front' \(wall\.png\): no face found") as e:
+        bpy.ops.headrecon.detect_landmarks()
+    assert "\n" not in str(e.value).strip()
+    assert snapshot() == before
+    # cancelled (Esc): the job stops, the scene is as it was
+    job = detect_job.prepare_detection(scene)
+    job.cancelled = True
+    job.run()
+    assert isinstance(job.error, detect_job.DetectCancelled)
+    assert snapshot() == before
+
+
+def test_a_profile_loaded_as_the_other_side_is_said_once(sample):
+    from headrecon_addon import detect_job, landmarks
+
+    folder, _ = sample
+    scene = empty_scene()
+    plane = _load(folder / "side.png", "side", "orthographic-left")  # it is a right profile
+    job = detect_job.run_detection(scene, "side")
+    warnings = [line for level, line in job.lines() if level == "WARNING"]
+    assert len(warnings) == 1, job.lines()
+    assert "view 'side' (side.png)" in warnings[0] and "loaded as a left profile" in warnings[0]
+    assert "right profile" in warnings[0]
+    # a profile keeps three points, and the report says so
+    assert sorted(landmarks.landmark_pixels(plane)) == ["lip_upper_middle", "nose_tip",
+                                                        "subnasale"]
+    assert any("3 landmarks" in line and "trace its outline" in line
+               for level, line in job.lines() if level == "INFO")
+
+
+def test_auto_fit_fits_a_head_from_the_photos(sample):
+    from headrecon_addon import landmarks, photos
+
+    folder, _ = sample
+    scene = empty_scene()
+    _load(folder / "front.png", "front", "orthographic-front")
+    _load(folder / "side.png", "side", "orthographic-right")
+    scene.headrecon.texture_size = "256"
+    assert scene.headrecon.head is None
+    assert bpy.ops.headrecon.auto_fit() == {"FINISHED"}
+    head = scene.headrecon.head
+    assert head is not None and len(head.data.shape_keys.key_blocks) > 10
+    counts = {p.headrecon.view: len(landmarks.detected_landmarks(p))
+              for p in photos.photo_planes(scene)}
+    assert counts == {"front": 68, "side": 3}
+    assert scene.headrecon.status.startswith(head.headrecon.fit_method)
+    assert len(scene.headrecon.residuals) == 71
+
+
+def test_auto_fit_that_cannot_fit_leaves_the_scene_as_it_was(sample):
+    folder, _ = sample
+    empty_scene()
+    _load(folder / "side.png", "side", "orthographic-right")  # three points: too few
+    before = snapshot()
+    with pytest.raises(RuntimeError, match="3 usable landmarks in all; the fit needs"):
+        bpy.ops.headrecon.auto_fit()
+    assert snapshot() == before and bpy.context.scene.headrecon.head is None
+
+
+def test_uncertainty_goes_through_export_import_and_the_fit(sample, tmp_path):
+    from headrecon_addon import landmarks, photos, scene_to_case
+
+    folder, _ = sample
+    shutil.copy(folder / "front.png", tmp_path / "front.png")
+    scene = empty_scene()
+    plane = _load(tmp_path / "front.png", "front", "orthographic-front")
+    assert bpy.ops.headrecon.detect_landmarks() == {"FINISHED"}
+    landmarks.landmark_objects(plane)["nose_tip"].location.y += 0.002  # now by hand
+    sigma = landmarks.landmark_uncertainty(plane)
+    assert len(sigma) == 67 and "nose_tip" not in sigma
+    assert scene_to_case.case_from_scene(scene).views["front"].uncertainty == sigma
+    out = tmp_path / "case.json"
+    assert bpy.ops.headrecon.export_landmarks(filepath=str(out)) == {"FINISHED"}
+    view = json.loads(out.read_text())["views"]["front"]
+    assert view["uncertainty"] == sigma and "nose_tip" in view["points"]
+    scene = empty_scene()
+    assert bpy.ops.headrecon.import_landmarks(filepath=str(out)) == {"FINISHED"}
+    plane = photos.find_plane(scene, "front")
+    assert landmarks.landmark_uncertainty(plane) == sigma
+    assert set(landmarks.hand_placed_landmarks(plane)) == {"nose_tip"}
+    assert scene_to_case.case_from_scene(scene).views["front"].uncertainty == sigma
+
+
+def test_auto_fit_detects_only_photos_without_hand_placed_landmarks(sample):
+    # the front photo has a landmark placed by hand: left as it is (its points fitted as
+    # placed), the profile detected; with Replace Hand-Placed both are detected
+    from headrecon_addon import auto_fit_job, landmarks
+
+    folder, _ = sample
+    scene = empty_scene()
+    front = _load(folder / "front.png", "front", "orthographic-front")
+    _load(folder / "side.png", "side", "orthographic-right")
+    landmarks.place_landmark(front, "nose_tip", (190.0, 300.0))
+    before = snapshot()
+    job = auto_fit_job.prepare_auto_fit(scene)
+    assert [t.view for t in job.detect.tasks] == ["side"]
+    assert job.detect.skipped == ["front: kept as placed by hand (1 landmark)"]
+    job.detect.run()
+    case = job.merged_case()
+    assert case.views["front"].points == {"nose_tip": (190.0, 300.0)}
+    assert case.views["front"].uncertainty == {}
+    assert set(case.views["side"].points) == set(case.views["side"].uncertainty) \
+        == {"nose_tip", "subnasale", "lip_upper_middle"}
+    job = auto_fit_job.prepare_auto_fit(scene, replace=True)
+    assert [t.view for t in job.detect.tasks] == ["front", "side"]
+    job.detect.run()
+    case = job.merged_case()
+    assert len(case.views["front"].points) == 68
+    assert case.views["front"].points["nose_tip"] != (190.0, 300.0)
+    assert len(case.views["front"].uncertainty) == 68
+    assert snapshot() == before  # nothing placed until the job is applied
+
+
+def test_a_face_against_the_view_its_photo_was_loaded_as():
+    from headrecon_addon.photo_faces import loaded_as_problem
+    from solver import ViewGuess
+
+    right, front = ViewGuess("right", 90.0), ViewGuess("front", 3.0)
+    quarter = ViewGuess("three_quarter_left", -30.0)
+    assert loaded_as_problem("right", False, right) is None
+    assert loaded_as_problem("front", False, front) is None
+    assert "loaded as a left profile" in loaded_as_problem("left", False, right)
+    assert "loaded as a front photo" in loaded_as_problem("front", False, right)
+    assert "Add Photo (Any Camera)" in loaded_as_problem("front", False, quarter)
+    # a perspective photo's direction is rough: only its side can be wrong
+    assert loaded_as_problem("front", True, quarter) is None
+    assert loaded_as_problem("left", True, quarter) is None
+    assert "set its Direction" in loaded_as_problem("right", True, quarter)
+    assert loaded_as_problem("front", False, None) is None
