@@ -10,7 +10,6 @@ reads images (with Pillow); the solver's texture functions take arrays.
 import argparse
 import json
 import math
-import re
 import sys
 import time
 from pathlib import Path
@@ -184,16 +183,8 @@ def _fit_options(args, model, progress):
 
 def _fit_failure(case, error):
     """One line for a fit that failed on input the checks let through: the file, and the
-    view when the fit names it ("view 'front': ..."; a camera that names itself by its
-    orthographic view, "camera refit (orthographic-right): ...", is the one view whose
-    camera that is), else how to find the view."""
+    view when the fit names it ("view 'front': ..."), else how to find the view."""
     msg = _one_line(error)
-    label = re.match(r"camera refit \(([^)]*)\)", msg)
-    if label:
-        named = [name for name, view in case.views.items()
-                 if getattr(view.camera, "view", None) == label.group(1)]
-        if len(named) == 1:
-            msg = f"view {named[0]!r}: {msg}"
     if msg.startswith("view '") or msg.startswith(case.source):
         return msg if msg.startswith(case.source) else f"{case.source}: {msg}"
     return (f"{case.source}: the fit failed ({type(error).__name__}: {msg}); "

@@ -321,7 +321,8 @@ class Engine:
         pixel variances (times 1 / noise^2) so a pinhole camera's focal prior weighs as it
         should. A real camera also fits its mirror views' points; then each mirror plane
         is refitted with its real camera kept. Updates ``state.cameras`` (and
-        ``state.planes``) and the views."""
+        ``state.planes``) and the views; a camera that cannot be refitted raises a
+        ValueError naming its view."""
         extra = extra or {}
         todo = list(self.views if views is None else views)
         names = {v.name for v in todo}
@@ -331,7 +332,10 @@ class Engine:
             x, q, w = self._camera_points(state, v, extra)
             if np.count_nonzero(w) < v.camera.min_refit_points:
                 continue  # a profile with only its outline, and none of it matched here
-            state.cameras[v.name] = v.camera.refit(x, q, w)
+            try:
+                state.cameras[v.name] = v.camera.refit(x, q, w)
+            except ValueError as e:
+                raise ValueError(f"view {v.name!r}: {e}") from None
             names.update(u.name for u in self.mirrors_of(v))
         for u in self.views:
             if u.mirror_of is None or u.name not in names:

@@ -433,21 +433,15 @@ def test_a_fit_failure_the_checks_let_through_names_the_file():
                      "landmarks")
 
 
-def test_a_refit_that_names_its_orthographic_view_names_the_files_view():
+def test_a_failure_that_names_its_view_is_given_with_the_file():
     from types import SimpleNamespace
 
-    from solver import OrthographicCamera
     from solver.cli import _fit_failure
 
-    views = {name: SimpleNamespace(camera=OrthographicCamera.nominal(label, (W, H)))
-             for name, label in (("front", "orthographic-front"),
-                                 ("side", "orthographic-right"))}
-    case = SimpleNamespace(source="case.json", views=views)
-    error = ValueError("camera refit (orthographic-right): source/target: points are "
-                       "degenerate; the rotation is undetermined")
-    assert _fit_failure(case, error) == "case.json: view 'side': camera refit " \
-        "(orthographic-right): source/target: points are degenerate; the rotation is " \
-        "undetermined"
+    case = SimpleNamespace(source="case.json", views={})
+    error = ValueError("view 'side': camera refit (orthographic-right): source/target: "
+                       "points are degenerate; the rotation is undetermined")
+    assert _fit_failure(case, error) == f"case.json: {error}"
 
 
 def _dlt_of_focal(focal_px):
