@@ -71,6 +71,12 @@ def _parse():
                    help="FitOptions.outline_landmarks of every fit (default: the fit's)")
     p.add_argument("--definition-mm", type=float, default=None,
                    help="FitOptions.definition_mm of every fit (default: the fit's)")
+    p.add_argument("--exact-placement", action="store_true",
+                   help="synthetic heads: landmarks exactly on their vertices' projections "
+                        "(outline points still anywhere on their stretch), outlines traced "
+                        "without noise: what the fit loses to the out-of-model part alone")
+    p.add_argument("--front-outline", action="store_true",
+                   help="synthetic heads: the front photo's outline traced too")
     blas_threads.option_argument(p)
     return p.parse_args()
 
@@ -87,6 +93,7 @@ import numpy as np  # noqa: E402
 from bench.common import load_average, machine_description, option_values  # noqa: E402
 from bench.realistic_cases import (  # noqa: E402
     EXPRESSIONS,
+    Placement,
     Surface,
     align_icp,
     calibrate,
@@ -157,8 +164,11 @@ def synthetic_truth(model, truth, samples, seed):
     return Truth(regions, skin, start)
 
 
-#: FitOptions fields every fit of the run shares (``--outline-landmarks``).
+#: FitOptions fields every fit of the run shares (``--outline-landmarks``, ``--set``).
 SHARED = {}
+#: ``make_realistic_case`` options of the synthetic heads (``--exact-placement``,
+#: ``--front-outline``).
+CASE_OPTIONS = {}
 
 
 def fits(model, case, grid):
@@ -188,7 +198,7 @@ def run_synthetic(model, group, n, samples, grid):
     for i in range(n):
         seed = SEEDS[group] + i
         expression = names[i % len(names)] if group == "with expression" else None
-        case, truth = make_realistic_case(model, seed, expression)
+        case, truth = make_realistic_case(model, seed, expression, **CASE_OPTIONS)
         t = synthetic_truth(model, truth, samples, seed)
         results = fits(model, case, grid)
         cloud = truth.local_vertices[model.skin]
@@ -359,6 +369,10 @@ def main(args):
     if args.definition_mm is not None:
         SHARED["definition_mm"] = args.definition_mm
     SHARED.update(option_values(args.set))
+    if args.exact_placement:
+        CASE_OPTIONS["placement"] = Placement(0.0, 0.0, 0.0)
+    if args.front_outline:
+        CASE_OPTIONS["front_outline"] = True
     n_expr = args.cases // 2 if args.expression_cases is None else args.expression_cases
     print(f"machine: {machine_description()}")
     print(f"cases: {args.cases} out-of-model, {n_expr} with expression, the scan james' "
@@ -367,7 +381,9 @@ def main(args):
           f"{args.outline_landmarks}; definition offset: "
           f"{SHARED.get('definition_mm', FitOptions.definition_mm):g} mm"
           + "".join(f"; {k}={v!r}" for k, v in SHARED.items()
-                    if k not in ("outline_landmarks", "definition_mm")))
+                    if k not in ("outline_landmarks", "definition_mm"))
+          + ("; landmarks placed exactly" if args.exact_placement else "")
+          + ("; the front's outline traced" if args.front_outline else ""))
     groups = {}
     if args.cases > 0:
         groups["out-of-model heads"] = run_synthetic(model, "out-of-model", args.cases,

@@ -473,7 +473,8 @@ def _camera(rng, cam_name, size, skin_world, fill=(0.75, 0.9)):
 
 
 def make_realistic_case(model, seed, expression=None, displacement_mm=(1.5, 3.0),
-                        rotation_deg=5.0, image_height=1024, contour_points=100):
+                        rotation_deg=5.0, image_height=1024, contour_points=100,
+                        placement=None, front_outline=False):
     """A realistic synthetic case: an out-of-model head, photographed front and right
     profile (orthographic, 1024 px high, 3:4), landmarks as people give them.
 
@@ -485,6 +486,12 @@ def make_realistic_case(model, seed, expression=None, displacement_mm=(1.5, 3.0)
         A key of ``EXPRESSIONS`` (weights drawn in its ranges); None: neutral.
     displacement_mm : (float, float)
         Range of the out-of-model displacement's RMS over the face.
+    placement : Placement, optional
+        How the landmarks are placed instead of the drawn one (the same head, cameras and
+        outline stretches otherwise), e.g. ``Placement(0, 0, 0)``: exactly.
+    front_outline : bool
+        Trace the front photo's outline too (the head's silhouette there, as a
+        segmentation would give it), with the profile's tracing noise.
 
     Returns
     -------
@@ -502,7 +509,8 @@ def make_realistic_case(model, seed, expression=None, displacement_mm=(1.5, 3.0)
     shown = local + expression_offsets(model, weights)
     rot = random_rotation(rng, rotation_deg)
     world = float(rng.uniform(0.95, 1.05)) * shown @ rot.T + rng.uniform(-0.01, 0.01, size=3)
-    placement = Placement.draw(rng)
+    drawn = Placement.draw(rng)  # drawn either way, so the rest of the case stays the same
+    placement = drawn if placement is None else placement
 
     h = int(image_height)
     size = (int(round(0.75 * h)), h)
@@ -521,9 +529,11 @@ def make_realistic_case(model, seed, expression=None, displacement_mm=(1.5, 3.0)
             names = [n for n in names if ibug.get(n) not in OUTLINE_IBUG
                      or ibug[n] in PROFILE_OUTLINE_IBUG]
             outline = traced
+        if view == "right" or front_outline:
             contour = resample_polyline(traced, contour_points)
-            contour = contour + placement.contour_noise_px * rng.normal(size=contour.shape)
-            contour = np.clip(contour, 0.0, size)
+            noise = rng.normal(size=contour.shape) if view == "right" \
+                else np.random.default_rng([seed, 1]).normal(size=contour.shape)
+            contour = np.clip(contour + placement.contour_noise_px * noise, 0.0, size)
         nominal = cam.project(world[[model.landmarks[n] for n in names]])
         placed, miss = place_landmarks(names, nominal, placement, rng, outline, ibug)
         missed += [f"{view}/{n}" for n in miss]

@@ -155,14 +155,14 @@ def fit_head(model, case, options=None, initial=None):
     # The noise from the fit's residuals (and each photo's expression, expression.py), the
     # fit again with them, until the estimates settle (noise.py); each fit after the first
     # starts where the last one ended.
-    result, contour, along, effective, measured, rim = _fit(model, case, opts, initial,
+    result, contour, along, effective, measured, roles = _fit(model, case, opts, initial,
                                                             None, progress.part(0.0, 0.55),
                                                             t0)
     noise, rounds, expressions = None, 1, {}
     timings = dict(result.info["timings"])
     while rounds < MAX_ROUNDS:
         estimate = estimate_noise(measured[0], contour, effective, opts.noise_px, along,
-                                  definition=measured[2], rim=rim)
+                                  definition=measured[2], rim=roles[0], relative=roles[1])
         shown = expressions
         if opts.expressions == "fit":
             shown = estimate_expressions(model, case, result, estimate.landmark_px,
@@ -172,7 +172,7 @@ def fit_head(model, case, options=None, initial=None):
             break
         noise, expressions = estimate, shown
         part = 0.55 + 0.15 * (rounds - 1)
-        result, contour, along, effective, measured, rim = _fit(
+        result, contour, along, effective, measured, roles = _fit(
             model, neutral_case(model, case, result, expressions), opts, result, noise,
             progress.part(part, part + 0.15), t0)
         rounds += 1
@@ -204,7 +204,7 @@ def _fit(model, case, opts, initial, noise, progress, t0):
     view, effective number of fitted parameters,
     ``Engine.without_definition_offsets``: the landmark residuals the noise is measured on
     and the definition offsets' size per view, and per view the outline landmarks tied to
-    their vertices)."""
+    their vertices and each landmark's weight factor from its given uncertainty)."""
     cams = None if initial is None else previous_cameras(initial, "initial")
     views, skipped = prepare_views(model, case, opts, cameras=cams, noise=noise)
     eng = Engine.for_fit(model, views, opts)
@@ -303,9 +303,10 @@ def _fit(model, case, opts, initial, noise, progress, t0):
     progress(1.0, f"done ({chosen})")
     measured = eng.without_definition_offsets(state, result.local_vertices,
                                               result.residuals, opts.front_weight)
-    rim = {v.name: {n for n, o in zip(v.names, v.outline_point & ~v.slide, strict=True) if o}
-           for v in eng.views}
-    return result, contour, along, eng.effective_parameters(cov) + measured[1], measured, rim
+    roles = ({v.name: {n for n, o in zip(v.names, v.outline_point & ~v.slide, strict=True)
+                       if o} for v in eng.views},
+             {v.name: dict(zip(v.names, v.relative.tolist(), strict=True)) for v in eng.views})
+    return result, contour, along, eng.effective_parameters(cov) + measured[1], measured, roles
 
 
 def refit_landmarks(model, case, previous, options=None):

@@ -139,7 +139,7 @@ class Noise:
 
 
 def estimate_noise(residuals, contour, effective, floor_px, along=None, definition=None,
-                   rim=None):
+                   rim=None, relative=None):
     """The placement noise a fit's residuals say.
 
     Parameters
@@ -162,6 +162,11 @@ def estimate_noise(residuals, contour, effective, floor_px, along=None, definiti
     rim : dict of str -> set of str, optional
         Per view: the outline landmarks tied to their vertices; with at least 3 of them
         used their noise is a group of its own (``Noise.rim_px``).
+    relative : dict of str -> dict of str -> float, optional
+        Per view and landmark: its weight factor from its given uncertainty against the
+        view's others (``views.uncertainty_factors``; 1 when missing). A landmark given
+        twice as uncertain counts its residual at half its length: a group's noise is that
+        of its typical landmark, and a landmark is an outlier against its own uncertainty.
 
     Returns
     -------
@@ -171,7 +176,9 @@ def estimate_noise(residuals, contour, effective, floor_px, along=None, definiti
     # (view, names, residuals, dimension (2: at a vertex, 1: across), the Noise dict)
     groups = []
     for view, res in residuals.items():
-        r = np.asarray(res.pixels, dtype=np.float64)
+        scale = (relative or {}).get(view, {})
+        r = np.asarray(res.pixels, dtype=np.float64) \
+            * np.sqrt([scale.get(n, 1.0) for n in res.names])
         skip, across = set(res.unused), set(res.outline)
         at_rim = set((rim or {}).get(view, ())) - across
         used = [i for i, n in enumerate(res.names) if n not in skip]

@@ -65,6 +65,10 @@ class ViewData:
     definition_m : float
         Standard deviation of that offset, metres (``FitOptions.definition_mm`` at first
         and at most, then as the fit's residuals say, ``noise.Noise.definition_m``).
+    relative : ndarray, shape (n,)
+        Each landmark's weight factor from its given uncertainty against its view's others
+        (:func:`uncertainty_factors`; 1 without one): the noise is estimated on residuals
+        scaled by it (``noise.estimate_noise``).
 
     A view's outline candidates are not stored here: they depend on the head they were
     found on, so each stage passes its own to :meth:`Engine.joint` (``outlines``).
@@ -88,9 +92,12 @@ class ViewData:
     along_weights: np.ndarray | None = None
     groups: list | None = None
     definition_m: float = 0.0
+    relative: np.ndarray | None = None
 
     def __post_init__(self):
         n = len(self.vertices)
+        if self.relative is None:
+            self.relative = np.ones(n)
         if self.groups is None:
             self.groups = list(self.names)
         if self.along_weights is None:
@@ -312,7 +319,7 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
                                  dtype=bool), along_weights=along,
                         groups=[lms.group_of(n) for n in names],
                         definition_m=0.0 if cam is None or cam.perspective
-                        else _definition_m(opts, noise, name))
+                        else _definition_m(opts, noise, name), relative=relative)
         (views if used or rule["outline"] else skipped).append(data)
     for v in views:
         if v.mirror_of is not None and any(u.name == v.mirror_of for u in skipped):

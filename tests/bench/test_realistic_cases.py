@@ -9,6 +9,7 @@ import pytest
 
 from bench.realistic_cases import (
     OUTLINE_IBUG,
+    Placement,
     Surface,
     align_icp,
     calibrate,
@@ -106,6 +107,25 @@ def test_realistic_case_places_landmarks_as_people_do(model):
     assert 4.0 < truth.landmark_rms_px < 12.0
     assert case.views["right"].contour.shape == (100, 2)
     assert case.views["front"].contour is None
+
+
+def test_a_realistic_case_can_be_placed_exactly_and_traced_in_front(model):
+    case, truth = make_realistic_case(model, 5000)
+    exact, exact_truth = make_realistic_case(model, 5000, placement=Placement(0.0, 0.0, 0.0),
+                                      front_outline=True)
+    # the same head and photos, only placed and traced otherwise
+    np.testing.assert_array_equal(exact_truth.local_vertices, truth.local_vertices)
+    assert exact.views["front"].contour.shape == (100, 2)
+    assert exact.views["right"].contour.shape == (100, 2)
+    assert set(exact.views["front"].points) == set(case.views["front"].points)
+    # only the outline points are off their vertices' projections (anywhere on their own
+    # stretch of the outline): the inner ones sit on them
+    assert exact_truth.landmark_rms_px < 0.6 * truth.landmark_rms_px
+    ibug = {e["name"]: e["ibug"] for e in model.landmark_info if e.get("ibug")}
+    gaps = [np.linalg.norm(np.subtract(exact.views[v].points[n], case.views[v].points[n]))
+            for v in ("front", "right") for n in exact.views[v].points
+            if ibug.get(n) not in OUTLINE_IBUG]
+    assert np.median(gaps) > 2.0
 
 
 @pytest.fixture(scope="module")

@@ -119,6 +119,24 @@ def test_sliding_landmarks_are_a_group_of_their_own_and_unused_ones_do_not_count
     assert noise.along_factor("front", "p3") == noise.landmark_factor("front", "p3")
 
 
+def test_a_landmark_given_as_more_uncertain_counts_at_its_own_scale():
+    rng = np.random.default_rng(4)
+    names = [f"p{i}" for i in range(80)]
+    # the last 20 were given 4 times as uncertain (relative weight 1/16), and are
+    r = np.linalg.norm(rng.normal(scale=2.0, size=(80, 2)), axis=1)
+    r[60:] *= 4.0
+    relative = {"front": {n: (1.0 / 16.0 if i >= 60 else 1.0) for i, n in enumerate(names)}}
+    noise = estimate_noise({"front": ViewResidual(names, r)}, {}, 0.0, 1.0,
+                           relative=relative)
+    assert noise.landmark_px["front"] == pytest.approx(2.0, rel=0.2)
+    # as typical against their own uncertainty as the others: not outliers
+    w = noise.weights["front"]
+    assert np.median([w[n] for n in names[60:]]) == pytest.approx(1.0, abs=0.25)
+    # read at face value, they inflate the view's noise and look like outliers
+    plain = estimate_noise({"front": ViewResidual(names, r)}, {}, 0.0, 1.0)
+    assert plain.landmark_px["front"] > 1.3 * noise.landmark_px["front"]
+
+
 def test_outline_landmarks_on_their_vertices_are_a_group_of_their_own():
     rng = np.random.default_rng(3)
     inner = [f"p{i}" for i in range(60)]
