@@ -18,7 +18,7 @@ import bpy
 import numpy as np
 from bpy.app.handlers import persistent
 
-from . import material, photos, scene_collections
+from . import app_handlers, material, photos, scene_collections
 from .solver_link import load_landmark_set
 
 MARKER_RADIUS = 0.0025  # metres (plane space): about 7 px on a 1024 px photo
@@ -370,11 +370,12 @@ def _on_depsgraph_update(scene, depsgraph):
         print(f"HeadRecon: recolouring a moved landmark failed: {e}")
 
 
+_HANDLERS = (("depsgraph_update_post", _on_depsgraph_update),)
+
+
 def register_handlers():
-    if _on_depsgraph_update not in bpy.app.handlers.depsgraph_update_post:
-        bpy.app.handlers.depsgraph_update_post.append(_on_depsgraph_update)
+    app_handlers.add(_HANDLERS)
 
 
 def unregister_handlers():
-    while _on_depsgraph_update in bpy.app.handlers.depsgraph_update_post:
-        bpy.app.handlers.depsgraph_update_post.remove(_on_depsgraph_update)
+    app_handlers.remove(_HANDLERS)

@@ -15,7 +15,7 @@ import bpy
 import numpy as np
 from bpy.app.handlers import persistent
 
-from . import landmarks, photos, result_to_scene, scene_to_case, shape_keys
+from . import app_handlers, landmarks, photos, result_to_scene, scene_to_case, shape_keys
 from .solver_link import refit_landmarks
 
 DRAG_SETTLE = 0.3  # seconds without a landmark move that end a drag
@@ -185,17 +185,11 @@ _HANDLERS = (("depsgraph_update_post", _on_depsgraph_update), ("load_post", _on_
 
 
 def register_handlers():
-    for kind, fn in _HANDLERS:
-        handlers = getattr(bpy.app.handlers, kind)
-        if fn not in handlers:
-            handlers.append(fn)
+    app_handlers.add(_HANDLERS)
 
 
 def unregister_handlers():
-    for kind, fn in _HANDLERS:
-        handlers = getattr(bpy.app.handlers, kind)
-        while fn in handlers:
-            handlers.remove(fn)
+    app_handlers.remove(_HANDLERS)
     if bpy.app.timers.is_registered(settle_timer):
         bpy.app.timers.unregister(settle_timer)
     LIVE.forget()

@@ -19,7 +19,7 @@ view's stored camera (``restore_camera``).
 import bpy
 from bpy.app.handlers import persistent
 
-from . import photo_cameras, photos
+from . import app_handlers, photo_cameras, photos
 from .live_refit import LIVE
 from .polls import ObjectModeOperator
 
@@ -196,15 +196,16 @@ def _on_depsgraph_update(scene, depsgraph):
         print(f"HeadRecon: tidying after a deleted photo or camera failed: {e}")
 
 
+_HANDLERS = (("depsgraph_update_post", _on_depsgraph_update),)
+
+
 def register_handlers():
-    if _on_depsgraph_update not in bpy.app.handlers.depsgraph_update_post:
-        bpy.app.handlers.depsgraph_update_post.append(_on_depsgraph_update)
+    app_handlers.add(_HANDLERS)
 
 
 def unregister_handlers():
     _seen.clear()
-    while _on_depsgraph_update in bpy.app.handlers.depsgraph_update_post:
-        bpy.app.handlers.depsgraph_update_post.remove(_on_depsgraph_update)
+    app_handlers.remove(_HANDLERS)
 
 
 CLASSES = (HEADRECON_OT_remove_photo,)
