@@ -45,10 +45,9 @@ def test_closed_eyes_keep_the_identity(model, closed):
     assume_neutral = fit_head(model, shut, FitOptions(expressions="neutral"))
     gap = skin_error_mm(model, shut_fit.local_vertices, open_fit.local_vertices)
     gap_neutral = skin_error_mm(model, assume_neutral.local_vertices, open_fit.local_vertices)
-    # about the same identity whether the eyes were open or closed (0.52 mm here; the fit
-    # of the same landmarks with the true expression taken out: 0.16 mm); assumed
-    # neutral, the closed eyelids bend it more
-    assert gap < 0.6 and gap < 0.85 * gap_neutral
+    # about the same identity whether the eyes were open or closed (0.17 mm here, the
+    # issue asks < 0.5; assumed neutral 0.51): the closed eyelids do not bend it
+    assert gap < 0.5 and gap < 0.85 * gap_neutral
     # each photo's expression is reported: both eyes closed (the right one in the profile)
     shown = shut_fit.info["expressions"]
     for view in ("front", "right"):
