@@ -14,14 +14,11 @@ import dataclasses
 import time
 
 from . import landmarks, photo_faces, photos
+from .job_progress import Progress
 
 
 def _count(n):
     return f"{n} landmark{'s' * (n != 1)}"
-
-
-class DetectCancelled(Exception):
-    """Raised from the progress report to stop a detection the artist cancelled."""
 
 
 def detection_plan(hand, detected, found, replace):
@@ -87,7 +84,7 @@ class PhotoTask:
 
 
 @dataclasses.dataclass
-class DetectJob:
+class DetectJob(Progress):
     """The photos to detect on, read from the scene; ``run`` touches no bpy data."""
 
     tasks: list
@@ -97,12 +94,6 @@ class DetectJob:
     cancelled: bool = False
     fraction: float = 0.0
     message: str = "starting"
-
-    def progress(self, fraction, message):
-        if self.cancelled:
-            raise DetectCancelled()
-        self.fraction = float(fraction)
-        self.message = str(message)
 
     def run(self):
         """Detect the face on every photo. Errors are kept in ``error``, never raised."""

@@ -5,9 +5,10 @@ background; each one undo step, the scene unchanged when it fails or is cancelle
 import bpy
 from bpy.props import BoolProperty, StringProperty
 
-from . import auto_fit_job, detect_job, fit_job, photos
+from . import auto_fit_job, detect_job, photos
 from .fit_ops import report_fit_error, report_fitted
 from .job_operator import JobOperator, interactive, running_problem
+from .job_progress import JobCancelled
 from .polls import object_mode_problem, poll_result
 
 _REPLACE = ("Replace the landmarks placed or moved by hand too (otherwise they stay as they "
@@ -49,7 +50,7 @@ class HEADRECON_OT_detect_landmarks(JobOperator, bpy.types.Operator):
                            or _photos_problem(context))
 
     def report_error(self, e):
-        if isinstance(e, detect_job.DetectCancelled):
+        if isinstance(e, JobCancelled):
             self.report({"WARNING"}, self.CANCELLED_LINE)
         elif isinstance(e, ValueError):
             self.report({"ERROR"}, str(e))
@@ -104,7 +105,7 @@ class HEADRECON_OT_auto_fit(JobOperator, bpy.types.Operator):
                            or _photos_problem(context))
 
     def report_error(self, e):
-        if isinstance(e, detect_job.DetectCancelled | fit_job.FitCancelled):
+        if isinstance(e, JobCancelled):
             self.report({"WARNING"}, self.CANCELLED_LINE)
             return
         job = getattr(self, "job", None)

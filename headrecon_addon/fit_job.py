@@ -11,6 +11,7 @@ import threading
 import time
 
 from . import plane_removal, result_to_scene, scene_to_case
+from .job_progress import Progress
 from .live_refit import LIVE
 from .solver_link import (
     BakeOptions,
@@ -22,12 +23,8 @@ from .solver_link import (
 )
 
 
-class FitCancelled(Exception):
-    """Raised from the progress callback to stop a fit the artist cancelled."""
-
-
 @dataclasses.dataclass
-class FitJob:
+class FitJob(Progress):
     """Everything a fit needs, read from the scene; ``run`` touches no bpy data."""
 
     model: object
@@ -49,12 +46,6 @@ class FitJob:
     notes: list = dataclasses.field(default_factory=list)
     scene_notes: list = dataclasses.field(default_factory=list)
     deleted_views: list = dataclasses.field(default_factory=list)
-
-    def progress(self, fraction, message):
-        if self.cancelled:
-            raise FitCancelled()
-        self.fraction = float(fraction)
-        self.message = str(message)
 
     def run_fit(self):
         """The fit. Errors are kept in ``error``, never raised."""

@@ -5,6 +5,7 @@ import bpy
 
 from . import fit_job, scene_to_case
 from .job_operator import JobOperator, interactive, running_problem
+from .job_progress import JobCancelled
 from .live_refit import LIVE
 from .polls import object_mode_problem, poll_result
 from .properties import ADVANCED_FIT_SETTINGS
@@ -13,7 +14,7 @@ from .properties import ADVANCED_FIT_SETTINGS
 def report_fit_error(op, e):
     """Report a fit's error on operator ``op``: cancelled, bad input (its own message), or
     anything else (named as a failure)."""
-    if isinstance(e, fit_job.FitCancelled):
+    if isinstance(e, JobCancelled):
         op.report({"WARNING"}, "Fit cancelled; the scene is as it was")
     elif isinstance(e, FileNotFoundError | ValueError):
         op.report({"ERROR"}, str(e))

@@ -93,6 +93,7 @@ def test_hand_placed_landmarks_stay_unless_replaced(sample):
 
 def test_a_photo_without_a_face_is_one_line_and_changes_nothing(tmp_path):
     from headrecon_addon import detect_job
+    from headrecon_addon.job_progress import JobCancelled
 
     wall = tmp_path / "wall.png"
     Image.new("RGB", (300, 400), (120, 120, 120)).save(wall)
@@ -107,7 +108,7 @@ def test_a_photo_without_a_face_is_one_line_and_changes_nothing(tmp_path):
     job = detect_job.prepare_detection(scene)
     job.cancelled = True
     job.run()
-    assert isinstance(job.error, detect_job.DetectCancelled)
+    assert isinstance(job.error, JobCancelled)
     assert snapshot() == before
 
 

@@ -105,6 +105,7 @@ def test_refit_after_apply_identity_keeps_an_artists_key_shape(files):
 
 def test_cancelled_or_failed_fit_leaves_scene_unchanged(files):
     from headrecon_addon import fit_job, landmarks, photos
+    from headrecon_addon.job_progress import JobCancelled
 
     path, _, _ = files
     scene = imported_scene(path)
@@ -112,7 +113,7 @@ def test_cancelled_or_failed_fit_leaves_scene_unchanged(files):
     job = fit_job.prepare_job(scene)
     job.cancelled = True
     job.run()
-    assert isinstance(job.error, fit_job.FitCancelled)
+    assert isinstance(job.error, JobCancelled)
     assert snapshot() == before and scene.headrecon.head is None
     # too few landmarks: the operator is greyed out, saying why
     plane = photos.find_plane(scene, "front")
