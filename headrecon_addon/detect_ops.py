@@ -29,7 +29,17 @@ def _report_lines(op, lines):
             op.report({level}, line)
 
 
-class HEADRECON_OT_detect_landmarks(JobOperator, bpy.types.Operator):
+class _PhotosJob(JobOperator):
+    """What Detect Landmarks and Auto Fit share: greyed out, saying why, without photos or
+    while another job runs."""
+
+    @classmethod
+    def poll(cls, context):
+        return poll_result(cls, object_mode_problem(context) or running_problem()
+                           or _photos_problem(context))
+
+
+class HEADRECON_OT_detect_landmarks(_PhotosJob, bpy.types.Operator):
     """Find the face on the photo (or on every photo) and place its landmarks, shown as
     detected (orange) for you to check; landmarks you placed or moved by hand stay"""
 
@@ -43,11 +53,6 @@ class HEADRECON_OT_detect_landmarks(JobOperator, bpy.types.Operator):
                          description="The photo's view name (empty: every photo)")
     replace_hand_placed: BoolProperty(name="Replace Hand-Placed", options={"SKIP_SAVE"},
                                       description=_REPLACE)
-
-    @classmethod
-    def poll(cls, context):
-        return poll_result(cls, object_mode_problem(context) or running_problem()
-                           or _photos_problem(context))
 
     def report_error(self, e):
         if isinstance(e, JobCancelled):
@@ -84,7 +89,7 @@ class HEADRECON_OT_detect_landmarks(JobOperator, bpy.types.Operator):
         _report_lines(self, job.lines())
 
 
-class HEADRECON_OT_auto_fit(JobOperator, bpy.types.Operator):
+class HEADRECON_OT_auto_fit(_PhotosJob, bpy.types.Operator):
     """Detect the landmarks on every photo without landmarks placed by hand, then fit the
     head, in one step"""
 
@@ -98,11 +103,6 @@ class HEADRECON_OT_auto_fit(JobOperator, bpy.types.Operator):
         name="Replace Hand-Placed", options={"SKIP_SAVE"},
         description="Detect on every photo, replacing the landmarks placed or moved by hand "
                     "too (otherwise photos with such landmarks are fitted as they are)")
-
-    @classmethod
-    def poll(cls, context):
-        return poll_result(cls, object_mode_problem(context) or running_problem()
-                           or _photos_problem(context))
 
     def report_error(self, e):
         if isinstance(e, JobCancelled):
