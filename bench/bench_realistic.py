@@ -101,6 +101,7 @@ from bench.realistic_cases import (  # noqa: E402
     face_frame,
     face_mask,
     james_folder,
+    landmark_fit_3d,
     landmark_start,
     load_scan,
     make_realistic_case,
@@ -213,6 +214,10 @@ def run_synthetic(model, group, n, samples, grid):
     return rows
 
 
+#: Landmark noise (mm) of the 3-D landmark fits ``run_james`` prints (``landmark_fit_3d``).
+LANDMARK_NOISE_MM = (1.0, 2.0, 4.0, 8.0)
+
+
 def run_james(model, folder, samples, grid):
     """Rows of the scan's variants ({"photos": its own photos, "rendered": a front and a
     profile photo of it}), after printing its calibration."""
@@ -279,6 +284,14 @@ def run_james(model, folder, samples, grid):
     oracle = oracle_local(model, cloud, landmark_start(model, model.vertices, moved.ibug),
                           face_only=True)[0]
     fixed = {"mean": t.score(model.vertices)["face"], "oracle": t.score(oracle)["face"]}
+    caps = {label: [t.score(landmark_fit_3d(model, moved.ibug, s, numbers))["face"]
+                    for s in LANDMARK_NOISE_MM]
+            for label, numbers in (("all 68", None), ("the 41 inner (28-68)", range(28, 69)))}
+    print("  the model fitted to the scan's own landmarks in 3-D, no photos (face, mm; "
+          "landmark noise assumed " + ", ".join(f"{s:g}" for s in LANDMARK_NOISE_MM)
+          + f" mm; mean head {fixed['mean']:.2f}, oracle {fixed['oracle']:.2f}): "
+          + "; ".join(f"{label} " + ", ".join(f"{e:.2f}" for e in errs)
+                      for label, errs in caps.items()))
     exact = {"photos": cases["pinhole, projected"].views,
              "rendered": rendered["front + profile, projected"].views}
     out = {}

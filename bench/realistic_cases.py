@@ -980,3 +980,42 @@ def landmark_start(model, local, ibug):
     keys = sorted(set(mine) & set(ibug))
     return similarity_procrustes(np.array([mine[k] for k in keys]),
                                  np.array([ibug[k] for k in keys]))
+
+
+def landmark_fit_3d(model, ibug, noise_mm, numbers=None, rounds=10):
+    """The model's identity fitted to landmarks given exactly in 3-D (no photos): the most
+    any fit from these landmarks can say about the head, when their definitions are the
+    model's landmark vertices' up to isotropic noise.
+
+    Parameters
+    ----------
+    model : HeadModel
+    ibug : dict of int -> ndarray, shape (3,), metres
+        The landmarks by iBUG number (any frame: a similarity is fitted with the shape).
+    noise_mm : float
+        Standard deviation assumed for each landmark coordinate, millimetres: the prior's
+        weight against the landmarks (the posterior mean for coefficients ~ N(0, I)).
+    numbers : iterable of int, optional
+        The iBUG numbers used (default: every one the model and ``ibug`` share).
+
+    Returns
+    -------
+    ndarray, shape (V, 3)
+        The fitted head, local vertices (the model's frame).
+    """
+    vertex = {int(e["ibug"]): int(e["vertex"]) for e in model.landmark_info
+              if e.get("ibug") is not None}
+    keys = sorted(set(vertex) & set(ibug) if numbers is None
+                  else set(numbers) & set(vertex) & set(ibug))
+    idx = np.array([vertex[k] for k in keys])
+    target = np.array([ibug[k] for k in keys], dtype=np.float64)
+    lin = model.identity
+    a = lin.basis[:, idx].reshape(lin.n_coeffs, -1).T  # (3n, K) metres per sigma
+    lam2 = (1e-3 * float(noise_mm)) ** 2
+    c = np.zeros(lin.n_coeffs)
+    for _ in range(rounds):  # alternate the similarity and the (linear) shape
+        sim = similarity_procrustes(lin.instance(c)[idx], target)
+        local = (target - sim.translation) @ sim.rotation / sim.scale
+        r = (local - lin.mean[idx]).reshape(-1)
+        c = np.linalg.solve(a.T @ a + lam2 * np.eye(lin.n_coeffs), a.T @ r)
+    return lin.instance(c)

@@ -2,7 +2,7 @@
 displacement lies outside the model's span at the requested size, the surface distance is
 exact, the ICP alignment finds a known similarity, people's landmarks are where they
 should be, and the real scan's landmarks and photo cameras are right (skipped when the
-scan is not there)."""
+scan is not there); the fit to 3-D landmarks finds the head they come from."""
 
 import numpy as np
 import pytest
@@ -15,6 +15,7 @@ from bench.realistic_cases import (
     calibrate,
     closest_on_triangles,
     james_folder,
+    landmark_fit_3d,
     load_scan,
     make_realistic_case,
     model_face_vertices,
@@ -173,3 +174,28 @@ def test_james_photos_are_calibrated_to_their_texture(scan):
         assert np.sqrt(np.mean(r**2)) < 1.0 and np.percentile(r, 99) < 3.0
         assert c.rms_px < 1.0
         assert (c.camera.depth(scan.vertices[verts]) > 1.0).all()  # about 1.5 m away
+
+
+def test_a_fit_to_3d_landmarks_follows_them_under_a_similarity(model):
+    """Landmarks of a model head, moved by a similarity: with little noise assumed the
+    fit lies nearer the head than the mean head, and its landmarks reach theirs."""
+    rng = np.random.default_rng(11)
+    head = model.identity.instance(rng.normal(size=model.identity.n_coeffs))
+    vertex = {int(e["ibug"]): int(e["vertex"]) for e in model.landmark_info
+              if e.get("ibug") is not None}
+    rot = rotation_from_vector(np.array([0.1, -0.2, 0.05]))
+    ibug = {k: 1.1 * head[v] @ rot.T + [0.3, -0.1, 0.2] for k, v in vertex.items()}
+    fitted = landmark_fit_3d(model, ibug, 0.1)
+    idx = list(vertex.values())
+    target = np.array([ibug[k] for k in vertex])
+    assert similarity_procrustes(fitted[idx], target).rms < 2e-4
+
+    def shape_error(x):
+        sim = similarity_procrustes(x, head)
+        return np.sqrt(((sim.scale * x @ sim.rotation.T + sim.translation - head) ** 2)
+                       .sum(axis=1).mean())
+
+    assert shape_error(fitted) < 0.5 * shape_error(model.identity.mean)
+    # Strong prior: the mean head's shape.
+    strong = landmark_fit_3d(model, ibug, 1e4)
+    assert np.abs(strong - model.identity.mean).max() < 1e-6
