@@ -19,6 +19,7 @@ from .solver_link import (
     camera_class,
     count_problems,
     landmarks_needed,
+    orthographic_lenses,
     parse_landmarks,
     save_landmarks,
 )
@@ -109,6 +110,10 @@ def case_from_scene(scene, base_dir=None, source=None):
     source : str, optional
         Name for messages and for resolving photos (default: a file in ``base_dir``).
 
+    An orthographic photo whose EXIF gives its lens carries it in ``camera_hints``
+    (``orthographic_lenses``): the fit warns when the photo was taken too close for a
+    parallel projection.
+
     Raises
     ------
     ValueError
@@ -118,7 +123,11 @@ def case_from_scene(scene, base_dir=None, source=None):
     doc = case_dict_from_scene(scene, base_dir)
     if source is None:
         source = str(Path(base_dir) / "scene.json") if base_dir is not None else "<scene>"
-    return parse_landmarks(doc, source, for_fit=False)
+    case = parse_landmarks(doc, source, for_fit=False)
+    # an orthographic photo's EXIF lens: the fit says whether it was taken close up
+    orthographic_lenses(case, {p.headrecon.view: photos.photo_source(p.headrecon.image)
+                               for p in photos.photo_planes(scene)})
+    return case
 
 
 def export_landmarks(scene, path):

@@ -42,6 +42,7 @@ from .io.landmarks_file import (
     parse_landmarks,
     save_landmarks,
 )
+from .io.photo_lens import orthographic_lenses
 from .model.head_model import HeadModel, load_model
 from .texture.bake import SHADING_MODES, BakeOptions, bake_fit_texture, bake_texture
 from .texture.uvs import orthographic_uvs, uv_raster, uv_tiles
@@ -55,7 +56,8 @@ __all__ = [
     "camera_class", "camera_from_dict", "camera_from_json", "camera_to_json", "check_case",
     "check_passpoints", "count_problems", "detected_points", "dlt_to_blender", "fit_dlt",
     "fit_head", "guess_view", "landmarks_needed", "landmarks_to_dict", "load_landmark_set",
-    "load_landmarks", "load_model", "orient", "oriented_size", "orthographic_uvs",
+    "load_landmarks", "load_model", "orient", "oriented_size", "orthographic_lenses",
+    "orthographic_uvs",
     "parse_landmarks", "read_photo_exif", "refit_landmarks", "save_landmarks", "uv_raster",
     "uv_tiles",
 ]

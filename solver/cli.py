@@ -21,6 +21,7 @@ from .io.exif import orient, oriented_size, read_photo_exif
 from .io.landmark_counts import MIN_LANDMARKS_PER_VIEW, MIN_LANDMARKS_TOTAL
 from .io.landmark_set import load_landmark_set
 from .io.landmarks_file import LandmarksError, load_landmarks
+from .io.photo_lens import orthographic_lenses
 
 PROG = "python -m solver"
 EXIT_OK, EXIT_FAILED, EXIT_INTERRUPTED = 0, 1, 130  # argparse exits 2 on bad usage
@@ -258,6 +259,8 @@ def _cmd_fit(args):
     progress(0.0, f"read {case.source} ({case.n_points} landmarks in {len(case.views)} views) "
                   f"and the head model")
     notes = thin_case_contours(case)
+    orthographic_lenses(case, {name: case.image_path(name) for name, view in case.views.items()
+                               if view.image is not None})
     progress(0.0, f"fitting ({options.method})")
     t = time.perf_counter()
     try:

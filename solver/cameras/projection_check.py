@@ -21,7 +21,8 @@ the landmark error does, and a perspective (DLT) camera should be used.
 
 ``check_projection`` measures L and ΔL with a calibrated perspective camera (DLT or
 pinhole); ``check_orthographic`` does it for a photo treated as orthographic, whose
-distance the photo cannot tell, from a distance the user gives.
+distance the photo cannot tell, from a distance the user gives or the lens the photo was
+taken with (``lens_distance``: its EXIF focal length and the head's size in the photo).
 """
 
 from dataclasses import dataclass
@@ -53,6 +54,32 @@ def perspective_ratio(depth_extent, distance):
     if (dl < 0).any() or (el <= 0).any():
         raise ValueError("perspective_ratio: depth_extent must be >= 0 and distance > 0")
     return dl / (el + dl)
+
+
+def lens_distance(camera, lens_mm):
+    """How far from the head a photo fitted as orthographic was taken, from its lens.
+
+    A lens of focal length f (pixels) images the head at f / L pixels per metre at
+    distance L; the fitted orthographic camera's ``scale`` is that magnification, so
+    L = f / scale (the head at the model's size: photos without a calibration object cannot
+    tell its true size).
+
+    Parameters
+    ----------
+    camera : OrthographicCamera
+    lens_mm : float
+        Focal length, mm on a sensor 36 mm across the photo's long side (EXIF's, as
+        ``Exif.lens_36mm`` gives it).
+
+    Returns
+    -------
+    float, metres (to the head's middle)
+    """
+    lens = float(lens_mm)
+    if not lens > 0 or not camera.scale > 0:
+        raise ValueError(f"lens_distance: lens_mm must be > 0 and the camera's scale > 0, "
+                         f"got {lens_mm!r} and {camera.scale!r}")
+    return lens * PinholeCamera.px_per_mm(camera.size) / camera.scale
 
 
 def min_distance(depth_extent, epsilon_max):

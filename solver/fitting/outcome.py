@@ -8,7 +8,7 @@ from scipy.special import gammainc
 
 from ..cameras import OrthographicCamera
 from ..cameras.mirror import triangulate_mirror
-from ..cameras.projection_check import check_orthographic, check_projection
+from ..cameras.projection_check import check_orthographic, check_projection, lens_distance
 from ..memo import memo
 from .result import FitResult, ViewResidual
 from .tps import ThinPlateSpline
@@ -252,7 +252,8 @@ def mirror_info(eng, state, opts):
 def projection_info(model, result, eng, opts):
     """Seed 001 ch. 2: the parallel-projection error epsilon of every photo for the fitted
     head (its skin). Perspective cameras are always reported; an orthographic photo only
-    when ``camera_distance_m`` is given, with a warning when its epsilon exceeds what the
+    when ``camera_distance_m`` is given or its lens is known (``ViewData.lens_mm``, from
+    EXIF: ``lens_distance``), with a warning when its epsilon exceeds what the
     landmarks can tell (reading error 2 noise_px over the head's image size). Returns
     (info, warnings)."""
     pts = result.world_vertices[np.asarray(model.skin, dtype=np.int64)]
@@ -263,11 +264,17 @@ def projection_info(model, result, eng, opts):
         try:
             if cam.perspective:
                 chk = check_projection(cam, pts, reading_error_px=reading, view=v.name)
-            elif isinstance(cam, OrthographicCamera) and opts.camera_distance_m is not None:
-                chk = check_orthographic(cam, pts, opts.camera_distance_m,
-                                         reading_error_px=reading, view=v.name)
+            elif isinstance(cam, OrthographicCamera) and (
+                    opts.camera_distance_m is not None or v.lens_mm is not None):
+                distance = opts.camera_distance_m
+                if distance is None:
+                    distance = lens_distance(cam, v.lens_mm)
+                chk = check_orthographic(cam, pts, distance, reading_error_px=reading,
+                                         view=v.name)
                 if chk.exceeds:
-                    warnings.append(chk.message)
+                    warnings.append(chk.message + (
+                        "" if opts.camera_distance_m is not None else
+                        f" (the distance from the photo's {v.lens_mm:g} mm lens, EXIF)"))
             else:
                 continue
         except ValueError as e:  # e.g. a head point behind the camera: say so, go on

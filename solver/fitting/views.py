@@ -69,6 +69,10 @@ class ViewData:
         Each landmark's weight factor from its given uncertainty against its view's others
         (:func:`uncertainty_factors`; 1 without one): the noise is estimated on residuals
         scaled by it (``noise.estimate_noise``).
+    lens_mm : float or None
+        An orthographic photo's lens as its EXIF gives it (``camera_hints["lens_mm"]``,
+        36 mm equivalent): tells how far the camera stood, for the parallel-projection
+        check (``outcome.projection_info``).
 
     A view's outline candidates are not stored here: they depend on the head they were
     found on, so each stage passes its own to :meth:`Engine.joint` (``outlines``).
@@ -93,6 +97,7 @@ class ViewData:
     groups: list | None = None
     definition_m: float = 0.0
     relative: np.ndarray | None = None
+    lens_mm: float | None = None
 
     def __post_init__(self):
         n = len(self.vertices)
@@ -319,7 +324,8 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
                                  dtype=bool), along_weights=along,
                         groups=[lms.group_of(n) for n in names],
                         definition_m=0.0 if cam is None or cam.perspective
-                        else _definition_m(opts, noise, name), relative=relative)
+                        else _definition_m(opts, noise, name), relative=relative,
+                        lens_mm=_orthographic_lens(view, cam))
         (views if used or rule["outline"] else skipped).append(data)
     for v in views:
         if v.mirror_of is not None and any(u.name == v.mirror_of for u in skipped):
@@ -386,6 +392,15 @@ def mirror_link(case, view, kept, where):
 #: Lenses (mm, 35 mm equivalent) a pinhole camera without a stated focal length is tried
 #: with; the one whose pose fits the mean head's landmarks best starts the fit.
 TRIAL_LENSES_MM = (24.0, 35.0, 50.0, 85.0, 135.0)
+
+
+def _orthographic_lens(view, camera):
+    """The lens (mm, 36 mm equivalent) an orthographic photo's hints give, else None."""
+    lens = (getattr(view, "camera_hints", {}) or {}).get("lens_mm")
+    if camera is None or camera.perspective or lens is None:
+        return None
+    lens = float(lens)
+    return lens if np.isfinite(lens) and lens > 0 else None
 
 
 #: Relative standard deviation of the focal prior a stated ``lens_mm`` gives (EXIF data of

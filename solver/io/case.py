@@ -53,7 +53,9 @@ class View:
     camera_hints : dict
         When ``camera`` is None: the camera object as the file gives it, at least
         ``{"kind": ...}`` plus what is known (e.g. a pinhole's ``lens_mm`` from EXIF).
-        Ignored when ``camera`` is set.
+        When ``camera`` is set only an orthographic photo's ``lens_mm`` is read (its EXIF
+        lens, for the fit's parallel-projection check); front-ends take it from the photo,
+        files do not store it.
     uncertainty : dict of str -> float
         Optional, per landmark (a key of ``points``): how far off it may be, the standard
         deviation in pixels (a detector's points: ``solver.detect``). The fit weighs the

@@ -254,6 +254,22 @@ def read_photo_exif(path):
                      "without a focal length"
 
 
+def photo_lens_mm(path, size):
+    """The focal length (mm, 36 mm equivalent across the long side) a photo file's EXIF
+    gives, or None (no EXIF, no focal length, or EXIF that cannot be read).
+
+    Parameters
+    ----------
+    path : str or Path
+    size : (int, int)
+        The photo's size (w, h) once upright, as a landmarks file gives it.
+    """
+    exif, _ = read_photo_exif(path)
+    if exif is None:
+        return None
+    return exif.lens_36mm(oriented_size(size, exif.orientation))  # its own inverse
+
+
 def oriented_size(size, orientation):
     """The size (w, h) of a photo of stored ``size`` once turned upright."""
     w, h = size

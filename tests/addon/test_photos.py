@@ -118,6 +118,15 @@ def test_a_perspective_photo_takes_its_focal_length_from_exif(scene, tmp_path):
                                         view="front") == {"FINISHED"}
     front = photos.find_plane(scene, "front")
     assert front.headrecon.lens_mm == 0.0 and photos.lens_hint(front) is None
+    # ... but the fit reads its EXIF lens, to say the photo was taken too close for one
+    from headrecon_addon.scene_to_case import case_from_scene, export_landmarks
+
+    case = case_from_scene(scene)
+    assert case.views["front"].camera_hints == {"lens_mm": pytest.approx(27.0, abs=0.05)}
+    assert case.views["p2"].camera_hints["lens_mm"] == pytest.approx(85.0)
+    export_landmarks(scene, tmp_path / "out.json")  # not a file's business
+    assert "camera_hints" not in (doc := (tmp_path / "out.json").read_text()) \
+        and doc.count("lens_mm") == 2  # the two perspective views' own
 
 
 def test_bad_exif_loads_the_photo_as_stored_with_one_line(scene, tmp_path):

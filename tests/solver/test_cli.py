@@ -387,6 +387,26 @@ def test_photos_are_read_upright_as_their_exif_says(tmp_path):
         assert arr[:30, -30:].min() > 0.9 and arr[:30, :30].max() < 0.5
 
 
+def test_an_orthographic_phone_photo_is_warned_about_from_its_exif_lens(tmp_path, model):
+    from solver.io import exif
+    from solver.io.landmarks_file import save_landmarks
+    from solver.synthetic import make_case
+    from tests.solver.io.exif_jpeg import jpeg, tiff
+
+    case, _ = make_case(model, 13, noise_px=0.5, image_height=256)
+    w, h = case.views["front"].size
+    case.views["front"].image = "front.jpg"
+    (tmp_path / "front.jpg").write_bytes(jpeg(tiff([], [(exif.FOCAL_35MM, 3, [26])]),
+                                              pixels=np.zeros((h, w, 3), np.uint8)))
+    save_landmarks(case, tmp_path / "case.json")
+    proc = run_cli("fit", "case.json", "--out", "head.obj", "--components", 10, "-q",
+                   cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    warned = [line for line in proc.stderr.splitlines() if "parallel projection" in line]
+    assert len(warned) == 1 and "view 'front'" in warned[0] and "mm lens, EXIF" in warned[0]
+    assert "lens_mm" not in (tmp_path / "case.json").read_text()  # the input is untouched
+
+
 def test_a_failed_write_leaves_the_old_output_set_and_names_the_file(tmp_path, model):
     import resource
 

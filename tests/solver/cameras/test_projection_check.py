@@ -6,6 +6,7 @@ import pytest
 from solver import DLTCamera, OrthographicCamera
 from solver.cameras.projection_check import (
     check_projection,
+    lens_distance,
     min_distance,
     perspective_ratio,
 )
@@ -61,3 +62,16 @@ def test_needs_a_perspective_camera_in_front():
         check_projection(OrthographicCamera.nominal("orthographic-front", (100, 100)), head())
     with pytest.raises(ValueError, match="behind the camera"):
         check_projection(camera_at(0.02), head(0.1), view="front")
+
+
+def test_a_lens_tells_how_far_an_orthographic_photo_was_taken():
+    # A head photographed 0.6 m away by a 50 mm lens (36 mm across the 1920 px long side),
+    # then fitted as a parallel projection: its scale is the lens's magnification there.
+    f_px = 50.0 * 1920 / 36.0
+    x = head(0.1)
+    px = camera_at(0.6, focal=f_px).project(x)
+    ortho = OrthographicCamera.nominal("orthographic-front", (1920, 1080)).refit(x, px)
+    assert lens_distance(ortho, 50.0) == pytest.approx(0.6, rel=0.03)
+    assert lens_distance(ortho, 100.0) == pytest.approx(2 * lens_distance(ortho, 50.0))
+    with pytest.raises(ValueError, match="lens_mm"):
+        lens_distance(ortho, 0.0)

@@ -281,6 +281,27 @@ def test_orthographic_photos_taken_too_close_are_warned_about(model):
         fit_head(model, case, FitOptions(camera_distance_m=-1.0))
 
 
+def test_an_orthographic_photos_exif_lens_says_how_close_it_was_taken(model):
+    """A phone's lens (27 mm) on a photo fitted as orthographic is warned about with the
+    distance it implies; a lens long enough for the head to be ~250 m away (20000 mm) is
+    not."""
+    case, _ = make_case(model, 5, noise_px=1.0)
+    phone = copy.deepcopy(case)
+    phone.views["front"].camera_hints["lens_mm"] = 27.0
+    near = fit_head(model, phone, FitOptions(method="approach1"))
+    chk = near.info["projection"]["front"]
+    assert chk["exceeds"] and 0.1 < chk["distance_m"] < 1.0 and "right" not in \
+        near.info["projection"]
+    assert [w for w in near.info["warnings"] if "parallel projection" in w] == [
+        w for w in near.info["warnings"] if "27 mm lens" in w] != []
+    tele = copy.deepcopy(case)
+    tele.views["front"].camera_hints["lens_mm"] = 20000.0
+    far = fit_head(model, tele, FitOptions(method="approach1"))
+    assert not far.info["projection"]["front"]["exceeds"]
+    assert far.info["projection"]["front"]["distance_m"] > 100.0
+    assert not any("parallel projection" in w for w in far.info["warnings"])
+
+
 def test_cli_prints_the_fit_warnings(tmp_path, model, mirror):
     case = copy.deepcopy(mirror[0])
     both = [n for n in case.views["mirror"].points if n in case.views["front"].points]
