@@ -91,7 +91,7 @@ def prepare_job(scene):
     problem = scene_to_case.fit_problem(scene)
     if problem:
         raise ValueError(problem)
-    job = job_from_scene(scene, scene_to_case.case_from_scene(scene))
+    job = job_from_scene(scene, scene_to_case.case_for_fit(scene))
     check_for_fit(job.case, job.model)
     return job
 

@@ -110,10 +110,6 @@ def case_from_scene(scene, base_dir=None, source=None):
     source : str, optional
         Name for messages and for resolving photos (default: a file in ``base_dir``).
 
-    An orthographic photo whose EXIF gives its lens carries it in ``camera_hints``
-    (``orthographic_lenses``): the fit warns when the photo was taken too close for a
-    parallel projection.
-
     Raises
     ------
     ValueError
@@ -123,8 +119,14 @@ def case_from_scene(scene, base_dir=None, source=None):
     doc = case_dict_from_scene(scene, base_dir)
     if source is None:
         source = str(Path(base_dir) / "scene.json") if base_dir is not None else "<scene>"
-    case = parse_landmarks(doc, source, for_fit=False)
-    # an orthographic photo's EXIF lens: the fit says whether it was taken close up
+    return parse_landmarks(doc, source, for_fit=False)
+
+
+def case_for_fit(scene):
+    """``case_from_scene`` for a fit: an orthographic photo whose EXIF gives its lens also
+    carries it (``orthographic_lenses``), so the fit warns when the photo was taken too
+    close for a parallel projection (read from the files, so not on every live refit)."""
+    case = case_from_scene(scene)
     orthographic_lenses(case, {p.headrecon.view: photos.photo_source(p.headrecon.image)
                                for p in photos.photo_planes(scene)})
     return case

@@ -119,9 +119,9 @@ def test_a_perspective_photo_takes_its_focal_length_from_exif(scene, tmp_path):
     front = photos.find_plane(scene, "front")
     assert front.headrecon.lens_mm == 0.0 and photos.lens_hint(front) is None
     # ... but the fit reads its EXIF lens, to say the photo was taken too close for one
-    from headrecon_addon.scene_to_case import case_from_scene, export_landmarks
+    from headrecon_addon.scene_to_case import case_for_fit, export_landmarks
 
-    case = case_from_scene(scene)
+    case = case_for_fit(scene)
     assert case.views["front"].camera_hints == {"lens_mm": pytest.approx(27.0, abs=0.05)}
     assert case.views["p2"].camera_hints["lens_mm"] == pytest.approx(85.0)
     export_landmarks(scene, tmp_path / "out.json")  # not a file's business
