@@ -31,7 +31,13 @@ import numpy as np
 from PIL import Image
 
 from bench.common import machine_description, median_time
-from bench.realistic_cases import calibrate, james_folder, load_scan, scan_landmarks
+from bench.realistic_cases import (
+    calibrate,
+    james_folder,
+    load_scan,
+    scan_landmarks,
+    scan_photo_halves,
+)
 from solver.detect import Detector
 from solver.detect.view_guess import guess_view, point_uncertainty
 from solver.io.landmark_set import load_landmark_set
@@ -62,12 +68,10 @@ def mirrored(image, truth):
 def james_truth(folder):
     """[(name, photo, {iBUG number: (u, v)})] of the scan's two real photos."""
     scan = load_scan(folder)
-    image = np.asarray(Image.open(Path(folder) / "james.jpg").convert("RGB"))
-    half = image.shape[1] // 2
     out = []
-    for photo, x0 in (("photo_a", 0), ("photo_b", half)):
+    for photo, image in scan_photo_halves(folder).items():
         numbers, px = scan_landmarks(scan, calibrate(scan, photo).camera)
-        out.append((f"james {photo}", image[:, x0:x0 + half], dict(zip(numbers, px, strict=True))))
+        out.append((f"james {photo}", image, dict(zip(numbers, px, strict=True))))
     return out
 
 
@@ -190,9 +194,7 @@ def james_fit_errors(folder, detector, samples=4000):
 
     model = load_model()
     scan = load_scan(folder)
-    image = np.asarray(Image.open(Path(folder) / "james.jpg").convert("RGB"))
-    half = image.shape[1] // 2
-    halves = {"photo_a": image[:, :half], "photo_b": image[:, half:2 * half]}
+    halves = scan_photo_halves(folder)
     auto = detect_photos([(None, p) for p in halves], detector, halves.__getitem__)
     cams = {p: calibrate(scan, p).camera for p in scan.photos}
     exact = scan_cases(scan, cams)[0]["pinhole, projected"]

@@ -111,10 +111,12 @@ from bench.realistic_cases import (  # noqa: E402
     part_triangles,
     sample_surface,
     scan_cases,
+    scan_photo_halves,
     scan_render_cases,
     triangles_within,
 )
-from solver import FitOptions, fit_head, load_model  # noqa: E402
+from solver import FitOptions, fit_head, load_landmark_set, load_model  # noqa: E402
+from solver.detect.detected_case import detect_photos  # noqa: E402
 from solver.detect.detector import Detector  # noqa: E402
 from solver.procrustes import similarity_procrustes  # noqa: E402
 
@@ -258,6 +260,11 @@ def run_james(model, folder, samples, grid):
     except ValueError as e:
         print(f"  detected landmarks: skipped ({e})")
     else:
+        # james' own photos as a user's `solver detect` makes them a case (views named,
+        # cameras guessed, landmarks by the detector's definitions, not the scan's)
+        halves = scan_photo_halves(folder)
+        cases["detected (solver detect)"] = detect_photos(
+            [(None, p) for p in halves], detector, halves.__getitem__)
         detected, _ = detected_front_case(rendered, moved, cameras["front"], detector)
         if detected is None:
             print("  detected landmarks: no face found in the rendered front photo")
@@ -294,16 +301,27 @@ def run_james(model, folder, samples, grid):
                       for label, errs in caps.items()))
     exact = {"photos": cases["pinhole, projected"].views,
              "rendered": rendered["front + profile, projected"].views}
+    lms = load_landmark_set()
+
+    def named(points):  # canonical landmark name -> pixel
+        return {lms.canonical(k) or k: p for k, p in points.items()}
+
+    def exact_px(group, photo, view):
+        """The exact pixels of a view's photo (a detected case names its views by the
+        face, its photos by their paths)."""
+        key = photo if photo in exact[group] else Path(view.image or "").name
+        return named(exact[group][key].points) if key in exact[group] else {}
+
     out = {}
     for group, group_cases in (("photos", cases), ("rendered", rendered)):
         rows = out[group] = []
         for label, case in group_cases.items():
             results = fits(model, case, grid)
             face = {k: s["face"] for k, s in scored(t, results, {}).items()}
-            given = [np.linalg.norm(np.subtract(p, exact[group][photo].points[name]))
+            given = [np.linalg.norm(np.subtract(p, truth_px[name]))
                      for photo, view in case.views.items()
-                     for name, p in view.points.items()
-                     if name in exact[group][photo].points]
+                     for truth_px in [exact_px(group, photo, view)]
+                     for name, p in named(view.points).items() if name in truth_px]
             rows.append(Row(label, {**face, **fixed}, landmark_px=float(np.sqrt(np.mean(
                 np.square(given)))), coeff_norm=float(np.linalg.norm(
                     results["fit"].identity_coeffs))))

@@ -755,6 +755,16 @@ class Calibration:
     pairs: int
 
 
+def scan_photo_halves(folder, name="james"):
+    """The scan's two real photos, the halves of its texture ``<name>.jpg``:
+    {"photo_a": left half, "photo_b": right half}, each (H, W, 3) uint8 RGB."""
+    from PIL import Image
+
+    image = np.asarray(Image.open(Path(folder) / f"{name}.jpg").convert("RGB"))
+    half = image.shape[1] // 2
+    return {"photo_a": image[:, :half], "photo_b": image[:, half:2 * half]}
+
+
 def calibrate(scan, photo, reject=4.0):
     """The 11-parameter DLT of one photo from its pairs, once refitted without the pairs
     farther than ``reject`` times the median residual (and 2 px) from the first fit."""

@@ -17,6 +17,7 @@ from bench.realistic_cases import (
     james_folder,
     landmark_fit_3d,
     load_scan,
+    scan_photo_halves,
     make_realistic_case,
     model_face_vertices,
     out_of_model_displacement,
@@ -199,3 +200,12 @@ def test_a_fit_to_3d_landmarks_follows_them_under_a_similarity(model):
     # Strong prior: the mean head's shape.
     strong = landmark_fit_3d(model, ibug, 1e4)
     assert np.abs(strong - model.identity.mean).max() < 1e-6
+
+
+def test_the_scans_photos_are_its_textures_halves_at_their_calibrated_size(scan):
+    halves = scan_photo_halves(scan.texture.parent)
+    assert list(halves) == list(scan.photos)
+    for photo, image in halves.items():
+        assert image.dtype == np.uint8 and image.shape[2] == 3
+        assert (image.shape[1], image.shape[0]) == scan.photos[photo][2]
+    assert not np.array_equal(halves["photo_a"], halves["photo_b"])
