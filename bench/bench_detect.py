@@ -14,7 +14,9 @@ profile) and mirrored (a left one), on the points the detector keeps there
 (``solver.detect.view_guess``). ``--uncertainty`` prints each group's median error as a
 fraction of the detector box's width, pooled over the photos (front: the sample's front
 and james' two; profile: per kept point, both sides): the table of
-``assets/mediapipe_ibug68.json`` "uncertainty". ``--fit`` also fits the sample from
+``assets/mediapipe_ibug68.json`` "uncertainty". The detected outline of the sample's
+profile and of james rendered as ``bench_realistic`` renders him (right profile) is
+measured against the true silhouette (median px). ``--fit`` also fits the sample from
 detected landmarks (``fit_errors``: with and without their uncertainty, and the case
 ``solver detect`` writes) and compares with the exact ones (skin RMS in mm against the
 true head, ``solver.synthetic.skin_error_mm``), and james from its two photos' detected
@@ -131,12 +133,53 @@ def uncertainty_table(measured):
     return out
 
 
+def outline_error(name, detector, image, truth):
+    """Print and return the median and 90th percentile distance (px) of the detected
+    outline's points to the true outline ``truth`` (m, 2) (points beyond its ends left
+    out, and counted), the share of the truth within 3 px of the outline, and the time."""
+    t = median_time(lambda: detector.outline(image, detector.detect(image)), repeats=3,
+                    warmup=1)
+    pts = t.result.points
+    d, beyond = _distance_to_polyline(pts, truth)
+    covered, _ = _distance_to_polyline(truth, pts)
+    out = (float(np.median(d[~beyond])), float(np.percentile(d[~beyond], 90)),
+           float(np.mean(covered < 3)))
+    print(f"{name} outline: {len(pts)} points, {t.median:.2f} s (detect + outline); to the "
+          f"true silhouette median {out[0]:.2f} px, p90 {out[1]:.2f} px; {int(beyond.sum())} "
+          f"beyond its ends; {100 * out[2]:.0f} % of the truth within 3 px "
+          f"({'; '.join(t.result.notes)})")
+    return out
+
+
+def _distance_to_polyline(points, line):
+    a, b = line[:-1], line[1:]
+    ab = b - a
+    t = np.clip(((points[:, None] - a[None]) * ab[None]).sum(2)
+                / np.maximum((ab * ab).sum(1), 1e-12), 0, 1)
+    d = np.linalg.norm(points[:, None] - (a[None] + t[..., None] * ab[None]), axis=2)
+    i = d.argmin(1)
+    tt = t[np.arange(len(points)), i]
+    beyond = ((i == 0) & (tt == 0)) | ((i == len(a) - 1) & (tt == 1))
+    return d.min(1), beyond
+
+
+def james_profile(folder):
+    """james rendered as ``bench_realistic`` renders him: the right profile photo (uint8)
+    and its true outline (the scan's silhouette, its cut edges left out)."""
+    from bench.realistic_cases import render_scan, scan_render_cases
+
+    cases, moved, _, cams = scan_render_cases(load_scan(folder))
+    photo = (render_scan(moved, cams["right"]) * 255).astype(np.uint8)
+    return photo, cases["front + profile, projected"].views["right"].contour
+
+
 def fit_errors(folder, detector):
     """Skin RMS (mm) of the sample's fit against the true head: the mean head; every exact
     landmark; the front's 68 iBUG points exact, detected as 1-px clicks, detected with
-    their uncertainty (the profile as placed, with its outline, in these); and the case
-    ``python -m solver detect front.png side.png`` writes (no click: the profile's three
-    detected points, no outline), also with the profile's traced outline added."""
+    their uncertainty (the profile as placed, with its outline, in these); and from the
+    photos alone (``python -m solver detect front.png side.png``): the detected points
+    without outlines, with the profile's traced outline, with its detected outline, and
+    the case as written (both photos' detected outlines)."""
     from solver import fit_head, load_landmarks, load_model
     from solver.detect.detected_case import detect_photos
     from solver.synthetic import skin_error_mm
@@ -163,13 +206,20 @@ def fit_errors(folder, detector):
     clicks.views["front"].uncertainty = {}
     exact68.views["front"].points = {n: p for n, p in case.views["front"].points.items()
                                      if n in set(names.values())}
-    outlined = copy.deepcopy(auto)
+    bare = copy.deepcopy(auto)
+    for v in bare.views.values():
+        v.contour = None
+    outlined = copy.deepcopy(bare)
     outlined.views["right"].contour = case.views["side"].contour
+    profile_only = copy.deepcopy(auto)
+    profile_only.views["front"].contour = None
     for label, c in (("every exact landmark", case), ("front: 68 exact", exact68),
                      ("front: 68 detected as clicks", clicks),
                      ("front: 68 detected, uncertainty", detected),
-                     ("solver detect's case", auto),
-                     ("  + the traced outline", outlined)):
+                     ("detected points, no outline", bare),
+                     ("  + the traced profile outline", outlined),
+                     ("  + the detected profile outline", profile_only),
+                     ("solver detect's case (+ front outline)", auto)):
         r = fit_head(model, c)
         print(f"  {label:<32} {skin_error_mm(model, r.local_vertices, truth):.2f} mm")
 
@@ -230,6 +280,9 @@ def main(argv=None):
         measured.append(report("sample side (right profile)", detector, *side))
         measured.append(report("sample side mirrored (left profile)", detector,
                                *mirrored(*side)))
+        contour = json.loads((Path(args.sample) / "sample.json").read_text())
+        outline_error("sample side", detector, side[0],
+                      np.asarray(contour["views"]["side"]["contour"], float))
         if args.fit:
             fit_errors(args.sample, detector)
     else:
@@ -238,6 +291,7 @@ def main(argv=None):
     if (folder / "james.obj").is_file():
         for name, image, truth in james_truth(folder):
             measured.append(report(name, detector, image, truth))
+        outline_error("james rendered profile", detector, *james_profile(folder))
         if args.fit:
             james_fit_errors(folder, detector)
     else:

@@ -1,14 +1,15 @@
-"""Auto Fit as one job: detection on the photos, then the Fit, with the scene changed once
-at the end. Prepared on the main thread (each photo's pixels, the scene's landmarks file
-and fit settings), run in any thread (the detected landmarks merged into that file by
-``detect_job.detection_plan``, the rule Detect Landmarks places them by; then the fit and
+"""Auto Fit as one job: detection on the photos (landmarks and outlines), then the Fit,
+with the scene changed once at the end. Prepared on the main thread (each photo's pixels,
+the scene's landmarks file and fit settings), run in any thread (the detected landmarks
+merged into that file by ``detect_job.detection_plan``, the rule Detect Landmarks places
+them by, and the outlines as contours by ``outline_job.outline_plan``; then the fit and
 bake of ``fit_job``), applied on the main thread (the landmarks, then the fit's result), so
 Esc or an error at any point leaves the scene as it was and one undo takes it all back.
 """
 
 import dataclasses
 
-from . import detect_job, fit_job, scene_to_case
+from . import detect_job, fit_job, outline_job, scene_to_case
 from .solver_link import parse_landmarks
 
 #: The share of the progress bar the detection takes (the fit has the rest).
@@ -22,6 +23,7 @@ class AutoFitJob:
     detect: detect_job.DetectJob
     fit: fit_job.FitJob
     document: dict  # the scene's landmarks file (scene_to_case.case_dict_from_scene)
+    outlines: outline_job.OutlineJob = None
     error: BaseException = None
 
     @property
@@ -31,16 +33,23 @@ class AutoFitJob:
     @cancelled.setter
     def cancelled(self, value):
         self.detect.cancelled = self.fit.cancelled = bool(value)
+        if self.outlines is not None:
+            self.outlines.cancelled = bool(value)
 
     @property
     def fraction(self):
         if self.fit.case is None:
-            return DETECT_SHARE * self.detect.fraction
+            parts = [self.detect] + ([self.outlines] if self.outlines is not None else [])
+            return DETECT_SHARE * sum(p.fraction for p in parts) / len(parts)
         return DETECT_SHARE + (1.0 - DETECT_SHARE) * self.fit.fraction
 
     @property
     def message(self):
-        return self.detect.message if self.fit.case is None else self.fit.message
+        if self.fit.case is None:
+            if self.outlines is not None and self.outlines.fraction > 0:
+                return self.outlines.message
+            return self.detect.message
+        return self.fit.message
 
     def merged_case(self):
         """The scene's landmarks with the detected ones, as a LandmarkCase (any thread)."""
@@ -66,14 +75,20 @@ class AutoFitJob:
                 view["uncertainty"] = sigma
             else:
                 view.pop("uncertainty", None)
+        for task in self.outlines.tasks if self.outlines is not None else ():
+            if task.draws(self.outlines.replace):
+                views[task.view]["contour"] = [[float(u), float(v)] for u, v in task.points]
         return parse_landmarks(self.document, "<scene>", for_fit=False)
 
     def run(self):
         """Detect, merge, fit, bake. Errors are kept in ``error``, never raised."""
-        self.detect.run()
-        if self.detect.error is not None:
-            self.error = self.detect.error
-            return
+        for part in (self.detect, self.outlines):
+            if part is None:
+                continue
+            part.run()
+            if part.error is not None:
+                self.error = part.error
+                return
         try:
             case = self.merged_case()
             fit_job.check_for_fit(case, self.fit.model)
@@ -85,8 +100,8 @@ class AutoFitJob:
         self.error = self.fit.error
 
     def lines(self):
-        """The detection's report lines (level, line)."""
-        return self.detect.lines()
+        """The detection's report lines (level, line): landmarks, then outlines."""
+        return self.detect.lines() + (self.outlines.lines() if self.outlines else [])
 
 
 def prepare_auto_fit(scene, replace=False):
@@ -100,11 +115,15 @@ def prepare_auto_fit(scene, replace=False):
     """
     detect = detect_job.prepare_detection(scene, "", replace, skip_hand_placed=True)
     return AutoFitJob(detect, fit_job.job_from_scene(scene, None),
-                      scene_to_case.case_dict_from_scene(scene))
+                      scene_to_case.case_dict_from_scene(scene),
+                      outline_job.prepare_outlines(scene, "", replace))
 
 
 def apply_auto_fit(scene, job):
-    """Place the detected landmarks and write the fit (main thread). Returns the head."""
+    """Place the detected landmarks and outlines and write the fit (main thread). Returns
+    the head."""
     detect_job.apply_detection(scene, job.detect)
+    if job.outlines is not None:
+        outline_job.apply_outlines(scene, job.outlines)
     return fit_job.apply_job(scene, job.fit)
 

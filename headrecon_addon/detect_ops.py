@@ -1,11 +1,12 @@
-"""The Detect Landmarks operator (one photo, or every photo) and Auto Fit (detection on the
-photos, then the Fit): in a thread with progress and Esc to cancel, or at once in the
-background; each one undo step, the scene unchanged when it fails or is cancelled."""
+"""The Detect Landmarks and Detect Outline operators (one photo, or every photo) and Auto
+Fit (detection on the photos, then the Fit): in a thread with progress and Esc to cancel,
+or at once in the background; each one undo step, the scene unchanged when it fails or is
+cancelled."""
 
 import bpy
 from bpy.props import BoolProperty, StringProperty
 
-from . import auto_fit_job, detect_job, photos
+from . import auto_fit_job, detect_job, outline_job, photos
 from .fit_ops import report_fit_error, report_fitted
 from .job_operator import JobOperator, interactive, running_problem
 from .job_progress import JobCancelled
@@ -89,9 +90,56 @@ class HEADRECON_OT_detect_landmarks(_PhotosJob, bpy.types.Operator):
         _report_lines(self, job.lines())
 
 
+class HEADRECON_OT_detect_outline(_PhotosJob, bpy.types.Operator):
+    """Find the head's outline on the photo (or on every photo) from the person's
+    segmentation (hair and clothes left out) and draw it as the photo's contour; a
+    contour traced by hand stays unless replaced"""
+
+    bl_idname = "headrecon.detect_outline"
+    bl_label = "Detect Outline"
+    bl_options = {"REGISTER", "UNDO"}
+    CANCELLED_LINE = "Outline detection cancelled; the scene is as it was"
+    THREAD_NAME = "HeadRecon outline"
+
+    view: StringProperty(name="View", options={"SKIP_SAVE"},
+                         description="The photo's view name (empty: every photo)")
+    replace_hand_placed: BoolProperty(
+        name="Replace Hand-Traced", options={"SKIP_SAVE"},
+        description="Replace a contour traced or edited by hand too (otherwise it stays)")
+
+    report_error = HEADRECON_OT_detect_landmarks.report_error
+
+    def execute(self, context):
+        try:
+            job = outline_job.run_outlines(context.scene, self.view, self.replace_hand_placed)
+        except Exception as e:
+            self.report_error(e)
+            return {"CANCELLED"}
+        _report_lines(self, job.lines())
+        return {"FINISHED"}
+
+    def invoke(self, context, event):
+        if not interactive(context):
+            return self.execute(context)
+        try:
+            job = outline_job.prepare_outlines(context.scene, self.view,
+                                               self.replace_hand_placed)
+        except Exception as e:
+            self.report_error(e)
+            return {"CANCELLED"}
+        return self.start_job(context, job)
+
+    def finish_job(self, context, job, seconds):
+        if not job.found_any:
+            raise ValueError("; ".join(line for _, line in job.lines()))
+        outline_job.apply_outlines(context.scene, job)
+        _report_lines(self, job.lines())
+
+
 class HEADRECON_OT_auto_fit(_PhotosJob, bpy.types.Operator):
-    """Detect the landmarks on every photo without landmarks placed by hand, then fit the
-    head, in one step"""
+    """Detect the landmarks on every photo without landmarks placed by hand, and the
+    outline on every photo without a contour traced by hand, then fit the head, in one
+    step"""
 
     bl_idname = "headrecon.auto_fit"
     bl_label = "Auto Fit"
@@ -151,4 +199,5 @@ class HEADRECON_OT_auto_fit(_PhotosJob, bpy.types.Operator):
         self._done(context, head, job)
 
 
-CLASSES = (HEADRECON_OT_detect_landmarks, HEADRECON_OT_auto_fit)
+CLASSES = (HEADRECON_OT_detect_landmarks, HEADRECON_OT_detect_outline,
+           HEADRECON_OT_auto_fit)

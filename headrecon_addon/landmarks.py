@@ -344,6 +344,35 @@ def contour_pixels(plane):
     return np.round(photos.pixels_from_local(plane, xy), PIXEL_DECIMALS) if len(xy) else None
 
 
+#: On a contour drawn by Detect Outline: a checksum of its plane-space points, so a
+#: contour edited or traced since reads as the artist's (``contour_is_detected``).
+DETECTED_CONTOUR = "headrecon_detected_contour"
+
+
+def _contour_checksum(xy):
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    return [float(len(xy)), float(np.round(np.abs(xy).sum(), 4))]
+
+
+def set_detected_contour(plane, pixels):
+    """Replace the plane's contour with the detected outline's pixel points (n, 2), marked
+    as detected (``contour_is_detected``)."""
+    obj = set_contour(plane, pixels)
+    if obj is not None:
+        obj[DETECTED_CONTOUR] = _contour_checksum(contour_local(plane))
+    return obj
+
+
+def contour_is_detected(plane):
+    """Whether the plane's contour is the one Detect Outline drew, unchanged since (False
+    when it has none, or one traced or edited by hand)."""
+    obj = contour_object(plane)
+    if obj is None or DETECTED_CONTOUR not in obj:
+        return False
+    return np.allclose(list(obj[DETECTED_CONTOUR]), _contour_checksum(contour_local(plane)),
+                       rtol=0, atol=1e-3)
+
+
 def add_contour_point_local(plane, xy):
     pts = contour_local(plane)
     return set_contour_local(plane, np.vstack([pts, np.reshape(xy, (1, 2))]))

@@ -131,6 +131,9 @@ class HEADRECON_PT_landmarks(_Panel, bpy.types.Panel):
             op = row.operator("headrecon.detect_landmarks", text="Detect", icon="VIEWZOOM")
             op.view = view
             op.replace_hand_placed = replace
+            op = row.operator("headrecon.detect_outline", text="Outline", icon="MOD_MASK")
+            op.view = view
+            op.replace_hand_placed = replace
             if photos.view_kind(plane) != "front":
                 n = len(landmarks.contour_local(plane))
                 row.operator("headrecon.draw_contour", text=f"Contour ({n})",
@@ -147,6 +150,9 @@ class HEADRECON_PT_landmarks(_Panel, bpy.types.Panel):
             col = layout.column(align=True)
             op = col.operator("headrecon.detect_landmarks", text="Detect on All Photos",
                               icon="VIEWZOOM")
+            op.replace_hand_placed = replace
+            op = col.operator("headrecon.detect_outline", text="Detect Outline on All Photos",
+                              icon="MOD_MASK")
             op.replace_hand_placed = replace
             col.operator("headrecon.auto_fit", icon="AUTO").replace_hand_placed = replace
             col.prop(context.scene.headrecon, "replace_hand_placed")

@@ -13,7 +13,7 @@ from .solver_link import Detector, detected_points, guess_view
 
 @functools.cache
 def detector():
-    """MediaPipe's two networks, read once a session.
+    """MediaPipe's networks, read once a session.
 
     Raises
     ------
@@ -58,6 +58,22 @@ def find_face(pixels):
     h, w = pixels.shape[:2]
     points, sigma = detected_points(found, (w, h))
     return Face(points, sigma, guess_view(found), found.is_profile, float(found.score))
+
+
+def find_outline(pixels):
+    """The head's outline in ``pixels`` (as ``find_face``): the solver's ``Outline``
+    (points (n, 2) px, notes).
+
+    Raises
+    ------
+    ValueError
+        No face on the photo, or no outline around it (one line, the photo not named).
+    """
+    d = detector()
+    found = d.detect(pixels)
+    if found is None:
+        raise ValueError("no face found, so no outline")
+    return d.outline(pixels, found)
 
 
 def loaded_as_problem(kind, perspective, guess):

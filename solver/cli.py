@@ -424,8 +424,9 @@ def view_entries(photos, views):
     return entries
 
 
-def detect_landmarks(photos, out, views=(), models=None, quiet=False):
-    """Detect the face in each photo and write the landmarks file ``out``; the lines of
+def detect_landmarks(photos, out, views=(), models=None, quiet=False, outlines="all"):
+    """Detect the face in each photo, and the head's outline in those ``outlines`` says
+    (``detected_case.wants_outline``), and write the landmarks file ``out``; the lines of
     ``solver.detect.detected_case.detect_photos`` go to stderr ("warning:" and "note:"
     lines even when ``quiet``). Returns the case. ``CliError`` / ``ValueError``: one line
     naming the photo or option."""
@@ -444,9 +445,11 @@ def detect_landmarks(photos, out, views=(), models=None, quiet=False):
             print(line, file=sys.stderr, flush=True)
         else:
             done.append(line)
-            progress(len(done) / len(entries), line)
+            faces = sum(" -> view " in ln for ln in done)
+            progress(min(faces, len(entries)) / len(entries), line)
 
-    case = detect_photos(entries, detector, load_photo, base_dir=out.parent, echo=echo)
+    case = detect_photos(entries, detector, load_photo, base_dir=out.parent, echo=echo,
+                         outlines=outlines)
     save_landmarks(case, out)
     if not quiet:
         print(f"wrote {out}", file=sys.stderr)
@@ -454,7 +457,8 @@ def detect_landmarks(photos, out, views=(), models=None, quiet=False):
 
 
 def _cmd_detect(args):
-    detect_landmarks(args.photos, args.out, args.view, args.models, args.quiet)
+    detect_landmarks(args.photos, args.out, args.view, args.models, args.quiet,
+                     args.outlines)
     return EXIT_OK
 
 
@@ -586,7 +590,9 @@ def build_parser():
                     "landmarks file: one view per photo, named and its camera guessed from "
                     "which way the face looks: front, right or left (profiles: the few "
                     "points trustworthy there only), three_quarter_right or _left (a "
-                    "pinhole camera the fit calibrates).")
+                    "pinhole camera the fit calibrates); and the head's outline (the "
+                    "person's segmentation, its skin stretch around the face: hair and "
+                    "clothes left out) as each view's contour.")
     det.add_argument("photos", nargs="*", metavar="PHOTO")
     det.add_argument("--view", action="append", metavar="NAME=PHOTO",
                      help="name a photo's view yourself (front, right, left, "
@@ -594,6 +600,10 @@ def build_parser():
                           "profile given the wrong side is corrected and said); repeatable")
     det.add_argument("--out", required=True, metavar="CASE.json",
                      help="landmarks file to write")
+    det.add_argument("--outlines", choices=("all", "profile", "none"), default="all",
+                     help="photos whose head outline is detected as their contour "
+                          "(default: all; on the sample the front's outline took the fit "
+                          "from 2.5 to 1.6 mm)")
     det.add_argument("--models", metavar="FOLDER",
                      help="folder of the .tflite files (default: generated/detector/)")
     det.add_argument("-q", "--quiet", action="store_true", help="no progress output")

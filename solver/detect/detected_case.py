@@ -1,8 +1,8 @@
 """Detected faces as a landmarks case: one view per photo, named and its camera guessed
 from the detection (``view_guess``: front, right or left profile, three-quarter), its
 iBUG-68 points under the project's landmark names with each point's uncertainty in
-pixels, so ``python -m solver detect`` (and ``headless --detect``) write a file the fit
-reads."""
+pixels, and a profile's outline as its contour, so ``python -m solver detect`` (and
+``headless --detect``) write a file the fit reads."""
 
 import os
 from pathlib import Path
@@ -13,6 +13,8 @@ from .view_guess import ViewGuess, guess_view, point_uncertainty
 
 #: The view names the detection gives (and ``--view NAME=PHOTO`` may use to say one).
 VIEW_NAMES = ("front", "right", "left", "three_quarter_right", "three_quarter_left")
+#: Which photos get their outline detected (``wants_outline``).
+OUTLINES = ("all", "profile", "none")
 _YAW = {"front": 0.0, "right": 90.0, "left": -90.0, "three_quarter_right": 45.0,
         "three_quarter_left": -45.0}
 
@@ -40,7 +42,7 @@ def detected_points(face, size):
     return points, sigma
 
 
-def detected_case(photos, faces, base_dir=None, guesses=None):
+def detected_case(photos, faces, base_dir=None, guesses=None, contours=None):
     """A :class:`LandmarkCase` from detected faces.
 
     Parameters
@@ -54,11 +56,17 @@ def detected_case(photos, faces, base_dir=None, guesses=None):
         Each photo's view (its camera). Default: ``guess_view`` of each face (a front photo
         where it says nothing). The points kept are the face's (``point_uncertainty``: a
         profile keeps only those trustworthy there), whatever the view says.
+    contours : list of (ndarray (n, 2) or None), optional
+        Each photo's outline (``Detector.outline``'s points, px), written as the view's
+        contour.
     """
     views = {}
     if guesses is None:
         guesses = [guess_view(f) or ViewGuess("front", 0.0) for f in faces]
-    for (name, path, size), face, guess in zip(photos, faces, guesses, strict=True):
+    if contours is None:
+        contours = [None] * len(faces)
+    for (name, path, size), face, guess, contour in zip(photos, faces, guesses, contours,
+                                                         strict=True):
         w, h = size
         points, sigma = detected_points(face, size)
         image = Path(path).absolute()
@@ -66,7 +74,7 @@ def detected_case(photos, faces, base_dir=None, guesses=None):
             image = Path(os.path.relpath(image, Path(base_dir).absolute()))
         camera, hints = guess.camera((w, h))
         views[name] = View(name, image.as_posix(), (w, h), camera, points,
-                           camera_hints=hints, uncertainty=sigma)
+                           camera_hints=hints, uncertainty=sigma, contour=contour)
     return LandmarkCase(views)
 
 
@@ -78,7 +86,28 @@ def _side(name):
     return None
 
 
-def detect_photos(entries, detector, load, base_dir=None, echo=None):
+def wants_outline(face, outlines):
+    """Whether a photo of ``face`` gets its outline detected: ``outlines`` "all" (the
+    default: on the rendered sample the front's outline took the fit from 2.5 to 1.6 mm,
+    docs/DECISIONS.md), "profile" (profiles only) or "none"."""
+    if outlines not in OUTLINES:
+        raise ValueError(f"outlines must be one of {', '.join(OUTLINES)}, got {outlines!r}")
+    return outlines == "all" or (outlines == "profile" and face.is_profile)
+
+
+def photo_outline(detector, image, face, path, echo):
+    """The outline's points (n, 2) of ``image`` (``Detector.outline``), or None with one
+    line naming the photo given to ``echo`` when none is found; its ends are said too."""
+    try:
+        found = detector.outline(image, face)
+    except ValueError as err:
+        echo(f"warning: {path}: {err}; the view gets no outline")
+        return None
+    echo(f"{path}: outline of {len(found.points)} points, {'; '.join(found.notes)}")
+    return found.points
+
+
+def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="all"):
     """Detect the face in each photo and make the case.
 
     Parameters
@@ -94,7 +123,10 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None):
         As for :func:`detected_case`.
     echo : callable, optional
         Gets each message line: per photo what was found, "warning: ..." for a given view
-        the detection contradicts, "note: ..." for a profile's few points.
+        the detection contradicts or an outline not found, "note: ..." for a profile's
+        few points.
+    outlines : {"all", "profile", "none"}
+        Which photos get the head's outline as their contour (``wants_outline``).
 
     Returns
     -------
@@ -106,7 +138,7 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None):
         One line naming the photo: no face in it, or a face whose direction is not told.
     """
     echo = echo or (lambda line: None)
-    photos, faces, guesses, used = [], [], [], set()
+    photos, faces, guesses, contours, used = [], [], [], [], set()
     for given, path in entries:
         image = load(path)
         face = detector.detect(image)
@@ -137,11 +169,13 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None):
         if face.is_profile:
             echo(f"note: {path}: a profile, where the face mesh is unreliable (22-46 px median "
                  "on the sample's profile photos): only the nose tip, subnasale and upper lip "
-                 "are kept, with their larger uncertainty; trace the profile's outline for "
-                 "the rest")
+                 "are kept, with their larger uncertainty; its outline gives the rest")
         h, w = image.shape[:2]
         photos.append((name, path, (w, h)))
         faces.append(face)
         guesses.append(guess)
         echo(f"{path}: face (score {face.score:.2f}), {guess.describe()} -> view {name!r}")
-    return detected_case(photos, faces, base_dir=base_dir, guesses=guesses)
+        contours.append(photo_outline(detector, image, face, path, echo)
+                        if wants_outline(face, outlines) else None)
+    return detected_case(photos, faces, base_dir=base_dir, guesses=guesses,
+                         contours=contours)

@@ -19,9 +19,11 @@ from .face_detection import detect_faces
 from .face_landmarks import face_mesh, square_from_detection, square_from_mesh
 from .ibug_map import mesh_to_ibug
 from .operators import Network
+from .outline import head_outline
 
 DETECTION_MODEL = "face_detection_short_range.tflite"
 LANDMARK_MODEL = "face_landmark.tflite"
+SEGMENTATION_MODEL = "selfie_segmentation.tflite"
 #: Below this face-presence probability the mesh is not a face (a profile, a back):
 #: the sample's profile photo gives 0.04-0.08, its front photo 1.0.
 MIN_PRESENCE = 0.5
@@ -86,38 +88,45 @@ class DetectedFace:
         return self.presence >= MIN_PRESENCE
 
 
+def _network(folder, name):
+    path = Path(folder) / name
+    if not path.is_file():
+        raise ValueError(f"{path}: missing; fetch the detector models with ./run detector")
+    return Network(path)
+
+
 class Detector:
-    """The two MediaPipe networks, read once, run with numpy.
+    """The MediaPipe networks, read once (the segmentation when first used), run with
+    numpy.
 
     Parameters
     ----------
     folder : str or Path
-        Holds the two ``.tflite`` files (``tools/fetch_detector.py`` puts them in
+        Holds the ``.tflite`` files (``tools/fetch_detector.py`` puts them in
         ``generated/detector/``).
     """
 
     def __init__(self, folder=DETECTOR_DIR):
-        folder = Path(folder)
-        for name in (DETECTION_MODEL, LANDMARK_MODEL):
-            if not (folder / name).is_file():
-                raise ValueError(f"{folder / name}: missing; fetch the detector models "
-                                 f"with ./run detector")
-        self.faces_net = Network(folder / DETECTION_MODEL)
-        self.mesh_net = Network(folder / LANDMARK_MODEL)
+        self.folder = Path(folder)
+        self.faces_net = _network(folder, DETECTION_MODEL)
+        self.mesh_net = _network(folder, LANDMARK_MODEL)
+        self._segmentation_net = None
+
+    def outline(self, image, face):
+        """The head's outline around ``face`` (a :class:`DetectedFace` of ``image``
+        (H, W, 3), uint8 or float in [0, 1]): ``outline.head_outline``'s
+        :class:`~.outline.Outline`. Raises ``ValueError`` (no person, no skin on its
+        edge) without naming the photo."""
+        if self._segmentation_net is None:
+            self._segmentation_net = _network(self.folder, SEGMENTATION_MODEL)
+        return head_outline(_as_float(image), face, self._segmentation_net)
 
     def detect(self, image, refine=False):
         """The most confident face of ``image`` (H, W, 3) (uint8, or float in [0, 1]),
         or None when the detector finds none. A face the mesh model does not see (a
         profile) comes back with ``is_face`` False. ``refine``: a second mesh pass on the
         first mesh's square."""
-        image = np.asarray(image)
-        if image.ndim != 3 or image.shape[2] < 3:
-            raise ValueError(f"image must be (H, W, 3), got shape {image.shape}")
-        image = image[:, :, :3]
-        if image.dtype == np.uint8:
-            image = image.astype(np.float32) / 255.0
-        else:
-            image = image.astype(np.float32)
+        image = _as_float(image)
         faces = detect_faces(self.faces_net, image)
         if not faces:
             return None
@@ -132,3 +141,14 @@ class Detector:
             mesh, out.presence = face_mesh(self.mesh_net, image, square_from_mesh(mesh))
         out.mesh, out.ibug = mesh, mesh_to_ibug(mesh[:, :2])
         return out
+
+
+def _as_float(image):
+    """(H, W, 3+) uint8 or float -> (H, W, 3) float32 in [0, 1]."""
+    image = np.asarray(image)
+    if image.ndim != 3 or image.shape[2] < 3:
+        raise ValueError(f"image must be (H, W, 3), got shape {image.shape}")
+    image = image[:, :, :3]
+    if image.dtype == np.uint8:
+        return image.astype(np.float32) / 255.0
+    return image.astype(np.float32)

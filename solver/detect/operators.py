@@ -1,9 +1,10 @@
-"""The TensorFlow Lite operators the MediaPipe face models use, in vectorised numpy
-(float32, NHWC, batch 1), and :class:`Network`, which runs a :class:`~.tflite_file.Graph`.
+"""The TensorFlow Lite operators the MediaPipe face and selfie segmentation models use, in
+vectorised numpy (float32, NHWC, batch 1), and :class:`Network`, which runs a
+:class:`~.tflite_file.Graph`.
 
 Each operator follows the reference kernels of TensorFlow Lite (``SAME`` padding puts the
-odd pixel after, max pooling ignores padded cells), so outputs match the reference
-runtime to float32 rounding.
+odd pixel after, pooling ignores padded cells), so outputs match the reference runtime to
+float32 rounding.
 """
 
 import numpy as np
@@ -92,6 +93,92 @@ def max_pool_2d(x, options):
     return _activate(out, options["activation"])
 
 
+def average_pool_2d(x, options):
+    """Average pooling; padded cells are not counted (TensorFlow Lite's rule). The
+    segmentation model's global pooling (one window over the whole map) is one mean."""
+    kh, kw = options["filter_h"], options["filter_w"]
+    sh, sw = options["stride_h"], options["stride_w"]
+    h, w = x.shape[1:3]
+    if options["padding"] == "VALID" and (kh, kw) == (sh, sw) and h % kh == 0 \
+            and w % kw == 0:
+        blocks = x.reshape(x.shape[0], h // kh, kh, w // kw, kw, x.shape[3])
+        return _activate(blocks.mean((2, 4), dtype=np.float32), options["activation"])
+    ones = np.ones((1, h, w, 1), np.float32)
+    x, ones = _pad_hw(x, kh, kw, sh, sw, options["padding"]), _pad_hw(ones, kh, kw, sh, sw,
+                                                                      options["padding"])
+    ho, wo = _out_size(x.shape[1], kh, sh), _out_size(x.shape[2], kw, sw)
+    total = np.zeros((x.shape[0], ho, wo, x.shape[3]), np.float32)
+    count = np.zeros((1, ho, wo, 1), np.float32)
+    for a in range(kh):
+        for b in range(kw):
+            total += x[:, a:a + ho * sh:sh, b:b + wo * sw:sw, :]
+            count += ones[:, a:a + ho * sh:sh, b:b + wo * sw:sw, :]
+    return _activate(total / count, options["activation"])
+
+
+def resize_bilinear(x, size, options):
+    """Bilinear resize of ``x`` (1, H, W, C) to ``size`` (h, w), TensorFlow Lite's
+    coordinates: ``half_pixel_centers`` samples (i + 0.5) · H / h - 0.5, else i · H / h
+    (``align_corners``: i · (H - 1) / (h - 1)); samples outside clamp to the edge."""
+    out_h, out_w = (int(v) for v in np.asarray(size).ravel())
+
+    def axis(n_in, n_out):
+        if options["align_corners"] and n_out > 1:
+            pos = np.arange(n_out) * ((n_in - 1) / (n_out - 1))
+        elif options["half_pixel_centers"]:
+            pos = (np.arange(n_out) + 0.5) * (n_in / n_out) - 0.5
+        else:
+            pos = np.arange(n_out) * (n_in / n_out)
+        pos = np.clip(pos, 0, n_in - 1)
+        lo = np.floor(pos).astype(int)
+        return lo, np.minimum(lo + 1, n_in - 1), (pos - lo).astype(np.float32)
+
+    y0, y1, fy = axis(x.shape[1], out_h)
+    x0, x1, fx = axis(x.shape[2], out_w)
+    fx = fx[:, None]
+    top = x[:, y0][:, :, x0] * (1 - fx) + x[:, y0][:, :, x1] * fx
+    bottom = x[:, y1][:, :, x0] * (1 - fx) + x[:, y1][:, :, x1] * fx
+    fy = fy[:, None, None]
+    return (top * (1 - fy) + bottom * fy).astype(np.float32)
+
+
+def transpose_conv_bias(x, weights, bias, options):
+    """Transposed convolution plus bias (MediaPipe's custom ``Convolution2DTransposeBias``,
+    TensorFlow Lite's TRANSPOSE_CONV with a bias): ``x`` (1, H, W, I), ``weights``
+    (O, kh, kw, I); each input pixel spreads its ``weights`` over a kh × kw patch of the
+    output at ``stride``; the output is H·stride (``SAME``) or (H - 1)·stride + kh
+    (``VALID``), the patches' overhang cut as in TensorFlow Lite (the odd pixel after)."""
+    o, kh, kw, i = weights.shape
+    sh, sw = options["stride_h"], options["stride_w"]
+    n, h, w, _ = x.shape
+    full_h, full_w = (h - 1) * sh + kh, (w - 1) * sw + kw
+    if options["padding"] == "SAME":
+        out_h, out_w = h * sh, w * sw
+    else:
+        out_h, out_w = full_h, full_w
+    top, left = max(full_h - out_h, 0) // 2, max(full_w - out_w, 0) // 2
+    # every input pixel times every kernel tap: (n, h, w, kh, kw, O)
+    taps = np.tensordot(x, weights, axes=((3,), (3,))).transpose(0, 1, 2, 4, 5, 3)
+    full = np.zeros((n, max(full_h, out_h + top), max(full_w, out_w + left), o), np.float32)
+    for a in range(kh):
+        for b in range(kw):
+            full[:, a:a + (h - 1) * sh + 1:sh, b:b + (w - 1) * sw + 1:sw] += taps[:, :, :, a, b]
+    out = full[:, top:top + out_h, left:left + out_w]
+    if bias is not None:
+        out = out + bias
+    return out.astype(np.float32, copy=False)
+
+
+def hard_swish(x):
+    """x · relu6(x + 3) / 6."""
+    return x * np.clip(x + 3, 0, 6) / 6
+
+
+def logistic(x):
+    """1 / (1 + e^-x), without overflow for large negative x."""
+    return (0.5 * (1 + np.tanh(0.5 * x))).astype(np.float32)
+
+
 def _no_dilation(options):
     if options["dilation_h"] != 1 or options["dilation_w"] != 1:
         raise ValueError("dilated convolutions are not supported")
@@ -124,8 +211,9 @@ class Network:
                       if not (n.op == "DEQUANTIZE" and n.inputs[0] in self.constants)]
         self.input_shape = g.shapes[g.inputs[0]]
 
-    def __call__(self, x):
-        """Outputs of the model for input ``x`` (its input shape), as float32 arrays."""
+    def __call__(self, x, tensors=None):
+        """Outputs of the model for input ``x`` (its input shape), as float32 arrays; or
+        the tensors of the given indices (``graph.names``), e.g. a layer inside."""
         x = np.asarray(x, np.float32)
         if x.shape != self.input_shape:
             raise ValueError(f"{self.path}: input shape {x.shape}, expected "
@@ -135,7 +223,7 @@ class Network:
         for n in self.nodes:
             args = [t[i] if i >= 0 else None for i in n.inputs]
             t[n.outputs[0]] = self._run(n, args)
-        return [t[i] for i in self.graph.outputs]
+        return [t[i] for i in (self.graph.outputs if tensors is None else tensors)]
 
     def _run(self, n, args):
         op, o = n.op, n.options
@@ -147,6 +235,19 @@ class Network:
             return max_pool_2d(args[0], o)
         if op == "ADD":
             return _activate(args[0] + args[1], o["activation"])
+        if op == "MUL":
+            return _activate(args[0] * args[1], o["activation"])
+        if op == "AVERAGE_POOL_2D":
+            return average_pool_2d(args[0], o)
+        if op == "RESIZE_BILINEAR":
+            return resize_bilinear(args[0], args[1], o)
+        if op == "Convolution2DTransposeBias":
+            return transpose_conv_bias(args[0], args[1], args[2] if len(args) > 2 else None,
+                                       o)
+        if op == "HARD_SWISH":
+            return hard_swish(args[0])
+        if op == "LOGISTIC":
+            return logistic(args[0])
         if op == "RELU":
             return np.maximum(args[0], 0)
         if op == "PRELU":

@@ -1,9 +1,10 @@
 """Read a TensorFlow Lite model (a FlatBuffer, schema ``tensorflow/lite/schema/schema.fbs``)
 into plain arrays and operator records, so :mod:`.operators` can run it with numpy.
 
-Only what the MediaPipe face models use is read: one subgraph, float32/float16/int32
-tensors with their constant data, and the options of the operators listed in
-``BUILTIN_OPS``. Anything else is refused with a ``ValueError`` naming the file.
+Only what the MediaPipe face and selfie segmentation models use is read: one subgraph,
+float32/float16/int32 tensors with their constant data, the options of the operators
+listed in ``BUILTIN_OPS`` and MediaPipe's one custom operator in ``CUSTOM_OPS``. Anything
+else is refused with a ``ValueError`` naming the file.
 """
 
 import struct
@@ -13,13 +14,21 @@ from pathlib import Path
 import numpy as np
 
 # BuiltinOperator codes (schema.fbs) of the operators this reader knows.
-BUILTIN_OPS = {0: "ADD", 2: "CONCATENATION", 3: "CONV_2D", 4: "DEPTHWISE_CONV_2D",
-               6: "DEQUANTIZE", 17: "MAX_POOL_2D", 19: "RELU", 22: "RESHAPE",
-               34: "PAD", 54: "PRELU"}
+BUILTIN_OPS = {0: "ADD", 1: "AVERAGE_POOL_2D", 2: "CONCATENATION", 3: "CONV_2D",
+               4: "DEPTHWISE_CONV_2D", 6: "DEQUANTIZE", 14: "LOGISTIC", 17: "MAX_POOL_2D",
+               18: "MUL", 19: "RELU", 22: "RESHAPE", 23: "RESIZE_BILINEAR", 34: "PAD",
+               54: "PRELU", 117: "HARD_SWISH"}
+# Custom operators (MediaPipe's, in the selfie segmentation model) by their custom code.
+# Their options are a C struct of int32 (TfLiteTransposeConvParams: padding 1 SAME / 2
+# VALID, stride_w, stride_h), not a FlexBuffer.
+CUSTOM_OPS = {"Convolution2DTransposeBias": ("padding", "stride_w", "stride_h")}
+_CUSTOM_PADDING = {1: "SAME", 2: "VALID"}
 # TensorType codes -> numpy dtype.
 TENSOR_TYPES = {0: np.float32, 1: np.float16, 2: np.int32}
 PADDING = {0: "SAME", 1: "VALID"}
 ACTIVATIONS = {0: None, 1: "RELU", 3: "RELU6"}
+_POOL = {"padding": (0, "B", 0), "stride_w": (1, "i", 0), "stride_h": (2, "i", 0),
+         "filter_w": (3, "i", 0), "filter_h": (4, "i", 0), "activation": (5, "B", 0)}
 # Options table fields per operator: name -> (field number, struct format, default).
 _OPTIONS = {
     "CONV_2D": {"padding": (0, "B", 0), "stride_w": (1, "i", 0), "stride_h": (2, "i", 0),
@@ -29,10 +38,11 @@ _OPTIONS = {
                           "stride_h": (2, "i", 0), "depth_multiplier": (3, "i", 0),
                           "activation": (4, "B", 0), "dilation_w": (5, "i", 1),
                           "dilation_h": (6, "i", 1)},
-    "MAX_POOL_2D": {"padding": (0, "B", 0), "stride_w": (1, "i", 0), "stride_h": (2, "i", 0),
-                    "filter_w": (3, "i", 0), "filter_h": (4, "i", 0),
-                    "activation": (5, "B", 0)},
+    "MAX_POOL_2D": _POOL,
+    "AVERAGE_POOL_2D": _POOL,
     "ADD": {"activation": (0, "B", 0)},
+    "MUL": {"activation": (0, "B", 0)},
+    "RESIZE_BILINEAR": {"align_corners": (2, "?", False), "half_pixel_centers": (3, "?", False)},
     "CONCATENATION": {"axis": (0, "i", 0), "activation": (1, "B", 0)},
 }
 
@@ -124,6 +134,21 @@ class _Buf:
         return bytes(self.data[start:start + n]).decode("utf-8", "replace") if n else ""
 
 
+def _custom_options(fb, operator, op, path):
+    """A custom operator's options: its int32 fields (``CUSTOM_OPS``) from the raw bytes."""
+    keys = CUSTOM_OPS[op]
+    start, n = fb.vector(operator, 5)
+    if n != 4 * len(keys):
+        raise ValueError(f"{path}: {op} options of {n} bytes, expected {4 * len(keys)}")
+    fb.check(start, n)
+    values = dict(zip(keys, struct.unpack_from(f"<{len(keys)}i", fb.data, start), strict=True))
+    if "padding" in values:
+        if values["padding"] not in _CUSTOM_PADDING:
+            raise ValueError(f"{path}: {op} padding {values['padding']} is not supported")
+        values["padding"] = _CUSTOM_PADDING[values["padding"]]
+    return values
+
+
 def read_tflite(path):
     """The graph of the TensorFlow Lite model at ``path``.
 
@@ -142,8 +167,11 @@ def read_tflite(path):
     codes = []
     for oc in fb.tables(model, 1):
         code = max(fb.scalar(oc, 0, "b", 0), fb.scalar(oc, 3, "i", 0))
-        codes.append(BUILTIN_OPS.get(code, f"builtin {code}" if code != 32 else
-                                     f"custom {fb.string(oc, 1)}"))
+        if code == 32:
+            custom = fb.string(oc, 1)
+            codes.append(custom if custom in CUSTOM_OPS else f"custom {custom}")
+        else:
+            codes.append(BUILTIN_OPS.get(code, f"builtin {code}"))
     subgraphs = fb.tables(model, 2)
     if len(subgraphs) != 1:
         raise ValueError(f"{path}: {len(subgraphs)} subgraphs; only one is supported")
@@ -181,9 +209,11 @@ def read_tflite(path):
         if index >= len(codes):
             raise ValueError(f"{path}: operator code {index} out of range")
         op = codes[index]
-        if op not in BUILTIN_OPS.values():
+        if op not in BUILTIN_OPS.values() and op not in CUSTOM_OPS:
             raise ValueError(f"{path}: operator {op} is not supported")
         options = {}
+        if op in CUSTOM_OPS:
+            options = _custom_options(fb, o, op, path)
         spec = _OPTIONS.get(op)
         if spec:
             table = fb.ref(o, 4)
@@ -192,10 +222,11 @@ def read_tflite(path):
                                 else fb.scalar(table, number, fmt, default))
             if "padding" in options:
                 options["padding"] = PADDING[options["padding"]]
-            if options.get("activation") not in ACTIVATIONS:
-                raise ValueError(f"{path}: {op} activation {options['activation']} "
-                                 f"is not supported")
-            options["activation"] = ACTIVATIONS[options["activation"]]
+            if "activation" in options:
+                if options["activation"] not in ACTIVATIONS:
+                    raise ValueError(f"{path}: {op} activation {options['activation']} "
+                                     f"is not supported")
+                options["activation"] = ACTIVATIONS[options["activation"]]
         operators.append(Operator(op, fb.ints(o, 1), fb.ints(o, 2), options))
     return Graph(names, shapes, dtypes, constants, fb.ints(sg, 1), fb.ints(sg, 2),
                  operators)

@@ -57,12 +57,13 @@ def test_extension_zip_builds_installs_and_fits(model, tmp_path):
                    "assets", "generated", "wheels", "LICENSE", "README.md"}
     assert "generated/model/head_model.npz" in files
     assert "generated/model/LICENSE-ICT-FaceKit.txt" in files
-    # only the head model and the detector's two models, with their notices, from
+    # only the head model and the detector's three models, with their notices, from
     # generated/ (no samples, no caches)
     assert sorted(f for f in files if f.startswith("generated/")) == [
         "generated/detector/LICENSE-MediaPipe.txt",
         "generated/detector/face_detection_short_range.tflite",
         "generated/detector/face_landmark.tflite",
+        "generated/detector/selfie_segmentation.tflite",
         "generated/model/LICENSE-ICT-FaceKit.txt", "generated/model/head_model.npz"]
     wheels = [f for f in files if f.endswith(".whl")]
     assert len(wheels) == 1 and "manylinux" in wheels[0] and "scipy-1.13.1" in wheels[0]

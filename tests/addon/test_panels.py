@@ -91,6 +91,7 @@ def test_panels_draw_through_the_flow(files):
     assert ("operator", "headrecon.draw_contour") in log
     # detection: per photo, on all photos, and Auto Fit, with the replace option
     assert log.count(("operator", "headrecon.detect_landmarks")) == len(case.views) + 1
+    assert log.count(("operator", "headrecon.detect_outline")) == len(case.views) + 1
     assert ("operator", "headrecon.auto_fit") in log and ("prop", "replace_hand_placed") in log
     assert any(k == "label" and t.startswith("front: ") and "placed" in t for k, t in log)
     assert ("prop", "n_identity") in log and ("prop", "lambda2") in log

@@ -37,6 +37,7 @@ def test_register_unregister_leaves_nothing_behind():
                  "HEADRECON_OT_place_landmarks", "HEADRECON_OT_draw_contour",
                  "HEADRECON_OT_import_landmarks", "HEADRECON_OT_export_landmarks",
                  "HEADRECON_OT_fit", "HEADRECON_OT_detect_landmarks",
+                 "HEADRECON_OT_detect_outline",
                  "HEADRECON_OT_auto_fit", "HEADRECON_PT_head", "HEADRECON_PT_photos",
                  "HEADRECON_PT_landmarks", "HEADRECON_PT_fit", "HEADRECON_PT_result",
                  "HEADRECON_UL_residuals"):

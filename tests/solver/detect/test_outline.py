@@ -1,0 +1,111 @@
+"""The head's outline: the photo's edge found to a fraction of a pixel, skin told from
+clothes and hair, and on the rendered sample's profile the true silhouette from the front
+of the neck to the nape, hair painted on it left out."""
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from solver.detect import Detector
+from solver.detect.outline import refine_edge, skin_like
+from solver.paths import DETECTOR_DIR
+
+SKIN = (np.array([0.396, 0.323]), 0.015, 2.49)   # the sample's face, as face_skin gives it
+
+
+def _distance_to_line(points, line):
+    """Each point's distance to the polyline (m, 2), and whether it lies beyond its ends."""
+    a, b = line[:-1], line[1:]
+    ab = b - a
+    t = np.clip(((points[:, None] - a[None]) * ab[None]).sum(2) / (ab * ab).sum(1), 0, 1)
+    d = np.linalg.norm(points[:, None] - (a[None] + t[..., None] * ab[None]), axis=2)
+    i = d.argmin(1)
+    tt = t[np.arange(len(points)), i]
+    beyond = ((i == 0) & (tt == 0)) | ((i == len(a) - 1) & (tt == 1))
+    return d.min(1), beyond
+
+
+def test_an_edge_between_pixels_is_found_to_a_tenth_of_a_pixel():
+    edge = 40.3                                    # skin left of u = 40.3, grey right
+    cover = np.clip(edge - np.arange(80), 0, 1)    # pixel c covers [c, c + 1)
+    row = cover[:, None] * [0.9, 0.7, 0.6] + (1 - cover[:, None]) * [0.5, 0.5, 0.5]
+    image = np.repeat(row[None], 60, axis=0)
+    points = np.array([[42.5, 20.0], [37.0, 30.0], [40.3, 45.0]])
+    normals = np.array([[1.0, 0.0]] * 3)
+    moved, refined, inside = refine_edge(image, points, normals, reach=6.0)
+    assert refined.all()
+    np.testing.assert_allclose(moved[:, 0], edge, atol=0.1)
+    np.testing.assert_allclose(moved[:, 1], points[:, 1])
+    np.testing.assert_allclose(inside, [[0.9, 0.7, 0.6]] * 3, atol=0.01)
+    flat = np.full((60, 80, 3), 0.5)
+    moved, refined, _ = refine_edge(flat, points, normals, reach=6.0)
+    assert not refined.any() and (moved == points).all()
+
+
+def test_skin_lit_or_shaded_is_skin_and_clothes_hair_collar_are_not():
+    colours = np.array([
+        [0.95, 0.78, 0.69],     # the face
+        [1.00, 1.00, 0.93],     # skin washed out by the light at the silhouette
+        [0.45, 0.35, 0.31],     # skin in the shade under the chin
+        [0.42, 0.44, 0.47],     # the sample's shirt
+        [0.05, 0.04, 0.03],     # dark hair
+        [0.88, 0.96, 0.91],     # a white collar
+    ])
+    assert skin_like(colours, SKIN).tolist() == [True, True, True, False, False, False]
+
+
+@pytest.fixture(scope="module")
+def detector():
+    if not (DETECTOR_DIR / "selfie_segmentation.tflite").is_file():
+        pytest.skip(f"models missing in {DETECTOR_DIR}: run ./run detector")
+    return Detector()
+
+
+def _photo(folder, view="side"):
+    return np.asarray(Image.open(folder / f"{view}.png").convert("RGB"))
+
+
+def test_the_sample_profile_outline_is_the_true_silhouette(sample, detector):
+    from solver import load_landmarks
+
+    folder, _ = sample
+    image = _photo(folder)
+    face = detector.detect(image)
+    outline = detector.outline(image, face)
+    truth = load_landmarks(folder / "sample.json").views["side"].contour
+    d, beyond = _distance_to_line(outline.points, truth)
+    assert np.median(d) < 1.0 and np.percentile(d, 90) < 2.5
+    assert beyond.mean() < 0.05               # cut at the collar, as the truth is
+    covered, _ = _distance_to_line(truth, outline.points)
+    assert (covered < 3).mean() > 0.9
+    # drawn from the front of the neck (the face looks toward +u) to the nape
+    assert outline.points[0, 0] > outline.points[-1, 0]
+    assert outline.points[0, 1] > face.keypoints[3][1] and outline.points[-1, 1] > \
+        face.keypoints[3][1]
+    assert outline.refined.mean() > 0.9
+
+
+def test_hair_is_left_out_of_the_forehead_and_skull(sample, detector):
+    folder, truth = sample
+    image = _photo(folder).copy()
+    face = detector.detect(image)
+    head = truth["head_alpha_side"] >= 128
+    h, w = head.shape
+    vv, uu = np.mgrid[0:h, 0:w]
+    brow = face.keypoints[0][1] - 0.12 * (face.box[2] - face.box[0])
+    # dark hair from above the brow over the crown to the back of the skull
+    hair = head & (vv < brow) | head & (uu < face.keypoints[4][0]) & (vv < face.keypoints[4][1])
+    image[hair] = [26, 18, 12]
+    outline = detector.outline(image, face)
+    v = outline.points[:, 1]
+    assert v.min() > brow - 3, "an outline point on the hair"
+    assert v.max() > face.keypoints[3][1]         # still the face and neck below it
+
+
+def test_no_person_is_said(detector, sample):
+    folder, _ = sample
+    image = _photo(folder)
+    face = detector.detect(image)
+    wall = np.full_like(image, 128)
+    with pytest.raises(ValueError, match="no person found for an outline"):
+        detector.outline(wall, face)
