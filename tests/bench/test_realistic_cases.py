@@ -17,12 +17,12 @@ from bench.realistic_cases import (
     james_folder,
     landmark_fit_3d,
     load_scan,
-    scan_photo_halves,
     make_realistic_case,
     model_face_vertices,
     out_of_model_displacement,
     part_triangles,
     sample_surface,
+    scan_photo_halves,
     span_basis,
 )
 from solver.geometry import rotation_from_vector
