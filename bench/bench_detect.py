@@ -213,7 +213,15 @@ def fit_errors(folder, detector):
     outlined.views["right"].contour = case.views["side"].contour
     profile_only = copy.deepcopy(auto)
     profile_only.views["front"].contour = None
-    for label, c in (("every exact landmark", case), ("front: 68 exact", exact68),
+    # the sample's own landmarks with the outlines detected (what the demo could use)
+    own_profile = copy.deepcopy(case)
+    own_profile.views["side"].contour = auto.views["right"].contour
+    own_both = copy.deepcopy(own_profile)
+    own_both.views["front"].contour = auto.views["front"].contour
+    for label, c in (("every exact landmark", case),
+                     ("  its profile outline detected", own_profile),
+                     ("  both photos' outlines detected", own_both),
+                     ("front: 68 exact", exact68),
                      ("front: 68 detected as clicks", clicks),
                      ("front: 68 detected, uncertainty", detected),
                      ("detected points, no outline", bare),

@@ -164,8 +164,9 @@ def test_demo_writes_everything_and_fits_the_truth(demo, model):
     assert err["rms_mm"] < MAX_SHARE_OF_MEAN_HEAD * report["mean_head_error_mm"]
     assert report["residual_rms_px"] < 3.0
     assert "vertex error" in stdout and "landmark residual" in stdout
-    # where its landmarks come from, and why not from the detector
+    # where its landmarks come from, and why not from the detector; its outlines detected
     assert report["landmarks_source"] in stdout and "not detected" in stdout
+    assert "outlines detected on front" in stdout and report["timings"]["outline_s"] > 0
     with Image.open(out / "preview.png") as im:
         assert im.width == 3 * 192 and im.height > 2 * 256  # 3 columns, 2 rows + caption
     with Image.open(out / "head_texture.png") as im:
