@@ -51,6 +51,7 @@ if __package__:
         batch_stamp,
         batch_summary,
         batch_workers,
+        blas_threads,
         case_to_scene,
         export,
         photos,
@@ -634,6 +635,7 @@ def _run_batch(args, heads, rows, tasks, jobs, model, out_dir, client):
         cluster = importlib.import_module(f"{__package__}.batch_cluster")
         results = cluster.run_cluster(tasks, client, _cluster_failed)
     elif jobs <= 1:
+        blas_threads.limit_loaded()  # as a worker process has it
         results = _in_process(tasks, model)
     else:
         results = batch_workers.run_pool(tasks, jobs, _worker_died)

@@ -220,7 +220,7 @@ def test_a_killed_batch_loses_only_heads_in_flight(heads, tmp_path):
     assert not list(out.glob(".*"))  # the killed head's staging folder is gone
 
 
-def test_workers_share_the_cores_blas_threads(monkeypatch):
+def test_workers_get_one_blas_thread_unless_the_environment_says(monkeypatch):
     from headrecon_addon import batch_workers
 
     echo = ("import json, os, sys\nprint(json.dumps({'ready': True}), flush=True)\n"
@@ -229,7 +229,7 @@ def test_workers_share_the_cores_blas_threads(monkeypatch):
     monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
     monkeypatch.setattr(batch_workers, "cpu_count", lambda: 4)
     got = list(batch_workers.run_pool([{}, {}], 2, None, command=[sys.executable, "-c", echo]))
-    assert [answer for _, answer in got] == ["2", "2"]
+    assert [answer for _, answer in got] == ["1", "1"]
     monkeypatch.setenv("OPENBLAS_NUM_THREADS", "3")  # the environment's own choice is kept
     got = list(batch_workers.run_pool([{}], 2, None, command=[sys.executable, "-c", echo]))
     assert [answer for _, answer in got] == ["3"]
