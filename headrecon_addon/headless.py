@@ -54,6 +54,7 @@ if __package__:
         blas_threads,
         case_to_scene,
         export,
+        heap,
         photos,
         result_to_scene,
         scene_collections,
@@ -269,6 +270,7 @@ def write_head(task, model):
             tiles = bake_fit_texture(
                 model, result, arrays, size=int(settings["texture_size"]),
                 options=BakeOptions(shading=settings.get("texture_shading") or "keep"))
+        heap.release_free_memory()  # the bake's temporaries, before Blender takes more
     if "texture" in kinds and tiles is None:
         raise ValueError(f"{task['where']}: no photo to bake the texture from")
     base.parent.mkdir(parents=True, exist_ok=True)
