@@ -7,13 +7,12 @@ returns the free pages first. Only glibc has it: elsewhere this does nothing.
 """
 
 import ctypes
-import ctypes.util
 import sys
 
 _trim = None
 if sys.platform.startswith("linux"):
-    try:
-        _trim = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim
+    try:  # the process's own symbols, libc's among them
+        _trim = ctypes.CDLL(None).malloc_trim
     except (OSError, AttributeError):  # not glibc (musl has no malloc_trim)
         _trim = None
 
