@@ -13,7 +13,9 @@ The heads are synthetic cases (``solver.synthetic.make_case``, saved with
 each configuration runs the real command (``python -m headrecon_addon.headless``) in a
 fresh process with ``--force``, timed from start to exit (model loading included). The CPU
 seconds per head (all processes of the batch) say what a machine free of other work would
-do: 60 / (CPU s a head) heads per minute per core.
+do: 60 / (CPU s a head) heads per minute per core; the last lines give that rate for
+``--jobs N`` on N free cores and its ratio to ``--jobs 1``, which a loaded machine's
+wall-clock ratio cannot show. Each batch's line also gives the load average before it.
 
 Targets: ``--jobs 2`` at least 1.7 x the rate of ``--jobs 1``; at ``--jobs 2`` at least 40
 heads/min without a .glb (fit, texture, .blend) and 15 with the game .glb; under 800 MB a
@@ -118,7 +120,7 @@ def main(argv=None):
         (work / "in").mkdir(parents=True, exist_ok=True)
         manifest = make_heads(work / "in", args.heads)
         print(f"{args.heads} synthetic heads, texture {args.texture_size} px per tile")
-        rates = {}
+        rates, cpu_rates = {}, {}
         configs = [("fit, texture, .blend", 1, "blend", None),
                    ("fit, texture, .blend", 2, "blend", None)]
         if has_dask:
@@ -129,25 +131,30 @@ def main(argv=None):
                         ("every output", 2, "blend,glb,obj,texture,report", None)]
         for label, jobs, outputs, cluster in configs:
             out = work / f"out_{jobs}_{outputs.replace(',', '_')}{'_' + cluster if cluster else ''}"
+            load = load_average()
             seconds, cpu, code, peak, rows = run_batch(manifest, out, jobs, outputs,
                                                        args.texture_size, cluster)
             ok = sum(r["status"] == "done" for r in rows)
             rate = 60.0 * ok / seconds
             rates[(label, jobs, cluster)] = rate
+            cpu_rates[(label, jobs, cluster)] = 60.0 * jobs * ok / max(cpu, 1e-9)
             fit_s = np.median([r["seconds"] for r in rows if r["status"] == "done"])
             where = f"--cluster {cluster} " if cluster else ""
             print(f"{where}--jobs {jobs} --outputs {outputs}: {ok}/{len(rows)} heads in "
                   f"{seconds:.1f} s = {rate:.1f} heads/min (median {fit_s:.1f} s a head in "
                   f"its worker), {cpu / max(ok, 1):.1f} CPU s a head, peak {peak:.0f} MB in "
-                  f"the largest process, exit {code}")
+                  f"the largest process, exit {code} (load average before: {load})")
             if outputs.count(",") == 4:
                 for kind, size in sizes_per_output([r for r in rows if r["status"] == "done"]
                                                    ).items():
                     print(f"  {kind}: {size / 1e6:.2f} MB a head")
         for label in ("fit, texture, .blend", "fit, texture, .blend + game .glb"):
             if (label, 1, None) in rates:
+                one, two = cpu_rates[(label, 1, None)], cpu_rates[(label, 2, None)]
                 print(f"{label}: --jobs 2 / --jobs 1 = "
-                      f"{rates[(label, 2, None)] / rates[(label, 1, None)]:.2f} x")
+                      f"{rates[(label, 2, None)] / rates[(label, 1, None)]:.2f} x; by CPU "
+                      f"seconds on free cores: {one:.1f} and {two:.1f} heads/min, "
+                      f"{two / one:.2f} x")
         if ("fit, texture, .blend", 2, "local") in rates:
             label = "fit, texture, .blend"
             print(f"{label}: --cluster local --jobs 2 / --jobs 1 = "

@@ -30,8 +30,6 @@ import threading
 from contextlib import contextmanager
 from pathlib import Path
 
-PACKAGE_ROOT = Path(__file__).resolve().parent.parent
-
 INSTALL = 'pip install "dask[distributed]==2024.8.2"'
 
 _fitters = {}  # model path -> this worker process's HeadRecon worker (batch_workers)
@@ -65,10 +63,8 @@ def _fitter(path):
 
     fitter = _fitters.get(path)
     if fitter is None:
-        env = dict(os.environ, HEADRECON_MODEL=path)
-        env["PYTHONPATH"] = os.pathsep.join(
-            [str(PACKAGE_ROOT)] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
-        fitter = _fitters[path] = batch_workers._Worker(batch_workers.worker_command(), env)
+        fitter = _fitters[path] = batch_workers._Worker(
+            batch_workers.worker_command(), batch_workers.worker_env(HEADRECON_MODEL=path))
         _loads[path] = _loads.get(path, 0) + 1
     return fitter
 
@@ -124,10 +120,10 @@ def local_cluster(jobs, timeout=300):
     multiprocessing children of this one (whose ``sys.path`` holds Blender's script
     folders once bpy is imported, which breaks ``import bpy`` in a spawned child). Yields
     the scheduler's address; the workers are stopped on leaving."""
+    from . import batch_workers
+
     dd = distributed()
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(
-        [str(PACKAGE_ROOT)] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
+    env = batch_workers.worker_env()
     env.setdefault("DASK_LOGGING__DISTRIBUTED", "error")
     with dd.LocalCluster(n_workers=0, processes=False, protocol="tcp://", host="127.0.0.1",
                          dashboard_address=None,

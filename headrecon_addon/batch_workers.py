@@ -4,8 +4,8 @@ once and then fits heads sent to it, one at a time, until its input ends.
 The parent sends a task as one JSON line on the worker's stdin and reads the worker's
 answer, one JSON line, on its stdout. The worker keeps the original stdout for answers
 only and points its file descriptor 1 at stderr, so whatever Blender prints goes to the
-log, never into the answers. Each worker's BLAS gets its share of the cores (unless the
-environment sets its thread count). A thread per worker takes the next task as soon as its worker
+log, never into the answers. Each worker gets one BLAS thread (``blas_threads``) unless
+the environment sets its thread count. A thread per worker takes the next task as soon as its worker
 answers, so results stream in the order they finish. A worker that dies (killed, out of
 memory) fails the head it had; the next task starts a new worker.
 """
@@ -18,8 +18,9 @@ import sys
 import threading
 from pathlib import Path
 
+from . import blas_threads
+
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent
-BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
 
 
 def cpu_count():
@@ -28,6 +29,15 @@ def cpu_count():
         return len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
         return os.cpu_count() or 1
+
+
+def worker_env(**extra):
+    """The environment of a worker process (this one's, plus ``extra``): the repository
+    on its path, one BLAS thread unless this environment sets the count."""
+    env = dict(os.environ, **extra)
+    env["PYTHONPATH"] = os.pathsep.join(
+        [str(PACKAGE_ROOT)] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
+    return blas_threads.environment(env)
 
 
 def worker_command():
@@ -97,11 +107,7 @@ def run_pool(tasks, jobs, died, command=None):
         The worker command (default ``worker_command()``).
     """
     command = command or worker_command()
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(
-        [str(PACKAGE_ROOT)] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
-    for var in BLAS_THREAD_VARIABLES:  # N workers share the cores: no BLAS oversubscription
-        env.setdefault(var, str(max(1, cpu_count() // max(1, int(jobs)))))
+    env = worker_env()
     todo, done = queue.Queue(), queue.Queue()
     for t in tasks:
         todo.put(t)

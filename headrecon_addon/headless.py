@@ -51,8 +51,10 @@ if __package__:
         batch_stamp,
         batch_summary,
         batch_workers,
+        blas_threads,
         case_to_scene,
         export,
+        heap,
         photos,
         result_to_scene,
         scene_collections,
@@ -268,6 +270,7 @@ def write_head(task, model):
             tiles = bake_fit_texture(
                 model, result, arrays, size=int(settings["texture_size"]),
                 options=BakeOptions(shading=settings.get("texture_shading") or "keep"))
+        heap.release_free_memory()  # the bake's temporaries, before Blender takes more
     if "texture" in kinds and tiles is None:
         raise ValueError(f"{task['where']}: no photo to bake the texture from")
     base.parent.mkdir(parents=True, exist_ok=True)
@@ -634,6 +637,7 @@ def _run_batch(args, heads, rows, tasks, jobs, model, out_dir, client):
         cluster = importlib.import_module(f"{__package__}.batch_cluster")
         results = cluster.run_cluster(tasks, client, _cluster_failed)
     elif jobs <= 1:
+        blas_threads.limit_loaded()  # as a worker process has it
         results = _in_process(tasks, model)
     else:
         results = batch_workers.run_pool(tasks, jobs, _worker_died)

@@ -149,11 +149,17 @@ def fit_gains(colours, weights, reference=None, iterations=6, groups=None):
     return gain[group], offset[group]
 
 
-def apply_gains(colours, gain, offset):
+def apply_gains(colours, gain, offset, in_place=False):
     """``gain[p] * colours[p] + offset[p]`` for colours (P, N, C), gain and offset (P, C)
-    (float32 kept; not clipped, the blend and the texture's clip follow)."""
+    (float32 kept; not clipped, the blend and the texture's clip follow); ``in_place``
+    writes it into ``colours`` (an ndarray), the same values without a second copy."""
     c = np.asarray(colours)
-    return c * np.asarray(gain, c.dtype)[:, None] + np.asarray(offset, c.dtype)[:, None]
+    g, o = np.asarray(gain, c.dtype)[:, None], np.asarray(offset, c.dtype)[:, None]
+    if not in_place:
+        return c * g + o
+    c *= g
+    c += o
+    return c
 
 
 @dataclass(frozen=True)

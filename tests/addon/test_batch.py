@@ -220,7 +220,7 @@ def test_a_killed_batch_loses_only_heads_in_flight(heads, tmp_path):
     assert not list(out.glob(".*"))  # the killed head's staging folder is gone
 
 
-def test_workers_share_the_cores_blas_threads(monkeypatch):
+def test_workers_get_one_blas_thread_unless_the_environment_says(monkeypatch):
     from headrecon_addon import batch_workers
 
     echo = ("import json, os, sys\nprint(json.dumps({'ready': True}), flush=True)\n"
@@ -229,7 +229,7 @@ def test_workers_share_the_cores_blas_threads(monkeypatch):
     monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
     monkeypatch.setattr(batch_workers, "cpu_count", lambda: 4)
     got = list(batch_workers.run_pool([{}, {}], 2, None, command=[sys.executable, "-c", echo]))
-    assert [answer for _, answer in got] == ["2", "2"]
+    assert [answer for _, answer in got] == ["1", "1"]
     monkeypatch.setenv("OPENBLAS_NUM_THREADS", "3")  # the environment's own choice is kept
     got = list(batch_workers.run_pool([{}], 2, None, command=[sys.executable, "-c", echo]))
     assert [answer for _, answer in got] == ["3"]
@@ -275,3 +275,62 @@ def test_a_name_with_a_dot_keeps_it_in_every_output(heads, tmp_path):
     assert sorted(p.name for p in out.iterdir()) == [
         "alice.v2.batch.json", "alice.v2.blend", "alice.v2.glb", "summary.csv",
         "summary.jsonl"]
+
+
+def _blend_content(path):
+    """What a head's .blend holds, datablock by datablock: every object's transform, mesh
+    positions, shape keys (positions, value, slider range), point attributes, image pixels
+    and material node count (the file's bytes differ by save time and pointers)."""
+    import bpy
+    import numpy as np
+
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    out = {}
+    for ob in bpy.data.objects:
+        out[f"object {ob.name}"] = np.array(ob.matrix_world)
+        if ob.type != "MESH":
+            continue
+        me = ob.data
+        co = np.empty(len(me.vertices) * 3, np.float32)
+        me.vertices.foreach_get("co", co)
+        out[f"mesh {ob.name}"] = co
+        for kb in me.shape_keys.key_blocks if me.shape_keys else ():
+            co = np.empty(len(kb.data) * 3, np.float32)
+            kb.data.foreach_get("co", co)
+            out[f"key {ob.name} {kb.name}"] = np.append(co, [kb.value, kb.slider_min,
+                                                             kb.slider_max])
+        for a in me.attributes:
+            if a.domain == "POINT" and a.data_type in ("FLOAT", "FLOAT_COLOR"):
+                per = 4 if a.data_type == "FLOAT_COLOR" else 1
+                v = np.empty(len(a.data) * per, np.float32)
+                a.data.foreach_get("color" if per == 4 else "value", v)
+                out[f"attribute {ob.name} {a.name}"] = v
+    for im in bpy.data.images:
+        px = np.empty(len(im.pixels), np.float32)
+        im.pixels.foreach_get(px)
+        out[f"image {im.name}"] = px
+    for mat in bpy.data.materials:
+        out[f"material {mat.name}"] = np.array([len(mat.node_tree.nodes)])
+    return out
+
+
+def test_a_worker_s_second_head_is_the_head_fitted_alone(heads, tmp_path):
+    """Nothing of one head leaks into the next one a worker fits (scene, images, caches,
+    the freed heap): the second head's .blend holds what the head fitted alone holds."""
+    import numpy as np
+
+    opts = ["--components", "10", "--texture-size", "64", "--jobs", "1"]
+    m = _manifest(heads, ["h0,h0.json,", "h1,h1.json,"], header="name,landmarks,exact")
+    proc = run_python(["-m", "headrecon_addon.headless", m, "--out", tmp_path / "both", *opts])
+    assert proc.returncode == 0, proc.stderr
+    proc = run_python(["-m", "headrecon_addon.headless", heads / "h1.json",
+                       "--out", tmp_path / "alone", *opts])
+    assert proc.returncode == 0, proc.stderr
+    second = _blend_content(tmp_path / "both" / "h1.blend")
+    alone = _blend_content(tmp_path / "alone" / "h1.blend")
+    assert second.keys() == alone.keys()
+    assert any(k.startswith("key ") for k in alone) and any(k.startswith("image ") for k in alone)
+    for key, value in alone.items():
+        np.testing.assert_array_equal(second[key], value, err_msg=key)
+    first = _blend_content(tmp_path / "both" / "h0.blend")
+    assert any(not np.array_equal(first[k], v) for k, v in alone.items() if k in first)

@@ -479,3 +479,19 @@ def test_photos_with_another_exposure_meet_without_a_step():
                            options=BakeOptions(mirror_weight=0.0, equalise=equalise))
         err[equalise] = np.abs(tex.reshape(-1, 3)[r.texel][band] - truth[band]).mean()
     assert err[True] < 0.01 < err[False], err
+
+
+def test_texels_sampled_in_blocks_give_the_texture_of_one_block(monkeypatch):
+    """The bake samples a tile's texels a block at a time (``SAMPLE_BLOCK``, to bound its
+    memory): any block size gives the same texture, bit for bit."""
+    from solver.texture import bake
+
+    m = uv_sphere()
+    views = [(coded_photo(), OrthographicCamera.nominal("orthographic-front", (W, H))),
+             (_stripes(), OrthographicCamera.nominal("orthographic-right", (W, H)))]
+    n = len(uv_raster(m, 128).texel)
+    monkeypatch.setattr(bake, "SAMPLE_BLOCK", n)
+    whole = bake_texture(m, m.vertices, views, 128)
+    monkeypatch.setattr(bake, "SAMPLE_BLOCK", 997)  # blocks not dividing the texels
+    assert n > 3 * 997
+    np.testing.assert_array_equal(bake_texture(m, m.vertices, views, 128), whole)

@@ -93,3 +93,14 @@ def test_seam_difference_measures_the_step_in_the_band_only():
     detail[1, 500:] = 0.5 + 0.1 * np.where(np.arange(500) % 2, 1, -1)[:, None]
     assert seam_difference(detail, weights, cells).absolute == pytest.approx(0.0, abs=1e-12)
     assert seam_difference(colours, weights * [[1], [0]], cells).texels == 0
+
+
+def test_gains_applied_in_place_are_the_copy_s_values():
+    colours, weights, _, _ = _two_views()
+    colours = colours.astype(np.float32)
+    g, o = fit_gains(colours, weights, reference=0)
+    copy = apply_gains(colours, g, o)
+    again = colours.copy()
+    assert apply_gains(again, g, o, in_place=True) is again
+    np.testing.assert_array_equal(again, copy)
+    assert not np.array_equal(colours, copy)  # the copy left its input alone
