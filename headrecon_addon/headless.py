@@ -7,7 +7,8 @@ report), one head after another or many in parallel.
 An ``INPUT`` is a landmarks file or a manifest (``.csv`` with a header row, or ``.jsonl``;
 ``batch_manifest``: one head a row, with options of its own). ``OUT`` is a ``.blend`` file
 for one head, or a folder (``<name>.*`` per head, and ``summary.csv`` / ``summary.jsonl``).
-``--outputs blend,glb,fbx,obj,texture,report`` chooses the files (default ``blend``; the
+``--outputs blend,glb,fbx,obj,texture,report`` chooses the files (default ``blend`` and,
+unless ``--no-texture``, ``texture``: the baked texture as ``<name>_texture.png``; the
 .glb and .fbx are the game export, ``export.export_head``, without morph normals unless
 ``--morph-normals``); ``--jobs N`` fits on N worker processes (``batch_workers``; default:
 the cores), results streaming as they finish. A head whose inputs and settings are those
@@ -185,6 +186,9 @@ def save_blend(path):
 
 
 OUTPUTS = ("blend", "glb", "fbx", "obj", "texture", "report")
+#: The outputs without ``--outputs``, by ``--no-texture``: the .blend, and the baked
+#: texture as a PNG beside it (as Save Texture writes it in Blender).
+DEFAULT_OUTPUTS = {False: ("blend", "texture"), True: ("blend",)}
 PARTIAL = ".partial-"  # temporary folders of heads in flight: ".<name>.partial-<pid>"
 
 
@@ -368,7 +372,7 @@ def _parser():
                         "and summary.csv / summary.jsonl)")
     p.add_argument("--outputs", type=_outputs_arg, metavar="LIST",
                    help=f"comma-separated outputs per head: {', '.join(OUTPUTS)} "
-                        "(default: blend)")
+                        "(default: blend,texture; blend with --no-texture)")
     p.add_argument("--jobs", type=int, metavar="N",
                    help="worker processes (default: the number of cores)")
     p.add_argument("--force", action="store_true",
@@ -412,7 +416,7 @@ def script_args(argv):
 
 def _settings(args):
     """The batch-wide settings (per-head manifest columns override them)."""
-    kinds = list(args.outputs or ["blend"])
+    kinds = list(args.outputs or DEFAULT_OUTPUTS[args.no_texture])
     for extra in (args.export, "glb" if args.glb else None):
         if extra and extra not in kinds:
             kinds.append(extra)

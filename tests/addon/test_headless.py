@@ -40,7 +40,9 @@ def test_headless_batch(model, tmp_path):
     lines = sorted(ln for ln in proc.stdout.splitlines()
                    if ln.startswith(("alice", "broken", "1 of")))
     assert lines[1].startswith("alice: method ") and " px, " in lines[1]
-    assert "flagged" in lines[1] and lines[1].endswith("alice.blend")
+    # by default the .blend and the baked texture as a PNG beside it
+    assert "flagged" in lines[1] and lines[1].endswith("alice.blend, " + str(
+        out / "alice_texture.png"))
     assert lines[2].startswith(f"broken: FAILED: {bad}: ") and "views" in lines[2]
     assert lines[0] == "1 of 2 heads written" and proc.stdout.splitlines()[-1] == lines[0]
     assert not (out / "broken.blend").exists()
@@ -58,6 +60,10 @@ def test_headless_batch(model, tmp_path):
     px = np.empty(256 * 256 * 4, np.float32)
     tex[0].pixels.foreach_get(px)
     assert px.reshape(-1, 4)[:, :3].std() > 0.01
+    from PIL import Image
+
+    with Image.open(out / "alice_texture.png") as png:  # the tiles side by side
+        assert png.size == (512, 256) and np.asarray(png).std() > 2
     photos = [o for o in bpy.data.objects if o.headrecon.role == "PHOTO"]
     assert sorted(p.headrecon.view for p in photos) == sorted(case.views)
     assert all(p.headrecon.image.packed_file is not None for p in photos)
