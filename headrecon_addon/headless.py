@@ -69,6 +69,7 @@ if __package__:
         fit_head,
         load_landmarks,
         load_model,
+        orthographic_lenses,
         solver,
     )
 
@@ -263,6 +264,8 @@ def write_head(task, model):
         {f"output {k}": p for k, p in targets.items()}, inputs)
     reset_scene()
     imgs = _images_for(case, None)  # fails fast on a missing photo, before the fit
+    orthographic_lenses(case, {v: case.image_path(v) for v, view in case.views.items()
+                               if view.image is not None})
     result = fit_head(model, case, options)
     for message in result.info.get("warnings", ()):
         print(f"{name}: warning: {message}", file=sys.stderr, flush=True)

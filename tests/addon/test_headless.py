@@ -261,3 +261,24 @@ def test_a_manifest_photos_column_is_detected(sample, tmp_path):
     report = json.loads((out / "bob.report.json").read_text())
     assert report["options"]["components"] == 12                    # the row's own option
     assert len(report["coefficients"]["identity"]) == 12
+
+
+def test_an_orthographic_phone_photo_is_warned_about(model, tmp_path):
+    """A front photo with a phone's lens in its EXIF, fitted as orthographic: the head's
+    line on stderr says it was taken too close for a parallel projection."""
+    from solver.io import exif, landmarks_file
+    from tests.solver.io.exif_jpeg import jpeg, tiff
+
+    path, case, _ = synthetic_files(model, tmp_path, seed=14, name="phone", photos=False,
+                                    image_height=256)
+    w, h = case.views["front"].size
+    (tmp_path / "front.jpg").write_bytes(jpeg(tiff([], [(exif.FOCAL_35MM, 3, [26])]),
+                                              pixels=np.full((h, w, 3), 90, np.uint8)))
+    case.views["front"].image = "front.jpg"
+    landmarks_file.save_landmarks(case, path)
+    proc = run_python(["-m", "headrecon_addon.headless", path, "--out", tmp_path / "o.blend",
+                       "--components", "10", "--no-texture", "--jobs", "1"])
+    assert proc.returncode == 0, proc.stderr
+    warned = [ln for ln in proc.stderr.splitlines() if "parallel projection" in ln]
+    assert len(warned) == 1 and warned[0].startswith("phone: warning: view 'front'")
+    assert "mm lens, EXIF" in warned[0]
