@@ -544,6 +544,7 @@ class ShapeProblem:
 
     @staticmethod
     def _add_general(n_mat, b, blk, sj, pg, s, rot, shape):
+        mix = blk.mix
         if blk.idx is None:  # one row per vertex, in order (e.g. point-to-plane)
             keep = np.flatnonzero(blk.w > 0)
             dense = len(keep) > 0.5 * len(blk.w)
@@ -552,9 +553,13 @@ class ShapeProblem:
             idx = keep
         else:
             keep = blk.w > 0
+            if mix is not None:
+                keep |= (mix != 0).any(axis=0)
             idx = blk.idx[keep]
             dense = False
         g, r, w = blk.g[keep], blk.r[keep], blk.w[keep]
+        if mix is not None:  # rows combined from the block's: no gather of their own
+            mix, mr, mw = mix[:, keep], blk.mix_r, blk.mix_w
         at = sj[idx]
         if g.ndim == 2:  # one vertex per row: the case c = 1 of rows on c vertices
             g, at = g[:, None], at[:, None]
@@ -562,6 +567,11 @@ class ShapeProblem:
         a_sw = a_s * w[:, None]
         n_mat[:7, :7] += a_sw.T @ a_s
         b[:7] += a_sw.T @ r
+        if mix is not None:
+            x_s = mix @ a_s
+            x_sw = x_s * mw[:, None]
+            n_mat[:7, :7] += x_sw.T @ x_s
+            b[:7] += x_sw.T @ mr
         if shape:
             h = s * g @ rot  # row of s R B_i seen from the model frame, (m, c, 3)
             if dense:  # all vertices, one each: contract the (Ka, n, 3) basis in place
@@ -569,6 +579,7 @@ class ShapeProblem:
                 sr = a_c * np.sqrt(w)
                 n_mat[7:, 7:] += sr @ sr.T  # A^T W A as one symmetric product (syrk)
                 prod = (a_c * w) @ np.column_stack([a_s, r])
+                a_c = a_c.T
             else:  # few rows: gather contiguous (3, Ka) blocks per row and vertex
                 m, c = g.shape[:2]
                 basis = pg.gather(np.reshape(idx, -1))
@@ -577,6 +588,12 @@ class ShapeProblem:
                 sr = a_c * np.sqrt(w)[:, None]
                 n_mat[7:, 7:] += sr.T @ sr
                 prod = (a_c * w[:, None]).T @ np.column_stack([a_s, r])
+            if mix is not None:
+                x_c = mix @ a_c  # (q, Ka)
+                sx = x_c * np.sqrt(np.abs(mw))[:, None]  # symmetric products by sign
+                neg = mw < 0
+                n_mat[7:, 7:] += sx[~neg].T @ sx[~neg] - sx[neg].T @ sx[neg]
+                prod += (x_c * mw[:, None]).T @ np.column_stack([x_s, mr])
             n_mat[7:, :7] += prod[:, :7]
             b[7:] += prod[:, 7]
 
