@@ -4,6 +4,7 @@ that pull a traced outline onto the silhouette of the posed model (thesis §4.4.
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..cameras import OrthographicCamera
 from ..geometry import vertex_normals
 from ..memo import memo
 from .rows import CameraRows, ScalarRows
@@ -130,7 +131,11 @@ class ContourRows(CameraRows):
         f = self.faces
         a, b, c = world[f[:, 0]], world[f[:, 1]], world[f[:, 2]]
         normal = np.cross(b - a, c - a)
-        toward = np.asarray(self.camera.toward_camera((a + b + c) / 3.0), dtype=np.float64)
+        if isinstance(self.camera, OrthographicCamera):  # one direction for every face
+            toward = np.broadcast_to(self.camera.toward_camera(a[:1]), normal.shape)
+        else:
+            toward = np.asarray(self.camera.toward_camera((a + b + c) / 3.0),
+                                dtype=np.float64)
         facing = np.einsum("ij,ij->i", normal, toward) > 0
         return self.edges[facing[self.edges[:, 2]] != facing[self.edges[:, 3]]]
 

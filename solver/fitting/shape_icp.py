@@ -243,6 +243,15 @@ class _System:
         return self.sq / self.wsum if self.wsum > 0 else 0.0
 
 
+def _similarity_jacobian(pt):
+    """d x / d(ds, dtheta, dt) at the points ``pt`` (..., 3) (eq. 39), shape (..., 3, 7)."""
+    sj = np.zeros(pt.shape + (7,))
+    sj[..., 0] = pt
+    sj[..., 1:4] = -skew(pt)  # dtheta x p~ = -[p~]_x dtheta
+    sj[..., 0, 4] = sj[..., 1, 5] = sj[..., 2, 6] = 1.0
+    return sj
+
+
 # --------------------------------------------------------------------------- solver
 
 
@@ -481,16 +490,11 @@ class ShapeProblem:
                          "error": g_sq / g_w if g_w > 0 else 0.0})
             if not jacobian:
                 continue
-            nv = len(x)
-            sj = np.zeros((nv, 3, 7))  # d x / d(ds, dtheta, dt)  (eq. 39)
-            sj[:, :, 0] = pt
-            sj[:, :, 1:4] = -skew(pt)  # dtheta x p~ = -[p~]_x dtheta
-            sj[:, 0, 4] = sj[:, 1, 5] = sj[:, 2, 6] = 1.0
             for blk in blocks:
                 if isinstance(blk, IsotropicRows):
-                    self._add_iso(n_mat, b, blk, sj, pg, s, rot, shape)
-                else:
-                    self._add_general(n_mat, b, blk, sj, pg, s, rot, shape)
+                    self._add_iso(n_mat, b, blk, _similarity_jacobian(pt), pg, s, rot, shape)
+                else:  # (its rows' vertices only: an outline's are a few of its candidates)
+                    self._add_general(n_mat, b, blk, pt, pg, s, rot, shape)
         if jacobian:
             n_mat[:7, 7:] = n_mat[7:, :7].T
         return _System(n_mat, b, sq, self._prior_cost(c), wsum, nrows, info)
@@ -543,7 +547,7 @@ class ShapeProblem:
             n_mat[7:, 7:] += (s * s) * pg.gram(a)
 
     @staticmethod
-    def _add_general(n_mat, b, blk, sj, pg, s, rot, shape):
+    def _add_general(n_mat, b, blk, pt, pg, s, rot, shape):
         mix = blk.mix
         if blk.idx is None:  # one row per vertex, in order (e.g. point-to-plane)
             keep = np.flatnonzero(blk.w > 0)
@@ -560,7 +564,7 @@ class ShapeProblem:
         g, r, w = blk.g[keep], blk.r[keep], blk.w[keep]
         if mix is not None:  # rows combined from the block's: no gather of their own
             mix, mr, mw = mix[:, keep], blk.mix_r, blk.mix_w
-        at = sj[idx]
+        at = _similarity_jacobian(pt[idx])
         if g.ndim == 2:  # one vertex per row: the case c = 1 of rows on c vertices
             g, at = g[:, None], at[:, None]
         a_s = np.einsum("mci,mcij->mj", g, at)  # a row's vertices' terms summed
@@ -647,7 +651,7 @@ class ShapeProblem:
     # ---------------------------------------------------------------- solve
 
     def solve(self, scale=1.0, rotation=None, translation=None, coeffs=None,
-              max_iterations=30, tolerance=1e-6, sigma=None):
+              max_iterations=30, tolerance=1e-6, sigma=None, final_system=True):
         """Run Gauss-Newton from the given start.
 
         Parameters
@@ -664,6 +668,12 @@ class ShapeProblem:
         sigma : float, optional
             Residual noise level for the covariance; default: estimated as
             ``sqrt(weighted SSR / (rows - free parameters))``.
+        final_system : bool
+            False: after the last of ``max_iterations`` steps, stop without linearising
+            at the new parameters (one build of the system fewer, for a caller that
+            only takes the parameters): ``normal_matrix`` is then the last step's, and
+            the last error, ``info`` and ``sigma`` come from the step's cost evaluation
+            (correspondences not refreshed).
 
         Returns
         -------
@@ -733,6 +743,10 @@ class ShapeProblem:
                 break
             state = accepted
             steps += 1
+            if not final_system and steps >= int(max_iterations):
+                sys = trial
+                history.append(sys.error)
+                break
         s, rot, t, c = state
         dof = sys.nrows + (self._prior_rows if self.shape_free else 0) - n_free
         sig = float(np.sqrt(sys.sq / max(dof, 1))) if sigma is None else float(sigma)

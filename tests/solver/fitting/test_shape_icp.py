@@ -156,6 +156,30 @@ def test_image_rows_through_orthographic_cameras():
     assert fit.sigma == pytest.approx(0.5, rel=0.15)  # pixels
 
 
+def test_a_solve_without_the_final_system_takes_the_same_steps():
+    model = synthetic_model()
+    c, x = _truth(model, seed=9)
+    front = OrthographicCamera.nominal("orthographic-front", (1200, 1600))
+    side = OrthographicCamera.nominal("orthographic-right", (1200, 1600))
+    x = x - TRUE_T + np.array([0.0, 0.0, 0.02])
+    rng = np.random.default_rng(3)
+    v = np.arange(0, model.n_vertices, 5)
+    rows = [ImageRows(v, front.project(x[v]) + rng.normal(size=(len(v), 2)), front),
+            ImageRows(v, side.project(x[v]) + rng.normal(size=(len(v), 2)), side)]
+    problem = ShapeProblem(model, rows, lambda2=0.3)
+    for steps in (1, 3):
+        full = problem.solve(max_iterations=steps, tolerance=0.0)
+        fast = problem.solve(max_iterations=steps, tolerance=0.0, final_system=False)
+        assert fast.iterations == full.iterations == steps
+        np.testing.assert_array_equal(fast.coeffs, full.coeffs)
+        np.testing.assert_array_equal(fast.rotation, full.rotation)
+        assert (fast.scale, list(fast.translation)) == (full.scale, list(full.translation))
+        # the last error is the step's own evaluation (no correspondences to refresh here)
+        assert fast.error_history == pytest.approx(full.error_history, rel=1e-12)
+        # and the normal matrix the step's start's, not the end's
+        assert np.abs(fast.normal_matrix - full.normal_matrix).max() > 0.0
+
+
 def test_image_rows_chain_rule_matches_finite_differences():
     # Through a perspective-like camera (nonlinear projection), the solver's Jacobian
     # must agree with finite differences of the residual: checked via a converged fit
