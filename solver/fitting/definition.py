@@ -9,6 +9,7 @@ shape follows what the points say relative to each other and only partly their c
 
 import numpy as np
 
+from ..cameras import OrthographicCamera
 from .noise import STUDENT_NU
 from .rows import ImageRows, ScalarRows, _projected
 
@@ -169,6 +170,7 @@ class GroupedImageRows(ImageRows):
         self._mix = mix.reshape(2 * n_groups, 2 * len(g))
         self._wsum = np.bincount(self.labels, weights=self.weights, minlength=n_groups)
         self._first = np.unique(self.labels, return_index=True)[1]  # a point of each group
+        self._shrunk = None  # (orthographic camera, its shrink())
 
     def shrink(self, jac):
         """(beta per point (n,), each point's share of its group's weight (n,)) at the
@@ -183,7 +185,12 @@ class GroupedImageRows(ImageRows):
         n = len(w)
         r = self.pixels - _projected(self.camera, world, self.name, self.vertices)
         jac = np.asarray(self.camera.jacobian(world), dtype=np.float64).reshape(n, 2, 3)
-        beta, u = self.shrink(jac)
+        if not isinstance(self.camera, OrthographicCamera):
+            beta, u = self.shrink(jac)
+        else:  # its Jacobians do not depend on the head: once per camera
+            if self._shrunk is None or self._shrunk[0] is not self.camera:
+                self._shrunk = (self.camera, self.shrink(jac))
+            beta, u = self._shrunk[1]
         mean = group_means(self.labels, u, r)  # (n, 2) each point's group mean
         rw = r - beta[:, None] * mean  # (n, 2) whitened residuals
         sq = float(w @ np.einsum("ij,ij->i", rw, rw))
