@@ -28,6 +28,10 @@ def _parse():
     p.add_argument("--noise", type=float, nargs="+", default=[0.0, 1.0, 2.0],
                    help="landmark noise levels, pixels")
     p.add_argument("--methods", nargs="+", default=["approach1", "approach2", "combined"])
+    p.add_argument("--profile", action="store_true",
+                   help="run the full fits and the refits under cProfile and print where "
+                        "their time goes (the solver's functions; times then include the "
+                        "profiler's overhead)")
     blas_threads.option_argument(p)
     return p.parse_args()
 
@@ -35,6 +39,8 @@ def _parse():
 ARGS = blas_threads.script_args(_parse, __name__)
 
 import copy  # noqa: E402
+import cProfile  # noqa: E402
+import pstats  # noqa: E402
 import statistics  # noqa: E402
 import time  # noqa: E402
 
@@ -60,6 +66,8 @@ def main(args):
     methods = list(args.methods)
     table = {}
     fit_times, refit_times, fit_cpu, refit_cpu = [], [], [], []
+    profiles = {"full fit": cProfile.Profile(), "refit": cProfile.Profile()} \
+        if args.profile else {}
     chosen = {}
     for sigma in args.noise:
         errs = {m: [] for m in ["mean head"] + methods}
@@ -67,8 +75,9 @@ def main(args):
             case, truth = make_case(model, 1000 + seed, noise_px=sigma, rotation_deg=5.0)
             errs["mean head"].append(skin_error_mm(model, model.vertices, truth.local_vertices))
             for m in methods:
+                prof = profiles.get("full fit") if m == "combined" else None
                 t, c0 = time.perf_counter(), time.process_time()
-                res = fit_head(model, case, FitOptions(method=m, **shared))
+                res = _run(prof, fit_head, model, case, FitOptions(method=m, **shared))
                 dt, dc = time.perf_counter() - t, time.process_time() - c0
                 errs[m].append(skin_error_mm(model, res.local_vertices, truth.local_vertices))
                 if m == "combined":
@@ -81,7 +90,8 @@ def main(args):
                         moved.views["front"].points["nose_tip"] = (u + 5.0, v)
                         for _ in range(3):
                             t, c0 = time.perf_counter(), time.process_time()
-                            refit_landmarks(model, moved, res, FitOptions(**shared))
+                            _run(profiles.get("refit"), refit_landmarks, model, moved, res,
+                                 FitOptions(**shared))
                             refit_times.append(time.perf_counter() - t)
                             refit_cpu.append(time.process_time() - c0)
         table[sigma] = errs
@@ -109,11 +119,38 @@ def main(args):
     print(f"  peak allocations during one fit (tracemalloc): {peak / 2**20:.0f} MB")
     print(f"  peak resident memory of this process (ru_maxrss, model loaded): {rss:.0f} MB "
           "(target <= 500 MB)")
+    for name, prof in profiles.items():
+        _print_profile(name, prof)
     target = table.get(1.0, {}).get("combined")
     if target:
         ok = np.median(target) <= 2.0
         print(f"\naccuracy target (combined, sigma 1 px, median <= 2.0 mm): "
               f"{'met' if ok else 'NOT met'} ({np.median(target):.2f} mm)")
+
+
+def _run(prof, fn, *args):
+    """``fn(*args)``, under the profiler ``prof`` when one is given."""
+    if prof is None:
+        return fn(*args)
+    return prof.runcall(fn, *args)
+
+
+def _print_profile(name, prof, share=0.02):
+    """The solver's functions that take at least ``share`` of the profiled calls' time
+    (inclusive), per call of the profiled function: ms, share, own ms, calls."""
+    stats = pstats.Stats(prof).stats
+    top = [v for k, v in stats.items() if k[2] in ("fit_head", "refit_landmarks")]
+    if not top:
+        return
+    calls, total = top[0][1], top[0][3]
+    print(f"\nprofile of the {name} (cProfile, per {name}; inclusive ms, share, own ms, "
+          f"calls): {1000 * total / calls:.1f} ms under the profiler")
+    rows = sorted(((v[3], v[2], v[1], k) for k, v in stats.items()
+                   if "/solver/" in k[0] and v[3] >= share * total), reverse=True)
+    for cum, own, n, (path, line, func) in rows:
+        where = path[path.rindex("/solver/") + 1:]
+        print(f"  {1000 * cum / calls:8.1f} {100 * cum / total:5.1f} %"
+              f" {1000 * own / calls:8.1f} {n / calls:7.1f}  {where}:{line} {func}")
 
 
 if __name__ == "__main__":
