@@ -527,6 +527,65 @@ class _EdgePointRows(PointRows):
         return ScalarRows(idx, g, r, w, float(r @ r), float(w.sum()), len(r))
 
 
+class _MixedRows(PointRows):
+    """Each vertex pulled toward its target, one scalar row per coordinate, plus rows on
+    the mean x of vertex pairs weighted ``pair_w``: given as ``ScalarRows.mix`` of the
+    coordinate rows, or (``explicit``) as rows on both vertices of their own; None: no
+    pair rows."""
+
+    def __init__(self, vertices, targets, pairs, pair_targets, pair_w, explicit):
+        super().__init__(vertices, targets, name="mixed")
+        self.pairs, self.pair_targets = pairs, pair_targets
+        self.pair_w, self.explicit = pair_w, explicit
+
+    def block(self, world, jacobian=True):
+        n = len(world)
+        r = (self.targets - world).reshape(-1)  # rows (vertex, coordinate)
+        pr = self.pair_targets - world[self.pairs, 0].mean(axis=1)
+        sq = float(r @ r) + (0.0 if self.pair_w is None else float(self.pair_w @ pr**2))
+        if not jacobian:
+            return ScalarRows(None, None, None, None, sq, float(n), 3 * n)
+        g = np.tile(np.eye(3), (n, 1))
+        plain = ScalarRows(np.repeat(np.arange(n), 3), g, r, np.ones(3 * n), sq, float(n),
+                           3 * n)
+        if self.pair_w is None:
+            return plain
+        if not self.explicit:
+            mix = np.zeros((len(self.pairs), 3 * n))
+            np.put_along_axis(mix, 3 * self.pairs, 0.5, axis=1)  # the pair's x rows
+            plain.mix, plain.mix_r, plain.mix_w = mix, pr, self.pair_w
+            return plain
+        gp = np.zeros((len(self.pairs), 2, 3))
+        gp[:, :, 0] = 0.5
+        return [plain, ScalarRows(self.pairs, gp, pr, self.pair_w, 0.0, 0.0, 0)]
+
+
+def test_mixed_rows_are_the_rows_they_combine():
+    # Rows given as combinations of a block's rows (ScalarRows.mix) build the system the
+    # same rows on their own vertices do, and a negative weight takes as much out.
+    model = synthetic_model()
+    rng = np.random.default_rng(21)
+    v = np.arange(0, model.n_vertices, 7)
+    targets = model.instance(rng.standard_normal(model.n_coeffs))[v]
+    pairs = np.stack([np.arange(0, len(v) - 1, 2), np.arange(1, len(v), 2)], axis=1)
+    pair_targets = targets[pairs, 0].mean(axis=1) + 0.001 * rng.standard_normal(len(pairs))
+    pair_w = rng.uniform(0.2, 0.6, len(pairs))
+    start = dict(scale=1.01, coeffs=0.3 * rng.standard_normal(model.n_coeffs))
+
+    def system(w, explicit=False):
+        rows = _MixedRows(v, targets, pairs, pair_targets, w, explicit)
+        fit = ShapeProblem(model, rows, lambda2=0.1).solve(max_iterations=0, **start)
+        return fit.normal_matrix, fit.info["cost"]
+
+    (n_mix, c_mix), (n_own, c_own) = system(pair_w), system(pair_w, explicit=True)
+    (n_plain, _), (n_neg, _) = system(None), system(-pair_w)
+    scale = np.abs(n_own).max()
+    np.testing.assert_allclose(n_mix, n_own, rtol=0, atol=1e-12 * scale)
+    assert c_mix == pytest.approx(c_own, rel=1e-14)
+    assert np.abs(n_mix - n_plain).max() > 1e-3 * scale  # the pair rows count
+    np.testing.assert_allclose(n_neg, 2 * n_plain - n_own, rtol=0, atol=1e-12 * scale)
+
+
 def test_rows_on_two_vertices_each_are_solved_exactly():
     # Every row sees a point between two vertices only. With scale and rotation fixed the
     # residual is linear, so one step must land on the head exactly: it would not with
