@@ -78,7 +78,8 @@ def approach2(eng, model, state, opts):
             rows.set_camera(state.cameras[v.name])
         fit = problem.solve(scale=state.scale, rotation=state.rotation,
                             translation=state.translation, coeffs=state.coeffs,
-                            max_iterations=3, tolerance=opts.tolerance, sigma=1.0)
+                            max_iterations=3, tolerance=opts.tolerance, sigma=1.0,
+                            final_system=False)
         state = state.copy()
         state.rotation, state.coeffs = fit.rotation, fit.coeffs
         state.scale, state.translation = fit.scale, fit.translation

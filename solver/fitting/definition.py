@@ -9,6 +9,7 @@ shape follows what the points say relative to each other and only partly their c
 
 import numpy as np
 
+from ..cameras import OrthographicCamera
 from .noise import STUDENT_NU
 from .rows import ImageRows, ScalarRows, _projected
 
@@ -16,17 +17,28 @@ from .rows import ImageRows, ScalarRows, _projected
 def group_terms(labels, weights, jac, sigma_m):
     """What a point's group shares: ``t`` (n,), the offset's variance over the noise's for
     the group's mean (``sigma_G^2 * sum_G w``, ``sigma_G`` in pixels through the
-    Jacobians ``jac`` (n, 2, 3), pixels per metre), and the weighted-mean matrix ``M``
-    (n, n): ``M[i, k] = w_k / sum_G w`` for k in i's group, 0 elsewhere."""
+    Jacobians ``jac`` (n, 2, 3), pixels per metre), and each point's share ``u`` (n,) of
+    its group's weight (``w / sum_G w``; 0 in a group of weight 0): the group's weighted
+    mean of a per-point value is ``group_means(labels, u, value)``.
+
+    ``labels`` (n,) are 0 .. G-1 (``np.unique(..., return_inverse=True)``): sums per group
+    are bincounts, no (n, n) membership matrix."""
     w = np.asarray(weights, dtype=np.float64)
-    same = labels[:, None] == labels[None, :]
-    wsum = same @ w
+    wsum = np.bincount(labels, weights=w)[labels]
     safe = np.where(wsum > 0, wsum, 1.0)
-    m = np.where(same, w[None, :], 0.0) / safe[:, None]
     px_per_m2 = 0.5 * (np.asarray(jac) ** 2).sum(axis=(1, 2))
     sig2 = np.broadcast_to(np.asarray(sigma_m, dtype=np.float64) ** 2, w.shape)
-    scale2 = (same @ (w * px_per_m2 * sig2)) / safe
-    return np.where(wsum > 0, scale2 * wsum, 0.0), m
+    scale2 = np.bincount(labels, weights=w * px_per_m2 * sig2)[labels] / safe
+    return np.where(wsum > 0, scale2 * wsum, 0.0), w / safe
+
+
+def group_means(labels, u, values):
+    """Each point's group mean of ``values`` (n, d) weighted by the shares ``u`` (n,)
+    (:func:`group_terms`), shape (n, d)."""
+    v = np.asarray(values, dtype=np.float64)
+    sums = np.stack([np.bincount(labels, weights=u * v[:, a]) for a in range(v.shape[1])],
+                    axis=1)
+    return sums[labels]
 
 
 #: How much larger the offset of a group of outline points (the jaw, the chin: a front
@@ -86,9 +98,9 @@ def group_offsets(residuals, groups, weights, jac, sigma_m):
     # by how far each sits from it against the photo's typical distance.
     robust = np.ones_like(w)
     for _ in range(ROBUST_STEPS):
-        t, m = group_terms(labels, w * robust, jac, sigma_m)
+        t, u = group_terms(labels, w * robust, jac, sigma_m)
         gain = t / (1.0 + t)
-        e = gain[:, None] * (m @ r)
+        e = gain[:, None] * group_means(labels, u, r)
         sq = ((r - e) ** 2).sum(axis=1)
         typical = float(np.median(sq[w > 0])) if np.any(w > 0) else 0.0
         if not typical > 0:
@@ -116,7 +128,13 @@ class GroupedImageRows(ImageRows):
     ``sigma_G`` the definition offset ``sigma_m`` seen through the camera (pixels per metre
     at the group's points). Marginalising ``e_G`` whitens the group's residuals per axis:
     ``r_i - beta_G * mean_w(r)`` with the weights kept, ``beta_G = 1 - 1 / sqrt(1 +
-    sigma_G^2 * sum_G w)`` (Sherman-Morrison), so a row depends on all vertices of its group.
+    sigma_G^2 * sum_G w)`` (Sherman-Morrison).
+
+    The block gives the same normal equations in a cheaper form: each point's plain row,
+    and one row per group and axis on the group's weighted mean ``mean_w(r)`` with the
+    negative weight ``-(2 beta_G - beta_G^2) sum_G w`` (``ScalarRows.mix``), since
+    ``sum_G w_i (r_i - beta mean)^2 = sum_G w_i r_i^2 - (2 beta - beta^2) sum_G w mean^2``.
+    Whitened, every row would depend on all vertices of its group (docs/DECISIONS.md).
 
     Parameters
     ----------
@@ -141,12 +159,24 @@ class GroupedImageRows(ImageRows):
             else float(sigma_m)
         if not np.all(np.asarray(self.sigma_m) >= 0.0):
             raise ValueError(f"{name}: sigma_m must be >= 0, got {sigma_m!r}")
+        # The mean rows' pattern (fixed with the groups and weights): a (2G, 2n) matrix
+        # whose row 2g + a takes the weighted mean of group g's rows of axis a.
+        n_groups = int(self.labels.max()) + 1 if len(self.labels) else 0
+        _, self._share = group_terms(self.labels, self.weights, np.zeros((len(g), 2, 3)),
+                                     0.0)
+        mix = np.zeros((n_groups, 2, len(g), 2))
+        for a in range(2):
+            mix[self.labels, a, np.arange(len(g)), a] = self._share
+        self._mix = mix.reshape(2 * n_groups, 2 * len(g))
+        self._wsum = np.bincount(self.labels, weights=self.weights, minlength=n_groups)
+        self._first = np.unique(self.labels, return_index=True)[1]  # a point of each group
+        self._shrunk = None  # (orthographic camera, its shrink())
 
     def shrink(self, jac):
-        """(beta per point (n,), weighted-mean matrix (n, n)) of the camera's Jacobians
-        ``jac`` (n, 2, 3): see :func:`group_terms`."""
-        t, m = group_terms(self.labels, self.weights, jac, self.sigma_m)
-        return 1.0 - 1.0 / np.sqrt(1.0 + t), m
+        """(beta per point (n,), each point's share of its group's weight (n,)) at the
+        camera's Jacobians ``jac`` (n, 2, 3): see :func:`group_terms`."""
+        t, u = group_terms(self.labels, self.weights, jac, self.sigma_m)
+        return 1.0 - 1.0 / np.sqrt(1.0 + t), u
 
     def block(self, world, jacobian=True):
         if not np.any(self.sigma_m):
@@ -155,24 +185,21 @@ class GroupedImageRows(ImageRows):
         n = len(w)
         r = self.pixels - _projected(self.camera, world, self.name, self.vertices)
         jac = np.asarray(self.camera.jacobian(world), dtype=np.float64).reshape(n, 2, 3)
-        beta, m = self.shrink(jac)
-        rw = r - beta[:, None] * (m @ r)  # (n, 2) whitened residuals
+        if not isinstance(self.camera, OrthographicCamera):
+            beta, u = self.shrink(jac)
+        else:  # its Jacobians do not depend on the head: once per camera
+            if self._shrunk is None or self._shrunk[0] is not self.camera:
+                self._shrunk = (self.camera, self.shrink(jac))
+            beta, u = self._shrunk[1]
+        mean = group_means(self.labels, u, r)  # (n, 2) each point's group mean
+        rw = r - beta[:, None] * mean  # (n, 2) whitened residuals
         sq = float(w @ np.einsum("ij,ij->i", rw, rw))
         nrows = 2 * int((w > 0).sum())
         if not jacobian:
             return ScalarRows(None, None, None, None, sq, float(w.sum()), nrows)
-        # Row (i, axis a) depends on each vertex k of i's group:
-        # d pred'_ia / d x_k = (delta_ik - beta_i M_ik) * jac[k, a]. Members padded with
-        # the point itself at coefficient 0 to the largest group's size.
-        coef = np.eye(n) - beta[:, None] * m
-        same = self.labels[:, None] == self.labels[None, :]
-        size = same.sum(axis=1)
-        c = int(size.max()) if n else 1
-        order = np.argsort(~same, axis=1, kind="stable")[:, :c]  # group members first
-        pad = np.arange(c)[None, :] >= size[:, None]
-        members = np.where(pad, np.arange(n)[:, None], order)
-        k = np.where(pad, 0.0, np.take_along_axis(coef, order, axis=1))  # (n, c)
-        g = k[:, None, :, None] * jac[members].transpose(0, 2, 1, 3)  # (n, 2, c, 3)
-        idx = np.repeat(members, 2, axis=0)
-        return ScalarRows(idx, g.reshape(2 * n, c, 3), rw.reshape(-1), np.repeat(w, 2),
-                          sq, float(w.sum()), nrows)
+        first = self._first
+        b = beta[first]
+        mix_w = np.repeat(-(2.0 * b - b * b) * self._wsum, 2)
+        return ScalarRows(np.repeat(np.arange(n), 2), jac.reshape(2 * n, 3), r.reshape(-1),
+                          np.repeat(w, 2), sq, float(w.sum()), nrows, mix=self._mix,
+                          mix_r=mean[first].reshape(-1), mix_w=mix_w)

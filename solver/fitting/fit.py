@@ -390,7 +390,7 @@ def refit_landmarks(model, case, previous, options=None):
                           freeze=("rotation",))
     fit = problem.solve(scale=state.scale, rotation=state.rotation,
                         translation=state.translation, coeffs=state.coeffs,
-                        max_iterations=1, tolerance=0.0, sigma=1.0)
+                        max_iterations=1, tolerance=0.0, sigma=1.0, final_system=False)
     state.coeffs = fit.coeffs.copy()
     world = eng.world(state, np.concatenate(verts))
     outline = {n: (idx, np.linalg.norm(r.pixels - r.camera.project(world[r.vertices]), axis=1))

@@ -369,7 +369,8 @@ class Joint:
         self.sync(state)
         return prep.problem.solve(scale=state.scale, rotation=state.rotation,
                                   translation=state.translation, coeffs=start,
-                                  max_iterations=iterations, tolerance=0.0, sigma=1.0)
+                                  max_iterations=iterations, tolerance=0.0, sigma=1.0,
+                                  final_system=False)
 
     def step(self, state, freeze=(), inner=2, cameras_only=False, prep=None):
         """One joint Gauss-Newton round (``inner`` shape-ICP steps), then the cameras.

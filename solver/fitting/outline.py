@@ -4,6 +4,7 @@ that pull a traced outline onto the silhouette of the posed model (thesis §4.4.
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..cameras import OrthographicCamera
 from ..geometry import vertex_normals
 from ..memo import memo
 from .rows import CameraRows, ScalarRows
@@ -61,6 +62,8 @@ class ContourRows(CameraRows):
     max_distance, reject_factor, keep_distance, spacing_px : float
     name : str
     """
+
+    _face_corners = None
 
     def __init__(self, vertices, pixels, camera, weights=1.0, faces=None, edges=None,
                  max_distance=20.0, reject_factor=3.0, keep_distance=3.0, spacing_px=6.0,
@@ -127,18 +130,37 @@ class ContourRows(CameraRows):
     def rim_edges(self, world):
         """The rows of ``edges`` (a, b, face 1, face 2) on the contour generator of the
         posed head: one of their faces turned to the camera, the other away."""
-        f = self.faces
-        a, b, c = world[f[:, 0]], world[f[:, 1]], world[f[:, 2]]
-        normal = np.cross(b - a, c - a)
-        toward = np.asarray(self.camera.toward_camera((a + b + c) / 3.0), dtype=np.float64)
+        f0, f1, f2 = self._corners()
+        a = world[f0]
+        u, v = world[f1] - a, world[f2] - a
+        normal = np.empty_like(u)  # u x v, the products np.cross takes, in its order
+        normal[:, 0] = u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1]
+        normal[:, 1] = u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2]
+        normal[:, 2] = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
+        if isinstance(self.camera, OrthographicCamera):  # one direction for every face
+            toward = np.broadcast_to(self.camera.toward_camera(a[:1]), normal.shape)
+        else:
+            toward = np.asarray(self.camera.toward_camera((a + world[f1] + world[f2]) / 3.0),
+                                dtype=np.float64)
         facing = np.einsum("ij,ij->i", normal, toward) > 0
         return self.edges[facing[self.edges[:, 2]] != facing[self.edges[:, 3]]]
+
+    def _corners(self):
+        """The faces' first, second and third corners, three contiguous (F,) arrays."""
+        if self._face_corners is None:
+            self._face_corners = tuple(np.ascontiguousarray(self.faces[:, k]) for k in range(3))
+        return self._face_corners
 
     def _projected_edges(self, world, e):
         """Edges ``e`` (E, 2) in the photo: each one's first end and its direction,
         ((E, 2), (E, 2)) pixels (each vertex projected once)."""
-        used, inv = np.unique(e, return_inverse=True)
-        ends = self.camera.project(world[used])[inv.reshape(-1, 2)]  # (E, 2, 2)
+        # the vertices used, sorted, and where each end is among them (np.unique's
+        # answer, by a mark per candidate instead of a sort)
+        mark = np.zeros(len(world), bool)
+        mark[e.ravel()] = True
+        used = np.flatnonzero(mark)
+        at = np.cumsum(mark) - 1
+        ends = self.camera.project(world[used])[at[e]]  # (E, 2, 2)
         return ends[:, 0], ends[:, 1] - ends[:, 0]
 
     def _unchanged(self, world):

@@ -58,6 +58,15 @@ class ScalarRows:
         Sum of the weights of the points used (eq. 46 denominator).
     nrows : int
         Scalar rows with positive weight.
+    mix : ndarray, shape (q, m), or None
+        Extra rows, each a combination of the block's rows: its prediction is
+        ``mix @ pred``, so its derivative ``sum_j mix[., j] g_j`` costs no gather of its
+        own (a group's mean row, ``definition.GroupedImageRows``).
+    mix_r : ndarray, shape (q,), or None
+        Their residuals.
+    mix_w : ndarray, shape (q,), or None
+        Their weights, which may be negative: a term taken out of the cost (``sq`` is the
+        block's whole cost as given).
     """
 
     idx: np.ndarray | None
@@ -67,6 +76,9 @@ class ScalarRows:
     sq: float
     wsum: float
     nrows: int
+    mix: np.ndarray | None = None
+    mix_r: np.ndarray | None = None
+    mix_w: np.ndarray | None = None
 
 
 def _vertex_array(vertices, name):

@@ -156,14 +156,24 @@ class _Prepared:
             raise ValueError(f"{rows.name}: vertex index {bad} out of range 0..{n_model - 1}")
         self.whole = len(v) == n_model and np.array_equal(v, np.arange(n_model))
         self.mean = model.mean if self.whole else model.mean[v]
+        run = len(v) > 1 and v[-1] - v[0] == len(v) - 1 and bool(np.all(np.diff(v) == 1))
+        self._source = None  # (contiguous basis, first vertex) when self.basis is a view
         if len(active) == 0:  # shape frozen: positions need no basis slice per iteration
             b = np.zeros((0, len(v), 3))
         elif self.whole:  # no fancy-index copy when a group covers the whole model
             b = model.basis if full_active else model.basis[active]
+        elif run and full_active and model.basis.dtype == np.float64 \
+                and model.basis.flags.c_contiguous:
+            # consecutive vertices (the fit's copies of each group): a view with strided
+            # rows, no copy (gathers go to the whole basis, which is contiguous)
+            b = model.basis[:, v[0]:v[0] + len(v)]
+            self._source = (model.basis, int(v[0]))
         else:  # take: one C-ordered copy (basis[:, v] gives another layout, copied twice)
             b = np.take(model.basis, v, axis=1)
             b = b if full_active else b[active]
-        self.basis = np.ascontiguousarray(b, dtype=np.float64)  # (Ka, n, 3)
+        if b.ndim != 3 or b.strides[1:] != (24, 8) or b.dtype != np.float64:
+            b = np.ascontiguousarray(b, dtype=np.float64)
+        self.basis = b  # (Ka, n, 3), each mode's rows contiguous
         self.b2 = self.basis.reshape(self.basis.shape[0], 3 * len(v))  # (Ka, 3n), a view
         inactive = np.ones(model.basis.shape[0], bool)
         inactive[active] = False
@@ -190,6 +200,9 @@ class _Prepared:
         every round would cost more than the gathers it saves."""
         self._gathers += 1
         if self.volatile or (self._basis_vm is None and self._gathers <= _DIRECT_GATHERS):
+            if self._source is not None:  # (a take from a strided view is 3x slower)
+                basis, first = self._source
+                return np.take(basis, idx + first, axis=1).transpose(1, 2, 0)
             return np.take(self.basis, idx, axis=1).transpose(1, 2, 0)
         return self.basis_vm()[idx]
 
@@ -241,6 +254,15 @@ class _System:
     @property
     def error(self):
         return self.sq / self.wsum if self.wsum > 0 else 0.0
+
+
+def _similarity_jacobian(pt):
+    """d x / d(ds, dtheta, dt) at the points ``pt`` (..., 3) (eq. 39), shape (..., 3, 7)."""
+    sj = np.zeros(pt.shape + (7,))
+    sj[..., 0] = pt
+    sj[..., 1:4] = -skew(pt)  # dtheta x p~ = -[p~]_x dtheta
+    sj[..., 0, 4] = sj[..., 1, 5] = sj[..., 2, 6] = 1.0
+    return sj
 
 
 # --------------------------------------------------------------------------- solver
@@ -481,16 +503,11 @@ class ShapeProblem:
                          "error": g_sq / g_w if g_w > 0 else 0.0})
             if not jacobian:
                 continue
-            nv = len(x)
-            sj = np.zeros((nv, 3, 7))  # d x / d(ds, dtheta, dt)  (eq. 39)
-            sj[:, :, 0] = pt
-            sj[:, :, 1:4] = -skew(pt)  # dtheta x p~ = -[p~]_x dtheta
-            sj[:, 0, 4] = sj[:, 1, 5] = sj[:, 2, 6] = 1.0
             for blk in blocks:
                 if isinstance(blk, IsotropicRows):
-                    self._add_iso(n_mat, b, blk, sj, pg, s, rot, shape)
-                else:
-                    self._add_general(n_mat, b, blk, sj, pg, s, rot, shape)
+                    self._add_iso(n_mat, b, blk, _similarity_jacobian(pt), pg, s, rot, shape)
+                else:  # (its rows' vertices only: an outline's are a few of its candidates)
+                    self._add_general(n_mat, b, blk, pt, pg, s, rot, shape)
         if jacobian:
             n_mat[:7, 7:] = n_mat[7:, :7].T
         return _System(n_mat, b, sq, self._prior_cost(c), wsum, nrows, info)
@@ -543,7 +560,8 @@ class ShapeProblem:
             n_mat[7:, 7:] += (s * s) * pg.gram(a)
 
     @staticmethod
-    def _add_general(n_mat, b, blk, sj, pg, s, rot, shape):
+    def _add_general(n_mat, b, blk, pt, pg, s, rot, shape):
+        mix = blk.mix
         if blk.idx is None:  # one row per vertex, in order (e.g. point-to-plane)
             keep = np.flatnonzero(blk.w > 0)
             dense = len(keep) > 0.5 * len(blk.w)
@@ -552,16 +570,25 @@ class ShapeProblem:
             idx = keep
         else:
             keep = blk.w > 0
+            if mix is not None:
+                keep |= (mix != 0).any(axis=0)
             idx = blk.idx[keep]
             dense = False
         g, r, w = blk.g[keep], blk.r[keep], blk.w[keep]
-        at = sj[idx]
+        if mix is not None:  # rows combined from the block's: no gather of their own
+            mix, mr, mw = mix[:, keep], blk.mix_r, blk.mix_w
+        at = _similarity_jacobian(pt[idx])
         if g.ndim == 2:  # one vertex per row: the case c = 1 of rows on c vertices
             g, at = g[:, None], at[:, None]
         a_s = np.einsum("mci,mcij->mj", g, at)  # a row's vertices' terms summed
         a_sw = a_s * w[:, None]
         n_mat[:7, :7] += a_sw.T @ a_s
         b[:7] += a_sw.T @ r
+        if mix is not None:
+            x_s = mix @ a_s
+            x_sw = x_s * mw[:, None]
+            n_mat[:7, :7] += x_sw.T @ x_s
+            b[:7] += x_sw.T @ mr
         if shape:
             h = s * g @ rot  # row of s R B_i seen from the model frame, (m, c, 3)
             if dense:  # all vertices, one each: contract the (Ka, n, 3) basis in place
@@ -569,6 +596,7 @@ class ShapeProblem:
                 sr = a_c * np.sqrt(w)
                 n_mat[7:, 7:] += sr @ sr.T  # A^T W A as one symmetric product (syrk)
                 prod = (a_c * w) @ np.column_stack([a_s, r])
+                a_c = a_c.T
             else:  # few rows: gather contiguous (3, Ka) blocks per row and vertex
                 m, c = g.shape[:2]
                 basis = pg.gather(np.reshape(idx, -1))
@@ -577,6 +605,12 @@ class ShapeProblem:
                 sr = a_c * np.sqrt(w)[:, None]
                 n_mat[7:, 7:] += sr.T @ sr
                 prod = (a_c * w[:, None]).T @ np.column_stack([a_s, r])
+            if mix is not None:
+                x_c = mix @ a_c  # (q, Ka)
+                sx = x_c * np.sqrt(np.abs(mw))[:, None]  # symmetric products by sign
+                neg = mw < 0
+                n_mat[7:, 7:] += sx[~neg].T @ sx[~neg] - sx[neg].T @ sx[neg]
+                prod += (x_c * mw[:, None]).T @ np.column_stack([x_s, mr])
             n_mat[7:, :7] += prod[:, :7]
             b[7:] += prod[:, 7]
 
@@ -630,7 +664,7 @@ class ShapeProblem:
     # ---------------------------------------------------------------- solve
 
     def solve(self, scale=1.0, rotation=None, translation=None, coeffs=None,
-              max_iterations=30, tolerance=1e-6, sigma=None):
+              max_iterations=30, tolerance=1e-6, sigma=None, final_system=True):
         """Run Gauss-Newton from the given start.
 
         Parameters
@@ -647,6 +681,12 @@ class ShapeProblem:
         sigma : float, optional
             Residual noise level for the covariance; default: estimated as
             ``sqrt(weighted SSR / (rows - free parameters))``.
+        final_system : bool
+            False: after the last of ``max_iterations`` steps, stop without linearising
+            at the new parameters (one build of the system fewer, for a caller that
+            only takes the parameters): ``normal_matrix`` is then the last step's, and
+            the last error, ``info`` and ``sigma`` come from the step's cost evaluation
+            (correspondences not refreshed).
 
         Returns
         -------
@@ -716,6 +756,10 @@ class ShapeProblem:
                 break
             state = accepted
             steps += 1
+            if not final_system and steps >= int(max_iterations):
+                sys = trial
+                history.append(sys.error)
+                break
         s, rot, t, c = state
         dof = sys.nrows + (self._prior_rows if self.shape_free else 0) - n_free
         sig = float(np.sqrt(sys.sq / max(dof, 1))) if sigma is None else float(sigma)

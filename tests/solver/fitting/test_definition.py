@@ -5,7 +5,11 @@ import pytest
 
 from solver import FitOptions, LandmarkCase, OrthographicCamera, View, fit_head
 from solver.fitting.definition import OUTLINE_DEFINITION, GroupedImageRows
+from solver.fitting.rows import ImageRows, Rows, ScalarRows
+from solver.fitting.shape_icp import ShapeProblem
+from solver.geometry import rotation_from_vector
 from solver.io.landmark_set import load_landmark_set
+from solver.model.linear_model import LinearModel
 from solver.synthetic import make_case, skin_error_mm
 
 GROUPS = [0, 0, 0, 1, 1, 2, 0, 1, 3]
@@ -33,22 +37,72 @@ def test_cost_is_the_groups_marginal_likelihood():
     assert rows.block(x).sq == pytest.approx(expected, rel=1e-9)
 
 
-def test_jacobian_matches_finite_differences():
+class _Whitened(Rows):
+    """The explicit form of ``GroupedImageRows``: the whitened rows ``r_i - beta_G
+    mean_w(r)``, each on all vertices of its group (what the block's mean rows replace)."""
+
+    def __init__(self, rows):
+        self.rows, self.vertices, self.name = rows, rows.vertices, "whitened"
+
+    def block(self, world, jacobian=True):
+        rows = self.rows
+        n, w = len(world), rows.weights
+        jac = np.asarray(rows.camera.jacobian(world)).reshape(n, 2, 3)
+        beta, u = rows.shrink(jac)
+        same = rows.labels[:, None] == rows.labels[None, :]
+        coef = np.eye(n) - beta[:, None] * np.where(same, u[None, :], 0.0)  # (n, n)
+        r = rows.pixels - rows.camera.project(world)
+        rw = coef @ r
+        sq = float(w @ (rw**2).sum(1))
+        g = coef[:, None, :, None] * jac.transpose(1, 0, 2)[None]  # (n, 2, n, 3)
+        return ScalarRows(np.tile(np.arange(n), (2 * n, 1)), g.reshape(2 * n, n, 3),
+                          rw.reshape(-1), np.repeat(w, 2), sq, float(w.sum()), 2 * n)
+
+
+def test_explicit_whitened_rows_match_the_cost_and_finite_differences():
     rows, x = _rows()
-    blk = rows.block(x)
+    ref = _Whitened(rows).block(x)
+    assert ref.sq == pytest.approx(rows.block(x).sq, rel=1e-12)
     n = len(GROUPS)
-    jac = np.zeros((2 * n, n, 3))
-    np.add.at(jac, (np.arange(2 * n)[:, None], blk.idx), blk.g)
+    jac = ref.g  # (2n, n, 3)
     num = np.zeros_like(jac)
     for k in range(n):
         for a in range(3):
             moved = x.copy()
             moved[k, a] += 1e-7
-            num[:, k, a] = -(rows.block(moved).r - blk.r) / 1e-7
+            num[:, k, a] = -(_Whitened(rows).block(moved).r - ref.r) / 1e-7
     assert np.abs(num - jac).max() < 1e-5 * np.abs(jac).max()
     # A row depends only on its own group's vertices.
     other = np.array(GROUPS)[:, None] != np.array(GROUPS)[None, :]
     assert np.abs(jac.reshape(n, 2, n, 3)[other[:, None, :].repeat(2, 1)]).max() == 0.0
+
+
+def test_mean_rows_give_the_explicit_rows_normal_equations_and_solution():
+    # The block's plain rows less one weighted-mean row per group and axis (negative
+    # weight) against the whitened rows on all of their group's vertices: the same system.
+    rows, x = _rows(sigma_m=0.004, seed=3)
+    rng = np.random.default_rng(5)
+    model = LinearModel(x, rng.normal(size=(4, len(x), 3)) * 0.003, np.ones(4),
+                        tuple(f"m{i}" for i in range(4)))
+    # (a front photo does not see depth: the head's position stays)
+    fast = ShapeProblem(model, rows, lambda2=0.5, freeze="translation")
+    slow = ShapeProblem(model, _Whitened(rows), lambda2=0.5, freeze="translation")
+    start = dict(scale=1.02, coeffs=np.array([0.3, -0.2, 0.1, 0.0]),
+                 rotation=rotation_from_vector([0.02, -0.01, 0.03]))
+    a, b = fast.solve(max_iterations=0, **start), slow.solve(max_iterations=0, **start)
+    assert a.info["cost"] == pytest.approx(b.info["cost"], rel=1e-12)
+    np.testing.assert_allclose(a.normal_matrix, b.normal_matrix, rtol=1e-9,
+                               atol=1e-9 * np.abs(b.normal_matrix).max())
+    a, b = fast.solve(tolerance=1e-14, **start), slow.solve(tolerance=1e-14, **start)
+    np.testing.assert_allclose(a.coeffs, b.coeffs, atol=1e-9)
+    np.testing.assert_allclose(a.rotation, b.rotation, atol=1e-9)
+    assert a.scale == pytest.approx(b.scale, rel=1e-9)
+    # and a group's mean rows do take something out: without them the system differs
+    plain = ShapeProblem(model, ImageRows(rows.vertices, rows.pixels, rows.camera,
+                                          weights=rows.weights), lambda2=0.5,
+                         freeze="translation")
+    c = plain.solve(max_iterations=0, **start)
+    assert np.abs(c.normal_matrix - b.normal_matrix).max() > 1e-3 * np.abs(b.normal_matrix).max()
 
 
 def test_zero_offset_is_plain_image_rows():

@@ -156,6 +156,30 @@ def test_image_rows_through_orthographic_cameras():
     assert fit.sigma == pytest.approx(0.5, rel=0.15)  # pixels
 
 
+def test_a_solve_without_the_final_system_takes_the_same_steps():
+    model = synthetic_model()
+    c, x = _truth(model, seed=9)
+    front = OrthographicCamera.nominal("orthographic-front", (1200, 1600))
+    side = OrthographicCamera.nominal("orthographic-right", (1200, 1600))
+    x = x - TRUE_T + np.array([0.0, 0.0, 0.02])
+    rng = np.random.default_rng(3)
+    v = np.arange(0, model.n_vertices, 5)
+    rows = [ImageRows(v, front.project(x[v]) + rng.normal(size=(len(v), 2)), front),
+            ImageRows(v, side.project(x[v]) + rng.normal(size=(len(v), 2)), side)]
+    problem = ShapeProblem(model, rows, lambda2=0.3)
+    for steps in (1, 3):
+        full = problem.solve(max_iterations=steps, tolerance=0.0)
+        fast = problem.solve(max_iterations=steps, tolerance=0.0, final_system=False)
+        assert fast.iterations == full.iterations == steps
+        np.testing.assert_array_equal(fast.coeffs, full.coeffs)
+        np.testing.assert_array_equal(fast.rotation, full.rotation)
+        assert (fast.scale, list(fast.translation)) == (full.scale, list(full.translation))
+        # the last error is the step's own evaluation (no correspondences to refresh here)
+        assert fast.error_history == pytest.approx(full.error_history, rel=1e-12)
+        # and the normal matrix the step's start's, not the end's
+        assert np.abs(fast.normal_matrix - full.normal_matrix).max() > 0.0
+
+
 def test_image_rows_chain_rule_matches_finite_differences():
     # Through a perspective-like camera (nonlinear projection), the solver's Jacobian
     # must agree with finite differences of the residual: checked via a converged fit
@@ -501,6 +525,65 @@ class _EdgePointRows(PointRows):
         g = np.stack([(1 - tt) * eye, tt * eye], axis=1)  # (3m, 2, 3)
         idx = np.repeat(self.ends, 3, axis=0)
         return ScalarRows(idx, g, r, w, float(r @ r), float(w.sum()), len(r))
+
+
+class _MixedRows(PointRows):
+    """Each vertex pulled toward its target, one scalar row per coordinate, plus rows on
+    the mean x of vertex pairs weighted ``pair_w``: given as ``ScalarRows.mix`` of the
+    coordinate rows, or (``explicit``) as rows on both vertices of their own; None: no
+    pair rows."""
+
+    def __init__(self, vertices, targets, pairs, pair_targets, pair_w, explicit):
+        super().__init__(vertices, targets, name="mixed")
+        self.pairs, self.pair_targets = pairs, pair_targets
+        self.pair_w, self.explicit = pair_w, explicit
+
+    def block(self, world, jacobian=True):
+        n = len(world)
+        r = (self.targets - world).reshape(-1)  # rows (vertex, coordinate)
+        pr = self.pair_targets - world[self.pairs, 0].mean(axis=1)
+        sq = float(r @ r) + (0.0 if self.pair_w is None else float(self.pair_w @ pr**2))
+        if not jacobian:
+            return ScalarRows(None, None, None, None, sq, float(n), 3 * n)
+        g = np.tile(np.eye(3), (n, 1))
+        plain = ScalarRows(np.repeat(np.arange(n), 3), g, r, np.ones(3 * n), sq, float(n),
+                           3 * n)
+        if self.pair_w is None:
+            return plain
+        if not self.explicit:
+            mix = np.zeros((len(self.pairs), 3 * n))
+            np.put_along_axis(mix, 3 * self.pairs, 0.5, axis=1)  # the pair's x rows
+            plain.mix, plain.mix_r, plain.mix_w = mix, pr, self.pair_w
+            return plain
+        gp = np.zeros((len(self.pairs), 2, 3))
+        gp[:, :, 0] = 0.5
+        return [plain, ScalarRows(self.pairs, gp, pr, self.pair_w, 0.0, 0.0, 0)]
+
+
+def test_mixed_rows_are_the_rows_they_combine():
+    # Rows given as combinations of a block's rows (ScalarRows.mix) build the system the
+    # same rows on their own vertices do, and a negative weight takes as much out.
+    model = synthetic_model()
+    rng = np.random.default_rng(21)
+    v = np.arange(0, model.n_vertices, 7)
+    targets = model.instance(rng.standard_normal(model.n_coeffs))[v]
+    pairs = np.stack([np.arange(0, len(v) - 1, 2), np.arange(1, len(v), 2)], axis=1)
+    pair_targets = targets[pairs, 0].mean(axis=1) + 0.001 * rng.standard_normal(len(pairs))
+    pair_w = rng.uniform(0.2, 0.6, len(pairs))
+    start = dict(scale=1.01, coeffs=0.3 * rng.standard_normal(model.n_coeffs))
+
+    def system(w, explicit=False):
+        rows = _MixedRows(v, targets, pairs, pair_targets, w, explicit)
+        fit = ShapeProblem(model, rows, lambda2=0.1).solve(max_iterations=0, **start)
+        return fit.normal_matrix, fit.info["cost"]
+
+    (n_mix, c_mix), (n_own, c_own) = system(pair_w), system(pair_w, explicit=True)
+    (n_plain, _), (n_neg, _) = system(None), system(-pair_w)
+    scale = np.abs(n_own).max()
+    np.testing.assert_allclose(n_mix, n_own, rtol=0, atol=1e-12 * scale)
+    assert c_mix == pytest.approx(c_own, rel=1e-14)
+    assert np.abs(n_mix - n_plain).max() > 1e-3 * scale  # the pair rows count
+    np.testing.assert_allclose(n_neg, 2 * n_plain - n_own, rtol=0, atol=1e-12 * scale)
 
 
 def test_rows_on_two_vertices_each_are_solved_exactly():
