@@ -187,8 +187,10 @@ class Engine:
         key = v.tobytes()
         hit = self._slices.get(key)
         if hit is None:
-            if len(self._slices) > 64:
-                self._slices.clear()
+            slices = [k for k in self._slices if isinstance(k, bytes)]
+            if len(slices) > 64:  # forget the vertex subsets only, not the skin's basis
+                for k in slices:
+                    del self._slices[k]
             hit = self.lin.slice(v)
             self._slices[key] = hit
         return hit

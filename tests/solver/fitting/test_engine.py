@@ -21,3 +21,19 @@ def test_a_camera_that_cannot_be_refitted_names_its_view(model):
     with pytest.raises(ValueError, match=r"^view 'front': camera refit "
                                          r"\(orthographic-front\): .*undetermined"):
         eng.refit_cameras(state)
+
+
+def test_many_vertex_subsets_do_not_evict_the_skins_basis(model):
+    case, _ = make_case(model, 5, noise_px=1.0)
+    opts = FitOptions()
+    views, _ = prepare_views(model, case, opts)
+    eng = Engine.for_fit(model, views, opts)
+    skin = eng.skin_basis32(model.skin)
+    first = eng.slice(np.arange(3))
+    for i in range(200):  # far more subsets than are kept
+        mean, basis = eng.slice(np.arange(i, i + 5))
+        np.testing.assert_array_equal(mean, eng.lin.mean[i:i + 5])
+    assert eng.skin_basis32(model.skin) is skin
+    again = eng.slice(np.arange(3))
+    assert again is not first  # the subsets were forgotten, and come back the same
+    np.testing.assert_array_equal(again[1], first[1])
