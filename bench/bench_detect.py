@@ -218,6 +218,12 @@ def fit_errors(folder, detector):
     own_profile.views["side"].contour = auto.views["right"].contour
     own_both = copy.deepcopy(own_profile)
     own_both.views["front"].contour = auto.views["front"].contour
+    # the photos-only case with the front's points exact: what the detection's error costs
+    exact_front68, exact_front = copy.deepcopy(auto), copy.deepcopy(auto)
+    exact_front68.views["front"].points = dict(exact68.views["front"].points)
+    exact_front.views["front"].points = dict(case.views["front"].points)
+    for c in (exact_front68, exact_front):
+        c.views["front"].uncertainty = {}
     for label, c in (("every exact landmark", case),
                      ("  its profile outline detected", own_profile),
                      ("  both photos' outlines detected", own_both),
@@ -227,7 +233,9 @@ def fit_errors(folder, detector):
                      ("detected points, no outline", bare),
                      ("  + the traced profile outline", outlined),
                      ("  + the detected profile outline", profile_only),
-                     ("solver detect's case (+ front outline)", auto)):
+                     ("solver detect's case (+ front outline)", auto),
+                     ("  its front's 68 points exact", exact_front68),
+                     ("  every front landmark exact", exact_front)):
         r = fit_head(model, c)
         print(f"  {label:<32} {skin_error_mm(model, r.local_vertices, truth):.2f} mm")
 
