@@ -100,8 +100,8 @@ def light_spread(model, result, tiles, length):
     tris = []
     for tile, tex in tiles.items():
         r = uv_raster(model, tex.shape[0], tile=tile)
-        colour[r.vertices] += r.gather @ tex.reshape(-1, 3)[r.texel]
-        cover[r.vertices] += np.asarray(r.gather.sum(axis=1)).ravel()
+        colour += r.gather @ tex.reshape(-1, 3)[r.texel]
+        cover[r.vertices] += r.cover
         tris.append(r.triangles)
     has = cover > 0
     lum = srgb_to_linear(colour[has] / cover[has, None]) @ LUMA

@@ -94,14 +94,15 @@ class UVRaster:
         Vertex count of the model.
     triangles : ndarray, shape (T, 3)
         Vertex indices of the tile's triangles.
-    texel : ndarray, shape (N,)
+    texel : ndarray, shape (N,), int32
         Flat index ``row * size + column`` of each covered texel (one triangle each).
     interp : scipy.sparse.csr_matrix, shape (N, V)
         Barycentric weights: ``interp @ vertex_values`` is the value at each texel.
     vertices : ndarray, shape (M,)
         Vertices of the tile's triangles (the hole fill's unknowns live among them).
-    gather : scipy.sparse.csr_matrix, shape (M, N)
-        ``interp`` transposed, rows ``vertices``: sums texel values onto vertices.
+    cover : ndarray, shape (M,), float32
+        Each of ``vertices``' interpolation weights summed over the tile's texels (how much
+        of the texture a vertex's value reaches).
     laplacian : scipy.sparse.csr_matrix, shape (M, M)
         Cotangent Laplacian over ``vertices`` (the tile's triangles, mean shape).
     bleed_to, bleed_from : ndarray, shape (B,)
@@ -117,7 +118,7 @@ class UVRaster:
     texel: np.ndarray
     interp: sp.csr_matrix
     vertices: np.ndarray
-    gather: sp.csr_matrix
+    cover: np.ndarray
     laplacian: sp.csr_matrix
     bleed_to: np.ndarray
     bleed_from: np.ndarray
@@ -128,6 +129,14 @@ class UVRaster:
         m = np.zeros(self.size * self.size, dtype=bool)
         m[self.texel] = True
         return m.reshape(self.size, self.size)
+
+    @property
+    def gather(self):
+        """``interp`` transposed, shape (V, N): ``gather @ texel_values`` sums them onto the
+        vertices (0 off the tile). A view of ``interp`` (CSC), not a copy: a stored CSR
+        transpose was 39 MB of a worker's 1024-texel rasters, and sums the same terms in
+        the same order."""
+        return self.interp.T
 
 
 def resolve_parts(model, parts=None):
@@ -279,6 +288,7 @@ def _build_raster(model, size, idx, names, tile, bleed):
     xy = np.stack([(uv[..., 0] - tu) * size, (1.0 - (uv[..., 1] - tv)) * size], axis=-1)
     pixel, tri, bary = rasterize(xy, size, size)
     texel, tri, bary = first_per_pixel(pixel, tri, bary)  # overlapping UVs: one wins
+    texel = texel.astype(np.int32)  # at most 16384² texels
 
     n = len(texel)
     rows = np.repeat(np.arange(n), 3)
@@ -299,8 +309,9 @@ def _build_raster(model, size, idx, names, tile, bleed):
         bleed_from = (ri * size + ci).ravel()[bleed_to]
     else:
         bleed_to = bleed_from = np.zeros(0, np.int64)
-    gather = interp.T.tocsr()[verts]
-    return UVRaster(size, tile, names, n_vertices, tri_vertex, texel, interp, verts, gather,
+    # summed as the rows of a CSR transpose (numpy's pairwise sums), as bakes always have
+    cover = np.asarray(interp.T.tocsr()[verts].sum(axis=1)).ravel()
+    return UVRaster(size, tile, names, n_vertices, tri_vertex, texel, interp, verts, cover,
                     lap, bleed_to, bleed_from)
 
 
