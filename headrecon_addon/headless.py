@@ -263,6 +263,7 @@ def write_head(task, model):
     _solver_module("io.atomic").check_outputs(
         {f"output {k}": p for k, p in targets.items()}, inputs)
     reset_scene()
+    heap.release_free_memory()  # the last head's scene, before the fit and bake take more
     imgs = _images_for(case, None)  # fails fast on a missing photo, before the fit
     orthographic_lenses(case, {v: case.image_path(v) for v, view in case.views.items()
                                if view.image is not None})
