@@ -552,12 +552,6 @@ def _run_task(task, model):
                                         time.perf_counter() - t0)
 
 
-def _worker_died(task, code):
-    return batch_summary.failed_row(
-        task["name"], task["where"],
-        f"{task['where']}: the worker process ended (exit code {code}) while fitting it")
-
-
 def _cluster_failed(task, message):
     return batch_summary.failed_row(
         task["name"], task["where"],
@@ -648,7 +642,7 @@ def _run_batch(args, heads, rows, tasks, jobs, model, out_dir, client):
         blas_threads.limit_loaded()  # as a worker process has it
         results = _in_process(tasks, model)
     else:
-        results = batch_workers.run_pool(tasks, jobs, _worker_died)
+        results = batch_workers.run_pool(tasks, jobs, batch_summary.worker_died_row)
     last_write = 0.0
     try:
         for task, row in results:
