@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from tests.addon.support import run_python, synthetic_files
+from tests.addon.support import ROOT, run_python, synthetic_files
 
 pytest.importorskip("distributed", reason="--cluster needs dask[distributed]")
 
@@ -59,6 +59,22 @@ def test_local_cluster_matches_jobs_2(heads, tmp_path):
     again = run_python(["-m", "headrecon_addon.headless", heads, "--no-texture", "--out",
                         out, "--cluster", "local", "--jobs", "2"])
     assert again.returncode == 1 and "(3 unchanged, skipped)" in again.stdout
+
+
+def test_cluster_from_the_blender_script_form(heads, tmp_path):
+    """``blender -b -P headless.py -- ... --cluster local``: the same path taken with plain
+    Python and "--" (as test_headless does for the script form). The Dask workers are
+    this Python and import no bpy; the fitting processes are the client's worker command
+    (Blender itself under Blender)."""
+    out = tmp_path / "script"
+    proc = run_python([ROOT / "headrecon_addon" / "headless.py", "--", heads, "--out", out,
+                       "--no-texture", "--cluster", "local", "--jobs", "2"], cwd=tmp_path,
+                      env={"PYTHONPATH": ""})
+    assert proc.returncode == 1, proc.stdout + proc.stderr  # the broken row only
+    assert "3 of 4 heads written" in proc.stdout
+    assert "cluster: 2 workers, the model loaded 1/1 times on them" in proc.stderr
+    assert {r["name"]: r["status"] for r in _rows(out).values()} == {
+        "c0": "done", "c1": "done", "broken": "failed", "c2": "done"}
 
 
 def test_a_dead_worker_process_fails_its_head_only(monkeypatch):
