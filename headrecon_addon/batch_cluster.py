@@ -12,12 +12,14 @@ progress line and resume records as a local batch.
 The model is loaded once per Dask worker process, not sent per task: bpy must run on a
 process's main thread and a Dask task runs on a thread of the worker's pool, so each Dask
 worker keeps one HeadRecon worker process (``batch_workers``, the one ``--jobs`` starts:
-``headless --worker``), started at its first head; it loads the model from the file once
-and fits every head the Dask worker is given (a cache in this module keyed by the model
-file's path). Every worker therefore needs the repository (on ``PYTHONPATH``), the bpy
-module, the model file at the client's path (or ``HEADRECON_MODEL``), and the inputs and
-``OUT`` at the same paths as the client (a shared file system): the tasks carry paths,
-not data.
+``headless --worker``, or Blender running ``headless.py`` when the client is Blender),
+started at its first head; it loads the model from the file once and fits every head the
+Dask worker is given (a cache in this module keyed by the model file's path and that
+command). The Dask worker itself never imports bpy (this module and the ones it uses do
+not): only the process it drives does. Every worker therefore needs the repository (on
+``PYTHONPATH``), the client's worker command (the bpy module's Python, or Blender) and
+the model file at the client's paths (or ``HEADRECON_MODEL``), and the inputs and ``OUT``
+at the same paths as the client (a shared file system): the tasks carry paths, not data.
 """
 
 import atexit
@@ -32,7 +34,13 @@ from pathlib import Path
 
 INSTALL = 'pip install "dask[distributed]==2024.8.2"'
 
-_fitters = {}  # model path -> this worker process's HeadRecon worker (batch_workers)
+#: Dask's nanny gives its worker processes ``MALLOC_TRIM_THRESHOLD_=65536`` (its config
+#: ``distributed.nanny.pre-spawn-environ``); inherited by the fitting process, glibc hands
+#: every freed block back and faults it in again: 6.0-6.4 CPU s a head instead of 3.6-3.9
+#: (``bench_batch_stages``). The fitting process trims its heap itself (``heap.py``).
+DASK_MALLOC_VARIABLE = "MALLOC_TRIM_THRESHOLD_"
+
+_fitters = {}  # (model path, command) -> this process's HeadRecon worker (batch_workers)
 _loads = {}  # model path -> HeadRecon workers started (each loads the model once)
 _lock = threading.Lock()
 
@@ -56,15 +64,16 @@ def model_path():
     return str(Path(os.environ.get("HEADRECON_MODEL") or paths.DEFAULT_MODEL_PATH).resolve())
 
 
-def _fitter(path):
-    """This Dask worker's HeadRecon worker process for the model ``path``, started (and the
-    model loaded in it) on first use only."""
+def _fitter(path, command):
+    """This Dask worker's HeadRecon worker process for the model ``path``, started with
+    ``command`` (and the model loaded in it) on first use only."""
     from . import batch_workers
 
-    fitter = _fitters.get(path)
+    fitter = _fitters.get((path, tuple(command)))
     if fitter is None:
-        fitter = _fitters[path] = batch_workers._Worker(
-            batch_workers.worker_command(), batch_workers.worker_env(HEADRECON_MODEL=path))
+        env = batch_workers.worker_env(HEADRECON_MODEL=path)
+        env.pop(DASK_MALLOC_VARIABLE, None)
+        fitter = _fitters[path, tuple(command)] = batch_workers._Worker(list(command), env)
         _loads[path] = _loads.get(path, 0) + 1
     return fitter
 
@@ -83,20 +92,21 @@ def model_loads():
     return dict(_loads)
 
 
-def run_head(task, path):
+def run_head(task, path, command):
     """A cluster task: one head of the batch on this worker's HeadRecon worker (the summary
     row). bpy must run on a process's main thread, and a Dask task runs on a thread of the
     worker's pool, so the head goes to the very worker process a local ``--jobs`` batch
-    uses (``headless --worker``: ``_run_task``, the same code), kept for the worker's life.
-    A head that kills it fails alone; the next head starts a new one."""
-    from . import headless
+    uses (``command``, the client's ``batch_workers.worker_command()``: ``_run_task``, the
+    same code), kept for the worker's life. A head that kills it fails alone; the next
+    head starts a new one."""
+    from . import batch_summary
 
     with _lock:
-        fitter = _fitter(path)
+        fitter = _fitter(path, command)
         answer = fitter.ask(task) if fitter.ready else None
         if answer is None:
-            _fitters.pop(path, None)
-            return headless._worker_died(task, fitter.close())
+            _fitters.pop((path, tuple(command)), None)
+            return batch_summary.worker_died_row(task, fitter.close())
         return answer
 
 
@@ -168,10 +178,13 @@ def run_cluster(tasks, client, died):
     """Run ``tasks`` on the cluster of ``client``; yield (task, summary row) as each
     finishes. ``died(task, message)``: the row of a task the cluster could not run (its
     worker died more than the scheduler allows, or the task could not be sent)."""
+    from . import batch_workers
+
     dd = distributed()
-    path = model_path()
-    futures = {client.submit(run_head, task, path, key=f"head-{task['index']}-{task['name']}",
-                             pure=False): task for task in tasks}
+    path, command = model_path(), batch_workers.worker_command()
+    futures = {client.submit(run_head, task, path, command,
+                             key=f"head-{task['index']}-{task['name']}", pure=False): task
+               for task in tasks}
     for future in dd.as_completed(futures):
         task = futures.pop(future)
         try:

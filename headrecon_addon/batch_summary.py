@@ -20,6 +20,14 @@ def failed_row(name, where, message, seconds=0.0):
             "seconds": round(seconds, 3), "outputs": {}, "input": where}
 
 
+def worker_died_row(task, code):
+    """The summary row of a head whose worker process ended (exit ``code``) before
+    answering."""
+    return failed_row(task["name"], task["where"],
+                      f"{task['where']}: the worker process ended (exit code {code}) while "
+                      "fitting it")
+
+
 def _cell(value):
     if value is None:
         return ""

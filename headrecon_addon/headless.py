@@ -263,6 +263,7 @@ def write_head(task, model):
     _solver_module("io.atomic").check_outputs(
         {f"output {k}": p for k, p in targets.items()}, inputs)
     reset_scene()
+    heap.release_free_memory()  # the last head's scene, before the fit and bake take more
     imgs = _images_for(case, None)  # fails fast on a missing photo, before the fit
     orthographic_lenses(case, {v: case.image_path(v) for v, view in case.views.items()
                                if view.image is not None})
@@ -551,12 +552,6 @@ def _run_task(task, model):
                                         time.perf_counter() - t0)
 
 
-def _worker_died(task, code):
-    return batch_summary.failed_row(
-        task["name"], task["where"],
-        f"{task['where']}: the worker process ended (exit code {code}) while fitting it")
-
-
 def _cluster_failed(task, message):
     return batch_summary.failed_row(
         task["name"], task["where"],
@@ -647,7 +642,7 @@ def _run_batch(args, heads, rows, tasks, jobs, model, out_dir, client):
         blas_threads.limit_loaded()  # as a worker process has it
         results = _in_process(tasks, model)
     else:
-        results = batch_workers.run_pool(tasks, jobs, _worker_died)
+        results = batch_workers.run_pool(tasks, jobs, batch_summary.worker_died_row)
     last_write = 0.0
     try:
         for task, row in results:

@@ -733,14 +733,14 @@ def _fade_seams(samples, rasters, ctx):
     graph = edge_graph(ctx.world, tris)
     cover = np.zeros(n_vertices)
     for r in rasters:
-        cover[r.vertices] += np.asarray(r.gather.sum(axis=1)).ravel()
+        cover[r.vertices] += r.cover
     p = next(iter(samples.values())).weights.shape[0]
     width = ctx.opts.seam_feather * ctx.head_size
     fades = []
     for k in range(p):
         seen = np.zeros(n_vertices)
         for r in rasters:
-            seen[r.vertices] += r.gather @ (samples[r.tile].seen[k] > 0).astype(np.float32)
+            seen += r.gather @ (samples[r.tile].seen[k] > 0).astype(np.float32)
         unseen = (cover > 0) & (seen < 0.5 * cover)
         fades.append(seam_fade(unseen, graph, width).astype(np.float32))
     fade = np.stack(fades, axis=1)  # (V, P)
@@ -794,7 +794,7 @@ def equalised_colours(samples, world, options=None, head_size=None, in_place=Fal
     n_vertices = len(world)
     cover = np.zeros(n_vertices)
     for r in rasters:
-        cover[r.vertices] += np.asarray(r.gather.sum(axis=1)).ravel()
+        cover[r.vertices] += r.cover
     for k in range(p):
         if k == ref:
             continue
@@ -805,9 +805,9 @@ def equalised_colours(samples, world, options=None, head_size=None, in_place=Fal
             r = s.raster
             om = np.minimum(s.seen[ref], s.seen[k])
             om *= om >= np.float32(LEVEL_WEIGHT)  # grazing samples (an outline) say little
-            diff[r.vertices] += r.gather @ (om[:, None] * (out[t][ref] - out[t][k]))
-            both[r.vertices] += r.gather @ om
-            strength[r.vertices] += r.gather @ (om > 0).astype(np.float32)
+            diff += r.gather @ (om[:, None] * (out[t][ref] - out[t][k]))
+            both += r.gather @ om
+            strength += r.gather @ (om > 0).astype(np.float32)
         if not (both > 0).any():
             continue
         diff /= np.maximum(both, 1e-30)[:, None]
@@ -842,8 +842,8 @@ def _remove_shading(blended, rasters, ctx):
     colour = np.zeros((n_vertices, 3))
     cover = np.zeros(n_vertices)
     for r in rasters:
-        colour[r.vertices] += r.gather @ blended[r.tile]
-        cover[r.vertices] += np.asarray(r.gather.sum(axis=1)).ravel()
+        colour += r.gather @ blended[r.tile]
+        cover[r.vertices] += r.cover
     has = cover > 0
     colour[has] /= cover[has, None]
     tris = np.concatenate([r.triangles for r in rasters])
@@ -861,10 +861,10 @@ def _smooth_fill(raster, acc, wsum, fill_weight):
     blend of its rim, consistently across UV seams, and never leaves the rim's range.
     """
     verts = raster.vertices
-    interp_t = raster.gather  # (M, N)
-    cover = np.asarray(interp_t.sum(axis=1)).ravel()
-    seen = (interp_t @ wsum).astype(np.float64)
-    colsum = (interp_t @ acc).astype(np.float64)
+    interp_t = raster.gather  # (V, N)
+    cover = raster.cover
+    seen = (interp_t @ wsum)[verts].astype(np.float64)
+    colsum = (interp_t @ acc)[verts].astype(np.float64)
     known = (cover > 0) & (seen >= fill_weight * cover) & (seen > 0)
     m = len(verts)
     value = np.zeros((m, 3))

@@ -7,7 +7,8 @@ layout rasterised tile by tile for the bake (``bake.py``) to fill.
 * :func:`uv_raster` says which surface point every texel of one UDIM tile of
   ``model.loop_uv`` shows. The layout never changes, so a raster is built once per model,
   size, parts and tile and kept with the model (``solver.memo``): repeated bakes, e.g. in
-  the live add-on, skip the rasterisation.
+  the live add-on, skip the rasterisation. It is also stored beside the model's file
+  (``solver.stored_arrays``), so the next process on the machine loads it instead.
 
 Texture convention: ``texture[row, column]`` with row 0 at the top (v = 1), as written to a
 PNG; texel (r, c) is centred on UV ((c + 0.5) / size, 1 - (r + 0.5) / size) inside its UDIM
@@ -20,18 +21,23 @@ either as a tiled (UDIM) image or, since an Image Texture node repeats by defaul
 image per material (u in [1, 2] samples the second image at u - 1).
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+from pathlib import Path
 
 import numpy as np
 import scipy.ndimage as ndi
 import scipy.sparse as sp
 
+from .. import stored_arrays
 from ..errors import as_points
 from ..memo import memo
 from .raster import first_per_pixel, rasterize
 
 SKIN_PARTS = ("Face", "Head and Neck")
 BLEED = 4  # default texels of bleed around the UV islands (BakeOptions.bleed)
+#: The code a stored raster was computed by (``_stored_raster``): editing it stores anew.
+_SOURCES = (Path(__file__), Path(__file__).with_name("raster.py"),
+            Path(__file__).parent.parent / "model" / "head_model.py")
 
 
 def orthographic_uvs(vertices, camera, image_size=None):
@@ -94,14 +100,15 @@ class UVRaster:
         Vertex count of the model.
     triangles : ndarray, shape (T, 3)
         Vertex indices of the tile's triangles.
-    texel : ndarray, shape (N,)
+    texel : ndarray, shape (N,), int32
         Flat index ``row * size + column`` of each covered texel (one triangle each).
     interp : scipy.sparse.csr_matrix, shape (N, V)
         Barycentric weights: ``interp @ vertex_values`` is the value at each texel.
     vertices : ndarray, shape (M,)
         Vertices of the tile's triangles (the hole fill's unknowns live among them).
-    gather : scipy.sparse.csr_matrix, shape (M, N)
-        ``interp`` transposed, rows ``vertices``: sums texel values onto vertices.
+    cover : ndarray, shape (M,), float32
+        Each of ``vertices``' interpolation weights summed over the tile's texels (how much
+        of the texture a vertex's value reaches).
     laplacian : scipy.sparse.csr_matrix, shape (M, M)
         Cotangent Laplacian over ``vertices`` (the tile's triangles, mean shape).
     bleed_to, bleed_from : ndarray, shape (B,)
@@ -117,7 +124,7 @@ class UVRaster:
     texel: np.ndarray
     interp: sp.csr_matrix
     vertices: np.ndarray
-    gather: sp.csr_matrix
+    cover: np.ndarray
     laplacian: sp.csr_matrix
     bleed_to: np.ndarray
     bleed_from: np.ndarray
@@ -128,6 +135,14 @@ class UVRaster:
         m = np.zeros(self.size * self.size, dtype=bool)
         m[self.texel] = True
         return m.reshape(self.size, self.size)
+
+    @property
+    def gather(self):
+        """``interp`` transposed, shape (V, N): ``gather @ texel_values`` sums them onto the
+        vertices (0 off the tile). A view of ``interp`` (CSC), not a copy: a stored CSR
+        transpose was 39 MB of a worker's 1024-texel rasters, and sums the same terms in
+        the same order."""
+        return self.interp.T
 
 
 def resolve_parts(model, parts=None):
@@ -234,13 +249,64 @@ def uv_raster(model, size=1024, *, parts=None, tile=None, bleed=BLEED):
     if bleed < 0:
         raise ValueError(f"bleed: must be >= 0, got {bleed}")
     return _model_cached(model, ("raster", size, idx, tile, bleed),
-                         lambda: _build_raster(model, size, idx, names, tile, bleed))
+                         lambda: _stored_raster(model, size, idx, names, tile, bleed))
 
 
-def clear_raster_cache(model):
+def clear_raster_cache(model, stored=False):
     """Forget the UV rasters (and triangle table) cached for ``model``, e.g. to time a cold
-    bake."""
+    bake; with ``stored``, remove the ones stored beside its file too."""
     _texture_cache(model).clear()
+    if stored:
+        stored_arrays.remove_stored(model, "uv-raster")
+
+
+def _stored_raster(model, size, idx, names, tile, bleed):
+    """The raster from beside the model's file, else built (and stored there)."""
+    parts = "_".join(map(str, idx))
+    path = stored_arrays.stored_path(model, f"uv-raster-{size}-{tile}-{bleed}-p{parts}",
+                                     (idx, names), _SOURCES)
+    arrays = stored_arrays.load_arrays(path)
+    if arrays is not None:
+        try:
+            return _raster_from_arrays(arrays)
+        except (KeyError, ValueError):
+            pass  # not a raster this code wrote: build it again
+    raster = _build_raster(model, size, idx, names, tile, bleed)
+    stored_arrays.save_arrays(path, _raster_arrays(raster))
+    return raster
+
+
+_SPARSE = ("interp", "laplacian")
+
+
+def _raster_arrays(r):
+    """A raster as a dict of arrays (the sparse matrices as their CSR arrays)."""
+    out = {}
+    for f in fields(r):
+        v = getattr(r, f.name)
+        if f.name in _SPARSE:
+            for part in ("data", "indices", "indptr"):
+                out[f"{f.name}.{part}"] = getattr(v, part)
+            out[f"{f.name}.shape"] = np.asarray(v.shape)
+        else:
+            out[f.name] = np.asarray(v)
+    return out
+
+
+def _raster_from_arrays(a):
+    """The raster :func:`_raster_arrays` stored."""
+    kw = {}
+    for f in fields(UVRaster):
+        if f.name in _SPARSE:
+            kw[f.name] = sp.csr_matrix((a[f"{f.name}.data"], a[f"{f.name}.indices"],
+                                        a[f"{f.name}.indptr"]),
+                                       shape=tuple(int(n) for n in a[f"{f.name}.shape"]))
+        else:
+            kw[f.name] = a[f.name]
+    for name in ("size", "tile", "n_vertices"):
+        kw[name] = int(kw[name])
+    kw["parts"] = tuple(str(p) for p in kw["parts"])
+    return UVRaster(**kw)
 
 
 def _check_size(size):
@@ -279,6 +345,7 @@ def _build_raster(model, size, idx, names, tile, bleed):
     xy = np.stack([(uv[..., 0] - tu) * size, (1.0 - (uv[..., 1] - tv)) * size], axis=-1)
     pixel, tri, bary = rasterize(xy, size, size)
     texel, tri, bary = first_per_pixel(pixel, tri, bary)  # overlapping UVs: one wins
+    texel = texel.astype(np.int32)  # at most 16384² texels
 
     n = len(texel)
     rows = np.repeat(np.arange(n), 3)
@@ -299,8 +366,9 @@ def _build_raster(model, size, idx, names, tile, bleed):
         bleed_from = (ri * size + ci).ravel()[bleed_to]
     else:
         bleed_to = bleed_from = np.zeros(0, np.int64)
-    gather = interp.T.tocsr()[verts]
-    return UVRaster(size, tile, names, n_vertices, tri_vertex, texel, interp, verts, gather,
+    # summed as the rows of a CSR transpose (numpy's pairwise sums), as bakes always have
+    cover = np.asarray(interp.T.tocsr()[verts].sum(axis=1)).ravel()
+    return UVRaster(size, tile, names, n_vertices, tri_vertex, texel, interp, verts, cover,
                     lap, bleed_to, bleed_from)
 
 

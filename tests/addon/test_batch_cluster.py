@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from tests.addon.support import run_python, synthetic_files
+from tests.addon.support import ROOT, run_python, synthetic_files
 
 pytest.importorskip("distributed", reason="--cluster needs dask[distributed]")
 
@@ -61,16 +61,57 @@ def test_local_cluster_matches_jobs_2(heads, tmp_path):
     assert again.returncode == 1 and "(3 unchanged, skipped)" in again.stdout
 
 
-def test_a_dead_worker_process_fails_its_head_only(monkeypatch):
-    from headrecon_addon import batch_cluster, batch_workers
+def test_cluster_from_the_blender_script_form(heads, tmp_path):
+    """``blender -b -P headless.py -- ... --cluster local``: the same path taken with plain
+    Python and "--" (as test_headless does for the script form). The Dask workers are
+    this Python and import no bpy; the fitting processes are the client's worker command
+    (Blender itself under Blender)."""
+    out = tmp_path / "script"
+    proc = run_python([ROOT / "headrecon_addon" / "headless.py", "--", heads, "--out", out,
+                       "--no-texture", "--cluster", "local", "--jobs", "2"], cwd=tmp_path,
+                      env={"PYTHONPATH": ""})
+    assert proc.returncode == 1, proc.stdout + proc.stderr  # the broken row only
+    assert "3 of 4 heads written" in proc.stdout
+    assert "cluster: 2 workers, the model loaded 1/1 times on them" in proc.stderr
+    assert {r["name"]: r["status"] for r in _rows(out).values()} == {
+        "c0": "done", "c1": "done", "broken": "failed", "c2": "done"}
 
-    monkeypatch.setattr(batch_workers, "worker_command",
-                        lambda: [sys.executable, "-c", "import sys; sys.exit(3)"])
+
+def test_a_dead_worker_process_fails_its_head_only(monkeypatch):
+    from headrecon_addon import batch_cluster
+
     monkeypatch.setattr(batch_cluster, "_fitters", {})
     task = {"name": "x", "where": "heads.csv row 2"}
-    row = batch_cluster.run_head(task, "/no/model.npz")
+    row = batch_cluster.run_head(task, "/no/model.npz",
+                                 [sys.executable, "-c", "import sys; sys.exit(3)"])
     assert row["status"] == "failed" and "exit code 3" in row["error"]
     assert batch_cluster._fitters == {}  # the next head starts a new one
+
+
+def test_the_fitting_process_does_not_inherit_dask_s_malloc_setting(monkeypatch):
+    """Dask's nanny sets MALLOC_TRIM_THRESHOLD_ in its workers; in the fitting process it
+    cost 60 % more CPU a head, so the process a Dask worker drives runs without it."""
+    from headrecon_addon import batch_cluster
+
+    monkeypatch.setattr(batch_cluster, "_fitters", {})
+    monkeypatch.setenv("MALLOC_TRIM_THRESHOLD_", "65536")
+    speaks = ("import json, os; print(json.dumps({'ready': True}), flush=True); input(); "
+              "print(json.dumps({'malloc': os.environ.get('MALLOC_TRIM_THRESHOLD_', 'unset')}),"
+              " flush=True)")
+    got = batch_cluster.run_head({"name": "x", "where": "row 2"}, "/no/model.npz",
+                                 [sys.executable, "-c", speaks])
+    batch_cluster._close_fitters()
+    assert got == {"malloc": "unset"}
+
+
+def test_a_dask_worker_does_not_import_bpy():
+    """What a Dask worker imports to run a head (this module, the worker pool, the summary
+    rows) leaves bpy to the fitting process it drives."""
+    proc = run_python(["-c", "import sys, headrecon_addon.batch_cluster, "
+                       "headrecon_addon.batch_workers, headrecon_addon.batch_summary; "
+                       "print('bpy' in sys.modules)"])
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "False"
 
 
 def test_without_dask_one_line(monkeypatch):

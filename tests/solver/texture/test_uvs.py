@@ -72,3 +72,53 @@ def test_threads_share_one_raster():
     with ThreadPoolExecutor(4) as pool:
         got = list(pool.map(lambda _: uv_raster(m, 48), range(8)))
     assert all(r is got[0] for r in got)
+
+
+def test_gather_is_interp_transposed_without_a_copy():
+    """``gather`` sums texel values onto the vertices through ``interp``'s own arrays (a
+    stored transpose was 39 MB of a worker's rasters); ``cover`` is its row sums."""
+    m = uv_sphere()
+    r = uv_raster(m, 64)
+    x = np.random.default_rng(0).random((len(r.texel), 3)).astype(np.float32)
+    np.testing.assert_allclose(r.gather @ x, r.interp.toarray().T @ x, rtol=1e-5, atol=1e-6)
+    assert r.gather.shape == (len(m.vertices), len(r.texel))
+    assert np.shares_memory(r.gather.data, r.interp.data)
+    np.testing.assert_allclose(r.cover, r.interp.toarray().sum(axis=0)[r.vertices], rtol=1e-5)
+    assert r.texel.dtype == np.int32
+
+
+def test_raster_is_stored_beside_the_model_file_and_loaded_bit_for_bit(tmp_path,
+                                                                        monkeypatch):
+    """The next process loads the raster its model's file has beside it instead of
+    rasterising, and bakes the same texture bit for bit; a damaged file is built again."""
+    from solver.texture import uvs
+
+    m = uv_sphere()
+    m.path = str(tmp_path / "sphere.npz")
+    (tmp_path / "sphere.npz").write_bytes(b"the model")
+    built = uv_raster(m, 64)
+    stored = list((tmp_path / "cache").glob("sphere-uv-raster-64-*.npz"))
+    assert len(stored) == 1
+    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
+    want = bake_texture(m, m.vertices, [(coded_photo(), cam)], 64, raster=built)
+
+    builds = []
+    build = uvs._build_raster
+    monkeypatch.setattr(uvs, "_build_raster", lambda *a: builds.append(a) or build(*a))
+    clear_raster_cache(m)  # a new process: nothing in memory
+    loaded = uv_raster(m, 64)
+    assert not builds and loaded is not built
+    for name in ("texel", "vertices", "cover", "triangles", "bleed_to", "bleed_from"):
+        got, ref = getattr(loaded, name), getattr(built, name)
+        assert got.dtype == ref.dtype
+        np.testing.assert_array_equal(got, ref)
+    assert (loaded.interp != built.interp).nnz == 0 and loaded.parts == built.parts
+    np.testing.assert_array_equal(
+        bake_texture(m, m.vertices, [(coded_photo(), cam)], 64, raster=loaded), want)
+
+    clear_raster_cache(m)
+    stored[0].write_bytes(stored[0].read_bytes()[:1000])
+    np.testing.assert_array_equal(uv_raster(m, 64).texel, built.texel)
+    assert len(builds) == 1
+    clear_raster_cache(m, stored=True)
+    assert not list((tmp_path / "cache").glob("*.npz"))
