@@ -1,5 +1,6 @@
-"""Arrays computed once per model file and kept on disk beside it (``cache/`` in the model
-file's folder, ``generated/model/cache/`` in a checkout), so that every process on a machine
+"""Arrays computed once per model file and kept on disk beside it (the folder
+``<model's folder>-cache``, ``generated/model-cache/`` in a checkout: outside the model's
+folder, which the extension zip takes whole), so that every process on a machine
 after the first loads them instead of computing them again (``memo.py`` keeps them for
 the process). Used for the texture bake's UV rasters: about 1 s of CPU at 1024 texels to
 build, 0.05 s to load, paid once per machine instead of once per batch worker.
@@ -21,7 +22,12 @@ from pathlib import Path
 import numpy as np
 import scipy
 
-FOLDER = "cache"
+SUFFIX = "-cache"  # the stored arrays' folder: the model's folder's name and this
+
+
+def folder(path):
+    """The folder of the arrays stored for the model file ``path``."""
+    return path.parent.with_name(path.parent.name + SUFFIX)
 
 
 def stored_path(model, name, key, sources):
@@ -44,7 +50,7 @@ def stored_path(model, name, key, sources):
         h.update(f"{part}\n".encode())
     for src in sources:
         h.update(Path(src).read_bytes())
-    return path.parent / FOLDER / f"{path.stem}-{name}-{h.hexdigest()[:20]}.npz"
+    return folder(path) / f"{path.stem}-{name}-{h.hexdigest()[:20]}.npz"
 
 
 def load_arrays(path):
@@ -98,7 +104,7 @@ def remove_stored(model, name):
     if not path:
         return
     path = Path(path)
-    for old in (path.parent / FOLDER).glob(f"{path.stem}-{name}*.npz"):
+    for old in folder(path).glob(f"{path.stem}-{name}*.npz"):
         try:
             old.unlink()
         except OSError:

@@ -13,7 +13,8 @@ class _Model:
 
 
 def _model(tmp_path):
-    f = tmp_path / "head.npz"
+    (tmp_path / "model").mkdir(exist_ok=True)
+    f = tmp_path / "model" / "head.npz"
     f.write_bytes(b"a model")
     return _Model(f)
 
@@ -21,7 +22,8 @@ def _model(tmp_path):
 def test_arrays_round_trip_beside_the_model_file(tmp_path):
     m = _model(tmp_path)
     path = stored_path(m, "thing-8", ("key", 1), [__file__])
-    assert path.parent == tmp_path / "cache" and path.name.startswith("head-thing-8-")
+    # beside the model's folder, not in it (the extension zip takes that folder whole)
+    assert path.parent == tmp_path / "model-cache" and path.name.startswith("head-thing-8-")
     assert load_arrays(path) is None
     arrays = {"a": np.arange(5, dtype=np.int32), "b": np.linspace(0, 1, 7)}
     assert save_arrays(path, arrays)
@@ -64,9 +66,9 @@ def test_no_file_no_folder_or_damage_only_costs_the_computation(tmp_path):
     assert load_arrays(None) is None and not save_arrays(None, {})
     m = _model(tmp_path)
     path = stored_path(m, "thing", 1, [__file__])
-    (tmp_path / "cache").write_text("a file where the folder would be")
+    (tmp_path / "model-cache").write_text("a file where the folder would be")
     assert not save_arrays(path, {"a": np.zeros(2)})
-    (tmp_path / "cache").unlink()
+    (tmp_path / "model-cache").unlink()
     save_arrays(path, {"a": np.zeros(1000)})
     path.write_bytes(path.read_bytes()[:100])  # damaged
     assert load_arrays(path) is None

@@ -94,10 +94,11 @@ def test_raster_is_stored_beside_the_model_file_and_loaded_bit_for_bit(tmp_path,
     from solver.texture import uvs
 
     m = uv_sphere()
-    m.path = str(tmp_path / "sphere.npz")
-    (tmp_path / "sphere.npz").write_bytes(b"the model")
+    (tmp_path / "model").mkdir()
+    m.path = str(tmp_path / "model" / "sphere.npz")
+    (tmp_path / "model" / "sphere.npz").write_bytes(b"the model")
     built = uv_raster(m, 64)
-    stored = list((tmp_path / "cache").glob("sphere-uv-raster-64-*.npz"))
+    stored = list((tmp_path / "model-cache").glob("sphere-uv-raster-64-*.npz"))
     assert len(stored) == 1
     cam = OrthographicCamera.nominal("orthographic-front", (W, H))
     want = bake_texture(m, m.vertices, [(coded_photo(), cam)], 64, raster=built)
@@ -121,4 +122,4 @@ def test_raster_is_stored_beside_the_model_file_and_loaded_bit_for_bit(tmp_path,
     np.testing.assert_array_equal(uv_raster(m, 64).texel, built.texel)
     assert len(builds) == 1
     clear_raster_cache(m, stored=True)
-    assert not list((tmp_path / "cache").glob("*.npz"))
+    assert not list((tmp_path / "model-cache").glob("*.npz"))
