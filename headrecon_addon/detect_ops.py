@@ -40,7 +40,48 @@ class _PhotosJob(JobOperator):
                            or _photos_problem(context))
 
 
-class HEADRECON_OT_detect_landmarks(_PhotosJob, bpy.types.Operator):
+class _DetectionJob(_PhotosJob):
+    """What Detect Landmarks and Detect Outline share: their job module's ``RUN`` (in
+    background mode), ``PREPARE`` and ``APPLY`` (the interactive job) on one view or every
+    photo, and how they report."""
+
+    RUN = PREPARE = APPLY = None  # staticmethods of the job module
+
+    def report_error(self, e):
+        if isinstance(e, JobCancelled):
+            self.report({"WARNING"}, self.CANCELLED_LINE)
+        elif isinstance(e, ValueError):
+            self.report({"ERROR"}, str(e))
+        else:
+            self.report({"ERROR"}, f"Detection failed: {type(e).__name__}: {e}")
+
+    def execute(self, context):
+        try:
+            job = self.RUN(context.scene, self.view, self.replace_hand_placed)
+        except Exception as e:
+            self.report_error(e)
+            return {"CANCELLED"}
+        _report_lines(self, job.lines())
+        return {"FINISHED"}
+
+    def invoke(self, context, event):
+        if not interactive(context):
+            return self.execute(context)
+        try:
+            job = self.PREPARE(context.scene, self.view, self.replace_hand_placed)
+        except Exception as e:
+            self.report_error(e)
+            return {"CANCELLED"}
+        return self.start_job(context, job)
+
+    def finish_job(self, context, job, seconds):
+        if not job.found_any:
+            raise ValueError("; ".join(line for _, line in job.lines()))
+        self.APPLY(context.scene, job)
+        _report_lines(self, job.lines())
+
+
+class HEADRECON_OT_detect_landmarks(_DetectionJob, bpy.types.Operator):
     """Find the face on the photo (or on every photo) and place its landmarks, shown as
     detected (orange) for you to check; landmarks you placed or moved by hand stay"""
 
@@ -55,42 +96,12 @@ class HEADRECON_OT_detect_landmarks(_PhotosJob, bpy.types.Operator):
     replace_hand_placed: BoolProperty(name="Replace Hand-Placed", options={"SKIP_SAVE"},
                                       description=_REPLACE)
 
-    def report_error(self, e):
-        if isinstance(e, JobCancelled):
-            self.report({"WARNING"}, self.CANCELLED_LINE)
-        elif isinstance(e, ValueError):
-            self.report({"ERROR"}, str(e))
-        else:
-            self.report({"ERROR"}, f"Detection failed: {type(e).__name__}: {e}")
-
-    def execute(self, context):
-        try:
-            job = detect_job.run_detection(context.scene, self.view, self.replace_hand_placed)
-        except Exception as e:
-            self.report_error(e)
-            return {"CANCELLED"}
-        _report_lines(self, job.lines())
-        return {"FINISHED"}
-
-    def invoke(self, context, event):
-        if not interactive(context):
-            return self.execute(context)
-        try:
-            job = detect_job.prepare_detection(context.scene, self.view,
-                                               self.replace_hand_placed)
-        except Exception as e:
-            self.report_error(e)
-            return {"CANCELLED"}
-        return self.start_job(context, job)
-
-    def finish_job(self, context, job, seconds):
-        if not job.found_any:
-            raise ValueError("; ".join(line for _, line in job.lines()))
-        detect_job.apply_detection(context.scene, job)
-        _report_lines(self, job.lines())
+    RUN = staticmethod(detect_job.run_detection)
+    PREPARE = staticmethod(detect_job.prepare_detection)
+    APPLY = staticmethod(detect_job.apply_detection)
 
 
-class HEADRECON_OT_detect_outline(_PhotosJob, bpy.types.Operator):
+class HEADRECON_OT_detect_outline(_DetectionJob, bpy.types.Operator):
     """Find the head's outline on the photo (or on every photo) from the person's
     segmentation (hair and clothes left out) and draw it as the photo's contour; a
     contour traced by hand stays unless replaced"""
@@ -107,33 +118,9 @@ class HEADRECON_OT_detect_outline(_PhotosJob, bpy.types.Operator):
         name="Replace Hand-Traced", options={"SKIP_SAVE"},
         description="Replace a contour traced or edited by hand too (otherwise it stays)")
 
-    report_error = HEADRECON_OT_detect_landmarks.report_error
-
-    def execute(self, context):
-        try:
-            job = outline_job.run_outlines(context.scene, self.view, self.replace_hand_placed)
-        except Exception as e:
-            self.report_error(e)
-            return {"CANCELLED"}
-        _report_lines(self, job.lines())
-        return {"FINISHED"}
-
-    def invoke(self, context, event):
-        if not interactive(context):
-            return self.execute(context)
-        try:
-            job = outline_job.prepare_outlines(context.scene, self.view,
-                                               self.replace_hand_placed)
-        except Exception as e:
-            self.report_error(e)
-            return {"CANCELLED"}
-        return self.start_job(context, job)
-
-    def finish_job(self, context, job, seconds):
-        if not job.found_any:
-            raise ValueError("; ".join(line for _, line in job.lines()))
-        outline_job.apply_outlines(context.scene, job)
-        _report_lines(self, job.lines())
+    RUN = staticmethod(outline_job.run_outlines)
+    PREPARE = staticmethod(outline_job.prepare_outlines)
+    APPLY = staticmethod(outline_job.apply_outlines)
 
 
 class HEADRECON_OT_auto_fit(_PhotosJob, bpy.types.Operator):
