@@ -84,29 +84,47 @@ class PhotoTask:
 
 
 @dataclasses.dataclass
-class DetectJob(Progress):
-    """The photos to detect on, read from the scene; ``run`` touches no bpy data."""
+class PhotosJob(Progress):
+    """Photos examined one by one in any thread (``examine``: the detector only, no
+    bpy), the loop Detect Landmarks and Detect Outline share; errors are kept in
+    ``error``, never raised."""
 
     tasks: list
     replace: bool = False
-    skipped: list = dataclasses.field(default_factory=list)
     error: BaseException = None
     cancelled: bool = False
     fraction: float = 0.0
     message: str = "starting"
+    DOING = "examining"  # the progress line before each photo's name
+    DONE = "done"  # the progress line after the last photo
+
+    def examine(self, task):
+        raise NotImplementedError
 
     def run(self):
-        """Detect the face on every photo. Errors are kept in ``error``, never raised."""
+        """Examine every photo, timing each (``task.seconds``)."""
         try:
             photo_faces.detector()  # a missing model: one error before any photo
             for i, task in enumerate(self.tasks):
-                self.progress(i / len(self.tasks), f"detecting the face on {task.photo}")
+                self.progress(i / len(self.tasks), f"{self.DOING} {task.photo}")
                 t = time.perf_counter()
-                task.face = photo_faces.find_face(task.pixels)
+                self.examine(task)
                 task.seconds = time.perf_counter() - t
-            self.progress(1.0, "placing the landmarks")
+            self.progress(1.0, self.DONE)
         except BaseException as e:  # noqa: B036  (kept for the main thread to report)
             self.error = e
+
+
+@dataclasses.dataclass
+class DetectJob(PhotosJob):
+    """The photos to detect the face on, read from the scene."""
+
+    skipped: list = dataclasses.field(default_factory=list)
+    DOING = "detecting the face on"
+    DONE = "placing the landmarks"
+
+    def examine(self, task):
+        task.face = photo_faces.find_face(task.pixels)
 
     @property
     def found_any(self):

@@ -8,10 +8,9 @@ has a contour traced (or edited) by hand and the artist did not ask to replace i
 """
 
 import dataclasses
-import time
 
 from . import landmarks, photo_faces, photos
-from .job_progress import Progress
+from .detect_job import PhotosJob
 
 
 def outline_plan(has_contour, detected, replace):
@@ -52,33 +51,19 @@ class OutlineTask:
 
 
 @dataclasses.dataclass
-class OutlineJob(Progress):
-    """The photos to find the outline on; ``run`` touches no bpy data."""
+class OutlineJob(PhotosJob):
+    """The photos to find the outline on; a photo without an outline is a line of the
+    report."""
 
-    tasks: list
-    replace: bool = False
-    error: BaseException = None
-    cancelled: bool = False
-    fraction: float = 0.0
-    message: str = "starting"
+    DOING = "finding the outline on"
+    DONE = "drawing the outlines"
 
-    def run(self):
-        """Find each photo's outline. Errors are kept in ``error``, never raised; a photo
-        without an outline is a line of the report."""
+    def examine(self, task):
         try:
-            photo_faces.detector()
-            for i, task in enumerate(self.tasks):
-                self.progress(i / len(self.tasks), f"finding the outline on {task.photo}")
-                t = time.perf_counter()
-                try:
-                    found = photo_faces.find_outline(task.pixels)
-                    task.points, task.notes = found.points, found.notes
-                except ValueError as e:
-                    task.problem = str(e)
-                task.seconds = time.perf_counter() - t
-            self.progress(1.0, "drawing the outlines")
-        except BaseException as e:  # noqa: B036  (kept for the main thread to report)
-            self.error = e
+            found = photo_faces.find_outline(task.pixels)
+            task.points, task.notes = found.points, found.notes
+        except ValueError as e:
+            task.problem = str(e)
 
     @property
     def found_any(self):

@@ -84,3 +84,29 @@ def test_auto_fit_fits_with_the_detected_outlines(sample):
     auto_fit_job.apply_auto_fit(scene, job)
     assert landmarks.contour_is_detected(side)
     assert photos.find_plane(scene, "front") is not None
+
+
+def test_the_job_examines_each_photo_and_stops_when_cancelled():
+    """The loop Detect Landmarks and Detect Outline share (``detect_job.PhotosJob``): a
+    photo without a face is its task's problem, each photo is timed, and a cancelled job
+    examines nothing and keeps why it stopped."""
+    from headrecon_addon.detect_job import DetectJob, PhotoTask
+    from headrecon_addon.job_progress import JobCancelled
+    from headrecon_addon.outline_job import OutlineJob, OutlineTask
+
+    blank = np.full((96, 96, 3), 128, np.uint8)
+    job = OutlineJob([OutlineTask("front", "blank.png", blank, False, False)])
+    job.run()
+    task = job.tasks[0]
+    assert job.error is None and not job.found_any and task.points is None
+    assert task.problem.startswith("no face found") and task.seconds > 0
+    assert (job.fraction, job.message) == (1.0, "drawing the outlines")
+    stopped = OutlineJob([OutlineTask("front", "blank.png", blank, False, False)],
+                         cancelled=True)
+    stopped.run()
+    assert isinstance(stopped.error, JobCancelled) and stopped.tasks[0].problem is None
+    detect = DetectJob([PhotoTask("front", "blank.png", "front", False, blank, set(),
+                                  set())])
+    detect.run()
+    assert detect.error is None and detect.tasks[0].face is None
+    assert detect.message == "placing the landmarks" and detect.lines()[0][0] == "WARNING"
