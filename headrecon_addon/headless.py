@@ -265,8 +265,7 @@ def write_head(task, model):
     reset_scene()
     heap.release_free_memory()  # the last head's scene, before the fit and bake take more
     imgs = _images_for(case, None)  # fails fast on a missing photo, before the fit
-    orthographic_lenses(case, {v: case.image_path(v) for v, view in case.views.items()
-                               if view.image is not None})
+    orthographic_lenses(case)  # the photos' EXIF lenses, for the projection check
     result = fit_head(model, case, options)
     for message in result.info.get("warnings", ()):
         print(f"{name}: warning: {message}", file=sys.stderr, flush=True)

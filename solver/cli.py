@@ -259,8 +259,7 @@ def _cmd_fit(args):
     progress(0.0, f"read {case.source} ({case.n_points} landmarks in {len(case.views)} views) "
                   f"and the head model")
     notes = thin_case_contours(case)
-    orthographic_lenses(case, {name: case.image_path(name) for name, view in case.views.items()
-                               if view.image is not None})
+    orthographic_lenses(case)  # the photos' EXIF lenses, for the projection check
     progress(0.0, f"fitting ({options.method})")
     t = time.perf_counter()
     try:

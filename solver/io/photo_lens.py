@@ -10,7 +10,7 @@ from ..cameras import OrthographicCamera
 from .exif import photo_lens_mm
 
 
-def orthographic_lenses(case, photo_paths):
+def orthographic_lenses(case, photo_paths=None):
     """Set ``camera_hints["lens_mm"]`` of every orthographic view whose photo's EXIF gives
     a focal length.
 
@@ -18,15 +18,18 @@ def orthographic_lenses(case, photo_paths):
     ----------
     case : LandmarkCase
         Changed in place (only its views' ``camera_hints``).
-    photo_paths : dict of str -> path-like or None
+    photo_paths : dict of str -> path-like or None, optional
         View name -> the photo file (views missing or None, and files that do not exist,
-        are skipped).
+        are skipped). Default: the photos the case names (``case.image_path``).
 
     Returns
     -------
     dict of str -> float
         View name -> the lens set (mm, 36 mm equivalent across the long side).
     """
+    if photo_paths is None:
+        photo_paths = {name: case.image_path(name) for name, view in case.views.items()
+                       if view.image is not None}
     found = {}
     for name, view in case.views.items():
         path = photo_paths.get(name)

@@ -33,3 +33,11 @@ def test_only_orthographic_photos_with_a_focal_length_get_one(tmp_path):
     assert case.views["front"].camera_hints == {"lens_mm": found["front"]}
     assert case.views["pinhole"].camera_hints == {"kind": "pinhole"}
     assert all(case.views[n].camera_hints == {} for n in ("plain", "gone", "unnamed"))
+
+
+def test_by_default_the_photos_the_case_names(tmp_path):
+    (tmp_path / "front.jpg").write_bytes(jpeg(tiff([], [(exif.FOCAL_35MM, 3, [50])]),
+                                              pixels=np.zeros((120, 90, 3), np.uint8)))
+    front = OrthographicCamera.nominal("orthographic-front", (90, 120))
+    case = LandmarkCase({"front": _view("front", front)}, str(tmp_path / "case.json"))
+    assert orthographic_lenses(case) == {"front": pytest.approx(52.0, abs=0.01)}
