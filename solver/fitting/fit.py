@@ -24,7 +24,8 @@ threshold) and the side landmarks. Then:
   thesis' method for orthographic photos: its 3-D targets come from the photos' image
   planes, and it refines a head the profile stage has already shaped. With a perspective
   camera (no profile stage) it does worse than approach 1 (docs/DECISIONS.md), so there
-  combined is approach 1 alone.
+  combined is approach 1 alone; and the fits after the first (with the estimated noise)
+  refine the first one's head with approach 1 alone, which won every such fit measured.
 
 Cameras: no photo is assumed to share scale, tilt or framing with another. Each keeps its
 own camera, solved together with the head in every Gauss-Newton step (its parameters as
@@ -47,6 +48,7 @@ inverse normal matrix is the posterior covariance behind ``FitResult.uncertainty
 """
 
 
+import dataclasses
 import time
 
 import numpy as np
@@ -121,9 +123,10 @@ def fit_head(model, case, options=None, initial=None):
     Returns
     -------
     FitResult
-        ``info`` holds: "approach" (the one used), "candidates" (each approach's RMS
-        reprojection error in pixels and prior), "iterations" and "errors" per stage
-        ("calibration_rounds": re-calibrations of self-calibrated cameras in approach 1),
+        ``info`` holds: "approach" (the one the first fit chose), "candidates" (each
+        approach's RMS reprojection error in pixels and prior in that fit), "iterations"
+        and "errors" per stage ("calibration_rounds": re-calibrations of self-calibrated
+        cameras in approach 1),
         "timings" (seconds), "rms_px" per view and "contour_rms_px", "projection" (per
         photo the parallel-projection error epsilon, see :func:`projection_info`),
         "mirror" (per mirror view the plane and the landmarks' ray gaps),
@@ -155,9 +158,11 @@ def fit_head(model, case, options=None, initial=None):
     # The noise from the fit's residuals (and each photo's expression, expression.py), the
     # fit again with them, until the estimates settle (noise.py); each fit after the first
     # starts where the last one ended.
-    result, contour, along, effective, measured, roles = _fit(model, case, opts, initial,
-                                                            None, progress.part(0.0, 0.55),
-                                                            t0)
+    first = _fit(model, case, opts, initial, None, progress.part(0.0, 0.55), t0,
+                 uncertainty=False)
+    result, contour, along, effective, measured, roles, finish = first
+    later = opts if opts.method != "combined" else dataclasses.replace(opts,
+                                                                       method="approach1")
     noise, rounds, expressions = None, 1, {}
     timings = dict(result.info["timings"])
     while rounds < MAX_ROUNDS:
@@ -172,12 +177,15 @@ def fit_head(model, case, options=None, initial=None):
             break
         noise, expressions = estimate, shown
         part = 0.55 + 0.15 * (rounds - 1)
-        result, contour, along, effective, measured, roles = _fit(
-            model, neutral_case(model, case, result, expressions), opts, result, noise,
-            progress.part(part, part + 0.15), t0)
+        result, contour, along, effective, measured, roles, finish = _fit(
+            model, neutral_case(model, case, result, expressions), later, result, noise,
+            progress.part(part, part + 0.15), t0, uncertainty=False)
         rounds += 1
         for stage, seconds in result.info["timings"].items():
             timings[stage] = seconds if stage == "total" else timings.get(stage, 0.0) + seconds
+    result.uncertainty, result.method = finish(), opts.method
+    # the choice between the approaches was made in the first fit, the only one running both
+    result.info.update({k: first[0].info[k] for k in ("approach", "candidates")})
     result.info["noise"] = {**noise.report(), "fits": rounds}
     result.info["refit_state"]["noise"] = noise
     if opts.expressions == "fit":
@@ -197,14 +205,16 @@ def _checked(model, case, opts, result):
     return result
 
 
-def _fit(model, case, opts, initial, noise, progress, t0):
+def _fit(model, case, opts, initial, noise, progress, t0, uncertainty=True):
     """One fit of the case with landmark and outline weights from ``noise`` (None: all
     placed with ``noise_px``), from ``initial``'s state when given. Returns (result,
     contour residuals per view, the sliding landmarks' residuals along the outline per
     view, effective number of fitted parameters,
     ``Engine.without_definition_offsets``: the landmark residuals the noise is measured on
-    and the definition offsets' size per view, and per view the outline landmarks tied to
-    their vertices and each landmark's weight factor from its given uncertainty)."""
+    and the definition offsets' size per view, per view the outline landmarks tied to
+    their vertices and each landmark's weight factor from its given uncertainty, and a
+    function giving the result's per-vertex uncertainty). Without ``uncertainty`` the
+    result has none yet (the noise rounds need only the last fit's)."""
     cams = None if initial is None else previous_cameras(initial, "initial")
     views, skipped = prepare_views(model, case, opts, cameras=cams, noise=noise)
     eng = Engine.for_fit(model, views, opts)
@@ -250,7 +260,11 @@ def _fit(model, case, opts, initial, noise, progress, t0):
     t = time.perf_counter()
     joint.cost(state)
     cov = joint.covariance(state)
-    unc = vertex_uncertainty(model, eng, cov)
+
+    def finish():
+        return vertex_uncertainty(model, eng, cov)
+
+    unc = finish() if uncertainty else None
     contour = joint.contour_residuals(state)
     pairs = joint.contour_pairs(state, kinds=("contour",))
     matches = joint.outline_matches(state)
@@ -306,7 +320,8 @@ def _fit(model, case, opts, initial, noise, progress, t0):
     roles = ({v.name: {n for n, o in zip(v.names, v.outline_point & ~v.slide, strict=True)
                        if o} for v in eng.views},
              {v.name: dict(zip(v.names, v.relative.tolist(), strict=True)) for v in eng.views})
-    return result, contour, along, eng.effective_parameters(cov) + measured[1], measured, roles
+    return (result, contour, along, eng.effective_parameters(cov) + measured[1], measured,
+            roles, finish)
 
 
 def refit_landmarks(model, case, previous, options=None):
