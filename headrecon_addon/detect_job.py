@@ -99,6 +99,8 @@ class PhotosJob(Progress):
     DONE = "done"  # the progress line after the last photo
 
     def examine(self, task):
+        """Examine one photo's pixels (any thread), setting the task's findings; each
+        job gives its own."""
         raise NotImplementedError
 
     def run(self):
@@ -136,6 +138,35 @@ class DetectJob(PhotosJob):
         return out + [("INFO", line) for line in self.skipped]
 
 
+def photo_images(scene, view, doing):
+    """(plane, view name, image or None when the plane has no readable photo) for one
+    view's photo or for every photo, the photos the detection jobs read.
+
+    Raises
+    ------
+    ValueError
+        One line: no photo of that view (or that view's photo is not readable, saying
+        it cannot ``doing``), or no photo at all.
+    """
+    if view:
+        plane = photos.find_plane(scene, view)
+        if plane is None:
+            raise ValueError(f"No photo for view {view!r}")
+        planes = [plane]
+    else:
+        planes = photos.photo_planes(scene)
+        if not planes:
+            raise ValueError("Load the photos first (Photos panel)")
+    for plane in planes:
+        img = plane.headrecon.image
+        name = plane.headrecon.view
+        if img is None or img.get(photos.PLACEHOLDER) or img.size[0] == 0:
+            if view:
+                raise ValueError(f"view {name!r}: no photo to {doing}")
+            img = None
+        yield plane, name, img
+
+
 def prepare_detection(scene, view="", replace=False, skip_hand_placed=False):
     """Read the photos to detect on (main thread).
 
@@ -153,22 +184,9 @@ def prepare_detection(scene, view="", replace=False, skip_hand_placed=False):
     ValueError
         One line: no photo of that view, or the view has no photo to detect on.
     """
-    if view:
-        plane = photos.find_plane(scene, view)
-        if plane is None:
-            raise ValueError(f"No photo for view {view!r}")
-        planes = [plane]
-    else:
-        planes = photos.photo_planes(scene)
-        if not planes:
-            raise ValueError("Load the photos first (Photos panel)")
     tasks, skipped = [], []
-    for plane in planes:
-        img = plane.headrecon.image
-        name = plane.headrecon.view
-        if img is None or img.get(photos.PLACEHOLDER) or img.size[0] == 0:
-            if view:
-                raise ValueError(f"view {name!r}: no photo to detect the face on")
+    for plane, name, img in photo_images(scene, view, "detect the face on"):
+        if img is None:
             skipped.append(f"{name}: no photo to detect on")
             continue
         hand = set(landmarks.hand_placed_landmarks(plane))

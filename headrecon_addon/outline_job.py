@@ -10,7 +10,7 @@ has a contour traced (or edited) by hand and the artist did not ask to replace i
 import dataclasses
 
 from . import landmarks, photo_faces, photos
-from .detect_job import PhotosJob
+from .detect_job import PhotosJob, photo_images
 
 
 def outline_plan(has_contour, detected, replace):
@@ -81,22 +81,9 @@ def prepare_outlines(scene, view="", replace=False):
     ValueError
         One line: no photo of that view, or no photo at all.
     """
-    if view:
-        plane = photos.find_plane(scene, view)
-        if plane is None:
-            raise ValueError(f"No photo for view {view!r}")
-        planes = [plane]
-    else:
-        planes = photos.photo_planes(scene)
-        if not planes:
-            raise ValueError("Load the photos first (Photos panel)")
     tasks = []
-    for plane in planes:
-        img = plane.headrecon.image
-        name = plane.headrecon.view
-        if img is None or img.get(photos.PLACEHOLDER) or img.size[0] == 0:
-            if view:
-                raise ValueError(f"view {name!r}: no photo to find the outline on")
+    for plane, name, img in photo_images(scene, view, "find the outline on"):
+        if img is None:
             continue
         tasks.append(OutlineTask(name, img.name, photos.detector_pixels(img),
                                  landmarks.contour_object(plane) is not None,
