@@ -198,8 +198,9 @@ def fit_head(model, case, options=None, initial=None):
 
 def _checked(model, case, opts, result):
     """``result`` with the warnings of the checks after a fit (checks.py)."""
-    def quick_fit(c, o):
-        return _fit(model, c, o, None, None, Progress(None), time.perf_counter())[0]
+    def quick_fit(c, o):  # the checks read its landmark residuals only
+        return _fit(model, c, o, None, None, Progress(None), time.perf_counter(),
+                    uncertainty=False)[0]
 
     result.info["warnings"] += post_fit_warnings(model, case, result, opts, quick_fit)
     return result
