@@ -1,12 +1,14 @@
 """Where a batch worker's time and memory go: one process runs ``headless.write_head`` (the
 code a ``--jobs`` worker runs per head) on a few synthetic heads and times each stage.
 
-    python -m bench.bench_batch_stages [--heads 4] [--texture-size 1024] [--blas-threads 1]
+    python -m bench.bench_batch_stages [--heads 4] [--texture-size 1024] [--outputs blend]
+                                       [--blas-threads 1]
 
 Printed: the process's start (importing bpy and the add-on, loading the model), then per
 head its wall and CPU seconds by stage (reading the landmarks and photos, the fit, the
 texture bake; the scene: a fresh one, the head's mesh, its shape keys, the photo planes,
-the rest of the scene; the .blend save, the record, the rest of ``write_head``), the resident
+the rest of the scene; the .blend save, the game export (``--outputs blend,glb``), the
+record, the rest of ``write_head``), the resident
 memory after the head and the peak so far (Linux: ``/proc/self/status``). The heads are
 made in a child process, so this one holds what a worker holds. The first
 head also fills the caches a worker keeps (UV rasters, the fit's model copies), so the heads
@@ -31,6 +33,8 @@ def _parse():
     p = parser("bench_batch_stages", __doc__)
     p.add_argument("--heads", type=int, default=4)
     p.add_argument("--texture-size", type=int, default=1024)
+    p.add_argument("--outputs", default="blend",
+                   help="the outputs a head writes, as the batch's --outputs (e.g. blend,glb)")
     return p.parse_args()
 
 
@@ -83,6 +87,7 @@ def main(args):
     from headrecon_addon import (
         batch_stamp,
         case_to_scene,
+        export,
         headless,
         reference_head,
         result_to_scene,
@@ -109,10 +114,11 @@ def main(args):
             (shape_keys, "write_fit_keys", "keys"),
             (result_to_scene, "write_textures", "scene"),
             (headless, "save_blend", "save"),
+            (export, "export_head", "export"),
             (batch_stamp, "write_record", "record"),
             (headless, "write_head", "other")):
         stages.wrap(module, name, stage)
-    settings = {"outputs": ["blend"], "bake": True, "texture_size": args.texture_size,
+    settings = {"outputs": args.outputs.split(","), "bake": True, "texture_size": args.texture_size,
                 "texture_shading": "keep", "bake_identity": False, "morph_normals": False,
                 "method": None, "components": None, "regional": None, "exact": False}
     with tempfile.TemporaryDirectory() as tmp:
@@ -127,7 +133,7 @@ def main(args):
         heads = headless.batch_manifest.plan_heads([manifest], folder / "out")
         _, tasks = headless._tasks(heads, settings, True)
         order = ["read", "fit", "bake", "fresh", "mesh", "keys", "planes", "scene", "save",
-                 "record", "other"]
+                 "export", "record", "other"]
         print("head      " + " ".join(f"{s:>6s}" for s in order) + "    all    MB  peak")
         for i, task in enumerate(tasks):
             stages.times.clear()

@@ -1,14 +1,16 @@
 """Detected faces as a landmarks case: one view per photo, named and its camera guessed
 from the detection (``view_guess``: front, right or left profile, three-quarter), its
 iBUG-68 points under the project's landmark names with each point's uncertainty in
-pixels, and a profile's outline as its contour, so ``python -m solver detect`` (and
-``headless --detect``) write a file the fit reads."""
+pixels and (but in a profile) its depth toward the camera, and a profile's outline as
+its contour, so ``python -m solver detect`` (and ``headless --detect``) write a file the
+fit reads."""
 
 import os
 from pathlib import Path
 
 from ..io.case import LandmarkCase, View
 from ..io.landmark_set import load_landmark_set
+from .ibug_map import mesh_to_ibug
 from .view_guess import ViewGuess, guess_view, point_uncertainty
 
 #: The view names the detection gives (and ``--view NAME=PHOTO`` may use to say one).
@@ -42,6 +44,25 @@ def detected_points(face, size):
     return points, sigma
 
 
+#: The face mesh's depth over the head's true depth toward the camera, both in pixels: the
+#: slope of the one against the other at the 68 points of the rendered sample's front
+#: photo (correlation 0.993; docs/DECISIONS.md).
+MESH_DEPTH_SCALE = 1.13
+
+
+def detected_depth(face, names):
+    """How far each of the landmarks ``names`` (detected points of ``face``, as
+    :func:`detected_points` keeps them) lies toward the camera, px relative to the mesh's
+    centre, rounded to 1/1000 px: the mesh's own depth (its z grows away from the camera)
+    over ``MESH_DEPTH_SCALE``. Empty for a profile, where the mesh is unreliable."""
+    if face.is_profile:
+        return {}
+    numbers = {n: i for i, n in load_landmark_set().ibug.items()}
+    z = mesh_to_ibug(face.mesh[:, 2:3])[:, 0]
+    return {n: round(float(-z[numbers[n] - 1] / MESH_DEPTH_SCALE), 3) for n in names
+            if n in numbers}
+
+
 def detected_case(photos, faces, base_dir=None, guesses=None, contours=None):
     """A :class:`LandmarkCase` from detected faces.
 
@@ -69,12 +90,14 @@ def detected_case(photos, faces, base_dir=None, guesses=None, contours=None):
                                                          strict=True):
         w, h = size
         points, sigma = detected_points(face, size)
+        depth = detected_depth(face, sigma)
         image = Path(path).absolute()
         if base_dir is not None:
             image = Path(os.path.relpath(image, Path(base_dir).absolute()))
         camera, hints = guess.camera((w, h))
         views[name] = View(name, image.as_posix(), (w, h), camera, points,
-                           camera_hints=hints, uncertainty=sigma, contour=contour)
+                           camera_hints=hints, uncertainty=sigma, depth=depth,
+                           contour=contour)
     return LandmarkCase(views)
 
 

@@ -23,6 +23,7 @@ from ..cameras.base import unit_scale
 from ..errors import rms
 from ..geometry import rotation_from_vector
 from ..model.linear_model import LinearModel
+from .depth import depth_rows
 from .outline import ContourRows
 from .shape_icp import ShapeProblem
 from .views import ViewData
@@ -101,6 +102,9 @@ class Joint:
             if landmarks and len(v.vertices):
                 rows = eng.landmark_rows(v, off, front_weight, slide=slide)
                 self.groups.append((v, "landmarks", rows))
+                depth = depth_rows(v, off)  # on the same copies
+                if depth is not None:
+                    self.groups.append((v, "depth", depth))
                 orig.append(v.vertices)
                 off += len(v.vertices)
             if slide:
@@ -124,6 +128,8 @@ class Joint:
         self.mean, self.basis = eng.slice(self.orig)
         self.view_idx, self.view_lm = {}, {}
         for v, kind, rows in self.groups:
+            if kind == "depth":  # the landmarks' copies again
+                continue
             self.view_idx.setdefault(v.name, []).append(rows.vertices)
             if kind == "landmarks":
                 self.view_lm[v.name] = rows.vertices

@@ -11,6 +11,7 @@ from ..cameras.mirror import MirrorPlane
 from ..io.case import LandmarkCase
 from ..io.landmark_counts import landmarks_needed, too_few, too_few_distinct, too_few_in_all
 from ..io.landmark_set import as_landmark_set
+from .depth import DEPTH_SHARE
 
 
 @dataclass
@@ -69,6 +70,12 @@ class ViewData:
         Each landmark's weight factor from its given uncertainty against its view's others
         (:func:`uncertainty_factors`; 1 without one): the noise is estimated on residuals
         scaled by it (``noise.estimate_noise``).
+    depth : ndarray, shape (n,)
+        Each landmark's depth toward the camera as a detector gave it (``View.depth``,
+        px; NaN: none), held through mirror pairs (``depth.depth_rows``).
+    depth_sigma : ndarray, shape (n,)
+        Its standard deviation, px: ``depth.DEPTH_SHARE`` of the landmark's given
+        uncertainty (NaN without one).
     lens_mm : float or None
         An orthographic photo's lens as its EXIF gives it (``camera_hints["lens_mm"]``,
         36 mm equivalent): tells how far the camera stood, for the parallel-projection
@@ -97,12 +104,17 @@ class ViewData:
     groups: list | None = None
     definition_m: float = 0.0
     relative: np.ndarray | None = None
+    depth: np.ndarray | None = None
+    depth_sigma: np.ndarray | None = None
     lens_mm: float | None = None
 
     def __post_init__(self):
         n = len(self.vertices)
         if self.relative is None:
             self.relative = np.ones(n)
+        for name in ("depth", "depth_sigma"):
+            if getattr(self, name) is None:
+                setattr(self, name, np.full(n, np.nan))
         if self.groups is None:
             self.groups = list(self.names)
         if self.along_weights is None:
@@ -248,7 +260,7 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
         where = f"{case.source}: view {name!r}"
         kept = bool(getattr(view, "camera_fixed", False)) or name in fixed
         link = mirror_link(case, view, kept, where)
-        names, verts, px = [], [], []
+        names, verts, px, keys = [], [], [], []
         for key, uv in view.points.items():
             canon = lms.canonical(key)
             if canon is None:
@@ -264,6 +276,7 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
             names.append(canon)
             verts.append(vtx)
             px.append(uv)
+            keys.append(key)
         w = opts.landmark_weight * np.array([weights.get(n, 1.0) for n in names])
         relative, floor = uncertainty_factors(view, opts.noise_px)
         along = w * floor
@@ -325,6 +338,9 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
                         groups=[lms.group_of(n) for n in names],
                         definition_m=0.0 if cam is None or cam.perspective
                         else _definition_m(opts, noise, name), relative=relative,
+                        depth=np.array([view.depth.get(k, np.nan) for k in keys]),
+                        depth_sigma=DEPTH_SHARE * np.array(
+                            [view.uncertainty.get(k, np.nan) for k in keys]),
                         lens_mm=_orthographic_lens(view, cam))
         (views if used or rule["outline"] else skipped).append(data)
     for v in views:

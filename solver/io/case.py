@@ -63,6 +63,12 @@ class View:
         the view's noise scaled by this landmark's uncertainty over the view's median), and
         never assumes a landmark placed more precisely than its uncertainty (its noise
         floor). ``solver.fitting.views.uncertainty_factors``.
+    depth : dict of str -> float
+        Optional, per landmark with an ``uncertainty``: how far it lies toward the camera,
+        pixels at the photo's scale, relative to the view's other points (a detector's
+        face mesh estimates it: ``solver.detect``). The fit holds the depth differences
+        of mirror pairs of such points in an orthographic photo
+        (``solver.fitting.depth``), which tell how the head is turned.
     """
 
     name: str
@@ -77,6 +83,7 @@ class View:
     passpoints: dict = field(default_factory=dict)
     camera_hints: dict = field(default_factory=dict)
     uncertainty: dict = field(default_factory=dict)
+    depth: dict = field(default_factory=dict)
     # (camera, its object as the file wrote it, camera.to_dict() then): while the camera is
     # that same unchanged object it is written back as read, so loading and saving a file
     # does not move its numbers by a rounding error (a DLT's b-form is recomputed).
@@ -90,6 +97,7 @@ class View:
         self.passpoints = _as_uv_dict(self.passpoints)
         self.camera_hints = dict(self.camera_hints)
         self.uncertainty = {str(k): float(v) for k, v in self.uncertainty.items()}
+        self.depth = {str(k): float(v) for k, v in self.depth.items()}
         if self.contour is not None:
             self.contour = np.asarray(self.contour, dtype=np.float64).reshape(-1, 2)
 
@@ -143,6 +151,8 @@ class View:
             d["passpoints"] = {k: list(v) for k, v in self.passpoints.items()}
         if self.uncertainty:
             d["uncertainty"] = dict(self.uncertainty)
+        if self.depth:
+            d["depth"] = dict(self.depth)
         if self.contour is not None:
             d["contour"] = self.contour.tolist()
         d.update(self.extra)

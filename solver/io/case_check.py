@@ -139,6 +139,12 @@ def _points_problems(view, where, lms):
             problems.append((at, "no such landmark in this view's 'points'"))
         elif not (np.isfinite(sigma) and sigma > 0):
             problems.append((at, f"expected a finite number of pixels > 0, got {sigma!r}"))
+    for key, depth in view.depth.items():
+        at = format_path(where + ("depth", key))
+        if key not in view.uncertainty:
+            problems.append((at, "a depth needs the landmark's 'uncertainty' in this view"))
+        elif not np.isfinite(depth):
+            problems.append((at, f"expected a finite number of pixels, got {depth!r}"))
     return problems
 
 

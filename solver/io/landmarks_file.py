@@ -118,7 +118,7 @@ def _read_view(vname, vd, camera, **fields):
         points=vd["points"],
         contour=None if contour is None else np.array(contour, dtype=np.float64).reshape(-1, 2),
         extra={k: v for k, v in vd.items() if k.startswith("x-")},
-        uncertainty=vd.get("uncertainty", {}), **fields)
+        uncertainty=vd.get("uncertainty", {}), depth=vd.get("depth", {}), **fields)
     if camera is not None and isinstance(vd["camera"], dict):
         view.keep_camera_as_read(vd["camera"])
     return view

@@ -4,6 +4,7 @@ fit the true head better than the mean head and than the same points as 1-px cli
 tests/bench/test_bench_detect.py)."""
 
 import copy
+import json
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ from PIL import Image
 from solver import fit_head, load_landmarks
 from solver.detect import Detector
 from solver.detect.detected_case import detect_photos
+from solver.io.landmark_set import load_landmark_set
 from solver.paths import DETECTOR_DIR
 from solver.synthetic import skin_error_mm
 
@@ -49,12 +51,46 @@ def test_the_detected_front_with_its_uncertainty_fits_the_sample(sample, detecto
     given.views["front"] = auto.views["front"]
     clicks.views["front"] = copy.deepcopy(auto.views["front"])
     clicks.views["front"].uncertainty = {}
+    clicks.views["front"].depth = {}
     true = truth["local_vertices"]
     mean = skin_error_mm(model, model.vertices, true)
     err = {label: skin_error_mm(model, fit_head(model, c).local_vertices, true)
            for label, c in (("uncertainty", given), ("clicks", clicks))}
     assert err["uncertainty"] < 0.6 * mean, (err, mean)
     assert err["uncertainty"] < err["clicks"], err
+
+
+def test_the_detected_front_s_depth_follows_the_true_head_and_helps_its_fit(sample, detector,
+                                                                          model):
+    folder, truth = sample
+    auto = detect_photos([(None, folder / "front.png"), (None, folder / "side.png")],
+                         detector, _load, base_dir=folder)
+    front = auto.views["front"]
+    assert auto.views["right"].depth == {}  # a profile's mesh is unreliable
+    assert set(front.depth) == set(front.uncertainty) and len(front.depth) == 68
+    cam = json.loads(str(truth["cameras"]))["front"]
+    lms = load_landmark_set()
+    names = sorted(front.depth)
+    x = truth["world_vertices"][[lms.vertices[n] for n in names]]
+    true = -cam["scale"] * x @ np.asarray(cam["rotation"])[2]  # toward the camera, px
+    seen = np.array([front.depth[n] for n in names])
+    assert np.corrcoef(true, seen)[0, 1] > 0.95
+    # the mirror pairs' differences (how the head is turned), within 2 px
+    pairs = [(n, n[:-6] + "_left") for n in names
+             if n.endswith("_right") and not lms.outline_in(n, "front")]
+    at = {n: i for i, n in enumerate(names)}
+    gap = [(seen[at[b]] - seen[at[a]]) - (true[at[b]] - true[at[a]]) for a, b in pairs]
+    assert len(pairs) >= 15 and np.sqrt(np.mean(np.square(gap))) < 2.0, gap
+    # the front detected (the profile as placed): the depths make the fit better
+    case = load_landmarks(folder / "sample.json", known_names=model)
+    given, flat = copy.deepcopy(case), copy.deepcopy(case)
+    given.views["front"] = front
+    flat.views["front"] = copy.deepcopy(front)
+    flat.views["front"].depth = {}
+    err = {label: skin_error_mm(model, fit_head(model, c).local_vertices,
+                                truth["local_vertices"])
+           for label, c in (("depth", given), ("flat", flat))}
+    assert err["depth"] < err["flat"], err
 
 
 def test_detected_outlines_become_the_views_contours(sample, detector):

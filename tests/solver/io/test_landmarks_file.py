@@ -387,3 +387,22 @@ def test_uncertainty_round_trips_and_is_checked(names, tmp_path, version):
     assert_rejected(bad, rf"views\.front\.uncertainty\.{first}")
     bad["views"]["front"]["uncertainty"] = {names[-1]: 3.0}          # not placed there
     assert_rejected(bad, rf"views\.front\.uncertainty\.{names[-1]}: no such landmark")
+
+
+def test_depth_round_trips_and_needs_the_points_uncertainty(names, tmp_path):
+    doc = make_doc(names)
+    first, second = list(doc["views"]["front"]["points"])[:2]
+    doc["views"]["front"]["uncertainty"] = {first: 2.5, second: 12.0}
+    doc["views"]["front"]["depth"] = {first: -3.25, second: 10.0}
+    case = load_written(tmp_path / "case.json", doc)
+    assert case.views["front"].depth == {first: -3.25, second: 10.0}
+    assert case.views["side"].depth == {}
+    again = save_and_load(case, tmp_path / "again.json")
+    assert again.views["front"].depth == {first: -3.25, second: 10.0}
+    assert "depth" not in json.loads((tmp_path / "again.json").read_text())["views"]["side"]
+    bad = copy.deepcopy(doc)
+    bad["views"]["front"]["uncertainty"] = {first: 2.5}
+    assert_rejected(bad, rf"views\.front\.depth\.{second}: a depth needs the landmark's "
+                         "'uncertainty'")
+    bad["views"]["front"]["depth"] = {first: "deep"}
+    assert_rejected(bad, rf"views\.front\.depth\.{first}")
