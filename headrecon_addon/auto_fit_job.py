@@ -60,21 +60,27 @@ class AutoFitJob:
             view = views[task.view]
             points = dict(view.get("points", {}))
             sigma = dict(view.get("uncertainty", {}))
+            depth = dict(view.get("depth", {}))
             place, remove, _ = detect_job.detection_plan(task.hand, task.detected,
                                                           task.face.points, self.detect.replace)
             for name in remove:
                 points.pop(name, None)
                 sigma.pop(name, None)
+                depth.pop(name, None)
             for name in place:
                 points[name] = list(task.face.points[name])
                 sigma.pop(name, None)
+                depth.pop(name, None)
                 if name in task.face.uncertainty:
                     sigma[name] = task.face.uncertainty[name]
+                if name in task.face.depth:
+                    depth[name] = task.face.depth[name]
             view["points"] = points
-            if sigma:
-                view["uncertainty"] = sigma
-            else:
-                view.pop("uncertainty", None)
+            for key, given in (("uncertainty", sigma), ("depth", depth)):
+                if given:
+                    view[key] = given
+                else:
+                    view.pop(key, None)
         for task in self.outlines.tasks if self.outlines is not None else ():
             if task.draws(self.outlines.replace):
                 views[task.view]["contour"] = [[float(u), float(v)] for u, v in task.points]

@@ -14,7 +14,8 @@ from .solver_link import MIN_PASSPOINTS, fit_dlt, landmarks_to_dict, load_landma
 
 # The keys of a view the scene holds as its own data (the plane, its photo, camera and
 # markers); the rest of the view is kept as the file had it (``view_json``).
-_EDITED = ("image", "size", "points", "contour", "camera", "passpoints", "uncertainty")
+_EDITED = ("image", "size", "points", "contour", "camera", "passpoints", "uncertainty",
+           "depth")
 
 
 def store_case_level(scene, case):
@@ -59,7 +60,8 @@ def build_view_planes(case, images, centre=(0.0, 0.0, 0.0)):
         plane.headrecon.view_json = json.dumps(keep) if keep else ""
         for lm, uv in view.points.items():
             if lm in view.uncertainty:  # a detector's point (shown as detected)
-                landmarks.place_detected(plane, lm, uv, view.uncertainty[lm])
+                landmarks.place_detected(plane, lm, uv, view.uncertainty[lm],
+                                         view.depth.get(lm))
             else:
                 landmarks.place_landmark(plane, lm, uv)
         for pp, uv in view.passpoints.items():

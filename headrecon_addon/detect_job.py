@@ -213,7 +213,8 @@ def apply_detection(scene, job):
         place, remove, _ = detection_plan(hand, detected, task.face.points, job.replace)
         for name in place:
             landmarks.place_detected(plane, name, task.face.points[name],
-                                     task.face.uncertainty.get(name))
+                                     task.face.uncertainty.get(name),
+                                     task.face.depth.get(name))
         photos.remove_objects([detected[name] for name in remove])
         n += len(place)
     return n

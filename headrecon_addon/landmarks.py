@@ -126,19 +126,23 @@ def is_detected(obj):
 
 
 def set_hand_placed(obj):
-    """Make a landmark hand-placed: the detector's mark and uncertainty forgotten."""
+    """Make a landmark hand-placed: the detector's mark, uncertainty and depth forgotten."""
     obj.headrecon.detected = False
     obj.headrecon.uncertainty_px = 0.0
+    obj.headrecon.has_depth = False
     show_state(obj)
 
 
-def place_detected(plane, name, uv, uncertainty_px=None):
+def place_detected(plane, name, uv, uncertainty_px=None, depth_px=None):
     """Put landmark ``name`` at pixel ``uv`` as detected, with its uncertainty (standard
-    deviation, pixels; None: none). Returns it."""
+    deviation, pixels; None: none) and depth toward the camera (pixels; None: none).
+    Returns it."""
     obj = place_landmark(plane, name, uv)
     props = obj.headrecon
     props.detected = True
     props.uncertainty_px = float(uncertainty_px or 0.0)
+    props.has_depth = depth_px is not None
+    props.depth_px = float(depth_px or 0.0)
     props.detected_at = _plane_xy(obj)
     set_landmark_state(obj, False)  # a new point: the last fit's flag was for another
     return obj
@@ -159,6 +163,14 @@ def landmark_uncertainty(plane):
     name -> px (the landmarks file's per-view ``uncertainty``)."""
     return {n: round(float(o.headrecon.uncertainty_px), PIXEL_DECIMALS)
             for n, o in detected_landmarks(plane).items() if o.headrecon.uncertainty_px > 0}
+
+
+def landmark_depth(plane):
+    """The depth (pixels toward the camera) of each detected landmark of a plane that has
+    one and an uncertainty: dict name -> px (the landmarks file's per-view ``depth``)."""
+    return {n: round(float(o.headrecon.depth_px), PIXEL_DECIMALS)
+            for n, o in detected_landmarks(plane).items()
+            if o.headrecon.has_depth and o.headrecon.uncertainty_px > 0}
 
 
 def settle_moved(objects):

@@ -8,7 +8,7 @@ photo by. No bpy: the photos come as arrays.
 import dataclasses
 import functools
 
-from .solver_link import Detector, detected_points, guess_view
+from .solver_link import Detector, detected_depth, detected_points, guess_view
 
 
 @functools.cache
@@ -34,6 +34,8 @@ class Face:
         that lie on the photo.
     uncertainty : dict of str -> float
         Landmark name -> standard deviation px.
+    depth : dict of str -> float
+        Landmark name -> depth toward the camera, px (none in a profile).
     guess : solver ViewGuess or None
         The view the face looks like (None: the detector cannot tell).
     profile : bool
@@ -44,6 +46,7 @@ class Face:
 
     points: dict
     uncertainty: dict
+    depth: dict
     guess: object
     profile: bool
     score: float
@@ -57,7 +60,8 @@ def find_face(pixels):
         return None
     h, w = pixels.shape[:2]
     points, sigma = detected_points(found, (w, h))
-    return Face(points, sigma, guess_view(found), found.is_profile, float(found.score))
+    return Face(points, sigma, detected_depth(found, sigma), guess_view(found),
+                found.is_profile, float(found.score))
 
 
 def find_outline(pixels):

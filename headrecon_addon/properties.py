@@ -173,6 +173,13 @@ class HEADRECON_PG_object(bpy.types.PropertyGroup):
         name="Uncertainty", subtype="PIXEL", default=0.0, min=0.0,
         description="A detected landmark: how far off it may be (standard deviation in "
                     "pixels), which the fit weighs it by; 0: none (placed by hand)")
+    depth_px: FloatProperty(
+        name="Depth", subtype="PIXEL", default=0.0,
+        description="A detected landmark: how far the detector saw it toward the camera "
+                    "(pixels, relative to the face), which tells the fit how the head is "
+                    "turned; only where Has Depth")
+    has_depth: BoolProperty(name="Has Depth", options={"HIDDEN"},
+                            description="The detector gave this landmark a depth")
     detected_at: FloatVectorProperty(
         name="Detected At", size=2, options={"HIDDEN"},
         description="Where the detector put the landmark (plane space): moved from there, "

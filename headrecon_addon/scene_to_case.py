@@ -42,8 +42,8 @@ def _image_ref(image, base_dir):
 def view_dict_from_plane(plane, base_dir=None):
     """A photo plane as a view of the landmarks file (its JSON form): size, photo,
     camera, the landmark and contour pixels and the detected landmarks' uncertainty from
-    the scene; every other key as the imported file had it (``view_json``), a detected
-    depth only for points still as detected."""
+    the scene (and their depth); every other key as the imported file had it
+    (``view_json``)."""
     (w, h), _ = photos.plane_size(plane)
     props = plane.headrecon
     d = json.loads(props.view_json) if props.view_json else {}
@@ -63,10 +63,11 @@ def view_dict_from_plane(plane, base_dir=None):
         d["uncertainty"] = uncertainty
     else:
         d.pop("uncertainty", None)
-    # a file's detected depths, of the points still as detected (a moved one lost its own)
-    depth = {k: v for k, v in d.pop("depth", {}).items() if k in uncertainty}
+    depth = landmarks.landmark_depth(plane)  # of the points still as detected
     if depth:
         d["depth"] = depth
+    else:
+        d.pop("depth", None)
     passpoints = landmarks.landmark_pixels(plane, "PASSPOINT")
     if passpoints:
         d["passpoints"] = {k: list(v) for k, v in passpoints.items()}

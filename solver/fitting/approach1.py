@@ -38,7 +38,7 @@ def profile_fit(eng, state, opts):
     return state, info
 
 
-def approach1(model, eng, state, opts):
+def approach1(model, eng, state, opts, staged=True):
     """Thesis §4.4.2: every landmark as image rows (front ones weighted), plus contour.
 
     Photos whose traced outline is matched to the head's own outline (every outline but
@@ -80,7 +80,7 @@ def approach1(model, eng, state, opts):
             out["calibration_rounds"] += rounds
         return state
 
-    if own_outline_views(eng, state) and any(len(v.vertices) for v in eng.views):
+    if staged and own_outline_views(eng, state) and any(len(v.vertices) for v in eng.views):
         state = stage(eng.joint(eng.views, front_weight=opts.front_weight, contour=False),
                       state)
         state = stage(eng.joint(eng.views, front_weight=opts.front_weight,

@@ -239,7 +239,8 @@ def _fit(model, case, opts, initial, noise, progress, t0, uncertainty=True):
         progress(0.35, "approach 1: landmark ICP")
         t = time.perf_counter()
         eng.use(state_p)
-        candidates["approach1"] = approach1(model, eng, state_p.copy(), opts)
+        candidates["approach1"] = approach1(model, eng, state_p.copy(), opts,
+                                            staged=initial is None)
         timings["approach1"] = time.perf_counter() - t
     if opts.method == "approach2" or (opts.method == "combined" and not any(
             eng.real_view(v).camera.perspective for v in eng.views)):

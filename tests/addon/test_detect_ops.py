@@ -159,7 +159,7 @@ def test_auto_fit_that_cannot_fit_leaves_the_scene_as_it_was(sample):
     assert snapshot() == before and bpy.context.scene.headrecon.head is None
 
 
-def test_uncertainty_goes_through_export_import_and_the_fit(sample, tmp_path):
+def test_uncertainty_and_depth_go_through_export_import_and_the_fit(sample, tmp_path):
     from headrecon_addon import landmarks, photos, scene_to_case
 
     folder, _ = sample
@@ -169,18 +169,28 @@ def test_uncertainty_goes_through_export_import_and_the_fit(sample, tmp_path):
     assert bpy.ops.headrecon.detect_landmarks() == {"FINISHED"}
     landmarks.landmark_objects(plane)["nose_tip"].location.y += 0.002  # now by hand
     sigma = landmarks.landmark_uncertainty(plane)
-    assert len(sigma) == 67 and "nose_tip" not in sigma
-    assert scene_to_case.case_from_scene(scene).views["front"].uncertainty == sigma
+    depth = landmarks.landmark_depth(plane)  # the detector's, of the points as detected
+    assert len(sigma) == 67 and "nose_tip" not in sigma and set(depth) == set(sigma)
+    assert len(set(depth.values())) > 30
+    view = scene_to_case.case_from_scene(scene).views["front"]
+    assert view.uncertainty == sigma and view.depth == depth
     out = tmp_path / "case.json"
     assert bpy.ops.headrecon.export_landmarks(filepath=str(out)) == {"FINISHED"}
     view = json.loads(out.read_text())["views"]["front"]
     assert view["uncertainty"] == sigma and "nose_tip" in view["points"]
+    assert view["depth"] == depth
     scene = empty_scene()
     assert bpy.ops.headrecon.import_landmarks(filepath=str(out)) == {"FINISHED"}
     plane = photos.find_plane(scene, "front")
     assert landmarks.landmark_uncertainty(plane) == sigma
+    assert landmarks.landmark_depth(plane) == depth
     assert set(landmarks.hand_placed_landmarks(plane)) == {"nose_tip"}
-    assert scene_to_case.case_from_scene(scene).views["front"].uncertainty == sigma
+    view = scene_to_case.case_from_scene(scene).views["front"]
+    assert view.uncertainty == sigma and view.depth == depth
+    # a detected point moved by hand loses its depth with its uncertainty
+    landmarks.landmark_objects(plane)["jaw_1_right"].location.y += 0.002
+    bpy.context.view_layer.update()
+    assert "jaw_1_right" not in scene_to_case.case_from_scene(scene).views["front"].depth
 
 
 def test_auto_fit_detects_only_photos_without_hand_placed_landmarks(sample):
