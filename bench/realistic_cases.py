@@ -30,9 +30,11 @@ from scipy.spatial import cKDTree
 
 from solver import DLTCamera, LandmarkCase, OrthographicCamera, View, fit_dlt
 from solver.cameras import ORTHO_VIEWS
+from solver.detect.detected_case import detected_depth
 from solver.detect.view_guess import point_uncertainty
 from solver.fitting.register import register
 from solver.geometry import rotation_from_vector, skew, vertex_normals
+from solver.io.landmark_set import load_landmark_set
 from solver.io.obj import read_obj as solver_read_obj
 from solver.procrustes import Similarity, similarity_procrustes
 from solver.synthetic import random_rotation, resample_polyline, trace_outline, trace_silhouette
@@ -947,7 +949,8 @@ def render_scan(scan, camera, background=0.5):
 def detected_front_case(scan_cases_, moved, front_camera, detector):
     """The rendered front photo (taken by ``front_camera``, as :func:`scan_render_cases`
     gives it) with its landmarks found by the face detector (``detector``: a
-    ``solver.detect.Detector``) and their uncertainty as ``solver detect`` gives it, and
+    ``solver.detect.Detector``) and their uncertainty and depth as ``solver detect`` gives
+    them, and
     the profile's traced outline alone: (LandmarkCase, the front photo) or (None, photo)
     when no face is found."""
     base = scan_cases_["front + profile, projected"]
@@ -959,8 +962,11 @@ def detected_front_case(scan_cases_, moved, front_camera, detector):
     sigma = point_uncertainty(face)
     pts = {f"ibug{i + 1:02d}": p for i, p in enumerate(face.ibug)}
     given = {f"ibug{i:02d}": s for i, s in sigma.items() if s is not None}
+    names = load_landmark_set().ibug
+    depth = detected_depth(face, [names[i] for i, s in sigma.items() if s is not None])
+    depth = {f"ibug{i:02d}": depth[names[i]] for i, s in sigma.items() if s is not None}
     views = {"front": View("front", None, front.size, front.camera, pts,
-                           uncertainty=given),
+                           uncertainty=given, depth=depth),
              "right": View("right", None, side.size, side.camera, {},
                            contour=side.contour)}
     return LandmarkCase(views, "<james rendered, detected>"), photo
