@@ -16,9 +16,8 @@ import numpy as np
 from .rows import CameraRows, ScalarRows
 
 #: A point's depth standard deviation as a share of its placement uncertainty (both px):
-#: on the rendered sample the mirror pairs' depth differences are 1.1 px RMS off the true
-#: head's for eye corners placed to about 4.4 px (a share of 0.2-0.35); twice that, as the
-#: real scan rendered asks (docs/DECISIONS.md).
+#: the mirror pairs' depth differences are 3.9 px RMS off the real scan's surface for
+#: points uncertain by 3.8-8.5 px (0.6; 0.2 on the rendered sample; docs/DECISIONS.md).
 DEPTH_SHARE = 0.7
 
 
