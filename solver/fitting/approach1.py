@@ -60,6 +60,11 @@ def approach1(model, eng, state, opts, staged=True):
     by about that much), and a re-calibration that lowers the cost by less than that
     ends the alternation, after at most ``calibration_rounds``.
 
+    Without ``staged`` (a fit that starts from a head already fitted to these outlines:
+    the noise rounds after the first, ``fit_head(initial=...)``) only the last stage runs:
+    begun again from the landmarks alone, such a fit left its head and latched the
+    outlines anew, so the rounds made the result hinge on a thousandth of a pixel.
+
     Returns (state, info): ``info["joint"]`` is the last stage's problem and
     ``info["outlines"]`` its outline candidates (view name -> (vertices, faces, edges)),
     besides "history" (and "calibration_rounds")."""

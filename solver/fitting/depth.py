@@ -61,27 +61,24 @@ class DepthPairRows(CameraRows):
         self.camera = camera
         self.name = name
 
-    def _gradient(self, world):
-        """d(depth px)/d(position) of each pair, (m, 3)."""
+    def _terms(self, world):
+        """(d(depth px)/d(position) of each pair (m, 3), observed less predicted depth
+        differences (m,) px)."""
         a, b = self.pairs[:, 0], self.pairs[:, 1]
         ends = world[np.concatenate([a, b])]
         toward = np.asarray(self.camera.toward_camera(ends), dtype=np.float64)
         jac = np.asarray(self.camera.jacobian(ends), dtype=np.float64).reshape(-1, 2, 3)
         k = np.sqrt(0.5 * (jac ** 2).sum(axis=(1, 2)))  # px per metre
         g = k[:, None] * toward
-        m = len(a)
-        return 0.5 * (g[:m] + g[m:])
+        g = 0.5 * (g[:len(a)] + g[len(a):])
+        return g, self.observed - np.einsum("ij,ij->i", g, world[b] - world[a])
 
     def residuals(self, world):
         """Observed less predicted depth differences, (m,) px."""
-        g = self._gradient(world)
-        a, b = self.pairs[:, 0], self.pairs[:, 1]
-        return self.observed - np.einsum("ij,ij->i", g, world[b] - world[a])
+        return self._terms(world)[1]
 
     def block(self, world, jacobian=True):
-        g = self._gradient(world)
-        a, b = self.pairs[:, 0], self.pairs[:, 1]
-        r = self.observed - np.einsum("ij,ij->i", g, world[b] - world[a])
+        g, r = self._terms(world)
         w = self.weights
         sq = float(w @ r ** 2)
         if not jacobian:
