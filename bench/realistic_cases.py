@@ -961,10 +961,11 @@ def detected_front_case(scan_cases_, moved, front_camera, detector):
         return None, photo
     sigma = point_uncertainty(face)
     pts = {f"ibug{i + 1:02d}": p for i, p in enumerate(face.ibug)}
-    given = {f"ibug{i:02d}": s for i, s in sigma.items() if s is not None}
+    kept = [i for i, s in sigma.items() if s is not None]
+    given = {f"ibug{i:02d}": sigma[i] for i in kept}
     names = load_landmark_set().ibug
-    depth = detected_depth(face, [names[i] for i, s in sigma.items() if s is not None])
-    depth = {f"ibug{i:02d}": depth[names[i]] for i, s in sigma.items() if s is not None}
+    depth = detected_depth(face, [names[i] for i in kept])
+    depth = {f"ibug{i:02d}": depth[names[i]] for i in kept}
     views = {"front": View("front", None, front.size, front.camera, pts,
                            uncertainty=given, depth=depth),
              "right": View("right", None, side.size, side.camera, {},

@@ -13,6 +13,7 @@ across the image only (``Joint``), so rows on depth there would not see its turn
 
 import numpy as np
 
+from ..cameras.mirror import mirror_name
 from .rows import CameraRows, ScalarRows
 
 #: A point's depth standard deviation as a share of its placement uncertainty (both px):
@@ -22,11 +23,11 @@ DEPTH_SHARE = 0.7
 
 
 def mirror_pairs(names, usable):
-    """Index pairs (i, j), (m, 2), of landmarks ``names`` that are a subject's right and
-    left counterpart ("..._right", "..._left"), both ``usable`` (n,) bool."""
+    """Index pairs (i, j), (m, 2), of landmarks ``names`` that are a subject's right one
+    and its left counterpart (``mirror_name``), both ``usable`` (n,) bool."""
     at = {n: i for i, n in enumerate(names)}
-    pairs = [(i, at[n[:-len("_right")] + "_left"]) for i, n in enumerate(names)
-             if n.endswith("_right") and n[:-len("_right")] + "_left" in at]
+    pairs = [(i, at[mirror_name(n)]) for i, n in enumerate(names)
+             if "right" in n.split("_") and mirror_name(n) in at]
     return np.array([(i, j) for i, j in pairs if usable[i] and usable[j]],
                     dtype=np.intp).reshape(-1, 2)
 

@@ -13,6 +13,7 @@ from PIL import Image
 from solver import fit_head, load_landmarks
 from solver.detect import Detector
 from solver.detect.detected_case import detect_photos
+from solver.fitting.depth import mirror_pairs
 from solver.io.landmark_set import load_landmark_set
 from solver.paths import DETECTOR_DIR
 from solver.synthetic import skin_error_mm
@@ -27,6 +28,12 @@ def detector():
 
 def _load(path):
     return np.asarray(Image.open(path).convert("RGB"))
+
+
+def _errors(model, truth, **cases):
+    """Skin RMS (mm) of each labelled case's fit against the sample's true head."""
+    return {label: skin_error_mm(model, fit_head(model, c).local_vertices,
+                                 truth["local_vertices"]) for label, c in cases.items()}
 
 
 def test_detect_photos_names_views_and_fails_naming_the_photo(sample, detector, tmp_path):
@@ -52,10 +59,8 @@ def test_the_detected_front_with_its_uncertainty_fits_the_sample(sample, detecto
     clicks.views["front"] = copy.deepcopy(auto.views["front"])
     clicks.views["front"].uncertainty = {}
     clicks.views["front"].depth = {}
-    true = truth["local_vertices"]
-    mean = skin_error_mm(model, model.vertices, true)
-    err = {label: skin_error_mm(model, fit_head(model, c).local_vertices, true)
-           for label, c in (("uncertainty", given), ("clicks", clicks))}
+    mean = skin_error_mm(model, model.vertices, truth["local_vertices"])
+    err = _errors(model, truth, uncertainty=given, clicks=clicks)
     assert err["uncertainty"] < 0.6 * mean, (err, mean)
     assert err["uncertainty"] < err["clicks"], err
 
@@ -76,10 +81,9 @@ def test_the_detected_front_s_depth_follows_the_true_head_and_helps_its_fit(samp
     seen = np.array([front.depth[n] for n in names])
     assert np.corrcoef(true, seen)[0, 1] > 0.95
     # the mirror pairs' differences (how the head is turned), within 2 px
-    pairs = [(n, n[:-6] + "_left") for n in names
-             if n.endswith("_right") and not lms.outline_in(n, "front")]
-    at = {n: i for i, n in enumerate(names)}
-    gap = [(seen[at[b]] - seen[at[a]]) - (true[at[b]] - true[at[a]]) for a, b in pairs]
+    pairs = mirror_pairs(names, [not lms.outline_in(n, "front") for n in names])
+    a, b = pairs[:, 0], pairs[:, 1]
+    gap = (seen[b] - seen[a]) - (true[b] - true[a])
     assert len(pairs) >= 15 and np.sqrt(np.mean(np.square(gap))) < 2.0, gap
     # the front detected (the profile as placed): the depths make the fit better
     case = load_landmarks(folder / "sample.json", known_names=model)
@@ -87,9 +91,7 @@ def test_the_detected_front_s_depth_follows_the_true_head_and_helps_its_fit(samp
     given.views["front"] = front
     flat.views["front"] = copy.deepcopy(front)
     flat.views["front"].depth = {}
-    err = {label: skin_error_mm(model, fit_head(model, c).local_vertices,
-                                truth["local_vertices"])
-           for label, c in (("depth", given), ("flat", flat))}
+    err = _errors(model, truth, depth=given, flat=flat)
     assert err["depth"] < err["flat"], err
 
 
