@@ -163,14 +163,98 @@ def _distance_to_polyline(points, line):
     return d.min(1), beyond
 
 
+PROFILE_LINE = ("nasion", "nose_tip", "subnasale", "lip_upper_middle", "mouth_middle",
+                "lip_lower_middle", "pogonion", "chin_bottom")
+#: The detector box's width over the nasion-to-menton distance on the rendered sample's
+#: profile: the face's size the synthetic profiles are read with.
+FACE_PER_HEIGHT = 1.215
+
+
+def profile_line_errors(heads=20, seed=2000):
+    """The profile line's points read off outlines (``solver.detect.profile_line``) of
+    heads drawn from the model (``heads`` each in a right and a left profile, turned up to
+    5 degrees, silhouettes traced with 1 px noise, a point every 3 px), against their
+    landmark vertices' projections: per point the median and 90th percentile error (% of
+    the face's size), how often it was not found, and the mean offset along the outline
+    (% of the face's size, + away from the nose tip; the nose tip's + upward): what
+    ``MEDIAN_ERROR`` and ``ARC_SHIFT`` say. Seeds from ``seed`` (``ARC_SHIFT`` was measured
+    on 1000-1019, these are others)."""
+    from solver import load_model
+    from solver.detect.profile_line import profile_line_points
+    from solver.synthetic import make_case, resample_polyline
+
+    model = load_model()
+    errors = {n: [] for n in PROFILE_LINE}
+    along = {n: [] for n in PROFILE_LINE}
+    for k in range(heads):
+        for view in ("right", "left"):
+            _, truth = make_case(model, np.random.default_rng(seed + k), noise_px=0.0,
+                                 views=(view,))
+            traced = np.asarray(truth.contour[view])
+            n = int(np.sum(np.linalg.norm(np.diff(traced, axis=0), axis=1)) / 3.0)
+            rng = np.random.default_rng(seed + 500 + k)
+            outline = resample_polyline(traced, n) + rng.normal(size=(n, 2))
+            exact = truth.pixels[view]
+            size = FACE_PER_HEIGHT * np.linalg.norm(exact["nasion"] - exact["chin_bottom"])
+            points, _ = profile_line_points(outline, view, size,
+                                            exact["nose_tip"] + rng.normal(0, 0.04 * size, 2))
+            arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(outline, axis=0),
+                                                                  axis=1))])
+            tip = _arc_at(outline, arc, exact["nose_tip"])
+            for name, p in points.items():
+                errors[name].append(np.linalg.norm(np.subtract(p, exact[name])) / size)
+                if name == "nose_tip":
+                    up = np.sign(p[1] - exact[name][1])
+                    along[name].append(up * abs(_arc_at(outline, arc, p) - tip) / size)
+                else:
+                    along[name].append((abs(_arc_at(outline, arc, exact[name]) - tip)
+                                        - abs(_arc_at(outline, arc, p) - tip)) / size)
+    print(f"profile line read off the outline ({2 * heads} profiles of model heads, 1 px "
+          "outline noise), % of the face's size:")
+    print("  point               median    p90  missing  along the outline (mean)")
+    for name in PROFILE_LINE:
+        e = 100 * np.asarray(errors[name])
+        print(f"  {name:<18} {np.median(e):7.2f} {np.percentile(e, 90):6.2f} "
+              f"{2 * heads - len(e):8d} {100 * np.mean(along[name]):+10.2f}")
+    return errors
+
+
+def _arc_at(outline, arc, point):
+    return arc[int(np.argmin(np.linalg.norm(outline - np.asarray(point), axis=1)))]
+
+
+def profile_line_photo(name, detector, image, truth):
+    """Print the px error of each profile line point read off a profile photo's detected
+    outline against ``truth`` ({landmark name: (u, v)}, those it has)."""
+    from solver.detect.detected_case import face_landmarks
+    from solver.detect.view_guess import guess_view as guess
+
+    face = detector.detect(image)
+    side = guess(face).side if face is not None and guess(face) else None
+    contour = detector.outline(image, face).points if side else None
+    h, w = image.shape[:2]
+    points, _, _, off = face_landmarks(face, (w, h), side, contour) if side else ({}, 0, 0, 0)
+    err = {n: float(np.linalg.norm(np.subtract(p, truth[n]))) for n, p in points.items()
+           if n in truth}
+    size = face.face_size if face is not None else float("nan")
+    print(f"{name}: profile line off its detected outline ({off and 'read' or 'not read'}; "
+          f"face {size:.0f} px): " + ", ".join(f"{n} {e:.1f}" for n, e in err.items())
+          + f" px; not found: {', '.join(n for n in PROFILE_LINE if n not in points) or '-'}")
+    return err
+
+
 def james_profile(folder):
-    """james rendered as ``bench_realistic`` renders him: the right profile photo (uint8)
-    and its true outline (the scan's silhouette, its cut edges left out)."""
+    """james rendered as ``bench_realistic`` renders him: the right profile photo (uint8),
+    its true outline (the scan's silhouette, its cut edges left out) and the scan's
+    landmarks it shows, projected ({landmark name: (u, v)})."""
     from bench.realistic_cases import render_scan, scan_render_cases
 
     cases, moved, _, cams = scan_render_cases(load_scan(folder))
     photo = (render_scan(moved, cams["right"]) * 255).astype(np.uint8)
-    return photo, cases["front + profile, projected"].views["right"].contour
+    view = cases["front + profile, projected"].views["right"]
+    names = load_landmark_set().ibug
+    truth = {names[int(k[4:])]: p for k, p in view.points.items()}
+    return photo, view.contour, truth
 
 
 def fit_errors(folder, detector):
@@ -224,6 +308,11 @@ def fit_errors(folder, detector):
     exact_front.views["front"].points = dict(case.views["front"].points)
     for c in (exact_front68, exact_front):
         c.views["front"].uncertainty = {}
+    # the profile's points read off its outline, exact instead (their uncertainty kept)
+    exact_profile = copy.deepcopy(auto)
+    side = case.views["side"].points
+    exact_profile.views["right"].points = {n: side[n] for n in auto.views["right"].points
+                                           if n in side}
     for label, c in (("every exact landmark", case),
                      ("  its profile outline detected", own_profile),
                      ("  both photos' outlines detected", own_both),
@@ -235,7 +324,8 @@ def fit_errors(folder, detector):
                      ("  + the detected profile outline", profile_only),
                      ("solver detect's case (+ front outline)", auto),
                      ("  its front's 68 points exact", exact_front68),
-                     ("  every front landmark exact", exact_front)):
+                     ("  every front landmark exact", exact_front),
+                     ("  its profile's points exact", exact_profile)):
         r = fit_head(model, c)
         print(f"  {label:<32} {skin_error_mm(model, r.local_vertices, truth):.2f} mm")
 
@@ -284,6 +374,8 @@ def main(argv=None):
     ap.add_argument("--james", default=None)
     ap.add_argument("--fit", action="store_true",
                     help="also fit the sample from detected front landmarks")
+    ap.add_argument("--profile-line", action="store_true",
+                    help="also measure the profile line read off outlines of model heads")
     ap.add_argument("--uncertainty", action="store_true",
                     help="print the per-group relative errors (the uncertainty table)")
     args = ap.parse_args(argv)
@@ -299,6 +391,10 @@ def main(argv=None):
         contour = json.loads((Path(args.sample) / "sample.json").read_text())
         outline_error("sample side", detector, side[0],
                       np.asarray(contour["views"]["side"]["contour"], float))
+        truth = np.load(Path(args.sample) / "truth.npz", allow_pickle=True)
+        names = json.loads(str(truth["landmark_names"]))["side"]
+        profile_line_photo("sample side", detector, side[0],
+                           dict(zip(names, truth["exact_side"], strict=True)))
         if args.fit:
             fit_errors(args.sample, detector)
     else:
@@ -307,11 +403,15 @@ def main(argv=None):
     if (folder / "james.obj").is_file():
         for name, image, truth in james_truth(folder):
             measured.append(report(name, detector, image, truth))
-        outline_error("james rendered profile", detector, *james_profile(folder))
+        photo, silhouette, truth = james_profile(folder)
+        outline_error("james rendered profile", detector, photo, silhouette)
+        profile_line_photo("james rendered profile", detector, photo, truth)
         if args.fit:
             james_fit_errors(folder, detector)
     else:
         print(f"james: {folder} not found; skipped")
+    if args.profile_line:
+        profile_line_errors()
     if args.uncertainty:
         table = uncertainty_table([m for m in measured if m is not None])
         print("uncertainty (median error / detector box width):")

@@ -31,7 +31,9 @@ Groups of cases (bench/realistic_cases.py; seeds fixed):
   placed as people give them; the front as people give them with the profile's outline
   alone (no landmark there); and the front photo rendered with the scan's texture, its
   landmarks found by the project's detector (``./run detector``), with the profile's
-  outline alone.
+  outline alone; and both photos so rendered through ``solver detect`` as Auto Fit takes
+  them (the front's detected points, the profile's read off its detected outline, both
+  detected outlines).
 
 Scores, per case, millimetres: RMS distance from points sampled uniformly on the true
 surface to the head's surface (point to triangle), after the similarity that lays the head
@@ -109,6 +111,7 @@ from bench.realistic_cases import (  # noqa: E402
     model_ibug,
     oracle_local,
     part_triangles,
+    render_scan,
     sample_surface,
     scan_cases,
     scan_photo_halves,
@@ -265,7 +268,8 @@ def run_james(model, folder, samples, grid):
         halves = scan_photo_halves(folder)
         cases["detected (solver detect)"] = detect_photos(
             [(None, p) for p in halves], detector, halves.__getitem__)
-        detected, _ = detected_front_case(rendered, moved, cameras["front"], detector)
+        detected, front_photo = detected_front_case(rendered, moved, cameras["front"],
+                                                    detector)
         if detected is None:
             print("  detected landmarks: no face found in the rendered front photo")
         else:
@@ -276,6 +280,13 @@ def run_james(model, folder, samples, grid):
                   f"photo, the scan's texture): {np.median(d):.1f} px median from the "
                   "scan's own, projected")
             rendered["front detected, profile outline only"] = detected
+            # both rendered photos through `solver detect`, as Auto Fit takes them
+            shots = {"front": front_photo, "right": render_scan(moved, cameras["right"])}
+            auto = detect_photos([(None, k) for k in shots], detector, shots.__getitem__)
+            if set(auto.views) == {"front", "right"}:
+                rendered["photos only (solver detect on both)"] = auto
+            else:
+                print(f"  the rendered photos were detected as {sorted(auto.views)}")
     print(f"  rendered: front and right profile (orthographic, 1024 px high); "
           f"{len(rendered['front + profile, projected'].views['front'].points)} and "
           f"{len(rendered['front + profile, projected'].views['right'].points)} landmarks, "

@@ -73,9 +73,11 @@ class PhotoTask:
         line = f"{self.view}: {_count(len(place))}, {what}"
         if kept:
             line += f", {len(kept)} kept as placed by hand"
-        if self.face.profile:
-            line += (" (in a profile only the nose tip, subnasale and upper lip are "
-                     "detected: trace its outline for the rest)")
+        if self.face.off_outline:
+            line += " (a profile: read off its outline)"
+        elif self.face.profile:
+            line += (" (a profile without an outline found: only the nose tip, subnasale "
+                     "and upper lip are detected; trace its outline for the rest)")
         out = [("INFO", line)]
         problem = photo_faces.loaded_as_problem(self.kind, self.perspective, self.face.guess)
         if problem:

@@ -8,7 +8,7 @@ photo by. No bpy: the photos come as arrays.
 import dataclasses
 import functools
 
-from .solver_link import Detector, detected_depth, detected_points, guess_view
+from .solver_link import Detector, face_landmarks, guess_view
 
 
 @functools.cache
@@ -39,9 +39,12 @@ class Face:
     guess : solver ViewGuess or None
         The view the face looks like (None: the detector cannot tell).
     profile : bool
-        Seen from the side (only the nose tip, subnasale and upper lip kept).
+        Seen from the side: its landmarks are read off its outline, or without one only
+        the mesh's nose tip, subnasale and upper lip are kept.
     score : float
         The face detector's confidence.
+    off_outline : bool
+        The landmarks were read off the photo's outline (a profile's).
     """
 
     points: dict
@@ -50,6 +53,7 @@ class Face:
     guess: object
     profile: bool
     score: float
+    off_outline: bool = False
 
 
 def find_face(pixels):
@@ -59,9 +63,17 @@ def find_face(pixels):
     if found is None:
         return None
     h, w = pixels.shape[:2]
-    points, sigma = detected_points(found, (w, h))
-    return Face(points, sigma, detected_depth(found, sigma), guess_view(found),
-                found.is_profile, float(found.score))
+    guess = guess_view(found)
+    side = guess.side if guess is not None else None
+    contour = None
+    if found.is_profile and side is not None:
+        try:  # a profile's landmarks are read off its outline
+            contour = detector().outline(pixels, found).points
+        except ValueError:
+            contour = None
+    points, sigma, depth, off_outline = face_landmarks(found, (w, h), side, contour)
+    return Face(points, sigma, depth, guess, found.is_profile, float(found.score),
+                off_outline)
 
 
 def find_outline(pixels):

@@ -17,7 +17,7 @@ from .cameras.blender import blender_to_krc, dlt_to_blender
 from .cameras.calib_errors import check_passpoints
 from .cameras.dlt import DLTCamera, fit_dlt
 from .cameras.pinhole import PinholeCamera
-from .detect.detected_case import detected_depth, detected_points
+from .detect.detected_case import face_landmarks
 from .detect.detector import DetectedFace, Detector
 from .detect.view_guess import ViewGuess, guess_view
 from .fitting.fit import FitOptions, fit_head, refit_landmarks
@@ -54,8 +54,8 @@ __all__ = [
     "LandmarkCase", "LandmarksError", "OrthographicCamera", "PinholeCamera", "View",
     "ViewGuess", "ViewResidual", "bake_fit_texture", "bake_texture", "blender_to_krc",
     "camera_class", "camera_from_dict", "camera_from_json", "camera_to_json", "check_case",
-    "check_passpoints", "count_problems", "detected_depth", "detected_points",
-    "dlt_to_blender", "fit_dlt",
+    "check_passpoints", "count_problems", "dlt_to_blender", "face_landmarks",
+    "fit_dlt",
     "fit_head", "guess_view", "landmarks_needed", "landmarks_to_dict", "load_landmark_set",
     "load_landmarks", "load_model", "orient", "oriented_size", "orthographic_lenses",
     "orthographic_uvs",

@@ -1,9 +1,9 @@
 """Detected faces as a landmarks case: one view per photo, named and its camera guessed
 from the detection (``view_guess``: front, right or left profile, three-quarter), its
 iBUG-68 points under the project's landmark names with each point's uncertainty in
-pixels and (but in a profile) its depth toward the camera, and a profile's outline as
-its contour, so ``python -m solver detect`` (and ``headless --detect``) write a file the
-fit reads."""
+pixels and (but in a profile) its depth toward the camera, a profile's landmarks read
+off its outline, and the outline as the view's contour, so ``python -m solver detect``
+(and ``headless --detect``) write a file the fit reads."""
 
 import os
 from pathlib import Path
@@ -11,6 +11,7 @@ from pathlib import Path
 from ..io.case import LandmarkCase, View
 from ..io.landmark_set import load_landmark_set
 from .ibug_map import mesh_to_ibug
+from .profile_line import profile_line_points
 from .view_guess import ViewGuess, guess_view, point_uncertainty
 
 #: The view names the detection gives (and ``--view NAME=PHOTO`` may use to say one).
@@ -63,6 +64,27 @@ def detected_depth(face, names):
             if n in numbers}
 
 
+def face_landmarks(face, size, side=None, contour=None):
+    """A detected face's landmarks to keep on its photo of ``size`` (w, h): (points,
+    uncertainty, depth, off_outline) with points, uncertainty and depth as
+    :func:`detected_points` and :func:`detected_depth` give them; but in a profile
+    (``side`` "right" or "left") with its outline (``contour`` (n, 2) px), the profile
+    line's points read off the outline (``profile_line_points``: 1-2 % of the face's size)
+    in place of the mesh's few (22-46 px), when it shows any, and then ``off_outline`` is
+    True."""
+    points, sigma = detected_points(face, size)
+    depth = detected_depth(face, sigma)
+    if face.is_profile and side in ("right", "left") and contour is not None \
+            and face.face_size is not None:
+        hint = None if face.keypoints is None else face.keypoints[2]
+        line, line_sigma = profile_line_points(contour, side, face.face_size, hint)
+        w, h = size
+        line = {n: p for n, p in line.items() if 0 <= p[0] <= w and 0 <= p[1] <= h}
+        if line:
+            return line, {n: line_sigma[n] for n in line}, {}, True
+    return points, sigma, depth, False
+
+
 def detected_case(photos, faces, base_dir=None, guesses=None, contours=None):
     """A :class:`LandmarkCase` from detected faces.
 
@@ -89,8 +111,7 @@ def detected_case(photos, faces, base_dir=None, guesses=None, contours=None):
     for (name, path, size), face, guess, contour in zip(photos, faces, guesses, contours,
                                                          strict=True):
         w, h = size
-        points, sigma = detected_points(face, size)
-        depth = detected_depth(face, sigma)
+        points, sigma, depth, _ = face_landmarks(face, size, guess.side, contour)
         image = Path(path).absolute()
         if base_dir is not None:
             image = Path(os.path.relpath(image, Path(base_dir).absolute()))
@@ -191,8 +212,10 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="a
         used.add(name)
         if face.is_profile:
             echo(f"note: {path}: a profile, where the face mesh is unreliable (22-46 px median "
-                 "on the sample's profile photos): only the nose tip, subnasale and upper lip "
-                 "are kept, with their larger uncertainty; its outline gives the rest")
+                 "on the sample's profile photos): its landmarks are read off its outline "
+                 "(nasion, nose tip, subnasale, lips, chin, as it shows them), or without one "
+                 "only the mesh's nose tip, subnasale and upper lip are kept, with their "
+                 "larger uncertainty")
         h, w = image.shape[:2]
         photos.append((name, path, (w, h)))
         faces.append(face)

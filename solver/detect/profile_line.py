@@ -1,0 +1,287 @@
+"""The profile line's landmarks read off a profile photo's outline: nasion, nose tip,
+subnasale, the lips, pogonion and menton, where the outline itself shows them (its dips,
+its most forward points, the chin's corner). On a profile the face mesh is unreliable
+(22-46 px median on the sample), while its outline is found to 1-2 px; named points on
+it tell the fit where along the outline each feature sits, which the outline alone
+leaves free. Rules and their measured errors: docs/DECISIONS.md ("The profile line's
+landmarks").
+"""
+
+import numpy as np
+
+from .view_guess import MEDIAN_TO_SIGMA
+
+#: Where the points are looked for, in the face's sizes (the detector box's width) of
+#: arc length along the outline from the nose tip: up toward the forehead for the
+#: nasion, down over the lips and chin for the rest.
+UP_REACH = 0.6
+DOWN_REACH = 1.0
+#: An outline whose points lie further apart than this (median, fraction of the face's
+#: size) is too coarse to show the lips: nothing is read off it.
+MAX_SPACING = 0.02
+#: The outline is smoothed over this fraction of the face's size before the extremes
+#: are read (a traced outline's 1-2 px noise makes no dip).
+SMOOTH = 0.012
+#: A dip or a bump counts when it is at least this fraction of the face's size deep or
+#: high against its neighbours.
+PROMINENCE = 0.006
+#: The nasion's dip is looked for under the line from the nose tip that touches the
+#: forehead at least this high above the tip (fraction of the face's size).
+NASION_MIN_RISE = 0.12
+#: The chin is looked for at least this far below the nose tip (fraction of the face's
+#: size; the mean head's lower lip lies 0.34, its pogonion 0.46 below).
+CHIN_MIN_DROP = 0.4
+#: The angle of the line from the nasion to the chin's E-line point in the mean head's
+#: profile, degrees forward of straight down (``bench.bench_detect``).
+FACE_LINE_DEG = 2.3
+#: How far each point is moved along the outline from the feature read (fraction of the
+#: face's size; away from the nose tip, the nose tip itself upward): the model's vertex
+#: for the landmark lies there on average (``bench.bench_detect``).
+ARC_SHIFT = {"nasion": 0.027, "nose_tip": 0.021, "subnasale": 0.0,
+             "lip_upper_middle": -0.015, "mouth_middle": -0.009, "lip_lower_middle": 0.024,
+             "pogonion": -0.062, "chin_bottom": 0.012}
+#: The heights of the lips on the profile, a fraction of the nasion-to-menton height:
+#: (mean, standard deviation) over 60 heads drawn from the model, turned up to 5 degrees.
+HEIGHT = {"lip_upper_middle": (0.568, 0.022), "mouth_middle": (0.640, 0.020),
+          "lip_lower_middle": (0.733, 0.027)}
+#: A bump or dip is taken for a lip only this near its mean height (real faces lie
+#: further out than the model's heads: james' stomion and lower lip 2.4 and 2.9
+#: standard deviations off).
+HEIGHT_TOLERANCE = 0.09
+#: The cost of leaving a lip out, in squared standard deviations of its height.
+MISSING_COST = 16.0
+#: Each point's median error, a fraction of the face's size: measured on 40 profiles of
+#: heads drawn from the model, their outlines traced with 1 px noise, other heads than
+#: those ``ARC_SHIFT`` was measured on (``bench.bench_detect``).
+MEDIAN_ERROR = {"nasion": 0.009, "nose_tip": 0.009, "subnasale": 0.007,
+                "lip_upper_middle": 0.011, "mouth_middle": 0.014, "lip_lower_middle": 0.007,
+                "pogonion": 0.014, "chin_bottom": 0.015}
+
+
+def _arc(points):
+    """Cumulative arc length (n,) of a polyline (n, 2)."""
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+
+
+def _smooth(points, width):
+    """The polyline resampled every pixel along its length and smoothed by a Gaussian of
+    ``width`` px (its ends held)."""
+    s = _arc(points)
+    t = np.arange(0.0, s[-1], 1.0)
+    p = np.stack([np.interp(t, s, points[:, 0]), np.interp(t, s, points[:, 1])], axis=1)
+    r = max(int(3 * width), 1)
+    k = np.exp(-0.5 * (np.arange(-r, r + 1) / max(width, 1e-6)) ** 2)
+    k /= k.sum()
+    padded = np.concatenate([np.repeat(p[:1], r, axis=0), p, np.repeat(p[-1:], r, axis=0)])
+    return np.stack([np.convolve(padded[:, i], k, mode="valid") for i in range(2)], axis=1)
+
+
+def _extremes(signal, prominence, kind):
+    """Indices of the local maxima (``kind`` "max") or minima ("min") of ``signal`` (n,)
+    that stand at least ``prominence`` above (below) the lowest (highest) value between
+    them and the nearest higher (lower) value on each side, or the ends."""
+    x = np.asarray(signal, dtype=float)
+    if kind == "min":
+        x = -x
+    n = len(x)
+    out = []
+    for i in range(1, n - 1):
+        if not (x[i] >= x[i - 1] and x[i] > x[i + 1]):
+            continue
+        left = x[:i][::-1]
+        higher = np.nonzero(left > x[i])[0]
+        lmin = left[:higher[0]].min() if len(higher) else left.min()
+        right = x[i + 1:]
+        higher = np.nonzero(right > x[i])[0]
+        rmin = right[:higher[0]].min() if len(higher) else right.min()
+        if x[i] - max(lmin, rmin) >= prominence:
+            out.append(i)
+    return out
+
+
+def profile_line_points(contour, side, face_size, nose_tip=None):
+    """The profile line's landmarks on a profile photo's outline.
+
+    Parameters
+    ----------
+    contour : ndarray (n, 2)
+        The head's outline in the photo, px, in order along it (either way), covering the
+        face from above the nasion to below the chin.
+    side : {"right", "left"}
+        The profile: a right profile's face looks toward +u, a left one's toward -u.
+    face_size : float
+        The face's size in the photo, px (the detector box's width).
+    nose_tip : (float, float), optional
+        Where the nose tip roughly is (the face detector's), px; default: the outline's
+        most forward point.
+
+    Returns
+    -------
+    points : dict of str -> (float, float)
+        Landmark name -> (u, v) px, for each the outline shows.
+    uncertainty : dict of str -> float
+        Landmark name -> standard deviation px.
+    """
+    c = np.asarray(contour, dtype=float)
+    if c.ndim != 2 or c.shape[1] != 2 or len(c) < 8 or not face_size > 0 \
+            or np.median(np.linalg.norm(np.diff(c, axis=0), axis=1)) > MAX_SPACING * face_size:
+        return {}, {}
+    sign = 1.0 if side == "right" else -1.0
+    p = _smooth(c, SMOOTH * face_size)
+    q = np.stack([sign * p[:, 0], p[:, 1]], axis=1)  # (forward, down) px
+    if nose_tip is None:
+        tip = int(np.argmax(q[:, 0]))
+    else:
+        near = np.linalg.norm(p - np.asarray(nose_tip, dtype=float), axis=1) < 0.3 * face_size
+        if not near.any():
+            return {}, {}
+        tip = int(np.argmax(np.where(near, q[:, 0], -np.inf)))
+    s = _arc(p)
+    up, down, step = _stretches(q, s, tip, face_size)
+    found = {}
+    nasion = _nasion(q, up, face_size)
+    chin = _chin_tangent(q, down, face_size)
+    if nasion is not None and chin is not None:
+        # the face's own frame: its nasion-to-chin line turned as the mean head's is
+        d = q[chin] - q[nasion]
+        tilt = np.arctan2(d[0], d[1]) - np.radians(FACE_LINE_DEG)
+        cos, sin = np.cos(tilt), np.sin(tilt)
+        q = q @ np.array([[cos, sin], [-sin, cos]])
+        found["nasion"] = nasion
+    found["nose_tip"] = _tip(q, tip, up, down, face_size)
+    found.update(_lower_face(q, down, found.get("nasion"), face_size))
+    # each point moved along the outline to where the model's vertex for it lies on average
+    upward = ("nasion", "nose_tip")
+    found = {n: int(np.clip(i + (-step if n in upward else step)
+                            * round(ARC_SHIFT[n] * face_size), 0, len(p) - 1))
+             for n, i in found.items()}
+    points = {n: (float(p[i, 0]), float(p[i, 1])) for n, i in found.items()}
+    return points, {n: round(MEDIAN_ERROR[n] * face_size * MEDIAN_TO_SIGMA, 3)
+                    for n in points}
+
+
+def _stretches(q, s, tip, face_size):
+    """Indices of the outline up from the nose tip toward the forehead and down from it
+    over the lips and chin (each starting at the tip), each as far as its reach."""
+    ahead = np.searchsorted(s, s[tip] + 0.3 * face_size)
+    behind = np.searchsorted(s, s[tip] - 0.3 * face_size)
+    step = 1 if ahead < len(q) and (behind <= 0 or q[ahead, 1] > q[behind, 1]) else -1
+
+    def stretch(direction, reach):
+        idx = np.arange(tip, len(q)) if direction > 0 else np.arange(tip, -1, -1)
+        return idx[np.abs(s[idx] - s[tip]) <= reach * face_size]
+
+    return stretch(-step, UP_REACH), stretch(step, DOWN_REACH), step
+
+
+def _deepest_under(q, idx, a, b):
+    """The index among ``idx`` (between the ends ``a`` and ``b``) lying furthest behind the
+    line from ``q[a]`` to ``q[b]``, and that depth px."""
+    t = q[b] - q[a]
+    n = np.array([t[1], -t[0]]) / max(np.linalg.norm(t), 1e-9)
+    if n[0] > 0:
+        n = -n
+    depth = (q[idx] - q[a]) @ n
+    k = int(np.argmax(depth))
+    return idx[k], float(depth[k])
+
+
+def _nasion(q, up, face_size):
+    """The nasion: the deepest point under the line from the nose tip that touches the
+    forehead (so a forehead sloping back still leaves its dip), or None."""
+    tip = up[0]
+    rise = q[tip, 1] - q[up, 1]
+    ok = rise > NASION_MIN_RISE * face_size
+    if not ok.any():
+        return None
+    slope = np.where(ok, (q[up, 0] - q[tip, 0]) / np.maximum(rise, 1e-9), -np.inf)
+    touch = int(np.argmax(slope))
+    if touch == 0:
+        return None
+    idx, depth = _deepest_under(q, up[1:touch], tip, up[touch])
+    return idx if depth >= PROMINENCE * face_size else None
+
+
+def _chin_tangent(q, down, face_size):
+    """The chin's point touched by the line from the nose tip (Ricketts' E-line): among
+    the points well below the lips, the one most forward per height below the tip; None
+    when the outline does not turn back behind that line below it (no chin)."""
+    tip = down[0]
+    drop = q[down, 1] - q[tip, 1]
+    ok = drop > CHIN_MIN_DROP * face_size
+    if not ok.any():
+        return None
+    slope = np.where(ok, (q[down, 0] - q[tip, 0]) / np.maximum(drop, 1e-9), -np.inf)
+    k = int(np.argmax(slope))
+    if not 0 < k < len(down) - 1:
+        return None
+    # a chin: the outline turns back under it, behind the line
+    _, depth = _deepest_under(q, down[k + 1:], tip, down[k])
+    return down[k] if depth >= PROMINENCE * face_size else None
+
+
+def _tip(q, tip, up, down, face_size):
+    """The nose tip: the most forward point (in the face's frame) near the first guess."""
+    near = np.concatenate([up[::-1], down[1:]])
+    near = near[np.linalg.norm(q[near] - q[tip], axis=1) < 0.1 * face_size]
+    return int(near[np.argmax(q[near, 0])])
+
+
+def _lower_face(q, down, nasion, face_size):
+    """Subnasale, lips, pogonion and menton on the stretch ``down`` (indices from the nose
+    tip down over the chin) of the outline ``q`` (forward, down) in the face's frame. The
+    lips are the bumps and the dip between them whose heights (from the nasion down to the
+    menton) lie nearest the mean head's, so a lip that makes no bump is left out rather
+    than another taken for it."""
+    prom = PROMINENCE * face_size
+    chin = _chin_tangent(q, down, face_size)
+    if chin is None:
+        return {}
+    k = int(np.nonzero(down == chin)[0][0])
+    found = {"pogonion": chin}
+    fwd = q[down, 0]
+    corners = [i for i in _extremes(fwd + q[down, 1], prom, "max") if i > k]
+    if not corners or nasion is None:
+        return found
+    found["chin_bottom"] = down[corners[0]]
+    top, height = q[nasion, 1], q[down[corners[0]], 1] - q[nasion, 1]
+    if height <= 0:
+        return found
+    t = (q[down, 1] - top) / height
+    bumps = [b for b in _extremes(fwd[:k], prom, "max") if b > 0]
+    dips = _extremes(fwd[:k], prom, "min")
+    lips = _label_lips(t, bumps, dips)
+    found.update({n: down[i] for n, i in lips.items()})
+    # subnasale: the deepest point under the line from the nose tip to the upper lip (or
+    # where the mean head's upper lip would be)
+    upper = lips.get("lip_upper_middle")
+    if upper is None:
+        upper = int(np.argmin(np.abs(t[:k] - HEIGHT["lip_upper_middle"][0])))
+    if upper > 1:
+        found["subnasale"], _ = _deepest_under(q, down[1:upper], down[0], down[upper])
+    return found
+
+
+def _label_lips(t, bumps, dips):
+    """{name: index} of the upper lip, stomion and lower lip among the ``bumps`` and
+    ``dips`` (indices, in order down the outline) by their heights ``t`` (fraction of the
+    nasion-to-menton height): the assignment in order down the face nearest the mean
+    head's heights (``HEIGHT``), each within ``HEIGHT_TOLERANCE`` or left out."""
+    def options(name, pool):
+        mean, _ = HEIGHT[name]
+        return [None] + [i for i in pool if abs(t[i] - mean) <= HEIGHT_TOLERANCE]
+
+    best, best_cost = {}, np.inf
+    for ls in options("lip_upper_middle", bumps):
+        for st in options("mouth_middle", dips):
+            for li in options("lip_lower_middle", bumps):
+                chosen = [(n, i) for n, i in (("lip_upper_middle", ls), ("mouth_middle", st),
+                                              ("lip_lower_middle", li)) if i is not None]
+                order = [i for _, i in chosen]
+                if order != sorted(set(order)):
+                    continue
+                cost = sum(((t[i] - HEIGHT[n][0]) / HEIGHT[n][1]) ** 2 for n, i in chosen)
+                cost += MISSING_COST * (3 - len(chosen))
+                if cost < best_cost:
+                    best, best_cost = dict(chosen), cost
+    return best

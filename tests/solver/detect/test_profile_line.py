@@ -1,0 +1,90 @@
+"""The profile line's landmarks read off a profile's outline (solver/detect/profile_line.py),
+on profiles of heads drawn from the model: their silhouettes traced with 1 px noise, a
+point every 3 px as the detected outline gives them, the truth their landmark vertices'
+projections."""
+
+import numpy as np
+import pytest
+
+from solver.detect.profile_line import MAX_SPACING, profile_line_points
+from solver.synthetic import make_case, resample_polyline
+
+NAMES = ("nasion", "nose_tip", "subnasale", "lip_upper_middle", "mouth_middle",
+         "lip_lower_middle", "pogonion", "chin_bottom")
+#: The detector box's width over the nasion-to-menton distance on the rendered sample.
+FACE_PER_HEIGHT = 1.215
+
+
+def _profile(model, seed, view="right", spacing=3.0, noise=1.0):
+    """(outline (n, 2), exact landmark pixels, face size px) of a head's profile."""
+    _, truth = make_case(model, np.random.default_rng(seed), noise_px=0.0, views=(view,))
+    traced = np.asarray(truth.contour[view])
+    length = np.sum(np.linalg.norm(np.diff(traced, axis=0), axis=1))
+    n = int(length / spacing)
+    rng = np.random.default_rng(seed + 1)
+    outline = resample_polyline(traced, n) + noise * rng.normal(size=(n, 2))
+    exact = truth.pixels[view]
+    size = FACE_PER_HEIGHT * np.linalg.norm(exact["nasion"] - exact["chin_bottom"])
+    return outline, exact, size
+
+
+def _errors(points, exact, size):
+    return {n: np.linalg.norm(np.subtract(p, exact[n])) / size for n, p in points.items()}
+
+
+@pytest.mark.parametrize("view", ["right", "left"])
+def test_the_profile_line_s_points_lie_where_the_model_s_vertices_do(model, view):
+    errors = {n: [] for n in NAMES}
+    for seed in range(4100, 4106):
+        outline, exact, size = _profile(model, seed, view)
+        points, sigma = profile_line_points(outline, view, size, exact["nose_tip"] + 5.0)
+        assert {"nasion", "nose_tip", "subnasale", "pogonion", "chin_bottom"} <= set(points)
+        assert set(sigma) == set(points) and all(0 < s < 0.05 * size for s in sigma.values())
+        for n, e in _errors(points, exact, size).items():
+            errors[n].append(e)
+    found = [n for n in NAMES if errors[n]]
+    assert all(len(errors[n]) >= 5 for n in found), errors
+    # each point within 3 % of the face's size in the median, none beyond 8 %
+    assert all(np.median(errors[n]) < 0.03 for n in found), errors
+    assert max(max(e) for e in errors.values()) < 0.08, errors
+
+
+def test_the_outline_s_direction_and_side_do_not_matter(model):
+    outline, exact, size = _profile(model, 4120)
+    right, _ = profile_line_points(outline, "right", size)
+    backward, _ = profile_line_points(outline[::-1], "right", size)
+    mirrored, _ = profile_line_points(outline * [-1.0, 1.0] + [2000.0, 0.0], "left", size)
+    assert set(right) == set(backward) == set(mirrored) and len(right) >= 6
+    for n, p in right.items():
+        assert np.linalg.norm(np.subtract(backward[n], p)) < 1.5, n
+        assert np.linalg.norm(np.subtract(mirrored[n], (2000.0 - p[0], p[1]))) < 1e-6, n
+
+
+def test_a_lip_without_a_bump_is_left_out_not_taken_for_another(model):
+    # the upper lip flattened into a straight run from under the nose to the mouth (as on
+    # the scan james): the lower lip must not be taken for it
+    outline, exact, size = _profile(model, 4130, noise=0.0)
+    points, _ = profile_line_points(outline, "right", size)
+    assert "lip_upper_middle" in points
+    a = np.argmin(np.linalg.norm(outline - exact["subnasale"], axis=1))
+    b = np.argmin(np.linalg.norm(outline - exact["mouth_middle"], axis=1))
+    a, b = min(a, b), max(a, b)
+    flat = outline.copy()
+    t = np.linspace(0.0, 1.0, b - a + 1)[:, None]
+    flat[a:b + 1] = (1 - t) * outline[a] + t * outline[b]
+    points, _ = profile_line_points(flat, "right", size)
+    err = _errors(points, exact, size)
+    assert "lip_upper_middle" not in points or err["lip_upper_middle"] < 0.04, err
+    assert err["lip_lower_middle"] < 0.03, err
+
+
+def test_an_outline_too_coarse_or_without_a_face_gives_nothing(model):
+    outline, exact, size = _profile(model, 4140)
+    coarse = outline[:: int(np.ceil(MAX_SPACING * size / 3.0)) + 1]
+    assert profile_line_points(coarse, "right", size) == ({}, {})
+    assert profile_line_points(outline, "right", size, nose_tip=(0.0, 0.0)) == ({}, {})
+    assert profile_line_points(outline[:5], "right", size) == ({}, {})
+    # a straight edge: a nose tip at most, no dips, lips or chin
+    line = np.stack([np.full(400, 300.0), np.arange(400.0) * 2.0], axis=1)
+    points, _ = profile_line_points(line, "right", 300.0)
+    assert set(points) <= {"nose_tip"}
