@@ -97,10 +97,12 @@ def group_offsets(residuals, groups, weights, jac, sigma_m):
     # misplaced too): the offset is a Student-t mean of the group, its points reweighted
     # by how far each sits from it against the photo's typical distance.
     robust = np.ones_like(w)
-    for _ in range(ROBUST_STEPS):
+    for step in range(ROBUST_STEPS):
         t, u = group_terms(labels, w * robust, jac, sigma_m)
         gain = t / (1.0 + t)
         e = gain[:, None] * group_means(labels, u, r)
+        if step == ROBUST_STEPS - 1:
+            break  # the offsets, their terms and weights from one and the same step
         sq = ((r - e) ** 2).sum(axis=1)
         typical = float(np.median(sq[w > 0])) if np.any(w > 0) else 0.0
         if not typical > 0:

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from solver import FitOptions, LandmarkCase, OrthographicCamera, View, fit_head
-from solver.fitting.definition import OUTLINE_DEFINITION, GroupedImageRows
+from solver.fitting.definition import OUTLINE_DEFINITION, GroupedImageRows, group_offsets
 from solver.fitting.rows import ImageRows, Rows, ScalarRows
 from solver.fitting.shape_icp import ShapeProblem
 from solver.geometry import rotation_from_vector
@@ -178,3 +178,32 @@ def test_landmarks_on_their_vertices_keep_their_accuracy(model):
         sizes[mm] = r.info["noise"]["definition_mm"]
     assert err[2.0] < 1.1 * err[0.0], err
     assert max(sizes[2.0].values()) < 1.0, sizes
+
+
+def _grouped_residuals(rng, groups=40, size=6, offset_px=3.0, noise_px=1.0):
+    labels = np.repeat(np.arange(groups), size)
+    shift = offset_px * rng.normal(size=(groups, 2))
+    r = shift[labels] + noise_px * rng.normal(size=(len(labels), 2))
+    jac = np.tile(np.array([[1000.0, 0, 0], [0, 1000.0, 0]]), (len(labels), 1, 1))  # px/m
+    return r, labels, np.full(len(labels), 1.0 / noise_px ** 2), jac, shift
+
+
+def test_group_offsets_find_the_shared_shift_and_its_size():
+    # 40 groups of 6 points, each shifted by a 3-px offset, noise 1 px: the posterior
+    # offsets follow the true shifts, and the statistic says how far the assumed size is
+    # off (1 when right, below 1 when assumed too large, above when too small)
+    rng = np.random.default_rng(5)
+    r, labels, w, jac, shift = _grouped_residuals(rng)
+    ratios = {}
+    for assumed in (1.5, 3.0, 6.0):
+        e, taken, ratio = group_offsets(r, labels, w, jac, assumed / 1000.0)
+        ratios[assumed] = ratio
+        assert 0 < taken <= 2 * 40
+    e, _, _ = group_offsets(r, labels, w, jac, 3.0 / 1000.0)
+    assert np.sqrt(np.mean((e[::6] - shift) ** 2)) < 0.6
+    assert abs(ratios[3.0] - 1.0) < 0.2, ratios
+    assert ratios[6.0] < 0.8 and ratios[1.5] > 1.2, ratios
+    # one point 100 px off moves neither its group's offset nor the statistic much
+    r[0] += 100.0
+    e2, _, ratio2 = group_offsets(r, labels, w, jac, 3.0 / 1000.0)
+    assert np.linalg.norm(e2[1] - e[1]) < 1.0 and abs(ratio2 - ratios[3.0]) < 0.2
