@@ -86,11 +86,22 @@ class AutoFitJob:
                 views[task.view]["contour"] = [[float(u), float(v)] for u, v in task.points]
         return parse_landmarks(self.document, "<scene>", for_fit=False)
 
+    def share_outlines(self):
+        """The outlines the landmarks' detection found already (a profile's, read for its
+        landmarks) given to the outline tasks of the same photos, not looked for again."""
+        found = {t.view: t.face.outline for t in self.detect.tasks
+                 if t.face is not None and t.face.outline is not None}
+        for task in self.outlines.tasks if self.outlines is not None else ():
+            if task.view in found:
+                task.points, task.notes = found[task.view].points, list(found[task.view].notes)
+
     def run(self):
         """Detect, merge, fit, bake. Errors are kept in ``error``, never raised."""
         for part in (self.detect, self.outlines):
             if part is None:
                 continue
+            if part is self.outlines:
+                self.share_outlines()
             part.run()
             if part.error is not None:
                 self.error = part.error

@@ -59,6 +59,8 @@ class OutlineJob(PhotosJob):
     DONE = "drawing the outlines"
 
     def examine(self, task):
+        if task.points is not None:
+            return  # found already (Auto Fit: by the landmarks' detection on a profile)
         try:
             found = photo_faces.find_outline(task.pixels)
             task.points, task.notes = found.points, found.notes

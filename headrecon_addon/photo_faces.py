@@ -45,6 +45,9 @@ class Face:
         The face detector's confidence.
     off_outline : bool
         The landmarks were read off the photo's outline (a profile's).
+    outline : solver Outline or None
+        The outline a profile's landmarks were read off (found for them), so a job that
+        wants the outline too need not look again.
     """
 
     points: dict
@@ -54,6 +57,7 @@ class Face:
     profile: bool
     score: float
     off_outline: bool = False
+    outline: object = None
 
 
 def find_face(pixels):
@@ -65,15 +69,16 @@ def find_face(pixels):
     h, w = pixels.shape[:2]
     guess = guess_view(found)
     side = guess.side if guess is not None else None
-    contour = None
+    outline = None
     if found.is_profile and side is not None:
         try:  # a profile's landmarks are read off its outline
-            contour = detector().outline(pixels, found).points
+            outline = detector().outline(pixels, found)
         except ValueError:
-            contour = None
-    points, sigma, depth, off_outline = face_landmarks(found, (w, h), side, contour)
+            outline = None
+    points, sigma, depth, off_outline = face_landmarks(
+        found, (w, h), side, None if outline is None else outline.points)
     return Face(points, sigma, depth, guess, found.is_profile, float(found.score),
-                off_outline)
+                off_outline, outline)
 
 
 def find_outline(pixels):

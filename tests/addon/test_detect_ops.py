@@ -245,3 +245,32 @@ def test_a_face_against_the_view_its_photo_was_loaded_as():
     assert loaded_as_problem("left", True, quarter) is None
     assert "set its Direction" in loaded_as_problem("right", True, quarter)
     assert loaded_as_problem("front", False, None) is None
+
+
+def test_auto_fit_finds_a_profile_s_outline_once(sample, monkeypatch):
+    # the landmarks' detection finds a profile's outline to read its landmarks off; the
+    # outlines' detection takes that one rather than looking again
+    from headrecon_addon import auto_fit_job, photo_faces
+
+    folder, _ = sample
+    empty_scene()
+    _load(folder / "front.png", "front", "orthographic-front")
+    _load(folder / "side.png", "side", "orthographic-right")
+    kind = type(photo_faces.detector())
+    calls, outline = [], kind.outline
+
+    def counted(self, image, face):
+        calls.append(image.shape)
+        return outline(self, image, face)
+
+    monkeypatch.setattr(kind, "outline", counted)
+    job = auto_fit_job.prepare_auto_fit(bpy.context.scene)
+    job.detect.run()
+    job.share_outlines()
+    job.outlines.run()
+    assert job.detect.error is None and job.outlines.error is None
+    assert len(calls) == 2  # the profile's (for its landmarks), the front's
+    side = next(t for t in job.detect.tasks if t.view == "side")
+    drawn = next(t for t in job.outlines.tasks if t.view == "side")
+    assert side.face.off_outline and drawn.points is side.face.outline.points
+    assert all(t.points is not None for t in job.outlines.tasks)
