@@ -69,6 +69,9 @@ class Camera(ABC):
     min_refit_points = 0
     #: a central projection (rays through one centre), as pinhole and DLT cameras are
     perspective = False
+    #: The joint step moves this camera's turn as the rigid motion it is
+    #: (``parameter_motions``), so rows on a point's depth see it.
+    moves_rigidly = False
 
     @abstractmethod
     def project(self, points):
@@ -168,6 +171,22 @@ class Camera(ABC):
         fields[2] = np.stack([-d[:, 1], d[:, 0]], axis=1) / radius
         fields[3] = d / radius
         return fields, np.full(4, float(mode_pixels)), np.zeros(4), np.zeros(4, bool)
+
+    def depth_axis(self, points):
+        """Unit vectors (n, 3) along which a point's depth toward the camera is measured,
+        as a face mesh detector gives it (across its crop, so along the camera's axis, not
+        along each point's ray): this base version ``toward_camera``, which is that axis
+        for a parallel projection."""
+        return self.toward_camera(points)
+
+    def parameter_motions(self, points):
+        """The world motions (k, n, 3), metres per natural unit, of ``points`` (n, 3) that
+        move their projections as the first k of :meth:`parameter_modes` do and keep each
+        point's place relative to the camera (its depth too): a turn of the camera is the
+        points turned the other way about it. None (this base version): the modes have no
+        such motion (a 2-D similarity of the photo), and the joint step lifts their pixel
+        fields across the image only."""
+        return None
 
     def stepped(self, delta):
         """The camera moved by ``delta`` (P,) natural units of :meth:`parameter_modes`, or

@@ -7,8 +7,10 @@ eye corners) is the head's turn about the photo's vertical axis seen across the 
 width, which the points' pixels hardly show: a fit of detected points alone turns a front
 photo's head several degrees off. Held as rows, one per mirror pair of points with a depth
 (neither an outline point), these keep the turn (and the face's left-right depth) the
-detector saw. Only in orthographic photos: a perspective camera's modes move its points
-across the image only (``Joint``), so rows on depth there would not see its turn.
+detector saw. In orthographic photos, and in perspective ones whose camera's turn the
+joint step moves as the rigid motion it is (``Camera.moves_rigidly``: a pinhole camera;
+a DLT's modes move its points across the image only, so rows on depth there would not
+see its turn).
 """
 
 import numpy as np
@@ -35,8 +37,8 @@ def mirror_pairs(names, usable):
 class DepthPairRows(CameraRows):
     """One row per mirror pair (a, b): the depth of b less that of a toward the camera,
     pixels, against the detector's. The prediction is ``k n . (x_b - x_a)`` with ``n`` the
-    direction toward the camera and ``k`` the camera's pixels per metre, both the pair's
-    mean (exact for an orthographic camera).
+    camera's depth axis (``Camera.depth_axis``) and ``k`` its pixels per metre, both the
+    pair's mean (exact for an orthographic camera).
 
     Parameters
     ----------
@@ -67,7 +69,7 @@ class DepthPairRows(CameraRows):
         differences (m,) px)."""
         a, b = self.pairs[:, 0], self.pairs[:, 1]
         ends = world[np.concatenate([a, b])]
-        toward = np.asarray(self.camera.toward_camera(ends), dtype=np.float64)
+        toward = np.asarray(self.camera.depth_axis(ends), dtype=np.float64)
         jac = np.asarray(self.camera.jacobian(ends), dtype=np.float64).reshape(-1, 2, 3)
         k = np.sqrt(0.5 * (jac ** 2).sum(axis=(1, 2)))  # px per metre
         g = k[:, None] * toward
@@ -90,10 +92,12 @@ class DepthPairRows(CameraRows):
 
 def depth_rows(view, start):
     """The depth rows of ``view`` (``ViewData``) on its landmark copies from ``start``, or
-    None: not an orthographic photo, or no mirror pair with depths (outline points left
-    out: their vertices are not where an outline point lies)."""
+    None: a mirror view, a camera whose turn the joint step does not move rigidly (a
+    DLT), or no mirror pair with depths (outline points left out: their vertices are not
+    where an outline point lies)."""
     cam = view.camera
-    if cam is None or cam.perspective or view.depth is None:
+    if cam is None or view.depth is None or view.mirror_of is not None \
+            or (cam.perspective and not cam.moves_rigidly):
         return None
     usable = np.isfinite(view.depth) & np.isfinite(view.depth_sigma) & ~view.outline_point
     pairs = mirror_pairs(view.names, usable)

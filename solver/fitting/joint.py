@@ -6,12 +6,13 @@ shape-ICP, one block per camera, as the camera kind gives them
 (``Camera.parameter_modes``): an orthographic camera (and any kind without modes of its
 own) the 2-D similarity of the photo, refitted exactly by ``Camera.refit`` after the step;
 a pinhole camera its rotation, centre and log focal length, moved exactly
-(``Camera.stepped``), a focal prior (EXIF) entering the step as the prior of its mode; a
-DLT the 11 directions of its matrix, refitted after the step. A mirror view (one camera and
-a flat mirror, seed 001 ch. 3) has no camera of its own: it is the real camera reflected
-in the mirror plane (``Camera.mirrored``), so its rows move with the real camera's
-parameters and with three of the plane's (the tilt of its normal, its offset:
-``MirrorPlane.fields``).
+(``Camera.stepped``; its rotation and centre lifted as the rigid motions they are,
+``Camera.parameter_motions``, so rows on depth see them), a focal prior (EXIF) entering
+the step as the prior of its mode; a DLT the 11 directions of its matrix, refitted after
+the step. A mirror view (one camera and a flat mirror, seed 001 ch. 3) has no camera of
+its own: it is the real camera reflected in the mirror plane (``Camera.mirrored``), so its
+rows move with the real camera's parameters and with three of the plane's (the tilt of
+its normal, its offset: ``MirrorPlane.fields``).
 """
 
 from dataclasses import dataclass, replace
@@ -102,7 +103,10 @@ class Joint:
             if landmarks and len(v.vertices):
                 rows = eng.landmark_rows(v, off, front_weight, slide=slide)
                 self.groups.append((v, "landmarks", rows))
-                depth = depth_rows(v, off)  # on the same copies
+                # on the same copies; not where mirror views share the camera (their
+                # copies are reflected: its modes lift across the image only there)
+                mirrored = any(u.mirror_of == v.name for u in eng.views)
+                depth = None if mirrored else depth_rows(v, off)
                 if depth is not None:
                     self.groups.append((v, "depth", depth))
                 orig.append(v.vertices)
@@ -326,6 +330,9 @@ class Joint:
             kind, idx, f, units, start, has_prior = self._block_fields(blk, state, x)
             f = f * units[:, None, None]
             lift = f[:, :, 0:1] * pinv[0, idx] + f[:, :, 1:2] * pinv[1, idx]
+            rigid = self._motions(blk, state, x[idx])
+            if rigid is not None:  # the same projections, the depth moved too
+                lift[:len(rigid)] = rigid * units[:len(rigid), None, None]
             m = np.zeros((len(f), n, 3))
             # model frame (x = s R m + t)
             m[:, idx] = (lift @ state.rotation) / state.scale
@@ -338,6 +345,15 @@ class Joint:
             sds.append(np.where(has_prior, 1.0, 1e-9))
         return (mean, np.concatenate(modes), layout, np.concatenate(starts),
                 np.concatenate(sds))
+
+    @staticmethod
+    def _motions(blk, state, points):
+        """The world motions of a camera block's modes (``Camera.parameter_motions``) at
+        its copies ``points``, or None: a plane, a camera with mirror views (their copies
+        are reflected) or without such motions."""
+        if blk.kind != "camera" or blk.users != [blk.view]:
+            return None
+        return state.cameras[blk.view.name].parameter_motions(points)
 
     def prepare(self, state, freeze=(), cameras_only=False, previous=None):
         """The shape-ICP problem over the copies with the camera modes linearised at

@@ -390,3 +390,25 @@ def test_refit_bad_input(case, match):
         w = -np.ones(10)
     with pytest.raises(ValueError, match=match):
         cam.refit(x, q, w)
+
+
+def test_parameter_motions_move_the_points_as_the_camera_s_turn_and_centre_do():
+    # a turn of the camera is the points turned the other way about it: the same
+    # projections (the first six pixel fields) and the same depth along the camera's axis
+    cam = PinholeCamera(3000.0, rotation_from_vector(np.array([0.2, -0.5, 0.1])),
+                        np.array([0.3, 0.1, 1.4]), (1200, 1600))
+    x = np.random.default_rng(0).normal(0.0, 0.08, (10, 3))
+    motions = cam.parameter_motions(x)
+    assert motions.shape == (6, 10, 3) and cam.moves_rigidly
+    fields = cam.parameter_fields(x)
+    np.testing.assert_allclose(np.einsum("nij,knj->kni", cam.jacobian(x), motions),
+                               fields[:6], atol=1e-6)
+    eps = 1e-6
+    for k in range(6):
+        delta = np.zeros(6)
+        delta[k] = eps
+        moved = cam.stepped(delta)
+        np.testing.assert_allclose(moved.to_camera(x), cam.to_camera(x + eps * motions[k]),
+                                   atol=1e-11)
+    np.testing.assert_allclose(cam.depth_axis(x), np.tile(-cam.rotation[2], (10, 1)))
+    assert cam.to_dlt().parameter_motions(x) is None and not cam.to_dlt().moves_rigidly
