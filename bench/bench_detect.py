@@ -186,6 +186,7 @@ def profile_line_errors(heads=20, seed=2000):
     model = load_model()
     errors = {n: [] for n in PROFILE_LINE}
     along = {n: [] for n in PROFILE_LINE}
+    heights = {n: [] for n in ("lip_upper_middle", "mouth_middle", "lip_lower_middle")}
     for k in range(heads):
         for view in ("right", "left"):
             _, truth = make_case(model, np.random.default_rng(seed + k), noise_px=0.0,
@@ -196,6 +197,9 @@ def profile_line_errors(heads=20, seed=2000):
             outline = resample_polyline(traced, n) + rng.normal(size=(n, 2))
             exact = truth.pixels[view]
             size = FACE_PER_HEIGHT * np.linalg.norm(exact["nasion"] - exact["chin_bottom"])
+            top, bottom = exact["nasion"][1], exact["chin_bottom"][1]
+            for name in heights:
+                heights[name].append((exact[name][1] - top) / (bottom - top))
             points, _ = profile_line_points(outline, view, size,
                                             exact["nose_tip"] + rng.normal(0, 0.04 * size, 2))
             arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(outline, axis=0),
@@ -216,6 +220,8 @@ def profile_line_errors(heads=20, seed=2000):
         e = 100 * np.asarray(errors[name])
         print(f"  {name:<18} {np.median(e):7.2f} {np.percentile(e, 90):6.2f} "
               f"{2 * heads - len(e):8d} {100 * np.mean(along[name]):+10.2f}")
+    print("  the lips' heights (nasion 0, menton 1; the landmark vertices), mean +- sd: "
+          + ", ".join(f"{n} {np.mean(h):.3f} +- {np.std(h):.3f}" for n, h in heights.items()))
     return errors
 
 

@@ -435,8 +435,8 @@ LANDMARKS_SOURCE = (
     "the sample's own (where the true head's landmark vertices project), the outlines of "
     "both photos detected (python -m bench.bench_detect --fit: 0.38 mm with them, 0.56 mm "
     "with the profile's outline traced from the silhouette); the landmarks not detected: "
-    "from the photos alone (detected landmarks and outlines) the sample fits to 1.32 mm, "
-    "better than the mean head (3.43 mm) but 3.5 x the fit from its own landmarks")
+    "from the photos alone (detected landmarks and outlines) the sample fits to 1.30 mm, "
+    "better than the mean head (3.43 mm) but 3.4 x the fit from its own landmarks")
 
 
 def print_summary(s, out):

@@ -3,8 +3,8 @@ subnasale, the lips, pogonion and menton, where the outline itself shows them (i
 its most forward points, the chin's corner). On a profile the face mesh is unreliable
 (22-46 px median on the sample), while its outline is found to 1-2 px; named points on
 it tell the fit where along the outline each feature sits, which the outline alone
-leaves free. Rules and their measured errors: docs/DECISIONS.md ("The profile line's
-landmarks").
+leaves free. Rules and their measured errors: docs/DECISIONS.md ("A profile's landmarks
+are read off its outline").
 """
 
 import numpy as np
@@ -31,8 +31,9 @@ NASION_MIN_RISE = 0.12
 #: The chin is looked for at least this far below the nose tip (fraction of the face's
 #: size; the mean head's lower lip lies 0.34, its pogonion 0.46 below).
 CHIN_MIN_DROP = 0.4
-#: The angle of the line from the nasion to the chin's E-line point in the mean head's
-#: profile, degrees forward of straight down (``bench.bench_detect``).
+#: The angle of the mean head's line from its nasion to its pogonion (their landmark
+#: vertices) in profile, degrees forward of straight down: the face's frame is the one
+#: where the nasion-to-chin line leans so.
 FACE_LINE_DEG = 2.3
 #: How far each point is moved along the outline from the feature read (fraction of the
 #: face's size; away from the nose tip, the nose tip itself upward): the model's vertex
@@ -41,7 +42,8 @@ ARC_SHIFT = {"nasion": 0.027, "nose_tip": 0.021, "subnasale": 0.0,
              "lip_upper_middle": -0.015, "mouth_middle": -0.009, "lip_lower_middle": 0.024,
              "pogonion": -0.062, "chin_bottom": 0.012}
 #: The heights of the lips on the profile, a fraction of the nasion-to-menton height:
-#: (mean, standard deviation) over 60 heads drawn from the model, turned up to 5 degrees.
+#: (mean, standard deviation) over 60 heads drawn from the model, turned up to 5 degrees
+#: (their landmark vertices; ``bench.bench_detect --profile-line`` prints it again).
 HEIGHT = {"lip_upper_middle": (0.568, 0.022), "mouth_middle": (0.640, 0.020),
           "lip_lower_middle": (0.733, 0.027)}
 #: A bump or dip is taken for a lip only this near its mean height (real faces lie
@@ -52,10 +54,10 @@ HEIGHT_TOLERANCE = 0.09
 MISSING_COST = 16.0
 #: Each point's median error, a fraction of the face's size: measured on 40 profiles of
 #: heads drawn from the model, their outlines traced with 1 px noise, other heads than
-#: those ``ARC_SHIFT`` was measured on (``bench.bench_detect``).
-MEDIAN_ERROR = {"nasion": 0.009, "nose_tip": 0.009, "subnasale": 0.007,
-                "lip_upper_middle": 0.011, "mouth_middle": 0.014, "lip_lower_middle": 0.007,
-                "pogonion": 0.014, "chin_bottom": 0.015}
+#: those ``ARC_SHIFT`` was measured on (``bench.bench_detect --profile-line``).
+MEDIAN_ERROR = {"nasion": 0.009, "nose_tip": 0.009, "subnasale": 0.006,
+                "lip_upper_middle": 0.008, "mouth_middle": 0.015, "lip_lower_middle": 0.008,
+                "pogonion": 0.015, "chin_bottom": 0.019}
 
 
 def _arc(points):
@@ -138,16 +140,15 @@ def profile_line_points(contour, side, face_size, nose_tip=None):
         tip = int(np.argmax(np.where(near, q[:, 0], -np.inf)))
     s = _arc(p)
     up, down, step = _stretches(q, s, tip, face_size)
-    found = {}
     nasion = _nasion(q, up, face_size)
     chin = _chin_tangent(q, down, face_size)
+    found = {} if nasion is None else {"nasion": nasion}
     if nasion is not None and chin is not None:
         # the face's own frame: its nasion-to-chin line turned as the mean head's is
         d = q[chin] - q[nasion]
         tilt = np.arctan2(d[0], d[1]) - np.radians(FACE_LINE_DEG)
         cos, sin = np.cos(tilt), np.sin(tilt)
         q = q @ np.array([[cos, sin], [-sin, cos]])
-        found["nasion"] = nasion
     found["nose_tip"] = _tip(q, tip, up, down, face_size)
     found.update(_lower_face(q, down, found.get("nasion"), face_size))
     # each point moved along the outline to where the model's vertex for it lies on average
