@@ -118,7 +118,8 @@ def fit_head(model, case, options=None, initial=None):
     options : FitOptions, optional
     initial : FitResult, optional
         Start from this fit's cameras, pose, mirror planes and coefficients (same views and
-        model sizes) instead of the mean head; the profile stage is then skipped.
+        model sizes) instead of the mean head, with the placement noise it estimated (its
+        ``refit_state``); the profile stage is then skipped.
 
     Returns
     -------
@@ -148,22 +149,26 @@ def fit_head(model, case, options=None, initial=None):
     t0 = time.perf_counter()
     opts = check_options(options, model)
     progress = Progress(opts.progress)
+    # A given head goes on with the photos' expressions (taken out of the landmarks) and
+    # the noise it was fitted with, so its own fit is where it stays (from the landmarks as
+    # given and the default noise, its first round would move it first).
+    state0 = (getattr(initial, "info", None) or {}).get("refit_state") or {}
+    start_noise, start_shown = state0.get("noise"), state0.get("expressions") or {}
+    given = case
+    if start_shown and opts.expressions == "fit":
+        given = neutral_case(model, case, initial, start_shown)
     if opts.noise == "fixed":
-        # from a fit that took expressions out of the landmarks: the same landmarks
-        shown = (getattr(initial, "info", {}).get("refit_state") or {}).get("expressions")
-        if shown and opts.expressions == "fit":
-            case = neutral_case(model, case, initial, shown)
-        result = _fit(model, case, opts, initial, None, progress, t0)[0]
-        return _checked(model, case, opts, result)
+        result = _fit(model, given, opts, initial, None, progress, t0)[0]
+        return _checked(model, given, opts, result)
     # The noise from the fit's residuals (and each photo's expression, expression.py), the
     # fit again with them, until the estimates settle (noise.py); each fit after the first
     # starts where the last one ended.
-    first = _fit(model, case, opts, initial, None, progress.part(0.0, 0.55), t0,
+    first = _fit(model, given, opts, initial, start_noise, progress.part(0.0, 0.55), t0,
                  uncertainty=False)
     result, contour, along, effective, measured, roles, finish = first
     later = opts if opts.method != "combined" else dataclasses.replace(opts,
                                                                        method="approach1")
-    noise, rounds, expressions = None, 1, {}
+    noise, rounds, expressions = start_noise, 1, start_shown
     timings = dict(result.info["timings"])
     while rounds < MAX_ROUNDS:
         estimate = estimate_noise(measured[0], contour, effective, opts.noise_px, along,
