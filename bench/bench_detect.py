@@ -1,9 +1,10 @@
-"""Automatic landmarks: time per photo, the view guessed (front, profile, three-quarter,
-with the yaw), and detected vs true iBUG-68 landmarks in pixels (median, 90th percentile,
-per group; also as % of the eye-to-mouth distance).
+"""Automatic landmarks: time per photo (the face alone; and the face, its outline and the
+landmarks kept, as Auto Fit detects a photo), the view guessed (front, profile,
+three-quarter, with the yaw), and detected vs true iBUG-68 landmarks in pixels (median,
+90th percentile, per group; also as % of the eye-to-mouth distance).
 
     python -m bench.bench_detect [--sample generated/sample] [--james FOLDER] [--fit]
-                                 [--uncertainty]
+                                 [--uncertainty] [--profile-line]
 
 Photos: the rendered sample's front photo (``./run sample``; truth: the exact landmark
 pixels in ``truth.npz``) and the two real photos of the scan "james" (its texture's
@@ -21,7 +22,10 @@ detected landmarks (``fit_errors``: with and without their uncertainty, and the 
 ``solver detect`` writes) and compares with the exact ones (skin RMS in mm against the
 true head, ``solver.synthetic.skin_error_mm``), and james from its two photos' detected
 landmarks against its 68 projected exactly (face RMS against the scan, as
-``bench.bench_realistic`` scores it).
+``bench.bench_realistic`` scores it). The profile line's points read off the outline
+(``solver.detect.profile_line``) are measured on the sample's and james' profiles against
+their true landmarks, and with ``--profile-line`` on 40 profiles of model heads (the
+table of its ``MEDIAN_ERROR`` and ``ARC_SHIFT``).
 """
 
 import argparse
@@ -149,6 +153,25 @@ def outline_error(name, detector, image, truth):
           f"beyond its ends; {100 * out[2]:.0f} % of the truth within 3 px "
           f"({'; '.join(t.result.notes)})")
     return out
+
+
+def photo_time(name, detector, image):
+    """Print and return the median seconds of everything a photo gets (Auto Fit's
+    detection of it): the face, its outline and the landmarks kept (a profile's read off
+    the outline)."""
+    from solver.detect.detected_case import face_landmarks
+
+    def run():
+        face = detector.detect(image)
+        guess = guess_view(face)
+        outline = detector.outline(image, face)
+        return face_landmarks(face, image.shape[1::-1], guess.side if guess else None,
+                              outline.points)
+
+    t = median_time(run, repeats=5, warmup=1)
+    print(f"{name}: face, outline and landmarks {t.median:.3f} s median "
+          f"({len(t.result[0])} landmarks; target <= 0.3 s a photo)")
+    return t.median
 
 
 def _distance_to_polyline(points, line):
@@ -389,8 +412,11 @@ def main(argv=None):
     detector = Detector()
     measured = []
     if (Path(args.sample) / "truth.npz").is_file():
-        measured.append(report("sample front", detector, *sample_truth(args.sample)))
+        front = sample_truth(args.sample)
+        measured.append(report("sample front", detector, *front))
+        photo_time("sample front", detector, front[0])
         side = sample_truth(args.sample, "side")
+        photo_time("sample side", detector, side[0])
         measured.append(report("sample side (right profile)", detector, *side))
         measured.append(report("sample side mirrored (left profile)", detector,
                                *mirrored(*side)))
