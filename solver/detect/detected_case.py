@@ -10,6 +10,7 @@ from pathlib import Path
 
 from ..io.case import LandmarkCase, View
 from ..io.landmark_set import load_landmark_set
+from .face_detection import KEYPOINTS
 from .ibug_map import mesh_to_ibug
 from .profile_line import profile_line_points
 from .view_guess import ViewGuess, guess_view, point_uncertainty
@@ -76,7 +77,7 @@ def face_landmarks(face, size, side=None, contour=None):
     depth = detected_depth(face, sigma)
     if face.is_profile and side in ("right", "left") and contour is not None \
             and face.face_size is not None:
-        hint = None if face.keypoints is None else face.keypoints[2]
+        hint = None if face.keypoints is None else face.keypoints[KEYPOINTS.index("nose_tip")]
         line, line_sigma = profile_line_points(contour, side, face.face_size, hint)
         w, h = size
         line = {n: p for n, p in line.items() if 0 <= p[0] <= w and 0 <= p[1] <= h}

@@ -187,19 +187,26 @@ def _deepest_under(q, idx, a, b):
     return idx[k], float(depth[k])
 
 
+def _touched_from_tip(q, stretch, direction, min_height):
+    """Where in ``stretch`` (indices from the nose tip, ``stretch[0]``) the line from the
+    tip touches the outline beyond ``min_height`` px above (``direction`` -1) or below (+1)
+    it: the point most forward per height from the tip; None without such points."""
+    tip = stretch[0]
+    height = direction * (q[stretch, 1] - q[tip, 1])
+    ok = height > min_height
+    if not ok.any():
+        return None
+    slope = np.where(ok, (q[stretch, 0] - q[tip, 0]) / np.maximum(height, 1e-9), -np.inf)
+    return int(np.argmax(slope))
+
+
 def _nasion(q, up, face_size):
     """The nasion: the deepest point under the line from the nose tip that touches the
     forehead (so a forehead sloping back still leaves its dip), or None."""
-    tip = up[0]
-    rise = q[tip, 1] - q[up, 1]
-    ok = rise > NASION_MIN_RISE * face_size
-    if not ok.any():
+    touch = _touched_from_tip(q, up, -1, NASION_MIN_RISE * face_size)
+    if not touch:
         return None
-    slope = np.where(ok, (q[up, 0] - q[tip, 0]) / np.maximum(rise, 1e-9), -np.inf)
-    touch = int(np.argmax(slope))
-    if touch == 0:
-        return None
-    idx, depth = _deepest_under(q, up[1:touch], tip, up[touch])
+    idx, depth = _deepest_under(q, up[1:touch], up[0], up[touch])
     return idx if depth >= PROMINENCE * face_size else None
 
 
@@ -207,17 +214,11 @@ def _chin_tangent(q, down, face_size):
     """The chin's point touched by the line from the nose tip (Ricketts' E-line): among
     the points well below the lips, the one most forward per height below the tip; None
     when the outline does not turn back behind that line below it (no chin)."""
-    tip = down[0]
-    drop = q[down, 1] - q[tip, 1]
-    ok = drop > CHIN_MIN_DROP * face_size
-    if not ok.any():
-        return None
-    slope = np.where(ok, (q[down, 0] - q[tip, 0]) / np.maximum(drop, 1e-9), -np.inf)
-    k = int(np.argmax(slope))
-    if not 0 < k < len(down) - 1:
+    k = _touched_from_tip(q, down, 1, CHIN_MIN_DROP * face_size)
+    if k is None or not 0 < k < len(down) - 1:
         return None
     # a chin: the outline turns back under it, behind the line
-    _, depth = _deepest_under(q, down[k + 1:], tip, down[k])
+    _, depth = _deepest_under(q, down[k + 1:], down[0], down[k])
     return down[k] if depth >= PROMINENCE * face_size else None
 
 

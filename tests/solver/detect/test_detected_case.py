@@ -30,6 +30,12 @@ def _load(path):
     return np.asarray(Image.open(path).convert("RGB"))
 
 
+def _both_photos(folder, detector, **options):
+    """The sample's two photos as ``solver detect`` makes them a case (Auto Fit's)."""
+    return detect_photos([(None, folder / "front.png"), (None, folder / "side.png")],
+                         detector, _load, base_dir=folder, **options)
+
+
 def _errors(model, truth, **cases):
     """Skin RMS (mm) of each labelled case's fit against the sample's true head."""
     return {label: skin_error_mm(model, fit_head(model, c).local_vertices,
@@ -68,8 +74,7 @@ def test_the_detected_front_with_its_uncertainty_fits_the_sample(sample, detecto
 def test_the_detected_front_s_depth_follows_the_true_head_and_helps_its_fit(sample, detector,
                                                                           model):
     folder, truth = sample
-    auto = detect_photos([(None, folder / "front.png"), (None, folder / "side.png")],
-                         detector, _load, base_dir=folder)
+    auto = _both_photos(folder, detector)
     front = auto.views["front"]
     assert auto.views["right"].depth == {}  # a profile's mesh is unreliable
     assert set(front.depth) == set(front.uncertainty) and len(front.depth) == 68
@@ -104,8 +109,7 @@ def test_a_fit_from_the_photos_alone_started_from_its_own_head_stays_there(sampl
     # from a given head also goes on with its noise and expressions: here 0.0 mm away,
     # 0.22 staged; from the default noise 0.50, the landmarks as given 0.69.
     folder, truth = sample
-    auto = detect_photos([(None, folder / "front.png"), (None, folder / "side.png")],
-                         detector, _load, base_dir=folder)
+    auto = _both_photos(folder, detector)
     first = fit_head(model, auto)
     again = fit_head(model, auto, initial=first)
     moved = np.linalg.norm(again.local_vertices - first.local_vertices, axis=1)
@@ -146,8 +150,7 @@ def test_a_photo_without_an_outline_is_one_warning_naming_it(sample, detector,
 def test_a_profile_s_landmarks_are_read_off_its_outline_and_fit_better(sample, detector,
                                                                        model):
     folder, truth = sample
-    photos = [(None, folder / "front.png"), (None, folder / "side.png")]
-    auto = detect_photos(photos, detector, _load, base_dir=folder)
+    auto = _both_photos(folder, detector)
     right = auto.views["right"]
     exact = load_landmarks(folder / "sample.json", known_names=model).views["side"].points
     assert {"nasion", "nose_tip", "subnasale", "pogonion", "chin_bottom"} <= set(right.points)
@@ -156,7 +159,7 @@ def test_a_profile_s_landmarks_are_read_off_its_outline_and_fit_better(sample, d
     off = {n: float(np.linalg.norm(np.subtract(p, exact[n]))) for n, p in right.points.items()}
     assert max(off.values()) < 0.03 * size, (off, size)  # 3 % of the face's size
     # without its outline the profile keeps the mesh's three points, 10-20 px off
-    bare = detect_photos(photos, detector, _load, base_dir=folder, outlines="none")
+    bare = _both_photos(folder, detector, outlines="none")
     assert set(bare.views["right"].points) == {"nose_tip", "subnasale", "lip_upper_middle"}
     mesh = copy.deepcopy(auto)
     mesh.views["right"].points = bare.views["right"].points
