@@ -118,8 +118,9 @@ def fit_head(model, case, options=None, initial=None):
     options : FitOptions, optional
     initial : FitResult, optional
         Start from this fit's cameras, pose, mirror planes and coefficients (same views and
-        model sizes) instead of the mean head, with the placement noise it estimated (its
-        ``refit_state``); the profile stage is then skipped.
+        model sizes) instead of the mean head, with the placement noise and the photos'
+        expressions it estimated (its ``refit_state``); the profile stage is then
+        skipped.
 
     Returns
     -------
