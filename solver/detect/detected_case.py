@@ -73,8 +73,6 @@ def face_landmarks(face, size, side=None, contour=None):
     line's points read off the outline (``profile_line_points``: 1-2 % of the face's size)
     in place of the mesh's few (22-46 px), when it shows any, and then ``off_outline`` is
     True."""
-    points, sigma = detected_points(face, size)
-    depth = detected_depth(face, sigma)
     if face.is_profile and side in ("right", "left") and contour is not None \
             and face.face_size is not None:
         hint = None if face.keypoints is None else face.keypoints[KEYPOINTS.index("nose_tip")]
@@ -83,7 +81,8 @@ def face_landmarks(face, size, side=None, contour=None):
         line = {n: p for n, p in line.items() if 0 <= p[0] <= w and 0 <= p[1] <= h}
         if line:
             return line, {n: line_sigma[n] for n in line}, {}, True
-    return points, sigma, depth, False
+    points, sigma = detected_points(face, size)
+    return points, sigma, detected_depth(face, sigma), False
 
 
 def detected_case(photos, faces, base_dir=None, guesses=None, contours=None):

@@ -67,7 +67,7 @@ class View:
         Optional, per landmark with an ``uncertainty``: how far it lies toward the camera,
         pixels at the photo's scale, relative to the view's other points (a detector's
         face mesh estimates it: ``solver.detect``). The fit holds the depth differences
-        of mirror pairs of such points in an orthographic photo
+        of mirror pairs of such points in an orthographic or a pinhole photo
         (``solver.fitting.depth``), which tell how the head is turned.
     """
 
