@@ -292,7 +292,9 @@ def fit_errors(folder, detector):
     their uncertainty (the profile as placed, with its outline, in these); and from the
     photos alone (``python -m solver detect front.png side.png``): the detected points
     without outlines, with the profile's traced outline, with its detected outline, and
-    the case as written (both photos' detected outlines)."""
+    the case as written (both photos' detected outlines), also with its front's or its
+    profile's points exact, and with the profile's points from the face mesh instead of
+    its outline."""
     from solver import fit_head, load_landmarks, load_model
     from solver.detect.detected_case import detect_photos
     from solver.synthetic import skin_error_mm
@@ -342,6 +344,12 @@ def fit_errors(folder, detector):
     side = case.views["side"].points
     exact_profile.views["right"].points = {n: side[n] for n in auto.views["right"].points
                                            if n in side}
+    # the profile's points from the face mesh (its outline not read for them)
+    mesh_profile = copy.deepcopy(auto)
+    mesh_only = detect_photos([(None, folder / "front.png"), (None, folder / "side.png")],
+                              detector, load, base_dir=folder, outlines="none")
+    mesh_profile.views["right"].points = mesh_only.views["right"].points
+    mesh_profile.views["right"].uncertainty = mesh_only.views["right"].uncertainty
     for label, c in (("every exact landmark", case),
                      ("  its profile outline detected", own_profile),
                      ("  both photos' outlines detected", own_both),
@@ -354,7 +362,8 @@ def fit_errors(folder, detector):
                      ("solver detect's case (+ front outline)", auto),
                      ("  its front's 68 points exact", exact_front68),
                      ("  every front landmark exact", exact_front),
-                     ("  its profile's points exact", exact_profile)):
+                     ("  its profile's points exact", exact_profile),
+                     ("  its profile's points off the face mesh", mesh_profile)):
         r = fit_head(model, c)
         print(f"  {label:<32} {skin_error_mm(model, r.local_vertices, truth):.2f} mm")
 

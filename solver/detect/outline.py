@@ -40,6 +40,13 @@ SEARCH_MAP_PX = 1.5
 SKIN_SPREADS = 4.0
 SKIN_CHROMA = 0.075
 SKIN_BRIGHTNESS = 3.0
+#: Skin is warm: its red share exceeds its blue share by at least this fraction of the
+#: face's own excess (the sample's face 0.09-0.10, its shade under the ear 0.12, skin
+#: washed out by the light 0.02; its grey-blue shirt -0.04 to -0.06 and a white collar
+#: -0.01, both within ``SKIN_CHROMA`` of the face), unless a channel is clipped (a
+#: highlight on the skull is plain white: no colour is left to tell).
+SKIN_WARMTH = 0.2
+SKIN_CLIPPED = 0.99
 #: The outline found must be at least this many times the face's size (the detector's
 #: box) long: on james' front photo the only skin on the person's edge is a strip of neck
 #: between hair and collar.
@@ -162,6 +169,11 @@ def _chroma_brightness(colours):
     return colours[..., :2] / total[..., None], total
 
 
+def _warmth(colours):
+    """Red share less blue share (n,) of colours (n, 3)."""
+    return (colours[..., 0] - colours[..., 2]) / np.maximum(colours.sum(-1), 1e-3)
+
+
 def face_skin(image, face, mask):
     """The face's skin colour: samples on the lines between the detector's keypoints
     (eye-mouth, nose-mouth, mouth-ear, eye-ear: cheeks and jaw), those inside the person.
@@ -175,6 +187,8 @@ def face_skin(image, face, mask):
         least 0.005).
     brightness : float
         Median r + g + b.
+    warmth : float
+        Median red share less blue share ((r - b) / (r + g + b)).
     """
     k = np.asarray(face.keypoints, float)
     pairs = [(0, 3), (1, 3), (2, 3), (3, 4), (3, 5), (0, 4), (1, 5), (2, 4), (2, 5)]
@@ -183,20 +197,23 @@ def face_skin(image, face, mask):
     pts = pts[mask.at(pts) >= 0.5]
     if len(pts) < 5:
         raise ValueError("no skin sampled between the face's keypoints")
-    chroma, bright = _chroma_brightness(sample_photo(image, pts))
+    colours = sample_photo(image, pts)
+    chroma, bright = _chroma_brightness(colours)
     centre = np.median(chroma, axis=0)
     spread = 1.4826 * np.median(np.linalg.norm(chroma - centre, axis=1))
-    return centre, max(float(spread), 0.005), float(np.median(bright))
+    return (centre, max(float(spread), 0.005), float(np.median(bright)),
+            float(np.median(_warmth(colours))))
 
 
 def skin_like(colours, skin):
     """Whether each colour (n, 3) is the face's skin (``face_skin``) in chromaticity
-    (within ``SKIN_SPREADS``, at least ``SKIN_CHROMA``) and brightness (within a factor
-    ``SKIN_BRIGHTNESS``)."""
-    centre, spread, bright = skin
+    (within ``SKIN_SPREADS``, at least ``SKIN_CHROMA``), brightness (within a factor
+    ``SKIN_BRIGHTNESS``) and warmth (``SKIN_WARMTH``, or clipped: ``SKIN_CLIPPED``)."""
+    centre, spread, bright, warmth = skin
     chroma, b = _chroma_brightness(colours)
     near = np.linalg.norm(chroma - centre, axis=1) <= max(SKIN_SPREADS * spread, SKIN_CHROMA)
-    return near & (b >= bright / SKIN_BRIGHTNESS) & (b <= bright * SKIN_BRIGHTNESS)
+    warm = (_warmth(colours) >= SKIN_WARMTH * warmth) | (colours.max(-1) >= SKIN_CLIPPED)
+    return near & warm & (b >= bright / SKIN_BRIGHTNESS) & (b <= bright * SKIN_BRIGHTNESS)
 
 
 def _runs(flags):

@@ -10,7 +10,10 @@ from solver.detect import Detector
 from solver.detect.outline import refine_edge, skin_like
 from solver.paths import DETECTOR_DIR
 
-SKIN = (np.array([0.396, 0.323]), 0.015, 2.49)   # the sample's face, as face_skin gives it
+SKIN = (np.array([0.396, 0.323]), 0.015, 2.49, 0.10)  # the sample's face, as face_skin gives it
+# the same face as the full-size render's detector gives it: a wider spread, within which
+# the grey-blue shirt's chromaticity falls
+SKIN_WIDE = (np.array([0.3836, 0.3288]), 0.0192, 2.607, 0.097)
 
 
 def _distance_to_line(points, line):
@@ -52,6 +55,8 @@ def test_skin_lit_or_shaded_is_skin_and_clothes_hair_collar_are_not():
         [0.88, 0.96, 0.91],     # a white collar
     ])
     assert skin_like(colours, SKIN).tolist() == [True, True, True, False, False, False]
+    # the shirt is within the wider spread's chromaticity, but cold (more blue than red)
+    assert skin_like(colours, SKIN_WIDE).tolist() == [True, True, True, False, False, False]
 
 
 @pytest.fixture(scope="module")
@@ -83,6 +88,23 @@ def test_the_sample_profile_outline_is_the_true_silhouette(sample, detector):
     assert outline.points[0, 1] > face.keypoints[3][1] and outline.points[-1, 1] > \
         face.keypoints[3][1]
     assert outline.refined.mean() > 0.9
+
+
+def test_the_sample_front_outline_ends_where_the_shirt_begins(sample, detector):
+    from scipy import ndimage as ndi
+
+    folder, truth = sample
+    image = _photo(folder, "front")
+    outline = detector.outline(image, detector.detect(image))
+    head = truth["head_alpha_front"] >= 128        # the head alone, without the shirt
+    to_head = ndi.distance_transform_edt(~(head ^ ndi.binary_erosion(head)))
+    r = np.clip(np.round(outline.points[:, 1]).astype(int), 0, head.shape[0] - 1)
+    c = np.clip(np.round(outline.points[:, 0]).astype(int), 0, head.shape[1] - 1)
+    # the shirt's outline over the shoulders to the photo's edge was 5-10 % of the points
+    assert (to_head[r, c] > 5).mean() < 0.02, "outline points on the shirt"
+    assert all("clothes" in note for note in outline.notes[:2])
+    # the neck's sides down to the shirt are kept
+    assert outline.points[:, 1].max() > truth["exact_front"][:, 1].max()
 
 
 def test_hair_is_left_out_of_the_forehead_and_skull(sample, detector):
