@@ -90,14 +90,17 @@ class DepthPairRows(CameraRows):
                           len(r))
 
 
-def depth_rows(view, start):
+def depth_rows(view, start, views=()):
     """The depth rows of ``view`` (``ViewData``) on its landmark copies from ``start``, or
-    None: a mirror view, a camera whose turn the joint step does not move rigidly (a
-    DLT), or no mirror pair with depths (outline points left out: their vertices are not
-    where an outline point lies)."""
+    None: a mirror view or a view whose camera mirror views among ``views`` share (their
+    copies are reflected, so the joint step lifts that camera's modes across the image
+    only), a camera whose turn the joint step does not move rigidly (a DLT), or no mirror
+    pair with depths (outline points left out: their vertices are not where an outline
+    point lies)."""
     cam = view.camera
     if cam is None or view.depth is None or view.mirror_of is not None \
-            or (cam.perspective and not cam.moves_rigidly):
+            or (cam.perspective and not cam.moves_rigidly) \
+            or any(u.mirror_of == view.name for u in views):
         return None
     usable = np.isfinite(view.depth) & np.isfinite(view.depth_sigma) & ~view.outline_point
     pairs = mirror_pairs(view.names, usable)

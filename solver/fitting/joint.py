@@ -103,10 +103,7 @@ class Joint:
             if landmarks and len(v.vertices):
                 rows = eng.landmark_rows(v, off, front_weight, slide=slide)
                 self.groups.append((v, "landmarks", rows))
-                # on the same copies; not where mirror views share the camera (their
-                # copies are reflected: its modes lift across the image only there)
-                mirrored = any(u.mirror_of == v.name for u in eng.views)
-                depth = None if mirrored else depth_rows(v, off)
+                depth = depth_rows(v, off, eng.views)  # on the same copies
                 if depth is not None:
                     self.groups.append((v, "depth", depth))
                 orig.append(v.vertices)

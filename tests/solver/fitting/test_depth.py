@@ -9,9 +9,11 @@ from scipy.spatial.transform import Rotation
 
 from solver import fit_head
 from solver.cameras import OrthographicCamera
-from solver.fitting.depth import DepthPairRows, mirror_pairs
+from solver.fitting.depth import DepthPairRows, depth_rows, mirror_pairs
+from solver.fitting.options import check_options
+from solver.fitting.views import prepare_views
 from solver.io.landmark_set import load_landmark_set
-from solver.synthetic import make_case
+from solver.synthetic import make_case, make_mirror_case
 
 
 def test_mirror_pairs_take_usable_right_left_counterparts_only():
@@ -40,6 +42,18 @@ def test_depth_rows_give_the_depth_differences_and_their_jacobian():
     change = rows.residuals(moved + step) - rows.residuals(moved)
     pred = -np.einsum("mcj,mcj->m", blk.g, step[blk.idx])
     np.testing.assert_allclose(change, pred, atol=1e-9)
+
+
+def test_depth_rows_leave_out_mirror_views_and_the_camera_they_share(model):
+    case, _ = make_mirror_case(model, 5, calibrated=True)
+    for view in case.views.values():
+        view.depth = {n: float(i) for i, n in enumerate(view.points)}
+        view.uncertainty = {n: 5.0 for n in view.points}  # a depth's sigma is a share of it
+    views, _ = prepare_views(model, case, check_options(None, model))
+    front, mirror = (next(v for v in views if v.name == n) for n in ("front", "mirror"))
+    assert depth_rows(mirror, 0, views) is None
+    assert depth_rows(front, 0, views) is None  # its copies lift across the image only
+    assert depth_rows(front, 0, [front]) is not None  # the same photo without its mirror
 
 
 def _turned_front_case(model, yaw_deg):
