@@ -9,6 +9,7 @@ from solver import FitOptions, OrthographicCamera, PinholeCamera, fit_head
 from solver.fitting.engine import Engine
 from solver.fitting.outline import (
     CONTOUR_KEEP_SIGMAS,
+    SOFT_CUT,
     ContourRows,
     OutlinePointRows,
     candidate_mesh,
@@ -111,6 +112,26 @@ def test_a_point_the_mesh_cannot_follow_is_trimmed_at_three_sigma():
     # beyond max_distance: no crossing, no row
     rows, _ = _rows([0.1, 0.1, 25.0], max_distance=20.0)
     assert len(rows.points) == 2
+
+
+def test_a_row_fades_out_across_the_cut_off():
+    """Near the cut-off (here the 3 px keep distance) a point's row loses its weight
+    smoothly and the cost counts the rest of it at the cut-off: a point a hair either side
+    of the limit weighs and costs about the same."""
+    def weight_and_cost(x):
+        rows, verts = _rows([0.5, -0.4, 0.3, -0.6, 0.2, 0.5, -0.3, x], step=35.0)
+        far = tuple(_u_outline([0.5, -0.4, 0.3, -0.6, 0.2, 0.5, -0.3, x], step=35.0)[0])
+        at = [tuple(p) for p in rows.targets]
+        w = rows.row_weights[at.index(far)] if far in at else 0.0
+        return w / rows.point_weights[0], \
+            rows.block(verts, jacobian=False).sq + rows.unmatched_cost()
+
+    assert SOFT_CUT > 0
+    assert weight_and_cost(3.0 * (1 - SOFT_CUT) - 0.01)[0] == pytest.approx(1.0)
+    assert weight_and_cost(3.0 * (1 + SOFT_CUT) + 0.01)[0] == 0.0
+    (w1, c1), (w2, c2) = weight_and_cost(2.999), weight_and_cost(3.001)
+    assert 0.4 < w2 < w1 < 0.6 and w1 - w2 < 0.01
+    assert abs(c1 - c2) < 0.01 * c1
 
 
 def test_a_point_without_a_row_costs_the_cut_off():
