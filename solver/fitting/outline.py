@@ -12,7 +12,7 @@ from .rows import CameraRows, ScalarRows
 # Outline rows are always kept within this many sigmas of the placement noise.
 CONTOUR_KEEP_SIGMAS = 3.0
 # A traced point's row fades out over this fraction of the cut-off either side of it
-# (docs/DECISIONS.md, "The outline's cut-off fades"); 0: a hard cut.
+# (docs/DECISIONS.md, "The outline's cut-off fades").
 SOFT_CUT = 0.25
 
 
@@ -47,8 +47,7 @@ class ContourRows(CameraRows):
     shape to close a gap that is not noise. The cut fades: a row's weight falls smoothly
     from full to none over ``SOFT_CUT`` of that limit either side of it, and the cost
     counts the rest of the point at the cut-off, so a point near the limit moves the fit
-    a little, not all or nothing (a hard cut made fits differ by up to 0.1 mm between
-    inputs 1/1000 px apart).
+    a little, not all or nothing.
 
     A point weighs ``weights`` when it stands for at least ``spacing_px`` of outline (half
     the way to each neighbour), less when the points are denser: a hand-drawn stroke
@@ -213,29 +212,26 @@ class ContourRows(CameraRows):
             factors = np.ones(len(off))
             if self.reject_factor is not None and len(off):
                 limit = max(self.reject_factor * float(np.median(off)), self.keep_distance)
-                if SOFT_CUT > 0:
-                    x = np.clip(((1 + SOFT_CUT) * limit - off) / (2 * SOFT_CUT * limit), 0, 1)
-                    factors = x * x * (3 - 2 * x)
-                    keep = factors > 0
-                else:
-                    keep = off <= limit
+                x = np.clip(((1 + SOFT_CUT) * limit - off) / (2 * SOFT_CUT * limit), 0, 1)
+                factors = x * x * (3 - 2 * x)  # smoothstep: 1 well inside, 0 beyond
+                keep = factors > 0
                 points, ends, frac, factors = points[keep], ends[keep], frac[keep], factors[keep]
                 cap = min(limit, self.max_distance)
-            self.factors = factors
         else:
-            self.factors = np.zeros(0)
+            factors = np.zeros(0)
         self.points, self.ends, self.fractions, self.cap = points, ends, frac, cap
+        self.factors = factors
         self._updated = True
 
     def unmatched_cost(self):
         """What the traced points without a row add to the cost: ``w cap^2`` each, as if
-        they lay at the cut-off (a truncated quadratic). Without it a head that loses rows
+        they lay at the cut-off (a truncated quadratic), and so does the share of its
+        weight a fading row lost. Without it a head that loses rows
         lowers its cost by the rows it dropped, and the fit, which keeps the lowest cost,
         drifts to heads whose outline misses awkward points."""
         missing = np.ones(len(self.pixels), bool)
         missing[self.points] = False
-        part = float(self.point_weights[self.points] @ (1.0 - self.factors)) \
-            if len(self.factors) == len(self.points) else 0.0
+        part = float(self.point_weights[self.points] @ (1.0 - self.factors))
         return (float(self.point_weights[missing].sum()) + part) * self.cap**2
 
     @property
@@ -283,8 +279,7 @@ class ContourRows(CameraRows):
     @property
     def row_weights(self):
         """The weights of the current rows, (k,)."""
-        w = self.point_weights[self.points]
-        return w * self.factors if len(self.factors) == len(w) else w
+        return self.point_weights[self.points] * self.factors
 
     def pairs(self, world):
         """(candidate indices, pixels) of the current rows for a camera refit consistent
@@ -377,6 +372,7 @@ class OutlinePointRows(ContourRows):
         flip = np.einsum("ij,ij->i", normal, middle - inside) < 0
         normal[flip] *= -1.0
         self.points = rows[keep]
+        self.factors = np.ones(len(self.points))  # no cut-off to fade: max_distance only
         self.ends = e[edge[keep]]
         self.fractions = t[keep]
         self.normals = np.zeros_like(self.normals)
