@@ -63,7 +63,7 @@ def estimate_expressions(model, case, result, noise_px, weights=None, lambda2=1.
     """
     chosen = np.array([model.expression_names.index(n) for n in PHOTO_EXPRESSIONS
                        if n in model.expression_names], dtype=np.int64)
-    expr = model.expressions[chosen]  # (E', V, 3)
+    expr = model.expressions  # (E, V, 3): the chosen ones' landmarks gathered per view
     k = len(result.identity_coeffs)
     basis = model.identity.basis[:k]  # (K, V, 3)
     lms = model.landmark_set
@@ -85,11 +85,11 @@ def estimate_expressions(model, case, result, noise_px, weights=None, lambda2=1.
         r = np.asarray([view.points[key] for key in keys], dtype=np.float64) \
             - camera.project(world[verts])
         blocks.append((name, _pixel_columns(basis[:, verts] @ rot, jac, sw),
-                       _pixel_columns(expr[:, verts] @ rot, jac, sw),
+                       _pixel_columns(expr[chosen[:, None], verts] @ rot, jac, sw),
                        (r * sw[:, None]).reshape(-1)))
     if not blocks:
         return {}
-    n_e = len(expr)
+    n_e = len(chosen)
     cols = k + n_e * len(blocks)
     rows = sum(len(b[3]) for b in blocks)
     a = np.zeros((rows + cols, cols))
@@ -104,14 +104,25 @@ def estimate_expressions(model, case, result, noise_px, weights=None, lambda2=1.
     a[rows:rows + k, :k] = lambda2 * np.eye(k)
     rhs[rows:rows + k] = -lambda2 * np.asarray(result.identity_coeffs, dtype=np.float64)
     a[rows + k:, k:] = np.eye(cols - k) / EXPRESSION_SIGMA
-    lower = np.concatenate([np.full(k, -np.inf), np.zeros(cols - k)])
-    upper = np.concatenate([np.full(k, np.inf), np.ones(cols - k)])
-    x = lsq_linear(a, rhs, bounds=(lower, upper), method="bvls").x
+    x = _bounded_weights(a, rhs, k)
     out = {}
     for j, (name, *_) in enumerate(blocks):
         out[name] = np.zeros(len(model.expression_names))
-        out[name][chosen] = x[k + j * n_e:k + (j + 1) * n_e]
+        out[name][chosen] = x[j * n_e:(j + 1) * n_e]
     return out
+
+
+def _bounded_weights(a, rhs, k):
+    """The last columns' part (m,) of ``argmin |a x - rhs|`` over x = (free (k,), weights
+    in [0, 1] (m,)): the free part is solved out exactly (whatever the weights, it is the
+    least-squares fit of the rest, so the weights minimise what lies outside its columns'
+    span), leaving a bounded problem in the weights alone."""
+    q, _ = np.linalg.qr(a[:, :k])
+    ae, r = a[:, k:], rhs
+    ae = ae - q @ (q.T @ ae)
+    r = r - q @ (q.T @ r)
+    m = ae.shape[1]
+    return lsq_linear(ae, r, bounds=(np.zeros(m), np.ones(m)), method="bvls").x
 
 
 def _known(lms, view, skip=()):

@@ -41,6 +41,12 @@ DAMPING = (0.5, 0.25, 0.1)
 
 
 
+def _head_key(state):
+    """What a head's world positions depend on: the similarity and the coefficients."""
+    return (float(state.scale), state.rotation.tobytes(), state.translation.tobytes(),
+            state.coeffs.tobytes())
+
+
 @dataclass
 class _Block:
     """Free parameters of one camera ("camera": the real camera of ``view``, seen by the
@@ -124,6 +130,7 @@ class Joint:
             raise ValueError("views: no landmarks or contour to fit")
         self._prep = None
         self._fit = None
+        self._world = None  # (state key, world positions of the copies) last computed
         self.orig = np.concatenate(orig)
         self.rows = [g[2] for g in self.groups]
         self.mean, self.basis = eng.slice(self.orig)
@@ -154,9 +161,19 @@ class Joint:
             rows.set_camera(state.cameras[v.name])
 
     def world(self, state):
-        """World positions of the copies, (n, 3)."""
+        """World positions of the copies, (n, 3) (read only: the last head's are kept, a
+        step's cost and the next linearisation ask for the same)."""
+        key = _head_key(state)
+        if self._world is not None and self._world[0] == key:
+            return self._world[1]
         local = self.mean + np.tensordot(state.coeffs, self.basis, axes=1)
-        return state.scale * local @ state.rotation.T + state.translation
+        return self._keep_world(key, state.scale * local @ state.rotation.T
+                                + state.translation)
+
+    def _keep_world(self, key, x):
+        x.flags.writeable = False
+        self._world = (key, x)
+        return x
 
     def cost(self, state):
         """Weighted squared pixel residuals (correspondences refreshed) plus priors (shape
@@ -308,16 +325,19 @@ class Joint:
         x = self.world(state)
         n = len(x)
         # each copy's camera Jacobian, pseudo-inverted (J^T (J J^T)^-1, the 2x2 inverse
-        # written out): pixel fields -> world displacement; pinv[0] takes the u part
+        # written out) in the model frame (x = s R m + t, so pixels move by J s R per
+        # unit of m): pixel fields -> model displacement; pinv[0] takes the u part
+        to_model = state.rotation / state.scale  # world displacement -> model, rows
         pinv = np.zeros((2, n, 3))
         for v in self.members:
             idx = self.view_idx[v.name]
             jac = np.asarray(state.cameras[v.name].jacobian(x[idx]),
-                             dtype=np.float64).reshape(len(idx), 2, 3)
+                             dtype=np.float64).reshape(len(idx), 2, 3) \
+                @ (state.scale * state.rotation)
             ju, jv = jac[:, 0], jac[:, 1]
-            a = (ju * ju).sum(axis=1)[:, None]
-            b = (ju * jv).sum(axis=1)[:, None]
-            d = (jv * jv).sum(axis=1)[:, None]
+            a = np.einsum("ij,ij->i", ju, ju)[:, None]
+            b = np.einsum("ij,ij->i", ju, jv)[:, None]
+            d = np.einsum("ij,ij->i", jv, jv)[:, None]
             det = a * d - b * b
             pinv[0, idx] = (ju * d - jv * b) / det
             pinv[1, idx] = (jv * a - ju * b) / det
@@ -326,13 +346,11 @@ class Joint:
         for blk in self.blocks:
             kind, idx, f, units, start, has_prior = self._block_fields(blk, state, x)
             f = f * units[:, None, None]
-            lift = f[:, :, 0:1] * pinv[0, idx] + f[:, :, 1:2] * pinv[1, idx]
+            m = np.zeros((len(f), n, 3))
+            m[:, idx] = f[:, :, 0:1] * pinv[0, idx] + f[:, :, 1:2] * pinv[1, idx]
             rigid = self._motions(blk, state, x[idx])
             if rigid is not None:  # the same projections, the depth moved too
-                lift[:len(rigid)] = rigid * units[:len(rigid), None, None]
-            m = np.zeros((len(f), n, 3))
-            # model frame (x = s R m + t)
-            m[:, idx] = (lift @ state.rotation) / state.scale
+                m[:len(rigid), idx] = (rigid * units[:len(rigid), None, None]) @ to_model
             if start.any():
                 mean = mean - np.tensordot(start, m, axes=1)
             modes.append(m)
@@ -450,13 +468,16 @@ class Joint:
                 new.cameras[v.name] = stepped
                 continue
             if full is None:
-                c_full = fit.coeffs.copy()
-                c_full[:k] = new.coeffs
-                c_full[k:] = prep.start + alpha * (fit.coeffs[k:] - prep.start)
-                full = model.mean + np.tensordot(c_full, model.basis, axes=1)
+                # the model is the copies' basis plus the camera modes (``model``): the
+                # head read once, the modes' part added (its mean folds their start out)
                 head = self.mean + np.tensordot(new.coeffs, self.basis, axes=1)
+                cam = prep.start + alpha * (fit.coeffs[k:] - prep.start)
+                full = head + (model.mean - self.mean) \
+                    + np.tensordot(cam, model.basis[k:], axes=1)
                 full = new.scale * full @ new.rotation.T + new.translation
-                head = new.scale * head @ new.rotation.T + new.translation
+                # the new head's world positions, as :meth:`world` computes them
+                head = self._keep_world(_head_key(new), new.scale * head @ new.rotation.T
+                                        + new.translation)
             pts, px = [], []
             for u in blk.users:
                 i = self.view_idx[u.name]

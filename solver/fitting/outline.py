@@ -134,23 +134,41 @@ class ContourRows(CameraRows):
         (E', 2) candidate indices."""
         return self.rim_edges(world)[:, :2]
 
-    def rim_edges(self, world):
+    def rim_edges(self, world, pixels=None):
         """The rows of ``edges`` (a, b, face 1, face 2) on the contour generator of the
-        posed head: one of their faces turned to the camera, the other away."""
+        posed head: one of their faces turned to the camera, the other away. Through an
+        orthographic camera a face turns to it exactly when its projection keeps its
+        winding, so the candidates' ``pixels`` (their projections, computed when not
+        given) decide; other cameras compare each face's normal with the direction
+        toward the camera."""
         f0, f1, f2 = self._corners()
-        a = world[f0]
-        u, v = world[f1] - a, world[f2] - a
-        normal = np.empty_like(u)  # u x v, the products np.cross takes, in its order
-        normal[:, 0] = u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1]
-        normal[:, 1] = u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2]
-        normal[:, 2] = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
-        if isinstance(self.camera, OrthographicCamera):  # one direction for every face
-            toward = np.broadcast_to(self.camera.toward_camera(a[:1]), normal.shape)
+        if isinstance(self.camera, OrthographicCamera):
+            p = self.camera.project(world) if pixels is None else pixels
+            a = p[f0]
+            u, v = p[f1] - a, p[f2] - a
+            r = self.camera.rotation
+            # the sign of a turned-to face's projected area: (u x v) . (r0 x r1) scaled
+            winding = float(np.cross(r[0], r[1]) @ self.camera.toward_camera(world[:1])[0])
+            facing = (u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]) * winding > 0
         else:
+            a = world[f0]
+            u, v = world[f1] - a, world[f2] - a
+            normal = np.empty_like(u)  # u x v, the products np.cross takes, in its order
+            normal[:, 0] = u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1]
+            normal[:, 1] = u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2]
+            normal[:, 2] = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
             toward = np.asarray(self.camera.toward_camera((a + world[f1] + world[f2]) / 3.0),
                                 dtype=np.float64)
-        facing = np.einsum("ij,ij->i", normal, toward) > 0
+            facing = np.einsum("ij,ij->i", normal, toward) > 0
         return self.edges[facing[self.edges[:, 2]] != facing[self.edges[:, 3]]]
+
+    def _rim_and_pixels(self, world):
+        """(rim edges as :meth:`rim_edges`, the candidates' projections (n, 2) or None):
+        an orthographic camera projects every candidate once for both."""
+        if isinstance(self.camera, OrthographicCamera):
+            pixels = self.camera.project(world)
+            return self.rim_edges(world, pixels), pixels
+        return self.rim_edges(world), None
 
     def _corners(self):
         """The faces' first, second and third corners, three contiguous (F,) arrays."""
@@ -158,9 +176,13 @@ class ContourRows(CameraRows):
             self._face_corners = tuple(np.ascontiguousarray(self.faces[:, k]) for k in range(3))
         return self._face_corners
 
-    def _projected_edges(self, world, e):
+    def _projected_edges(self, world, e, pixels=None):
         """Edges ``e`` (E, 2) in the photo: each one's first end and its direction,
-        ((E, 2), (E, 2)) pixels (each vertex projected once)."""
+        ((E, 2), (E, 2)) pixels (each vertex projected once; ``pixels``, the candidates'
+        projections, when already known)."""
+        if pixels is not None:
+            ends = pixels[e]
+            return ends[:, 0], ends[:, 1] - ends[:, 0]
         # the vertices used, sorted, and where each end is among them (np.unique's
         # answer, by a mark per candidate instead of a sort)
         mark = np.zeros(len(world), bool)
@@ -183,11 +205,12 @@ class ContourRows(CameraRows):
     def update(self, world):
         if self._unchanged(world):
             return
-        e = self.rim(world)
+        rim, pixels = self._rim_and_pixels(world)
+        e = rim[:, :2]
         points, ends, frac = np.zeros(0, np.intp), np.zeros((0, 2), np.intp), np.zeros(0)
         cap = self.max_distance
         if len(e):
-            a, d = self._projected_edges(world, e)
+            a, d = self._projected_edges(world, e, pixels)
             # Edges whose middle is within reach of a point (max_distance plus the longest
             # half edge), as flat (point, edge) pairs.
             reach = self.max_distance + 0.5 * float(np.linalg.norm(d, axis=1).max())
@@ -342,13 +365,13 @@ class OutlinePointRows(ContourRows):
     def update(self, world):
         if self._unchanged(world):
             return
-        rim = self.rim_edges(world)
+        rim, pixels = self._rim_and_pixels(world)
         self._reset_rows()
         if not len(rim) or not len(self.pixels):
             self._updated = True
             return
         e = rim[:, :2]
-        a, d = self._projected_edges(world, e)
+        a, d = self._projected_edges(world, e, pixels)
         # each landmark's nearest rim point among the edges with the nearest middles
         k = min(16, len(e))
         _, near = cKDTree(a + 0.5 * d).query(self.pixels, k=k)
@@ -367,7 +390,8 @@ class OutlinePointRows(ContourRows):
         normal = normal / np.maximum(length, 1e-12)[:, None]
         # outward: away from the edge's first face (both faces of a fold project inside)
         face = self.faces[rim[edge, 2]]
-        inside = self.camera.project(world[face.reshape(-1)]).reshape(-1, 3, 2).mean(axis=1)
+        inside = (self.camera.project(world[face.reshape(-1)]) if pixels is None
+                  else pixels[face.reshape(-1)]).reshape(-1, 3, 2).mean(axis=1)
         middle = a[edge] + 0.5 * d[edge]
         flip = np.einsum("ij,ij->i", normal, middle - inside) < 0
         normal[flip] *= -1.0
