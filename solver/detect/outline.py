@@ -1,6 +1,6 @@
 """The head's outline in a photo, as the fit wants a traced contour: the person's
-segmentation's edge, moved onto the photo's own edge, and only the stretch of skin that
-holds the face (hair, clothes and the photo's border cut off).
+segmentation's edge, moved onto the colour edge in the photo itself, and only the stretch
+of skin that holds the face (hair, clothes and the photo's border cut off).
 
 Steps (numbers in docs/DECISIONS.md, "The head's outline"):
 
@@ -12,7 +12,7 @@ Steps (numbers in docs/DECISIONS.md, "The head's outline"):
 3. the colour just inside each point against the face's skin (sampled between the
    detector's keypoints: eyes, nose, mouth, ears): the outline is the run of skin that
    holds the face's front (the nose tip), so hair (on the forehead, the crown, the nape)
-   and the collar or clothes below the neck end it, and so does the photo's edge.
+   and the collar or clothes below the neck end it, and so does the photo's border.
 """
 
 from dataclasses import dataclass, field
@@ -28,8 +28,8 @@ from .segmentation import person_mask
 SPACING_PX = 3.0
 #: The square the segmentation sees: this many times the detector's box, centred on it.
 SQUARE_SCALE = 2.5
-#: How far along the normal the photo's edge is looked for: this many map pixels (the
-#: mask's own error, 1-2 px median, up to about 3 px, is under one map pixel of 3-4 px).
+#: How far along the normal the photo's colour edge is looked for: this many map pixels
+#: (the mask's own error, 1-2 px median, up to about 3 px, is under one map pixel of 3-4 px).
 SEARCH_MAP_PX = 1.5
 #: A point's colour counts as skin within these bounds of the face's: chromaticity
 #: distance in robust spreads of the face's, but at least ``SKIN_CHROMA`` (light at a
@@ -68,11 +68,11 @@ class Outline:
         in drawing order from the chin's side (on a profile: from the front of the neck
         over the chin, the face, the forehead and the skull toward the nape).
     refined : ndarray (n,) bool
-        Moved onto an edge of the photo (else left on the segmentation's edge: too little
-        contrast there).
+        Moved onto a colour edge in the photo (else left on the segmentation's edge: too
+        little contrast there).
     notes : list of str
-        What ended the outline at each end ("hair", "clothes or background", "the
-        photo's edge") and other facts for the report.
+        What ended the outline at each end ("hair, clothes or background", "the photo's
+        border") and other facts for the report.
     """
 
     points: np.ndarray
@@ -99,7 +99,7 @@ def _normals(points, reach=2):
 
 def sample_photo(image, uv):
     """Bilinear colours of ``image`` (H, W, C) at continuous photo points ``uv``
-    (..., 2), the photo's edge extended."""
+    (..., 2), the photo's border extended."""
     h, w = image.shape[:2]
     x = np.clip(uv[..., 0] - 0.5, 0, w - 1)
     y = np.clip(uv[..., 1] - 0.5, 0, h - 1)
@@ -309,12 +309,12 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
         idx, notes = idx[::-1], notes[::-1]
     return Outline(moved[idx], refined[idx],
                    [f"starts at {notes[0]}", f"ends at {notes[1]}",
-                    f"{int(refined[idx].sum())} of {len(idx)} points on the photo's edge"])
+                    f"{int(refined[idx].sum())} of {len(idx)} points moved onto a colour edge"])
 
 
 def _end_note(i, skin, on_photo):
     if not on_photo[i]:
-        return "the photo's edge"
+        return "the photo's border"
     return "hair, clothes or background (not the face's skin)" if not skin[i] else "?"
 
 

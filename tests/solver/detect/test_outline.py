@@ -1,4 +1,4 @@
-"""The head's outline: the photo's edge found to a fraction of a pixel, skin told from
+"""The head's outline: the photo's colour edge found to a fraction of a pixel, skin told from
 clothes and hair, and on the rendered sample's profile the true silhouette from the front
 of the neck to the nape, hair painted on it left out."""
 
@@ -100,7 +100,7 @@ def test_the_sample_front_outline_ends_where_the_shirt_begins(sample, detector):
     to_head = ndi.distance_transform_edt(~(head ^ ndi.binary_erosion(head)))
     r = np.clip(np.round(outline.points[:, 1]).astype(int), 0, head.shape[0] - 1)
     c = np.clip(np.round(outline.points[:, 0]).astype(int), 0, head.shape[1] - 1)
-    # the shirt's outline over the shoulders to the photo's edge was 5-10 % of the points
+    # the shirt's outline over the shoulders to the photo's border was 5-10 % of the points
     assert (to_head[r, c] > 5).mean() < 0.02, "outline points on the shirt"
     assert all("clothes" in note for note in outline.notes[:2])
     # the neck's sides down to the shirt are kept
