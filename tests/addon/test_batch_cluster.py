@@ -1,9 +1,12 @@
 """The batch on a Dask distributed cluster (``--cluster local``: a scheduler here and two
-``dask worker`` processes): the same outputs and summary rows as ``--jobs 2``, a broken
-row reported alone, the model loaded once per worker, a clear line without Dask."""
+``dask worker`` processes; a scheduler started apart, reached by its file or its address):
+the same outputs and summary rows as ``--jobs 2``, a broken row reported alone, the model
+loaded once per worker, a clear line without Dask."""
 
 import json
+import subprocess
 import sys
+import time
 
 import pytest
 
@@ -75,6 +78,62 @@ def test_cluster_from_the_blender_script_form(heads, tmp_path):
     assert "cluster: 2 workers, the model loaded 1/1 times on them" in proc.stderr
     assert {r["name"]: r["status"] for r in _rows(out).values()} == {
         "c0": "done", "c1": "done", "broken": "failed", "c2": "done"}
+
+
+@pytest.fixture
+def scheduler(tmp_path):
+    """A Dask scheduler started as its own process (``dask scheduler --scheduler-file``,
+    as on a cluster's head node) and two ``dask worker`` processes joined to it through
+    its file: (scheduler file, its tcp:// address)."""
+    from headrecon_addon import batch_cluster, batch_workers
+
+    file = tmp_path / "scheduler.json"
+    env = batch_workers.worker_env(DASK_LOGGING__DISTRIBUTED="error")
+    quiet = {"env": env, "stdin": subprocess.DEVNULL, "stdout": subprocess.DEVNULL,
+             "stderr": subprocess.DEVNULL}
+    procs = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler",
+                               "--scheduler-file", str(file), "--host", "127.0.0.1",
+                               "--port", "0", "--dashboard-address", ":0"], **quiet)]
+    try:
+        deadline = time.monotonic() + 60
+        while not (file.is_file() and file.read_text().strip().endswith("}")):
+            assert time.monotonic() < deadline and procs[0].poll() is None, \
+                "the scheduler did not start"
+            time.sleep(0.2)
+        address = json.loads(file.read_text())["address"]
+        procs += [subprocess.Popen(batch_cluster.worker_command(address, f"remote-{i}"),
+                                   **quiet) for i in range(2)]
+        yield file, address
+    finally:
+        for proc in procs:
+            proc.terminate()
+        for proc in procs:
+            try:
+                proc.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+
+
+def test_a_scheduler_of_its_own_by_file_and_by_address(heads, scheduler, tmp_path):
+    """``--cluster sched.json`` and ``--cluster tcp://host:port``: a scheduler this batch
+    did not start, with the workers a cluster would have; the same heads as ``--jobs 2``,
+    and the model loaded once per worker over both batches."""
+    file, address = scheduler
+    assert address.startswith("tcp://127.0.0.1:")
+    local = run_python(["-m", "headrecon_addon.headless", heads, "--no-texture", "--force",
+                        "--jobs", "2", "--out", tmp_path / "jobs"])
+    assert local.returncode == 1, local.stderr
+    for where, out in ((file, "by_file"), (address, "by_address")):
+        proc = run_python(["-m", "headrecon_addon.headless", heads, "--no-texture",
+                           "--force", "--out", tmp_path / out, "--cluster", where])
+        assert proc.returncode == 1, proc.stdout + proc.stderr  # the broken row only
+        assert "3 of 4 heads written" in proc.stdout
+        assert "cluster: 2 workers, the model loaded 1/1 times on them" in proc.stderr
+        rows = _rows(tmp_path / out)
+        assert {n: _same(r) for n, r in rows.items()} == \
+            {n: _same(r) for n, r in _rows(tmp_path / "jobs").items()}
+        assert all((tmp_path / out / f"c{i}.blend").is_file() for i in range(3))
 
 
 def test_a_dead_worker_process_fails_its_head_only(monkeypatch):
