@@ -665,7 +665,7 @@ def _bake(model, world_vertices, views, rasters, parts, occluders, similarity, m
         if len(raster.texel) == 0:
             tex[:] = 0.5
         else:
-            tex[:] = acc.mean(axis=0)
+            tex[:] = np.einsum("ij->j", acc) / len(acc)  # outside the islands: the mean
             tex[raster.texel] = acc
             tex[raster.bleed_to] = tex[raster.bleed_from]
         out[raster.tile] = tex.reshape(size, size, 3)

@@ -45,13 +45,26 @@ def rasterize(tri_xy, width, height):
     one triangle per pixel use :func:`first_per_pixel`. Degenerate (zero-area) triangles
     cover nothing.
     """
+    out_p, out_t, out_b = [], [], []
+    for pixel, tri, bary in _fragments(tri_xy, width, height):
+        out_p.append(pixel)
+        out_t.append(tri)
+        out_b.append(bary)
+    if not out_p:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3))
+    return np.concatenate(out_p), np.concatenate(out_t), np.concatenate(out_b)
+
+
+def _fragments(tri_xy, width, height):
+    """The covered centres of :func:`rasterize`, a batch at a time: (pixel (n,), triangle
+    (n,), barycentrics (n, 3)) per batch, so a caller that reduces them (a depth buffer)
+    never holds them all."""
     t = np.asarray(tri_xy, dtype=np.float64)
     if t.ndim != 3 or t.shape[1:] != (3, 2):
         raise ValueError(f"tri_xy: expected shape (T, 3, 2), got {t.shape}")
     width, height = int(width), int(height)
-    empty = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)))
     if len(t) == 0 or width <= 0 or height <= 0:
-        return empty
+        return
     finite = np.isfinite(t).all(axis=(1, 2))
     x, y = t[..., 0], t[..., 1]
     with np.errstate(invalid="ignore"):
@@ -74,7 +87,7 @@ def rasterize(tri_xy, width, height):
     ok = finite & (bw > 0) & (bh > 0) & (np.abs(det) > 1e-12 * scale)
     idx = np.flatnonzero(ok)
     if len(idx) == 0:
-        return empty
+        return
     inv = 1.0 / det[idx]
     coef = np.stack([ey2[idx] * inv, -ex2[idx] * inv, -ey1[idx] * inv, ex1[idx] * inv,
                      x[idx, 0], y[idx, 0]], axis=1)
@@ -90,7 +103,6 @@ def rasterize(tri_xy, width, height):
     keys, starts = np.unique(key[order], return_index=True)
     ends = np.append(starts[1:], len(order))
 
-    out_p, out_t, out_b = [], [], []
     for k, s, e in zip(keys, starts, ends, strict=True):
         gw, gh = int(ladder[k // len(ladder)]), int(ladder[k % len(ladder)])
         members = idx[order[s:e]]
@@ -103,17 +115,15 @@ def rasterize(tri_xy, width, height):
             cf = mc[c:c + step]
             for r0 in range(0, gh, band):
                 oy = np.arange(r0, min(gh, r0 + band))
-                _cover(m, cf, ox, oy, x0, y0, bw, bh, width, out_p, out_t, out_b)
-    if not out_p:
-        return empty
-    bary = np.clip(np.concatenate(out_b), 0.0, 1.0)
-    bary /= bary.sum(axis=1, keepdims=True)
-    return np.concatenate(out_p), np.concatenate(out_t), bary
+                hit = _cover(m, cf, ox, oy, x0, y0, bw, bh, width)
+                if hit is not None:
+                    yield hit
 
 
-def _cover(m, cf, ox, oy, x0, y0, bw, bh, width, out_p, out_t, out_b):
+def _cover(m, cf, ox, oy, x0, y0, bw, bh, width):
     """Test the candidate centres (column offsets ox, row offsets oy in each box) of
-    triangles ``m`` with barycentric coefficients ``cf``; append the hits."""
+    triangles ``m`` with barycentric coefficients ``cf``; the hits as (pixel, triangle,
+    barycentrics clipped to [0, 1] and summing to 1), or None."""
     px = x0[m, None, None] + ox[None, None, :]  # (n, 1, gw)
     py = y0[m, None, None] + oy[None, :, None]  # (n, rows, 1)
     inbox = (ox[None, None, :] < bw[m, None, None]) & (oy[None, :, None] < bh[m, None, None])
@@ -124,10 +134,11 @@ def _cover(m, cf, ox, oy, x0, y0, bw, bh, width, out_p, out_t, out_b):
     l0 = 1.0 - l1 - l2
     hit = inbox & (l0 >= -_EPS) & (l1 >= -_EPS) & (l2 >= -_EPS)
     n_i, r_i, c_i = np.nonzero(hit)
-    if len(n_i):
-        out_p.append(py[n_i, r_i, 0] * width + px[n_i, 0, c_i])
-        out_t.append(m[n_i])
-        out_b.append(np.stack([l0[hit], l1[hit], l2[hit]], axis=1))
+    if not len(n_i):
+        return None
+    bary = np.clip(np.stack([l0[hit], l1[hit], l2[hit]], axis=1), 0.0, 1.0)
+    bary /= bary.sum(axis=1, keepdims=True)
+    return py[n_i, r_i, 0] * width + px[n_i, 0, c_i], m[n_i], bary
 
 
 def first_per_pixel(pixel, *arrays):
@@ -165,9 +176,7 @@ def depth_buffer(tri_xy, tri_depth, width, height):
         Smallest depth covering each pixel centre; ``inf`` where nothing does.
     """
     d = np.asarray(tri_depth, dtype=np.float64)
-    pixel, tri, bary = rasterize(tri_xy, width, height)
     buf = np.full(int(width) * int(height), np.inf)
-    if len(pixel):
-        z = np.einsum("nk,nk->n", bary, d[tri])
-        np.minimum.at(buf, pixel, z)
+    for pixel, tri, bary in _fragments(tri_xy, width, height):
+        np.minimum.at(buf, pixel, np.einsum("nk,nk->n", bary, d[tri]))
     return buf.reshape(int(height), int(width))
