@@ -187,11 +187,23 @@ class Engine:
         key = v.tobytes()
         hit = self._slices.get(key)
         if hit is None:
-            slices = [k for k in self._slices if isinstance(k, bytes)]
+            slices = [k for k in self._slices if isinstance(k, bytes)
+                      or (isinstance(k, tuple) and k[0] == "vm")]
             if len(slices) > 64:  # forget the vertex subsets only, not the skin's basis
                 for k in slices:
                     del self._slices[k]
             hit = self.lin.slice(v)
+            self._slices[key] = hit
+        return hit
+
+    def vertex_major(self, vertices):
+        """The basis of a vertex subset vertex-major, (n, 3, K) C order, cached with its
+        :meth:`slice` (the joint rounds gather their rows' modes from it)."""
+        v = np.ascontiguousarray(vertices, dtype=np.int64)
+        key = ("vm", v.tobytes())
+        hit = self._slices.get(key)
+        if hit is None:
+            hit = np.ascontiguousarray(self.slice(v)[1].transpose(1, 2, 0))
             self._slices[key] = hit
         return hit
 

@@ -155,6 +155,12 @@ class Joint:
         self.blocks += [_Block("plane", u, [u]) for u in self.members
                         if u.mirror_of is not None]
 
+    def vertex_major(self):
+        """The copies' basis vertex-major, (n, 3, K) (``Engine.vertex_major``): every
+        problem of this joint gathers its rows' modes from it
+        (``ShapeProblem(vertex_major=)``)."""
+        return self.eng.vertex_major(self.orig)
+
     def sync(self, state):
         self.eng.use(state)
         for v, _, rows in self.groups:
@@ -393,7 +399,8 @@ class Joint:
         active = np.arange(k, model.n_coeffs) if cameras_only else None
         problem = ShapeProblem(model, self.rows, lambda1=self.eng.lambda1,
                                lambda2=self.eng.lambda2, prior=self.eng.prior,
-                               freeze=frozen, active=active)
+                               freeze=frozen, active=active,
+                               vertex_major=None if cameras_only else self.vertex_major())
         reusable = all(kind == "camera" and not state.cameras[b.view.name].perspective
                        for b, kind, *_ in layout)
         return _Prepared(problem, model, k, state.rotation.copy(), tuple(freeze),

@@ -146,7 +146,7 @@ class ShapeFit:
 class _Prepared:
     """Per-group model slices, reused across iterations and solves."""
 
-    def __init__(self, rows, model, active, full_active):
+    def __init__(self, rows, model, active, full_active, vertex_major=None):
         self.rows = rows
         self.model = model
         v = rows.vertices
@@ -180,6 +180,9 @@ class _Prepared:
         self.inactive_idx = np.flatnonzero(inactive)
         self.base = self.mean
         self._basis_vm = None
+        # the first modes of the whole basis vertex-major (V, 3, Kv), kept by the caller
+        # across problems: a group of consecutive copies gathers those modes from it
+        self._prefix = vertex_major if self._source is not None else None
         self._gathers = 0
         self.volatile = False
         self._gram_alpha = None
@@ -199,6 +202,14 @@ class _Prepared:
         replaced between solves (``ShapeProblem.replace_modes``), as re-making that copy
         every round would cost more than the gathers it saves."""
         self._gathers += 1
+        if self._prefix is not None:
+            basis, first = self._source
+            at = idx + first
+            head = self._prefix[at]  # (m, 3, Kv), each vertex's modes contiguous
+            if head.shape[2] == basis.shape[0]:
+                return head
+            tail = np.take(basis[head.shape[2]:], at, axis=1).transpose(1, 2, 0)
+            return np.concatenate([head, tail], axis=2)
         if self.volatile or (self._basis_vm is None and self._gathers <= _DIRECT_GATHERS):
             if self._source is not None:  # (a take from a strided view is 3x slower)
                 basis, first = self._source
@@ -296,10 +307,16 @@ class ShapeProblem:
         Indices of the coefficients that may change (default: all).
     n_coeffs : int, optional
         Shorthand for ``active = range(n_coeffs)``.
+    vertex_major : ndarray, shape (V, 3, Kv), optional
+        The model's first Kv modes vertex-major (``basis[:Kv].transpose(1, 2, 0)``, C
+        order), when the caller keeps them across problems on the same basis (the fit's
+        joint rounds): rows on a few of many vertices gather their modes from it, a
+        contiguous block per vertex, instead of one strided read per mode. Used when every
+        coefficient is active.
     """
 
     def __init__(self, model, rows, lambda1=0.0, lambda2=0.0, prior="eigen", freeze=(),
-                 active=None, n_coeffs=None):
+                 active=None, n_coeffs=None, vertex_major=None):
         mean = np.asarray(getattr(model, "mean", None))
         basis = getattr(model, "basis", None)
         if mean.ndim != 2 or mean.shape[1] != 3 or basis is None \
@@ -350,7 +367,15 @@ class ShapeProblem:
         self.lambda2 = float(lambda2)
         self.prior = prior
         full_active = len(self.active) == k and np.array_equal(self.active, np.arange(k))
-        self.groups = [_Prepared(r, model, self.active, full_active) for r in rows]
+        if vertex_major is not None:
+            vertex_major = np.asarray(vertex_major)
+            if vertex_major.ndim != 3 or vertex_major.shape[:2] != mean.shape or \
+                    vertex_major.shape[2] > k or not vertex_major.flags.c_contiguous:
+                raise ValueError(f"vertex_major: expected a C-ordered (V, 3, Kv) array with "
+                                 f"V = {mean.shape[0]}, Kv <= {k}, got {vertex_major.shape}")
+        self._vertex_major = vertex_major if full_active else None
+        self.groups = [_Prepared(r, model, self.active, full_active, self._vertex_major)
+                       for r in rows]
         ka = len(self.active)
         self.shape_free = "shape" not in freeze
         sim = [i for g, idx in _GROUPS.items() if g not in freeze for i in idx]
@@ -403,6 +428,10 @@ class ShapeProblem:
             if m.shape != (n_vert, 3):
                 raise ValueError(f"mean: expected shape ({n_vert}, 3), got {m.shape}")
             self.model.mean[...] = m
+        if self._vertex_major is not None and start < self._vertex_major.shape[2]:
+            self._vertex_major = None  # its modes replaced: gather them as the others
+            for pg in self.groups:
+                pg._prefix = None
         # rows of the active coefficients that were replaced, and where they sit
         at = np.flatnonzero((self.active >= start) & (self.active < start + len(b)))
         src = self.active[at] - start

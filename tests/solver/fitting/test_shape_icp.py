@@ -604,3 +604,30 @@ def test_rows_on_two_vertices_each_are_solved_exactly():
     # with similarity free, from afar, the full fit
     fit = shape_icp(model, rows, translation=x.mean(0), tolerance=1e-14)
     np.testing.assert_allclose(fit.world_vertices(model), x, atol=1e-10)
+
+
+@pytest.mark.parametrize("prefix", [8, 5])
+def test_modes_gathered_vertex_major_give_the_same_system(prefix):
+    # Rows on a run of consecutive vertices gather their modes from the caller's
+    # vertex-major copy of the first modes (all 8, or 5 and the rest from the basis): the
+    # same normal matrix and step as gathering from the basis itself.
+    model = synthetic_model()
+    rng = np.random.default_rng(17)
+    c = rng.standard_normal(model.n_coeffs)
+    x = model.instance(c) + [0.01, 0.02, 0.03]
+    v = np.arange(100, 400)
+    local = np.arange(len(v))
+    ends = np.stack([local, np.roll(local, 1)], axis=1)
+    t = rng.uniform(0.1, 0.9, len(v))
+    target = (1 - t[:, None]) * x[v[ends[:, 0]]] + t[:, None] * x[v[ends[:, 1]]]
+    vm = np.ascontiguousarray(model.basis[:prefix].transpose(1, 2, 0))
+    start = dict(scale=1.02, coeffs=0.2 * rng.standard_normal(model.n_coeffs))
+    fits = [ShapeProblem(model, _EdgePointRows(v, ends, t, target), lambda2=0.1,
+                         vertex_major=m).solve(max_iterations=1, **start)
+            for m in (None, vm)]
+    scale = np.abs(fits[0].normal_matrix).max()
+    np.testing.assert_allclose(fits[1].normal_matrix, fits[0].normal_matrix, rtol=0,
+                               atol=1e-12 * scale)
+    np.testing.assert_allclose(fits[1].coeffs, fits[0].coeffs, rtol=0, atol=1e-10)
+    with pytest.raises(ValueError, match="vertex_major"):
+        ShapeProblem(model, _EdgePointRows(v, ends, t, target), vertex_major=vm[:10])
