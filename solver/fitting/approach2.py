@@ -66,7 +66,8 @@ def approach2(eng, model, state, opts):
     # is computed once.
     copies = np.concatenate([dense, verts] + parts)
     problem = eng.problem(eng.copies_model(copies),
-                          [mesh_rows, lm_rows] + [rows for _, rows in contour])
+                          [mesh_rows, lm_rows] + [rows for _, rows in contour],
+                          vertex_major=eng.vertex_major(copies))
     best = (joint.reprojection_rms(state), state.copy())
     history = [best[0]]
     for _ in range(opts.tps_iterations):

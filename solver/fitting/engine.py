@@ -227,12 +227,14 @@ class Engine:
         mean, basis = self.slice(vertices)
         return LinearModel(mean, basis, self.lin.stddev, self.lin.names, self.gamma)
 
-    def problem(self, lin, rows, freeze=(), gauge=None):
+    def problem(self, lin, rows, freeze=(), gauge=None, vertex_major=None):
         """A ShapeProblem with the fit's priors; ``gauge`` (default: the engine's, see
-        :meth:`gauge`) are the head's similarity parameters kept fixed besides ``freeze``."""
+        :meth:`gauge`) are the head's similarity parameters kept fixed besides ``freeze``;
+        ``vertex_major`` as ShapeProblem takes it (:meth:`vertex_major` of the copies)."""
         fix = self.fixed_similarity if gauge is None else tuple(gauge)
         return ShapeProblem(lin, rows, lambda1=self.lambda1, lambda2=self.lambda2,
-                            prior=self.prior, freeze=tuple(freeze) + fix)
+                            prior=self.prior, freeze=tuple(freeze) + fix,
+                            vertex_major=vertex_major)
 
     def prior_cost(self, coeffs):
         """lambda2^2 |Lambda c|^2 + lambda1^2 |Gamma c|^2 as the shape-ICP counts it."""

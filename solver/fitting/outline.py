@@ -146,9 +146,12 @@ class ContourRows(CameraRows):
             p = self.camera.project(world) if pixels is None else pixels
             a = p[f0]
             u, v = p[f1] - a, p[f2] - a
-            r = self.camera.rotation
-            # the sign of a turned-to face's projected area: (u x v) . (r0 x r1) scaled
-            winding = float(np.cross(r[0], r[1]) @ self.camera.toward_camera(world[:1])[0])
+            # the sign of a turned-to face's projected area: its normal u x v seen along
+            # r0 x r1 (the image axes' normal) against the direction toward the camera
+            (a0, a1, a2), (b0, b1, b2) = self.camera.rotation[:2].tolist()
+            t0, t1, t2 = self.camera.toward_camera(world[:1])[0].tolist()
+            winding = (a1 * b2 - a2 * b1) * t0 + (a2 * b0 - a0 * b2) * t1 \
+                + (a0 * b1 - a1 * b0) * t2
             facing = (u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]) * winding > 0
         else:
             a = world[f0]
