@@ -630,8 +630,9 @@ class ShapeProblem:
                 m, c = g.shape[:2]
                 basis = pg.gather(np.reshape(idx, -1))
                 basis = basis.reshape(m, c, 3, basis.shape[-1])
-                a_c = np.matmul(h.reshape(m, 1, 3 * c),  # (m, Ka): per row, its few
-                                basis.reshape(m, 3 * c, -1))[:, 0]  # vertices' modes
+                # (m, Ka): each row's few vertices' modes, one batched product
+                a_c = np.matmul(h.reshape(m, 1, 3 * c),
+                                basis.reshape(m, 3 * c, basis.shape[-1]))[:, 0]
                 sr = a_c * np.sqrt(w)[:, None]
                 n_mat[7:, 7:] += sr.T @ sr
                 prod = (a_c * w[:, None]).T @ np.column_stack([a_s, r])
