@@ -146,14 +146,20 @@ def local_cluster(jobs, timeout=300):
                     stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL))
             yield cluster.scheduler_address, procs
         finally:
-            for proc in procs:
-                proc.terminate()
-            for proc in procs:
-                try:
-                    proc.wait(timeout=30)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
-                    proc.wait()
+            stop_processes(procs)
+
+
+def stop_processes(procs, timeout=30):
+    """Ask the processes to end, then wait for each, killing any that takes longer than
+    ``timeout`` seconds."""
+    for proc in procs:
+        proc.terminate()
+    for proc in procs:
+        try:
+            proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
 
 
 @contextmanager

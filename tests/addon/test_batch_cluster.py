@@ -105,14 +105,7 @@ def scheduler(tmp_path):
                                    **quiet) for i in range(2)]
         yield file, address
     finally:
-        for proc in procs:
-            proc.terminate()
-        for proc in procs:
-            try:
-                proc.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
+        batch_cluster.stop_processes(procs)
 
 
 def test_a_scheduler_of_its_own_by_file_and_by_address(heads, scheduler, tmp_path):
