@@ -29,7 +29,7 @@ rasterisation)::
     tiles = bake_fit_texture(model, result, {"front": front_rgb, "right": side_rgb})
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.ndimage as ndi
@@ -576,15 +576,23 @@ def fit_view_gains(samples, options=None):
     direct = np.flatnonzero(np.r_[True, view[1:] != view[:-1]])  # each view's first pass
     if not opts.equalise or len(direct) < 2:
         return np.ones((p, 3)), np.zeros((p, 3))
-    seen = {t: s.seen[direct] for t, s in samples.items()}
-    both = {t: np.flatnonzero((w > 0).sum(axis=0) >= 2) for t, w in seen.items()}
+    both = {t: np.flatnonzero(_count_seen(s.seen, direct) >= 2) for t, s in samples.items()}
     step = max(1, sum(len(b) for b in both.values()) // EQUALISE_TEXELS)
-    cols = [s.colours[direct][:, both[t][::step]] for t, s in samples.items()]
-    ws = [seen[t][:, both[t][::step]] for t in samples]
+    # only the texels used are gathered: a whole tile's passes are tens of MB
+    cols = [s.colours[direct[:, None], both[t][::step]] for t, s in samples.items()]
+    ws = [s.seen[direct[:, None], both[t][::step]] for t, s in samples.items()]
     row = np.searchsorted(direct, np.arange(p), side="right") - 1  # pass -> its photo's row
     gain, offset = fit_gains(np.concatenate(cols, axis=1), np.concatenate(ws, axis=1),
                              reference=int(row[view_reference(samples)]))
     return gain[row], offset[row]
+
+
+def _count_seen(seen, passes):
+    """How many of the ``passes`` (rows of ``seen`` (P, N)) see each texel, (N,)."""
+    count = np.zeros(seen.shape[1], np.int8)
+    for k in passes:
+        count += seen[k] > 0
+    return count
 
 
 def view_reference(samples):
@@ -653,8 +661,10 @@ def _bake(model, world_vertices, views, rasters, parts, occluders, similarity, m
     ctx = _context(model, world_vertices, views, rasters, parts, occluders, similarity,
                    mirror, options)
     samples = _samples(ctx, rasters)
+    ctx = replace(ctx, samplers=())  # the photos and their depth buffers: sampled, let go
     colours = equalised_colours(samples, ctx.world, ctx.opts, ctx.head_size, in_place=True)
     blended = {t: _blend(s, colours[t], ctx.opts) for t, s in samples.items()}
+    del samples, colours  # every pass of every texel: free them before the textures
     if ctx.opts.shading == "remove":
         _remove_shading(blended, rasters, ctx)
     out = {}
@@ -748,11 +758,12 @@ def _fade_seams(samples, rasters, ctx):
         s = samples[r.tile]
         if not len(r.texel):
             continue
-        f = np.maximum(r.interp @ fade, np.float32(1e-3)).T  # (P, N)
-        w = s.seen * f
+        f = r.interp @ fade  # (N, P)
+        np.maximum(f, np.float32(1e-3), out=f)
+        w = np.multiply(s.seen, f.T, out=s.weights)  # in place: a tile's passes are large
+        del f
         total, faded = s.seen.sum(axis=0), w.sum(axis=0)
         w *= np.where(faded > 0, total / np.maximum(faded, 1e-30), 0.0)[None]
-        s.weights[:] = w
 
 
 def equalised_colours(samples, world, options=None, head_size=None, in_place=False):
@@ -805,7 +816,9 @@ def equalised_colours(samples, world, options=None, head_size=None, in_place=Fal
             r = s.raster
             om = np.minimum(s.seen[ref], s.seen[k])
             om *= om >= np.float32(LEVEL_WEIGHT)  # grazing samples (an outline) say little
-            diff += r.gather @ (om[:, None] * (out[t][ref] - out[t][k]))
+            step = out[t][ref] - out[t][k]
+            step *= om[:, None]  # in place: a tile's colours are large
+            diff += r.gather @ step
             both += r.gather @ om
             strength += r.gather @ (om > 0).astype(np.float32)
         if not (both > 0).any():
@@ -815,7 +828,9 @@ def equalised_colours(samples, world, options=None, head_size=None, in_place=Fal
         field = level_field(diff, share, world, tris, opts.level_length * head_size,
                             decay=opts.level_decay * head_size)
         for t, s in samples.items():
-            out[t][k] += (s.raster.interp @ field.astype(np.float32)) * (s.seen[k] > 0)[:, None]
+            add = s.raster.interp @ field.astype(np.float32)
+            add *= (s.seen[k] > 0)[:, None]
+            out[t][k] += add
     return out
 
 
@@ -830,9 +845,10 @@ def _blend(samples, colours, opts):
         return acc
     fill = _smooth_fill(raster, acc, wsum, opts.fill_weight)
     short = np.maximum(opts.fill_weight - wsum, 0.0)
-    acc += short[:, None] * fill
+    fill *= short[:, None]  # in place, as below: a tile's colours are large
+    acc += fill
     acc /= (wsum + short)[:, None]
-    return np.clip(acc, 0.0, 1.0)
+    return np.clip(acc, 0.0, 1.0, out=acc)
 
 
 def _remove_shading(blended, rasters, ctx):
