@@ -40,6 +40,19 @@ from .views import FRONTAL_DEGREES, PROFILE_DEGREES, assign_roles
 OUTLINE_POINT_REACH = 2.5
 
 
+#: Bytes the cached vertex-subset slices of a model may hold (``Engine.slice``): a fit
+#: uses a few dozen MB of them again and again; beyond this the least recent are let go.
+SLICE_CACHE_BYTES = 192 << 20
+
+
+def _is_subset_key(key):
+    return isinstance(key, bytes) or (isinstance(key, tuple) and key[0] == "vm")
+
+
+def _nbytes(value):
+    return sum(a.nbytes for a in value) if isinstance(value, tuple) else value.nbytes
+
+
 class Engine:
     """What the stages of one fit share: the model being fitted, the views, the weights.
 
@@ -184,27 +197,30 @@ class Engine:
         gathering a few hundred vertices from the (K, V, 3) basis costs more than the rest
         of a Gauss-Newton step."""
         v = np.ascontiguousarray(vertices, dtype=np.int64)
-        key = v.tobytes()
-        hit = self._slices.get(key)
-        if hit is None:
-            slices = [k for k in self._slices if isinstance(k, bytes)
-                      or (isinstance(k, tuple) and k[0] == "vm")]
-            if len(slices) > 64:  # forget the vertex subsets only, not the skin's basis
-                for k in slices:
-                    del self._slices[k]
-            hit = self.lin.slice(v)
-            self._slices[key] = hit
-        return hit
+        return self._subset(v.tobytes(), lambda: self.lin.slice(v))
 
     def vertex_major(self, vertices):
         """The basis of a vertex subset vertex-major, (n, 3, K) C order, cached with its
         :meth:`slice` (the joint rounds gather their rows' modes from it)."""
         v = np.ascontiguousarray(vertices, dtype=np.int64)
-        key = ("vm", v.tobytes())
-        hit = self._slices.get(key)
+        return self._subset(("vm", v.tobytes()), lambda: np.ascontiguousarray(
+            self.slice(v)[1].transpose(1, 2, 0)))
+
+    def _subset(self, key, make):
+        """A cached vertex-subset array (:meth:`slice`, :meth:`vertex_major`), made when
+        missing; the least recently used ones are forgotten beyond ``SLICE_CACHE_BYTES``
+        (a fit's outline candidates differ from head to head: a batch would pile them up)."""
+        cache = self._slices
+        hit = cache.pop(key, None)
         if hit is None:
-            hit = np.ascontiguousarray(self.slice(v)[1].transpose(1, 2, 0))
-            self._slices[key] = hit
+            hit = make()
+        cache[key] = hit  # the most recently used last
+        subsets = [k for k in cache if _is_subset_key(k)]
+        total = sum(_nbytes(cache[k]) for k in subsets)
+        for k in subsets[:-1]:  # oldest first, never the one just asked for
+            if total <= SLICE_CACHE_BYTES:
+                break
+            total -= _nbytes(cache.pop(k))
         return hit
 
     def skin_basis32(self, skin):
