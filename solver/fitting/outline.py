@@ -134,18 +134,23 @@ class ContourRows(CameraRows):
         (E', 2) candidate indices."""
         return self.rim_edges(world)[:, :2]
 
-    def rim_edges(self, world, pixels=None):
+    def rim_edges(self, world):
         """The rows of ``edges`` (a, b, face 1, face 2) on the contour generator of the
-        posed head: one of their faces turned to the camera, the other away. Through an
+        posed head: one of their faces turned to the camera, the other away."""
+        return self._rim_and_pixels(world)[0]
+
+    def _rim_and_pixels(self, world):
+        """(:meth:`rim_edges`, the candidates' projections (n, 2) or None). Through an
         orthographic camera a face turns to it exactly when its projection keeps its
-        winding, so the candidates' ``pixels`` (their projections, computed when not
-        given) decide; other cameras compare each face's normal with the direction
+        winding, so every candidate is projected once, and the projections serve the
+        rim's edges too; other cameras compare each face's normal with the direction
         toward the camera."""
         f0, f1, f2 = self._corners()
+        pixels = None
         if isinstance(self.camera, OrthographicCamera):
-            p = self.camera.project(world) if pixels is None else pixels
-            a = p[f0]
-            u, v = p[f1] - a, p[f2] - a
+            pixels = self.camera.project(world)
+            a = pixels[f0]
+            u, v = pixels[f1] - a, pixels[f2] - a
             # the sign of a turned-to face's projected area: its normal u x v seen along
             # r0 x r1 (the image axes' normal) against the direction toward the camera
             (a0, a1, a2), (b0, b1, b2) = self.camera.rotation[:2].tolist()
@@ -163,15 +168,7 @@ class ContourRows(CameraRows):
             toward = np.asarray(self.camera.toward_camera((a + world[f1] + world[f2]) / 3.0),
                                 dtype=np.float64)
             facing = np.einsum("ij,ij->i", normal, toward) > 0
-        return self.edges[facing[self.edges[:, 2]] != facing[self.edges[:, 3]]]
-
-    def _rim_and_pixels(self, world):
-        """(rim edges as :meth:`rim_edges`, the candidates' projections (n, 2) or None):
-        an orthographic camera projects every candidate once for both."""
-        if isinstance(self.camera, OrthographicCamera):
-            pixels = self.camera.project(world)
-            return self.rim_edges(world, pixels), pixels
-        return self.rim_edges(world), None
+        return self.edges[facing[self.edges[:, 2]] != facing[self.edges[:, 3]]], pixels
 
     def _corners(self):
         """The faces' first, second and third corners, three contiguous (F,) arrays."""
