@@ -212,15 +212,17 @@ class Engine:
         (a fit's outline candidates differ from head to head: a batch would pile them up)."""
         cache = self._slices
         hit = cache.pop(key, None)
-        if hit is None:
+        made = hit is None
+        if made:
             hit = make()
         cache[key] = hit  # the most recently used last
-        subsets = [k for k in cache if _is_subset_key(k)]
-        total = sum(_nbytes(cache[k]) for k in subsets)
-        for k in subsets[:-1]:  # oldest first, never the one just asked for
-            if total <= SLICE_CACHE_BYTES:
-                break
-            total -= _nbytes(cache.pop(k))
+        if made:  # only a new one can take the cache past its budget
+            subsets = [k for k in cache if _is_subset_key(k)]
+            total = sum(_nbytes(cache[k]) for k in subsets)
+            for k in subsets[:-1]:  # oldest first, never the one just asked for
+                if total <= SLICE_CACHE_BYTES:
+                    break
+                total -= _nbytes(cache.pop(k))
         return hit
 
     def skin_basis32(self, skin):
