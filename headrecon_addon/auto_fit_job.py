@@ -87,13 +87,17 @@ class AutoFitJob:
         return parse_landmarks(self.document, "<scene>", for_fit=False)
 
     def share_outlines(self):
-        """The outlines the landmarks' detection found already (a profile's, read for its
-        landmarks) given to the outline tasks of the same photos, not looked for again."""
-        found = {t.view: t.face.outline for t in self.detect.tasks
-                 if t.face is not None and t.face.outline is not None}
+        """What the landmarks' detection found given to the outline tasks of the same
+        photos, not looked for again: the outlines found already (a profile's, read for
+        its landmarks), and each face the outline starts from."""
+        faces = {t.view: t.face for t in self.detect.tasks if t.face is not None}
         for task in self.outlines.tasks if self.outlines is not None else ():
-            if task.view in found:
-                task.points, task.notes = found[task.view].points, list(found[task.view].notes)
+            face = faces.get(task.view)
+            if face is None:
+                continue
+            task.face = face.found
+            if face.outline is not None:
+                task.points, task.notes = face.outline.points, list(face.outline.notes)
 
     def run(self):
         """Detect, merge, fit, bake. Errors are kept in ``error``, never raised."""
@@ -130,10 +134,12 @@ def prepare_auto_fit(scene, replace=False):
     ValueError, FileNotFoundError
         No photos; the head model missing.
     """
-    detect = detect_job.prepare_detection(scene, "", replace, skip_hand_placed=True)
+    read = {}  # each photo's pixels read once for both detections
+    detect = detect_job.prepare_detection(scene, "", replace, skip_hand_placed=True,
+                                          read=read)
     return AutoFitJob(detect, fit_job.job_from_scene(scene, None),
                       scene_to_case.case_dict_from_scene(scene),
-                      outline_job.prepare_outlines(scene, "", replace))
+                      outline_job.prepare_outlines(scene, "", replace, read=read))
 
 
 def apply_auto_fit(scene, job):

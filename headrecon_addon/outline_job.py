@@ -29,6 +29,7 @@ class OutlineTask:
     pixels: object
     has_contour: bool
     detected: bool
+    face: object = None  # the detector's face on the photo, when found already (Auto Fit)
     points: object = None
     notes: list = dataclasses.field(default_factory=list)
     problem: str = None
@@ -62,7 +63,7 @@ class OutlineJob(PhotosJob):
         if task.points is not None:
             return  # found already (Auto Fit: by the landmarks' detection on a profile)
         try:
-            found = photo_faces.find_outline(task.pixels)
+            found = photo_faces.find_outline(task.pixels, task.face)
             task.points, task.notes = found.points, found.notes
         except ValueError as e:
             task.problem = str(e)
@@ -75,8 +76,9 @@ class OutlineJob(PhotosJob):
         return [line for t in self.tasks for line in t.lines(self.replace)]
 
 
-def prepare_outlines(scene, view="", replace=False):
-    """Read the photos to find the outline on (main thread): one view, or every photo.
+def prepare_outlines(scene, view="", replace=False, read=None):
+    """Read the photos to find the outline on (main thread): one view, or every photo
+    (``read``: as ``detect_job.prepare_detection``'s).
 
     Raises
     ------
@@ -87,7 +89,7 @@ def prepare_outlines(scene, view="", replace=False):
     for plane, name, img in photo_images(scene, view, "find the outline on"):
         if img is None:
             continue
-        tasks.append(OutlineTask(name, img.name, photos.detector_pixels(img),
+        tasks.append(OutlineTask(name, img.name, photos.detector_pixels(img, read),
                                  landmarks.contour_object(plane) is not None,
                                  landmarks.contour_is_detected(plane)))
     return OutlineJob(tasks, replace=replace)

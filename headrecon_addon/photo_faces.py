@@ -48,6 +48,8 @@ class Face:
     outline : solver Outline or None
         The outline a profile's landmarks were read off (found for them), so a job that
         wants the outline too need not look again.
+    found : solver DetectedFace or None
+        The detector's own answer, which the outline starts from (``find_outline``).
     """
 
     points: dict
@@ -58,6 +60,7 @@ class Face:
     score: float
     off_outline: bool = False
     outline: object = None
+    found: object = None
 
 
 def find_face(pixels):
@@ -78,12 +81,13 @@ def find_face(pixels):
     points, sigma, depth, off_outline = face_landmarks(
         found, (w, h), side, None if outline is None else outline.points)
     return Face(points, sigma, depth, guess, found.is_profile, float(found.score),
-                off_outline, outline)
+                off_outline, outline, found)
 
 
-def find_outline(pixels):
+def find_outline(pixels, found=None):
     """The head's outline in ``pixels`` (as ``find_face``): the solver's ``Outline``
-    (points (n, 2) px, notes).
+    (points (n, 2) px, notes). ``found``: the detector's face on these pixels
+    (``Face.found``), when known, instead of detecting it again.
 
     Raises
     ------
@@ -91,7 +95,8 @@ def find_outline(pixels):
         No face on the photo, or no outline around it (one line, the photo not named).
     """
     d = detector()
-    found = d.detect(pixels)
+    if found is None:
+        found = d.detect(pixels)
     if found is None:
         raise ValueError("no face found, so no outline")
     return d.outline(pixels, found)

@@ -8,6 +8,7 @@ on the same square upright: on the sample's profile photo its iBUG points came 2
 (median) from the truth so, 177 px on the tilted square; only a few of them are kept
 there (``views.PROFILE_KEEP``)."""
 
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -97,7 +98,7 @@ def _network(folder, name):
 
 class Detector:
     """The MediaPipe networks, read once (the segmentation when first used), run with
-    numpy.
+    numpy. A detector may examine several photos at once, one per thread.
 
     Parameters
     ----------
@@ -111,14 +112,16 @@ class Detector:
         self.faces_net = _network(folder, DETECTION_MODEL)
         self.mesh_net = _network(folder, LANDMARK_MODEL)
         self._segmentation_net = None
+        self._segmentation_lock = threading.Lock()  # photos may be examined in threads
 
     def outline(self, image, face):
         """The head's outline around ``face`` (a :class:`DetectedFace` of ``image``
         (H, W, 3), uint8 or float in [0, 1]): ``outline.head_outline``'s
         :class:`~.outline.Outline`. Raises ``ValueError`` (no person, no skin on its
         edge) without naming the photo."""
-        if self._segmentation_net is None:
-            self._segmentation_net = _network(self.folder, SEGMENTATION_MODEL)
+        with self._segmentation_lock:
+            if self._segmentation_net is None:
+                self._segmentation_net = _network(self.folder, SEGMENTATION_MODEL)
         return head_outline(_as_float(image), face, self._segmentation_net)
 
     def detect(self, image, refine=False):

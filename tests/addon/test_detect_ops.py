@@ -247,30 +247,51 @@ def test_a_face_against_the_view_its_photo_was_loaded_as():
     assert loaded_as_problem("front", False, None) is None
 
 
-def test_auto_fit_finds_a_profile_s_outline_once(sample, monkeypatch):
-    # the landmarks' detection finds a profile's outline to read its landmarks off; the
-    # outlines' detection takes that one rather than looking again
-    from headrecon_addon import auto_fit_job, photo_faces
+def test_auto_fit_finds_each_face_and_outline_once(sample, monkeypatch):
+    # the landmarks' detection finds each photo's face, and a profile's outline to read its
+    # landmarks off; the outlines' detection starts from those faces and takes that
+    # outline rather than looking again; each photo's pixels are read once
+    from headrecon_addon import auto_fit_job, photo_faces, photos
 
     folder, _ = sample
     empty_scene()
     _load(folder / "front.png", "front", "orthographic-front")
     _load(folder / "side.png", "side", "orthographic-right")
     kind = type(photo_faces.detector())
-    calls, outline = [], kind.outline
+    calls, outline, detect = [], kind.outline, kind.detect
+    reads, read = [], photos.image_to_array
 
     def counted(self, image, face):
         calls.append(image.shape)
         return outline(self, image, face)
 
+    def detected(self, image, refine=False):
+        calls.append("detect")
+        return detect(self, image, refine)
+
+    def counted_read(image):
+        reads.append(image.name)
+        return read(image)
+
     monkeypatch.setattr(kind, "outline", counted)
+    monkeypatch.setattr(kind, "detect", detected)
+    monkeypatch.setattr(photos, "image_to_array", counted_read)
     job = auto_fit_job.prepare_auto_fit(bpy.context.scene)
+    # each photo read for the detectors once, and once for the texture (the fit's job)
+    assert sorted(reads) == ["front.png", "front.png", "side.png", "side.png"]
+    assert job.outlines.tasks[0].pixels is job.detect.tasks[0].pixels
     job.detect.run()
     job.share_outlines()
     job.outlines.run()
     assert job.detect.error is None and job.outlines.error is None
-    assert len(calls) == 2  # the profile's (for its landmarks), the front's
+    # a face per photo; the profile's outline (for its landmarks), the front's
+    assert calls.count("detect") == 2 and len(calls) == 4
     side = next(t for t in job.detect.tasks if t.view == "side")
     drawn = next(t for t in job.outlines.tasks if t.view == "side")
     assert side.face.off_outline and drawn.points is side.face.outline.points
     assert all(t.points is not None for t in job.outlines.tasks)
+    front = next(t for t in job.outlines.tasks if t.view == "front")
+    assert front.face is next(t for t in job.detect.tasks if t.view == "front").face.found
+    # the same outline as a Detect Outline that looks for the face itself
+    alone = photo_faces.find_outline(np.array(front.pixels))
+    assert np.array_equal(alone.points, front.points)

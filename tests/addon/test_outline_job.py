@@ -4,6 +4,8 @@ unless replaced; a photo without a person is one line and changes nothing; Auto 
 fits with the outlines it found."""
 
 import json
+import os
+import threading
 
 import bpy
 import numpy as np
@@ -110,3 +112,27 @@ def test_the_job_examines_each_photo_and_stops_when_cancelled():
     detect.run()
     assert detect.error is None and detect.tasks[0].face is None
     assert detect.message == "placing the landmarks" and detect.lines()[0][0] == "WARNING"
+
+
+@pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="one core: photos examined in turn")
+def test_the_job_examines_photos_at_once(monkeypatch):
+    """Two photos are examined at the same time (each waits for the other at a barrier,
+    which photos examined in turn never pass), each task keeps its own findings, and the
+    progress ends as one photo after the other would."""
+    from headrecon_addon.outline_job import OutlineJob, OutlineTask
+
+    meet = threading.Barrier(2, timeout=20)
+
+    def examine(self, task):
+        meet.wait()
+        task.points = np.full((3, 2), float(task.pixels[0, 0, 0]))
+
+    monkeypatch.setattr(OutlineJob, "examine", examine)
+    tasks = [OutlineTask(v, f"{v}.png", np.full((4, 4, 3), i, np.uint8), False, False)
+             for i, v in enumerate(("front", "side"))]
+    job = OutlineJob(tasks)
+    job.run()
+    assert job.error is None
+    assert [float(t.points[0, 0]) for t in job.tasks] == [0.0, 1.0]
+    assert all(t.seconds > 0 for t in job.tasks)
+    assert (job.fraction, job.message) == (1.0, "drawing the outlines")

@@ -175,3 +175,31 @@ def test_load_photos_sorts_photos_whose_names_say_nothing_by_the_face(sample, sc
     assert photos.photo_source(front.headrecon.image) == str(tmp_path / "IMG_2.png")
     assert photos.photo_source(side.headrecon.image) == str(tmp_path / "IMG_1.png")
     assert side.headrecon.camera_view == "orthographic-right"
+
+
+def test_detector_pixels_are_clamped_srgb_and_read_once(scene):
+    """The detector reads a photo as sRGB in [0, 1], row 0 at the top: an 8-bit image as
+    stored, a float image (linear light) encoded, values beyond [0, 1] clamped; a job
+    that reads a photo twice gets the same read-only array back."""
+    import bpy
+
+    from headrecon_addon import photos
+
+    linear = np.array([[-0.5, 0.0, 0.002], [0.18, 1.0, 2.0]], np.float32)  # (h=2, w=3)
+    img = bpy.data.images.new("hdr", 3, 2, float_buffer=True)
+    rgba = np.ones((2, 3, 4), np.float32)
+    rgba[..., :3] = linear[..., None]
+    img.pixels.foreach_set(rgba[::-1].ravel())  # Blender's rows run bottom-up
+    px = photos.detector_pixels(img)
+    assert px.shape == (2, 3, 3) and px.dtype == np.float32 and px.flags.c_contiguous
+    expect = np.clip(linear, 0.0, 1.0)
+    expect = np.where(expect <= 0.0031308, 12.92 * expect, 1.055 * expect ** (1 / 2.4) - 0.055)
+    assert np.allclose(px[..., 1], expect, atol=1e-6) and px.min() >= 0.0
+    assert px[1, 2, 0] == pytest.approx(1.0) and px[0, 0, 0] == 0.0
+    byte = bpy.data.images.new("ldr", 3, 2)
+    byte.pixels.foreach_set(rgba[::-1].clip(0, 1).ravel())
+    assert np.allclose(photos.detector_pixels(byte)[..., 2], np.clip(linear, 0, 1), atol=1 / 255)
+    read = {}
+    first = photos.detector_pixels(img, read)
+    assert photos.detector_pixels(img, read) is first and not first.flags.writeable
+    assert np.array_equal(first, px) and set(read) == {"hdr"}
