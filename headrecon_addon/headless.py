@@ -274,9 +274,10 @@ def write_head(task, model):
         arrays = {v: photos.image_to_array(img) for v, img in imgs.items()
                   if not img.get(photos.PLACEHOLDER)}
         if arrays:
-            tiles = bake_fit_texture(
+            tiles = bake_fit_texture(  # one thread: the batch's processes share the cores
                 model, result, arrays, size=int(settings["texture_size"]),
-                options=BakeOptions(shading=settings.get("texture_shading") or "keep"))
+                options=BakeOptions(shading=settings.get("texture_shading") or "keep",
+                                    threads=1))
         heap.release_free_memory()  # the bake's temporaries, before Blender takes more
     if "texture" in kinds and tiles is None:
         raise ValueError(f"{task['where']}: no photo to bake the texture from")

@@ -29,6 +29,8 @@ rasterisation)::
     tiles = bake_fit_texture(model, result, {"front": front_rgb, "right": side_rgb})
 """
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -42,7 +44,7 @@ from .equalise import apply_gains, default_reference, fit_gains
 from .levelling import level_field
 from .raster import depth_buffer
 from .seams import edge_graph, seam_fade
-from .shading import remove_shading, shading_factor
+from .shading import mesh_operators, remove_shading, shading_factor
 from .uvs import BLEED, SKIN_PARTS, UVRaster, resolve_parts, selected_triangles, uv_raster, uv_tiles
 
 #: Longest photo side the bake samples, per texel of the texture's height: a photo larger
@@ -154,6 +156,11 @@ class BakeOptions:
     shading_length : float
         Smoothing length of the light estimate, as a fraction of the head's size (0.06:
         about 3 cm).
+    threads : int
+        Threads the bake works in at once (blocks of texels, each photo's depth buffer,
+        each photo's levelling, each tile's blend); 0 (default): as many as the machine
+        has cores, for one head at a time; 1 where other processes share the cores (a
+        batch's workers). The texture is the same for any number.
     """
 
     power: float = 3.0
@@ -171,6 +178,7 @@ class BakeOptions:
     seam_feather: float = 0.03
     shading: str = "keep"
     shading_length: float = 0.06
+    threads: int = 0
 
     def __post_init__(self):
         checks = {"power": self.power > 0, "mirror_weight": self.mirror_weight >= 0,
@@ -182,7 +190,8 @@ class BakeOptions:
                   "shading": self.shading in SHADING_MODES,
                   "shading_length": self.shading_length > 0,
                   "level_length": self.level_length > 0,
-                  "level_decay": self.level_decay > self.level_length}
+                  "level_decay": self.level_decay > self.level_length,
+                  "threads": self.threads >= 0}
         for name, ok in checks.items():
             if not ok:
                 raise ValueError(f"BakeOptions.{name}: out of range ({getattr(self, name)!r})")
@@ -644,9 +653,10 @@ def _context(model, world_vertices, views, rasters, parts, occluders, similarity
         mirror_flags = [bool(m) for m in mirror]
         if len(mirror_flags) != len(views):
             raise ValueError(f"mirror: {len(mirror_flags)} flags for {len(views)} views")
+    built = _map(lambda v: _ViewSampler(*v, world, occluders, head_size, centre, opts), views,
+                 opts.threads)
     samplers = []
-    for i, (img, cam, scale) in enumerate(views):
-        s = _ViewSampler(img, cam, scale, world, occluders, head_size, centre, opts)
+    for i, ((_, cam, _), s) in enumerate(zip(views, built, strict=True)):
         if mirror_flags is None:
             toward = np.asarray(cam.toward_camera(centre[None]), dtype=np.float64)[0]
             use_mirror = abs(float(toward @ normal_m)) >= opts.mirror_min_lateral
@@ -663,7 +673,9 @@ def _bake(model, world_vertices, views, rasters, parts, occluders, similarity, m
     samples = _samples(ctx, rasters)
     ctx = replace(ctx, samplers=())  # the photos and their depth buffers: sampled, let go
     colours = equalised_colours(samples, ctx.world, ctx.opts, ctx.head_size, in_place=True)
-    blended = {t: _blend(s, colours[t], ctx.opts) for t, s in samples.items()}
+    blended = dict(zip(samples, _map(lambda sc: _blend(*sc, ctx.opts),
+                                     [(s, colours[t]) for t, s in samples.items()],
+                                     ctx.opts.threads), strict=True))
     del samples, colours  # every pass of every texel: free them before the textures
     if ctx.opts.shading == "remove":
         _remove_shading(blended, rasters, ctx)
@@ -714,8 +726,9 @@ def _sample_tile(raster, ctx):
             columns.append(toward)
     columns = np.hstack(columns)
     # A block of texels at a time: every step is per texel, so the result is the same, and
-    # the temporaries (the interpolated columns, a pass's sampling) stay a block's size.
-    for a in range(0, n, SAMPLE_BLOCK):
+    # the temporaries (the interpolated columns, a pass's sampling) stay a block's size;
+    # blocks write disjoint texels, so threads may take them in any order.
+    def block(a):
         b = min(n, a + SAMPLE_BLOCK)
         values = raster.interp[a:b] @ columns
         nrm = values[:, :3]
@@ -732,7 +745,21 @@ def _sample_tile(raster, ctx):
             idx, w, rgb = sampler.sample(nrm, cos, uvz, factor)
             colours[k, a + idx] = rgb
             weights[k, a + idx] = w
+
+    _map(block, range(0, n, SAMPLE_BLOCK), opts.threads)
     return TileSamples(raster, colours, weights, weights.copy(), view)
+
+
+def _map(fn, items, threads):
+    """``[fn(item) for item in items]`` on up to ``threads`` threads (0: the machine's
+    cores; numpy lets go of the interpreter in its array loops); the first error is
+    raised."""
+    items = list(items)
+    threads = threads or os.cpu_count() or 1
+    if threads <= 1 or len(items) <= 1:
+        return [fn(item) for item in items]
+    with ThreadPoolExecutor(min(threads, len(items))) as pool:
+        return [done.result() for done in [pool.submit(fn, item) for item in items]]
 
 
 def _fade_seams(samples, rasters, ctx):
@@ -806,9 +833,9 @@ def equalised_colours(samples, world, options=None, head_size=None, in_place=Fal
     cover = np.zeros(n_vertices)
     for r in rasters:
         cover[r.vertices] += r.cover
-    for k in range(p):
-        if k == ref:
-            continue
+    operators = mesh_operators(world, tris)  # one surface for every pass
+
+    def level(k):  # each pass writes its own colours only, so passes may go at once
         both = np.zeros(n_vertices)
         diff = np.zeros((n_vertices, 3))
         strength = np.zeros(n_vertices)
@@ -822,15 +849,17 @@ def equalised_colours(samples, world, options=None, head_size=None, in_place=Fal
             both += r.gather @ om
             strength += r.gather @ (om > 0).astype(np.float32)
         if not (both > 0).any():
-            continue
+            return
         diff /= np.maximum(both, 1e-30)[:, None]
         share = np.where(cover > 0, strength / np.maximum(cover, 1e-30), 0.0)
         field = level_field(diff, share, world, tris, opts.level_length * head_size,
-                            decay=opts.level_decay * head_size)
+                            decay=opts.level_decay * head_size, operators=operators)
         for t, s in samples.items():
             add = s.raster.interp @ field.astype(np.float32)
             add *= (s.seen[k] > 0)[:, None]
             out[t][k] += add
+
+    _map(level, [k for k in range(p) if k != ref], opts.threads)
     return out
 
 

@@ -18,7 +18,8 @@ import scipy.sparse.linalg as spla
 from .shading import mesh_operators
 
 
-def level_field(difference, overlap, points, triangles, length, decay=None):
+def level_field(difference, overlap, points, triangles, length, decay=None,
+                operators=None):
     """A smooth correction per vertex that matches ``difference`` where ``overlap`` is
     high and, where it is 0, continues it smoothly and fades out over about ``decay``.
 
@@ -41,6 +42,9 @@ def level_field(difference, overlap, points, triangles, length, decay=None):
         Metres over which the correction fades away from the overlap (> ``length``), so a
         photo keeps its own colours far from its seams; default: no fading (a harmonic
         continuation, only parts that touch no overlap go to 0).
+    operators : tuple, optional
+        ``shading.mesh_operators(points, triangles)``, when the caller has them already
+        (several views levelled on one surface).
 
     Returns
     -------
@@ -52,7 +56,7 @@ def level_field(difference, overlap, points, triangles, length, decay=None):
         raise ValueError(f"overlap: expected shape ({d.shape[0]},), got {wv.shape}")
     if length <= 0:
         raise ValueError(f"length: expected > 0 metres, got {length}")
-    used, _, area, lap = mesh_operators(points, triangles)
+    used, _, area, lap = operators or mesh_operators(points, triangles)
     data = area * wv[used]
     if decay is not None and not decay > length:
         raise ValueError(f"decay: expected more than length ({length} m), got {decay}")

@@ -394,6 +394,28 @@ def test_real_head_front_photo_lands_on_front_facing_skin(model):
         assert np.mean(err[facing] < 0.01) > 0.99, tile
 
 
+def test_threads_bake_the_texture_of_one_thread(model, monkeypatch):
+    """Any number of threads (``BakeOptions.threads``: blocks of texels, each photo's
+    depth buffer and levelling, each tile's blend) bakes the same texture, bit for bit:
+    two tiles, a profile used mirrored and levelled to the front."""
+    from solver.texture import bake
+
+    monkeypatch.setattr(bake, "SAMPLE_BLOCK", 4099)  # several blocks per tile
+    rng = np.random.default_rng(3)
+    views = [(rng.random((256, 192, 3), dtype=np.float32),
+              OrthographicCamera.nominal(v, (192, 256)))
+             for v in ("orthographic-front", "orthographic-right")]
+    one = bake_tiles(model, model.vertices, views, 128, options=BakeOptions(threads=1))
+    for threads in (2, 3, 0):
+        many = bake_tiles(model, model.vertices, views, 128,
+                          options=BakeOptions(threads=threads))
+        assert sorted(many) == sorted(one) == [1001, 1002]
+        for tile, tex in one.items():
+            np.testing.assert_array_equal(many[tile], tex)
+    with pytest.raises(ValueError, match="BakeOptions.threads"):
+        BakeOptions(threads=-1)
+
+
 def test_a_reduced_photo_is_sampled_where_the_full_one_would_be():
     m = two_sheets()
     cam = OrthographicCamera.nominal("orthographic-front", (W, H))
