@@ -67,6 +67,7 @@ if __package__:
         FitOptions,
         bake_fit_texture,
         fit_head,
+        forget_fit_subsets,
         load_landmarks,
         load_model,
         orthographic_lenses,
@@ -267,6 +268,7 @@ def write_head(task, model):
     imgs = _images_for(case, None)  # fails fast on a missing photo, before the fit
     orthographic_lenses(case)  # the photos' EXIF lenses, for the projection check
     result = fit_head(model, case, options)
+    forget_fit_subsets(model)  # this head's subsets: another head seldom asks for them
     for message in result.info.get("warnings", ()):
         print(f"{name}: warning: {message}", file=sys.stderr, flush=True)
     tiles = None

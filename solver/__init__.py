@@ -20,6 +20,7 @@ from .cameras.pinhole import PinholeCamera
 from .detect.detected_case import face_landmarks
 from .detect.detector import DetectedFace, Detector
 from .detect.view_guess import ViewGuess, guess_view
+from .fitting.engine import forget_fit_subsets
 from .fitting.fit import FitOptions, fit_head, refit_landmarks
 from .fitting.result import FitResult, ViewResidual
 from .io.camera_json import camera_from_json, camera_to_json
@@ -55,8 +56,8 @@ __all__ = [
     "ViewGuess", "ViewResidual", "bake_fit_texture", "bake_texture", "blender_to_krc",
     "camera_class", "camera_from_dict", "camera_from_json", "camera_to_json", "check_case",
     "check_passpoints", "count_problems", "dlt_to_blender", "face_landmarks",
-    "fit_dlt",
-    "fit_head", "guess_view", "landmarks_needed", "landmarks_to_dict", "load_landmark_set",
+    "fit_dlt", "fit_head", "forget_fit_subsets",
+    "guess_view", "landmarks_needed", "landmarks_to_dict", "load_landmark_set",
     "load_landmarks", "load_model", "orient", "oriented_size", "orthographic_lenses",
     "orthographic_uvs",
     "parse_landmarks", "read_photo_exif", "refit_landmarks", "save_landmarks", "uv_raster",

@@ -20,3 +20,9 @@ def memo(owner, key, make):
     value = make()
     with _lock:
         return store.setdefault(key, value)
+
+
+def memo_items(owner):
+    """The (key, value) pairs kept with ``owner`` so far (a snapshot)."""
+    with _lock:
+        return list(owner.__dict__.get("_memo", {}).items())

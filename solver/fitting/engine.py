@@ -17,7 +17,7 @@ import numpy as np
 
 from ..cameras.mirror import estimate_mirror
 from ..io.landmark_counts import MIN_LANDMARKS_PER_VIEW
-from ..memo import memo
+from ..memo import memo, memo_items
 from ..model.linear_model import LinearModel
 from ..model.stacked import StackedModel
 from .contour_start import camera_from_outline
@@ -40,6 +40,9 @@ from .views import FRONTAL_DEGREES, PROFILE_DEGREES, assign_roles
 OUTLINE_POINT_REACH = 2.5
 
 
+#: The key of a fitted model kept with its head model (``memo``; its slices kept with it).
+FITTED_MODEL = "fitted model"
+
 #: Bytes the cached vertex-subset slices of a model may hold (``Engine.slice``): a fit
 #: uses a few dozen MB of them again and again; beyond this the least recent are let go.
 SLICE_CACHE_BYTES = 192 << 20
@@ -47,6 +50,20 @@ SLICE_CACHE_BYTES = 192 << 20
 
 def _is_subset_key(key):
     return isinstance(key, bytes) or (isinstance(key, tuple) and key[0] == "vm")
+
+
+def forget_fit_subsets(model):
+    """Let go of the vertex subsets the fits of ``model`` cached (``Engine.slice``,
+    ``Engine.vertex_major``), keeping what every fit asks for (the skin's basis). For a
+    batch between heads: another head seldom asks for the same subsets (its visible
+    landmarks, its outline's candidates), so they would pile up to ``SLICE_CACHE_BYTES``
+    in a worker, about 1 MB a head; made again, they cost a fit about 10 ms."""
+    for key, lin in memo_items(model):
+        if not (isinstance(key, tuple) and key[:1] == (FITTED_MODEL,)):
+            continue
+        cache = dict(memo_items(lin)).get("slices")
+        for k in [k for k in list(cache or ()) if _is_subset_key(k)]:
+            cache.pop(k, None)
 
 
 def _nbytes(value):
@@ -132,7 +149,7 @@ class Engine:
                 parts.append(model.regional(int(opts.n_regional)))
             return StackedModel(parts)
 
-        lin = memo(model, ("fitted model", int(opts.n_identity), int(opts.n_regional)), make)
+        lin = memo(model, (FITTED_MODEL, int(opts.n_identity), int(opts.n_regional)), make)
         eng = cls(lin, views, *outline_candidates(model), opts.noise_px, opts.lambda1,
                   opts.lambda2, opts.prior, opts.contour_weight, opts.contour_threshold_px)
         eng.slide_outline = opts.outline_landmarks == "slide"

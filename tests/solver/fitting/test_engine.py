@@ -48,3 +48,34 @@ def test_many_vertex_subsets_do_not_evict_the_skins_basis(model, monkeypatch):
     held = sum(sum(a.nbytes for a in v) if isinstance(v, tuple) else v.nbytes
                for k, v in eng._slices.items() if isinstance(k, bytes) or k[0] == "vm")
     assert held <= engine.SLICE_CACHE_BYTES
+
+
+def test_forgotten_subsets_are_made_again_and_fit_the_same_head(model):
+    """A batch worker forgets a head's vertex subsets (``forget_fit_subsets``): none is
+    left (the skin's basis, which every fit asks for, is kept), and the next fit makes
+    them again and lands on the same head as with them cached."""
+    from solver import fit_head, forget_fit_subsets
+    from solver.memo import memo_items
+
+    case, _ = make_case(model, 6, noise_px=1.0)
+    opts = FitOptions(n_identity=20)
+    first = fit_head(model, case, opts).local_vertices
+    cached = fit_head(model, case, opts).local_vertices
+
+    def caches():
+        return [dict(memo_items(lin))["slices"] for key, lin in memo_items(model)
+                if isinstance(key, tuple) and key[:1] == (engine.FITTED_MODEL,)]
+
+    def subsets():
+        return [k for c in caches() for k in c if engine._is_subset_key(k)]
+
+    assert subsets()
+    kept = {k: v for c in caches() for k, v in c.items() if not engine._is_subset_key(k)}
+    assert any(isinstance(k, tuple) and k[0] == "f32" for k in kept)
+    forget_fit_subsets(model)
+    assert not subsets()
+    assert {k: v for c in caches() for k, v in c.items()} == kept
+    again = fit_head(model, case, opts).local_vertices
+    assert subsets()
+    np.testing.assert_array_equal(again, cached)
+    np.testing.assert_array_equal(again, first)
