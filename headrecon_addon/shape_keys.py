@@ -144,10 +144,10 @@ def write_fit_keys(obj, model, result):
 
     try:
         k = len(result.identity_coeffs)
-        ident = mean[None] + model.identity.basis[:k]
-        for name, c, co in zip(model.identity.names[:k], result.identity_coeffs, ident,
-                               strict=True):
-            add(name, co, c)
+        # a key's positions at a time: all of them at once were a 64 MB temporary
+        for name, c, mode in zip(model.identity.names[:k], result.identity_coeffs,
+                                 model.identity.basis[:k], strict=True):
+            add(name, mean + mode, c)
         reg = regional_model_of(model, result)
         if reg is not None:
             for name, c, delta in zip(reg.names, result.regional_coeffs, reg.basis, strict=True):
