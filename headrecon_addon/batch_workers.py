@@ -19,16 +19,14 @@ import threading
 from pathlib import Path
 
 from . import blas_threads
+from .solver_link import usable_cores
 
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent
 
 
 def cpu_count():
-    """The cores this process may use."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
+    """The cores this process may use (``solver.usable_cores``): the default ``--jobs``."""
+    return usable_cores()
 
 
 def worker_env(**extra):

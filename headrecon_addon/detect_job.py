@@ -11,12 +11,12 @@ longer finds go. Auto Fit applies the same plan to the landmarks file it fits.
 """
 
 import dataclasses
-import os
 import time
 from concurrent.futures import ThreadPoolExecutor
 
 from . import landmarks, photo_faces, photos
 from .job_progress import Progress
+from .solver_link import usable_cores
 
 
 def _count(n):
@@ -116,7 +116,7 @@ class PhotosJob(Progress):
             photo_faces.detector()  # a missing model: one error before any photo
             n = len(self.tasks)
             self.progress(0.0, f"{self.DOING} {self.tasks[0].photo}" if n else self.DONE)
-            pool = ThreadPoolExecutor(max(1, min(n, os.cpu_count() or 1)))
+            pool = ThreadPoolExecutor(max(1, min(n, usable_cores())))
             running = [pool.submit(self._examine_timed, task) for task in self.tasks]
             for i, done in enumerate(running):
                 done.result()

@@ -17,6 +17,7 @@ from .cameras.blender import blender_to_krc, dlt_to_blender
 from .cameras.calib_errors import check_passpoints
 from .cameras.dlt import DLTCamera, fit_dlt
 from .cameras.pinhole import PinholeCamera
+from .cores import usable_cores
 from .detect.detected_case import face_landmarks
 from .detect.detector import DetectedFace, Detector
 from .detect.view_guess import ViewGuess, guess_view
@@ -60,6 +61,6 @@ __all__ = [
     "guess_view", "landmarks_needed", "landmarks_to_dict", "load_landmark_set",
     "load_landmarks", "load_model", "orient", "oriented_size", "orthographic_lenses",
     "orthographic_uvs",
-    "parse_landmarks", "read_photo_exif", "refit_landmarks", "save_landmarks", "uv_raster",
-    "uv_tiles",
+    "parse_landmarks", "read_photo_exif", "refit_landmarks", "save_landmarks",
+    "usable_cores", "uv_raster", "uv_tiles",
 ]

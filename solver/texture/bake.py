@@ -29,7 +29,6 @@ rasterisation)::
     tiles = bake_fit_texture(model, result, {"front": front_rgb, "right": side_rgb})
 """
 
-import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 
@@ -38,6 +37,7 @@ import scipy.ndimage as ndi
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..cores import usable_cores
 from ..errors import as_points
 from ..geometry import vertex_normals
 from .equalise import apply_gains, default_reference, fit_gains
@@ -158,9 +158,9 @@ class BakeOptions:
         about 3 cm).
     threads : int
         Threads the bake works in at once (blocks of texels, each photo's depth buffer,
-        each photo's levelling, each tile's blend); 0 (default): as many as the machine
-        has cores, for one head at a time; 1 where other processes share the cores (a
-        batch's workers). The texture is the same for any number.
+        each photo's levelling, each tile's blend); 0 (default): as many as the process
+        may use cores (``usable_cores``), for one head at a time; 1 where other processes
+        share the cores (a batch's workers). The texture is the same for any number.
     """
 
     power: float = 3.0
@@ -751,11 +751,11 @@ def _sample_tile(raster, ctx):
 
 
 def _map(fn, items, threads):
-    """``[fn(item) for item in items]`` on up to ``threads`` threads (0: the machine's
+    """``[fn(item) for item in items]`` on up to ``threads`` threads (0: the usable
     cores; numpy lets go of the interpreter in its array loops); the first error is
     raised."""
     items = list(items)
-    threads = threads or os.cpu_count() or 1
+    threads = threads or usable_cores()
     if threads <= 1 or len(items) <= 1:
         return [fn(item) for item in items]
     with ThreadPoolExecutor(min(threads, len(items))) as pool:

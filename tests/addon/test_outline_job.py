@@ -4,7 +4,6 @@ unless replaced; a photo without a person is one line and changes nothing; Auto 
 fits with the outlines it found."""
 
 import json
-import os
 import threading
 
 import bpy
@@ -12,6 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from solver import usable_cores
 from solver.paths import DETECTOR_DIR
 from tests.addon.support import empty_scene
 
@@ -114,7 +114,7 @@ def test_the_job_examines_each_photo_and_stops_when_cancelled():
     assert detect.message == "placing the landmarks" and detect.lines()[0][0] == "WARNING"
 
 
-@pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="one core: photos examined in turn")
+@pytest.mark.skipif(usable_cores() < 2, reason="one core: photos examined in turn")
 def test_the_job_examines_photos_at_once(monkeypatch):
     """Two photos are examined at the same time (each waits for the other at a barrier,
     which photos examined in turn never pass), each task keeps its own findings, and the
