@@ -11,6 +11,7 @@ files, so for .fbx every image without a file on disk (the baked textures) is wr
 PNG into ``<name>_textures/`` beside the .fbx, and the copy's materials use those files.
 """
 
+import gc
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -169,4 +170,8 @@ def export_head(path, head, model_expression_names, fmt="GLB", morph_normals=Fal
         for o in layer.objects:
             o.select_set(o in selected)
         layer.objects.active = active
+        # The exporter leaves its data in reference cycles (about 13 600 objects for a
+        # head's .glb, 60-100 MB that a batch worker otherwise kept into the next head):
+        # collected now, not whenever Python next gets round to it (20-40 ms).
+        gc.collect()
     return path

@@ -2,6 +2,7 @@
 the expression keys by Apple's names at weight 0, the texture embedded, no morph normals
 unless asked; the scene is left as it was; re-imported, Blender shows the fitted face."""
 
+import gc
 import json
 import struct
 from pathlib import Path
@@ -69,6 +70,24 @@ def test_glb_holds_the_fitted_face_and_the_arkit_keys(model, head, tmp_path):
     assert not any("NORMAL" in t for p in mesh["primitives"] for t in p["targets"])
     assert not any(mesh.get("weights", [0.0]))  # no key value set
     assert doc["images"] and all("bufferView" in im and "uri" not in im for im in doc["images"])
+
+
+def test_the_exporter_s_garbage_is_collected_with_the_export(model, head, tmp_path):
+    """Blender's glTF exporter leaves its data in reference cycles (about 13 600 objects
+    for a head); the export collects them, so a batch worker does not carry them into
+    the next head (docs/DECISIONS.md, "A batch worker forgets")."""
+    from headrecon_addon import export
+
+    gc.collect()
+    frozen = gc.isenabled()
+    gc.disable()  # no collection but the export's own from here
+    try:
+        export.export_head(tmp_path / "cycles", head, model.expression_names)
+        left = gc.collect()
+    finally:
+        if frozen:
+            gc.enable()
+    assert left < 500, left
 
 
 def test_morph_normals_only_when_asked(model, head, tmp_path):
