@@ -11,15 +11,23 @@ from ..texture.uvs import resolve_parts
 from .atomic import check_outputs, write_files_atomic
 from .obj import obj_files
 
+#: Rows of a texture converted to 8 bits at a time (``png_bytes``).
+PNG_ROWS = 128
+
 
 def png_bytes(image):
     """float (H, W, 3|4) in [0, 1] -> PNG file contents."""
     from PIL import Image  # on use: the rest of the solver (and the add-on) runs without it
 
-    a = np.asarray(image, dtype=np.float64)
+    a = np.asarray(image)
     if a.ndim != 3 or a.shape[2] not in (3, 4):
         raise ValueError(f"texture: expected (H, W, 3|4), got {a.shape}")
-    u8 = np.round(np.clip(np.nan_to_num(a), 0.0, 1.0) * 255.0).astype(np.uint8)
+    u8 = np.empty(a.shape, np.uint8)
+    # a band of rows at a time: the whole atlas in float64 with its temporaries was 150 MB
+    # at a batch worker's peak
+    for r in range(0, a.shape[0], PNG_ROWS):
+        band = np.nan_to_num(a[r:r + PNG_ROWS].astype(np.float64))
+        u8[r:r + PNG_ROWS] = np.round(np.clip(band, 0.0, 1.0) * 255.0)
     buf = io.BytesIO()
     Image.fromarray(u8).save(buf, format="PNG")  # mode from the shape: RGB or RGBA
     return buf.getvalue()

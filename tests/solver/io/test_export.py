@@ -1,6 +1,7 @@
 """The fitted head's files (solver/io/export.py): the baked UDIM tiles side by side in one
 texture, and the OBJ + PNG + .mtl written together."""
 
+import io
 import os
 
 import numpy as np
@@ -49,6 +50,24 @@ def test_png_bytes_are_the_image_in_8_bits(tmp_path):
         px = np.asarray(im)
     assert px[0, 0].tolist() == [255, 128, 0, 255]
     assert px[1, 2].tolist() == [0, 255, 0, 64]  # NaN -> 0, clipped to [0, 1]
+
+
+def test_png_bytes_convert_a_band_of_rows_at_a_time_as_all_at_once(monkeypatch):
+    """The 8-bit conversion goes a band of rows at a time (``PNG_ROWS``, to bound its
+    memory): bands not dividing the rows, float32 or float64, NaN and infinities give the
+    pixels of the whole image converted at once."""
+    from solver.io import export
+
+    rng = np.random.default_rng(4)
+    for dtype in (np.float32, np.float64):
+        image = rng.normal(0.5, 0.6, size=(37, 11, 3)).astype(dtype)
+        image[0, 0, 0], image[20, 3, 1], image[36, 10, 2] = np.nan, np.inf, -np.inf
+        image[5, :, 0] = (np.arange(11) + 0.5) / 255.0  # halfway between two levels
+        whole = np.round(np.clip(np.nan_to_num(image.astype(np.float64)), 0.0, 1.0)
+                         * 255.0).astype(np.uint8)
+        monkeypatch.setattr(export, "PNG_ROWS", 8)  # 37 rows: four bands and a short one
+        with Image.open(io.BytesIO(png_bytes(image))) as im:
+            np.testing.assert_array_equal(np.asarray(im), whole)
 
 
 def test_write_head_obj_with_texture_and_a_face_subset(tmp_path, model):
