@@ -109,7 +109,7 @@ class PhotosJob(Progress):
 
     def run(self):
         """Examine every photo, timing each (``task.seconds``): as many at once as the
-        machine has cores (the detector's arrays let two photos run 1.5 x as fast as one
+        process may use cores (the detector's arrays let two photos run 1.5 x as fast as one
         after the other on two cores), the progress moving as each one ends."""
         pool = None
         try:
