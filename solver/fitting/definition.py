@@ -186,11 +186,16 @@ class GroupedImageRows(ImageRows):
         w = self.weights
         n = len(w)
         r = self.pixels - _projected(self.camera, world, self.name, self.vertices)
-        jac = np.asarray(self.camera.jacobian(world), dtype=np.float64).reshape(n, 2, 3)
-        if not isinstance(self.camera, OrthographicCamera):
+        ortho = isinstance(self.camera, OrthographicCamera)
+        # an orthographic camera's Jacobians do not depend on the head: its shrink once per
+        # camera, and a cost (no Jacobian asked for) then needs none
+        known = ortho and self._shrunk is not None and self._shrunk[0] is self.camera
+        if jacobian or not known:
+            jac = np.asarray(self.camera.jacobian(world), dtype=np.float64).reshape(n, 2, 3)
+        if not ortho:
             beta, u = self.shrink(jac)
-        else:  # its Jacobians do not depend on the head: once per camera
-            if self._shrunk is None or self._shrunk[0] is not self.camera:
+        else:
+            if not known:
                 self._shrunk = (self.camera, self.shrink(jac))
             beta, u = self._shrunk[1]
         mean = group_means(self.labels, u, r)  # (n, 2) each point's group mean
