@@ -19,14 +19,8 @@ import threading
 from pathlib import Path
 
 from . import blas_threads
-from .solver_link import usable_cores
 
 PACKAGE_ROOT = Path(__file__).resolve().parent.parent
-
-
-def cpu_count():
-    """The cores this process may use (``solver.usable_cores``): the default ``--jobs``."""
-    return usable_cores()
 
 
 def worker_env(**extra):

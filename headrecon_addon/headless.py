@@ -72,6 +72,7 @@ if __package__:
         load_model,
         orthographic_lenses,
         solver,
+        usable_cores,
     )
 
 
@@ -380,7 +381,7 @@ def _parser():
                    help=f"comma-separated outputs per head: {', '.join(OUTPUTS)} "
                         "(default: blend,texture; blend with --no-texture)")
     p.add_argument("--jobs", type=int, metavar="N",
-                   help="worker processes (default: the number of cores)")
+                   help="worker processes (default: the cores this process may use)")
     p.add_argument("--force", action="store_true",
                    help="fit every head again, even those unchanged since their outputs")
     p.add_argument("--export", choices=("glb", "fbx"),
@@ -607,7 +608,7 @@ def main(argv):
                  "summary.jsonl": out_dir / "summary.jsonl"},
                 {f"input {p}": p for p in args.inputs})
         rows, tasks = _tasks(heads, settings, args.force)
-        jobs = min(args.jobs or batch_workers.cpu_count(), len(tasks))
+        jobs = min(args.jobs or usable_cores(), len(tasks))
         if args.cluster:
             cluster = importlib.import_module(f"{__package__}.batch_cluster")
             cluster.distributed()  # not installed: one line, before anything runs

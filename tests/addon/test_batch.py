@@ -227,7 +227,6 @@ def test_workers_get_one_blas_thread_unless_the_environment_says(monkeypatch):
             "for line in sys.stdin:\n"
             "    print(json.dumps(os.environ.get('OPENBLAS_NUM_THREADS')), flush=True)\n")
     monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
-    monkeypatch.setattr(batch_workers, "cpu_count", lambda: 4)
     got = list(batch_workers.run_pool([{}, {}], 2, None, command=[sys.executable, "-c", echo]))
     assert [answer for _, answer in got] == ["1", "1"]
     monkeypatch.setenv("OPENBLAS_NUM_THREADS", "3")  # the environment's own choice is kept
