@@ -126,7 +126,7 @@ def bench_auto_fit(folder, repeat):
     """Auto Fit on the sample's two photos alone (no landmark placed): seconds from the
     button to the textured head, its parts, and the head's skin RMS against the true head
     (mm; the mean head's too)."""
-    from headrecon_addon import headless
+    from headrecon_addon import head_scene
     from headrecon_addon.live_refit import LIVE
     from solver import load_model
     from solver.synthetic import skin_error_mm
@@ -135,7 +135,7 @@ def bench_auto_fit(folder, repeat):
     truth = np.load(Path(folder) / "truth.npz", allow_pickle=True)["local_vertices"]
     seconds, parts = [], []
     for _ in range(repeat):
-        headless.reset_scene()
+        head_scene.reset_scene()
         for view, direction in (("front", "orthographic-front"),
                                 ("side", "orthographic-right")):
             assert bpy.ops.headrecon.load_photo(

@@ -1,4 +1,4 @@
-"""Where a batch worker's time and memory go: one process runs ``headless.write_head`` (the
+"""Where a batch worker's time and memory go: one process runs ``batch_head.write_head`` (the
 code a ``--jobs`` worker runs per head) on a few synthetic heads and times each stage.
 
     python -m bench.bench_batch_stages [--heads 4] [--texture-size 1024] [--outputs blend]
@@ -85,9 +85,12 @@ def main(args):
 
     t1, c1 = time.perf_counter(), time.process_time()
     from headrecon_addon import (
+        batch_head,
+        batch_manifest,
         batch_stamp,
         case_to_scene,
         export,
+        head_scene,
         headless,
         reference_head,
         result_to_scene,
@@ -105,18 +108,18 @@ def main(args):
           f"{memory_mb()[0]} MB resident")
     stages = Stages()
     for module, name, stage in (
-            (headless, "load_landmarks", "read"), (headless, "_images_for", "read"),
-            (headless, "fit_head", "fit"), (headless, "bake_fit_texture", "bake"),
-            (headless, "reset_scene", "fresh"),
-            (headless, "build_scene_from_fit", "scene"),
+            (batch_head, "load_landmarks", "read"), (head_scene, "images_for", "read"),
+            (batch_head, "fit_head", "fit"), (batch_head, "bake_fit_texture", "bake"),
+            (head_scene, "reset_scene", "fresh"),
+            (head_scene, "build_scene_from_fit", "scene"),
             (case_to_scene, "build_view_planes", "planes"),
             (reference_head, "new_head_object", "mesh"),
             (shape_keys, "write_fit_keys", "keys"),
             (result_to_scene, "write_textures", "scene"),
-            (headless, "save_blend", "save"),
+            (head_scene, "save_blend", "save"),
             (export, "export_head", "export"),
             (batch_stamp, "write_record", "record"),
-            (headless, "write_head", "other")):
+            (batch_head, "write_head", "other")):
         stages.wrap(module, name, stage)
     settings = {"outputs": args.outputs.split(","), "bake": True, "texture_size": args.texture_size,
                 "texture_shading": "keep", "bake_identity": False, "morph_normals": False,
@@ -130,7 +133,7 @@ def main(args):
                         str(folder / "in"), str(args.heads)], cwd=ROOT, check=True,
                        env=dict(os.environ, PYTHONPATH=str(ROOT)))
         manifest = folder / "in" / "heads.csv"
-        heads = headless.batch_manifest.plan_heads([manifest], folder / "out")
+        heads = batch_manifest.plan_heads([manifest], folder / "out")
         _, tasks = headless._tasks(heads, settings, True)
         order = ["read", "fit", "bake", "fresh", "mesh", "keys", "planes", "scene", "save",
                  "export", "record", "other"]
@@ -138,7 +141,7 @@ def main(args):
         for i, task in enumerate(tasks):
             stages.times.clear()
             t, c = time.perf_counter(), time.process_time()
-            row = headless._run_task(task, model)
+            row = batch_head.run_task(task, model)
             wall, cpu = time.perf_counter() - t, time.process_time() - c
             if row["status"] != "done":
                 raise SystemExit(f"head {i}: {row['error']}")

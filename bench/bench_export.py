@@ -79,7 +79,7 @@ def main(argv=None):
     args = p.parse_args(argv)
 
     import headrecon_addon
-    from headrecon_addon import export, headless
+    from headrecon_addon import export, head_scene
     from solver import FitOptions, fit_head, load_model
 
     print(f"machine: {machine_description()}")
@@ -90,8 +90,8 @@ def main(argv=None):
         headrecon_addon.register()
     t0 = time.perf_counter()
     result = fit_head(model, case, FitOptions())
-    head = headless.build_scene_from_fit(model, case, result, photos,
-                                         texture_size=args.texture_size, name="head")
+    head = head_scene.build_scene_from_fit(model, case, result, photos,
+                                           texture_size=args.texture_size, name="head")
     n = args.texture_size
     print(f"head: {label}; fitted and baked ({2 * n} x {n} texture) in "
           f"{time.perf_counter() - t0:.2f} s; {len(head.data.vertices)} vertices, "

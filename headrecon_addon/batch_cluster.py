@@ -4,7 +4,7 @@ one-machine cluster of ``--jobs`` worker processes started here and shut down at
 Dask is an optional extra, never bundled with the extension: it is imported only when
 ``--cluster`` is given (``pip install "dask[distributed]==2024.8.2"`` next to the bpy
 module). The cluster runs the very tasks the local workers run: each is a task dict of
-``headless._tasks`` handed to :func:`run_head`, which calls ``headless._run_task`` (fit,
+``headless._tasks`` handed to :func:`run_head`, which calls ``batch_head.run_task`` (fit,
 outputs written atomically through a hidden staging folder, the record last) and returns
 the summary row; the client streams the rows as they finish, into the same summaries,
 progress line and resume records as a local batch.
@@ -96,7 +96,7 @@ def run_head(task, path, command):
     """A cluster task: one head of the batch on this worker's HeadRecon worker (the summary
     row). bpy must run on a process's main thread, and a Dask task runs on a thread of the
     worker's pool, so the head goes to the very worker process a local ``--jobs`` batch
-    uses (``command``, the client's ``batch_workers.worker_command()``: ``_run_task``, the
+    uses (``command``, the client's ``batch_workers.worker_command()``: ``batch_head.run_task``, the
     same code), kept for the worker's life. A head that kills it fails alone; the next
     head starts a new one."""
     from . import batch_summary

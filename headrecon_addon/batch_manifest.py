@@ -240,3 +240,18 @@ def plan_heads(inputs, out):
         elif h.error is None:
             seen[h.name] = h.where
     return heads
+
+
+def fit_options(settings):
+    """The solver's ``FitOptions`` of a head's settings (the fit options of ``_settings`` and
+    ``OPTION_COLUMNS``); ``ValueError`` naming the option when one is bad."""
+    from .solver_link import FitOptions
+
+    kw = {}
+    for key, name in (("method", "method"), ("n_identity", "components"),
+                      ("n_regional", "regional")):
+        if settings.get(name) is not None:
+            kw[key] = settings[name]
+    if settings.get("exact"):
+        kw["exact_landmarks"] = True
+    return FitOptions(**kw)

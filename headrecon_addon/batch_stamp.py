@@ -6,17 +6,23 @@ The hash covers the landmarks file's bytes, every photo it names (bytes, or "mis
 the model file (size and modification time: hashing ~100 MB per head would cost more than
 it saves) and the head's settings (fit options, outputs, texture size). A head whose record
 holds the same hash and whose recorded outputs all exist is skipped.
+
+A head's outputs are written into a hidden staging folder beside them
+(``staging_folder``) and renamed into place; a killed batch's staging folders are removed
+by the next batch (``remove_stale_partials``).
 """
 
 import hashlib
 import importlib
 import json
 import os
+import shutil
 from pathlib import Path
 
 STAMP_SUFFIX = ".batch.json"
 STAMP_FORMAT = "headrecon-batch-record"
 _CHUNK = 1 << 20
+PARTIAL = ".partial-"  # staging folders of heads in flight: ".<name>.partial-<pid>"
 
 
 def stamp_path(base):
@@ -103,3 +109,22 @@ def write_record(base, digest, row):
     text = json.dumps({"format": STAMP_FORMAT, "version": 1, "hash": digest,
                        "summary": row}, indent=1) + "\n"
     atomic.write_file_atomic(stamp_path(base), text)
+
+
+def staging_folder(base):
+    """The staging folder of the head ``base`` written by this process (not created)."""
+    base = Path(base)
+    return base.parent / f".{base.name}{PARTIAL}{os.getpid()}"
+
+
+def remove_stale_partials(folder):
+    """Remove the staging folders a killed batch left in ``folder`` (their process is
+    gone)."""
+    for tmp in Path(folder).glob(f".*{PARTIAL}*"):
+        try:
+            pid = int(tmp.name.rsplit(PARTIAL, 1)[1])
+            os.kill(pid, 0)  # still running: another batch's head in flight
+        except (ValueError, ProcessLookupError):
+            shutil.rmtree(tmp, ignore_errors=True)
+        except PermissionError:
+            pass

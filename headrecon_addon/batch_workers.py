@@ -35,10 +35,9 @@ def worker_env(**extra):
 def worker_command():
     """The command that starts a worker: Blender running ``headless.py`` when this is the
     Blender binary, else this Python with ``-m headrecon_addon.headless`` (the bpy
-    module)."""
-    import bpy
-
-    if bpy.app.binary_path:  # empty for the bpy module
+    module, which this process need not have imported)."""
+    bpy = sys.modules.get("bpy")  # always there in Blender
+    if bpy is not None and bpy.app.binary_path:  # empty for the bpy module
         script = Path(__file__).resolve().with_name("headless.py")
         return [bpy.app.binary_path, "-b", "--factory-startup", "-P", str(script), "--",
                 "--worker"]

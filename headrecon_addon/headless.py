@@ -29,333 +29,32 @@ folder), or, with no photo but sub-folders of photos, each sub-folder is one. A 
 ``photos`` column (the photos separated by ";") does the same for its row. A photo
 without a face fails that head only.
 
-Other code (the demo) builds scenes with :func:`build_scene_from_fit` and writes them
-with :func:`save_blend`.
+This process plans the batch and, at ``--jobs 2`` or more, only waits on its workers: it
+never imports bpy then (``batch_head``, the head's fit and outputs, does), so the workers
+start at once. Scripts that build a head's scene themselves use ``head_scene``.
 """
 
 import argparse
 import contextlib
 import importlib
 import os
-import shutil
 import sys
 import time
 from pathlib import Path
 
-if __package__:
-    import bpy
-    import numpy as np
-
-    from . import (
-        apply_identity,
-        batch_manifest,
-        batch_stamp,
-        batch_summary,
-        batch_workers,
-        blas_threads,
-        case_to_scene,
-        export,
-        heap,
-        photos,
-        result_to_scene,
-        scene_collections,
-    )
-    from .data import Transaction
-    from .solver_link import (
-        SHADING_MODES,
-        BakeOptions,
-        FitOptions,
-        bake_fit_texture,
-        fit_head,
-        forget_fit_subsets,
-        load_landmarks,
-        load_model,
-        orthographic_lenses,
-        solver,
-        usable_cores,
-    )
-
-
-def ensure_registered():
-    """Register the add-on's classes and properties unless they already are."""
-    pkg = importlib.import_module(__package__)
-    if not pkg.is_registered():
-        pkg.register()
-
-
-def reset_scene():
-    """An empty scene (factory settings), the add-on registered."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    ensure_registered()
-
-
-def _images_for(case, images):
-    """bpy images per view from ``images`` (view -> path, bpy Image or ndarray (H, W, 3|4)
-    in [0, 1] with row 0 at the top); views not given use the case's own photo paths (a
-    grey stand-in when the file names none)."""
-    images = dict(images or {})
-    out = {}
-    for view in case.views:
-        given = images.get(view)
-        if given is None:
-            out.update(case_to_scene.load_case_images(_only(case, view)))
-        elif isinstance(given, bpy.types.Image):
-            out[view] = given
-        elif isinstance(given, str | Path):
-            out[view] = photos.load_image(given)
-        else:
-            arr = np.asarray(given, dtype=np.float32)
-            if arr.ndim != 3 or arr.shape[2] not in (3, 4):
-                raise ValueError(f"images[{view!r}]: expected (H, W, 3|4), got {arr.shape}")
-            out[view] = photos.array_to_image(arr, f"HeadRecon {view} photo")
-    return out
-
-
-def _only(case, view):
-    return type(case)({view: case.views[view]}, case.source)
-
-
-def build_scene_from_fit(model, case, result, images=None, scene=None, texture_size=1024,
-                         bake=True, name=None, textures=None, texture_shading="keep"):
-    """Build the artist's scene for a finished fit: photo planes with landmarks (and
-    contour, passpoints), a Blender camera per perspective photo set to its fitted camera,
-    and the head with shape keys, transform, uncertainty and baked texture; the residual
-    list with the passpoint checks.
-
-    Parameters
-    ----------
-    model : HeadModel
-    case : LandmarkCase
-    result : FitResult
-        ``fit_head(model, case, ...)``.
-    images : dict of str -> (path | bpy.types.Image | ndarray (H, W, 3|4)), optional
-        Photo of each view (default: the paths in the case).
-    scene : bpy.types.Scene, optional
-        Default: the current scene.
-    texture_size : int
-        Baked texture size in texels.
-    bake : bool
-        Bake the texture from the photos (when ``textures`` is not given).
-    name : str, optional
-        The head object's name (default "HeadRecon Head").
-    textures : dict of int -> ndarray (S, S, 3|4), optional
-        A bake the caller already has (``bake_fit_texture(model, result, ...)``, UDIM tile
-        -> texture, row 0 at the top): used as it is, nothing is baked again.
-    texture_shading : str
-        ``BakeOptions.shading`` of the bake: "keep" or "remove" the photos' light.
-
-    Returns
-    -------
-    bpy.types.Object
-        The head.
-    """
-    ensure_registered()
-    scene = scene or bpy.context.scene
-    with Transaction():
-        imgs = _images_for(case, images)
-        planes = case_to_scene.build_view_planes(case, imgs)
-        for plane in planes:
-            scene_collections.link_tree(scene, photos.view_root(plane))
-        case_to_scene.store_case_level(scene, case)
-        if textures is None and bake:
-            arrays = {v: photos.image_to_array(img) for v, img in imgs.items()
-                      if not img.get(photos.PLACEHOLDER)}
-            if arrays:
-                textures = bake_fit_texture(model, result, arrays, size=int(texture_size),
-                                            options=BakeOptions(shading=texture_shading))
-        calibration, _ = result_to_scene.calibration_checks(case)
-        head = result_to_scene.apply_result(scene, model, result, textures, name=name,
-                                            calibration=calibration)
-    return head
-
-
-def save_blend(path):
-    """Save the current file to ``path`` (a .blend) with every photo and texture packed,
-    so it opens anywhere. Returns the path."""
-    path = Path(path).resolve()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    for img in bpy.data.images:
-        if img.packed_file is None and img.source == "FILE" and img.has_data:
-            img.pack()
-    result_to_scene.pack_baked_textures()
-    prefs = bpy.context.preferences.filepaths
-    versions = prefs.save_version
-    prefs.save_version = 0  # no head.blend1 backups next to batch output
-    try:
-        bpy.ops.wm.save_as_mainfile(filepath=str(path), check_existing=False, compress=True)
-    finally:
-        prefs.save_version = versions
-    return path
+if __package__:  # no bpy here: a batch's own process plans and waits on its workers
+    from . import batch_manifest, batch_stamp, batch_summary, batch_workers, blas_threads
+    from .solver_link import SHADING_MODES, load_model, solver, usable_cores
 
 
 OUTPUTS = ("blend", "glb", "fbx", "obj", "texture", "report")
 #: The outputs without ``--outputs``, by ``--no-texture``: the .blend, and the baked
 #: texture as a PNG beside it (as Save Texture writes it in Blender).
 DEFAULT_OUTPUTS = {False: ("blend", "texture"), True: ("blend",)}
-PARTIAL = ".partial-"  # temporary folders of heads in flight: ".<name>.partial-<pid>"
-
-
-def _fit_options(settings):
-    """FitOptions of a head's settings (``ValueError`` naming the option when bad)."""
-    kw = {}
-    for key, name in (("method", "method"), ("n_identity", "components"),
-                      ("n_regional", "regional")):
-        if settings.get(name) is not None:
-            kw[key] = settings[name]
-    if settings.get("exact"):
-        kw["exact_landmarks"] = True
-    return FitOptions(**kw)
 
 
 def _solver_module(name):
     return importlib.import_module(f"{solver.__name__}.{name}")
-
-
-def _summary_row(name, where, result, outputs, seconds):
-    noise = (result.info.get("noise") or {}).get("landmark_px") or {}
-    plaus = result.info.get("plausibility") or {}
-    percentile = plaus.get("percentile")
-    return {"name": name, "status": "done", "error": None,
-            "method": result_to_scene.fit_method(result),
-            "rms_px": round(float(result.rms_px()), 4),
-            "noise_px": {v: round(float(x), 4) for v, x in noise.items()},
-            "plausibility": None if percentile is None else round(float(percentile), 3),
-            "warnings": list(result.info.get("warnings", ())),
-            "flagged": len(result.flagged()), "seconds": round(seconds, 3),
-            "outputs": {k: str(p) for k, p in outputs.items()}, "input": where}
-
-
-def _targets(base, kinds):
-    """Output kind -> final path of a head whose outputs are ``base.*``."""
-    base = Path(base)
-    named = {"blend": ".blend", "glb": ".glb", "fbx": ".fbx", "obj": ".obj",
-             "report": ".report.json"}
-    out = {k: base.with_name(base.name + named[k]) for k in kinds if k in named}
-    if "obj" in kinds:
-        out["mtl"] = base.with_name(base.name + ".mtl")
-    if "texture" in kinds:
-        out["texture"] = base.with_name(base.name + "_texture.png")
-    return out
-
-
-def write_head(task, model):
-    """Fit one head of a batch and write its outputs; returns its summary row.
-
-    Parameters
-    ----------
-    task : dict
-        "name", "landmarks", "base" (outputs' path without suffix), "where" (the input
-        in messages), "settings" (``outputs``, ``texture_size``, ``bake``,
-        ``bake_identity``, ``morph_normals`` and the fit options), "hash" (recorded with
-        the outputs, ``batch_stamp``).
-    model : HeadModel
-
-    Every output is written into a temporary folder beside the outputs and renamed into
-    place; the record (``batch_stamp.write_record``) is written last.
-    """
-    t0 = time.perf_counter()
-    name, path, base = task["name"], Path(task["landmarks"]), Path(task["base"])
-    settings = task["settings"]
-    kinds = settings["outputs"]
-    options = _fit_options(settings)
-    case = load_landmarks(path)
-    targets = _targets(base, kinds)
-    inputs = {"the landmarks file": path}
-    inputs.update({f"the photo of view {v}": case.image_path(v) for v in case.views})
-    _solver_module("io.atomic").check_outputs(
-        {f"output {k}": p for k, p in targets.items()}, inputs)
-    reset_scene()
-    heap.release_free_memory()  # the last head's scene, before the fit and bake take more
-    imgs = _images_for(case, None)  # fails fast on a missing photo, before the fit
-    orthographic_lenses(case)  # the photos' EXIF lenses, for the projection check
-    result = fit_head(model, case, options)
-    forget_fit_subsets(model)  # this head's subsets: another head seldom asks for them
-    for message in result.info.get("warnings", ()):
-        print(f"{name}: warning: {message}", file=sys.stderr, flush=True)
-    tiles = None
-    if settings["bake"]:
-        arrays = {v: photos.image_to_array(img) for v, img in imgs.items()
-                  if not img.get(photos.PLACEHOLDER)}
-        if arrays:
-            tiles = bake_fit_texture(  # one thread: the batch's processes share the cores
-                model, result, arrays, size=int(settings["texture_size"]),
-                options=BakeOptions(shading=settings.get("texture_shading") or "keep",
-                                    threads=1))
-        heap.release_free_memory()  # the bake's temporaries, before Blender takes more
-    if "texture" in kinds and tiles is None:
-        raise ValueError(f"{task['where']}: no photo to bake the texture from")
-    base.parent.mkdir(parents=True, exist_ok=True)
-    staging = base.parent / f".{base.name}{PARTIAL}{os.getpid()}"
-    shutil.rmtree(staging, ignore_errors=True)
-    staging.mkdir()
-    try:
-        staged = _write_staged(staging, base.name, name, kinds, model, case, result, imgs,
-                               tiles, settings, targets, t0)
-        for kind, tmp in staged.items():
-            if tmp.is_dir():  # the .fbx's textures folder
-                shutil.rmtree(targets[kind], ignore_errors=True)
-            os.replace(tmp, targets[kind])
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
-    row = _summary_row(name, task["where"], result,
-                       {k: p for k, p in targets.items() if k in staged},
-                       time.perf_counter() - t0)
-    batch_stamp.write_record(base, task["hash"], row)
-    return row
-
-
-def _write_staged(staging, stem, name, kinds, model, case, result, imgs, tiles, settings,
-                  targets, t0):
-    """Write a head's outputs into ``staging`` under their final names; returns kind ->
-    staged path. ``imgs``: the photos as bpy images, ``tiles``: the baked texture."""
-    staged = {}
-    needs_scene = {"blend", "glb", "fbx"} & set(kinds)
-    if needs_scene:
-        head = build_scene_from_fit(model, case, result, imgs, bake=False, textures=tiles,
-                                    name=name)
-        if settings["bake_identity"]:
-            apply_identity.apply_identity(head, model.expression_names)
-        if "blend" in kinds:
-            staged["blend"] = save_blend(staging / f"{stem}.blend")
-        for fmt in ("glb", "fbx"):
-            if fmt in kinds:
-                staged[fmt] = export.export_head(staging / f"{stem}.{fmt}", head,
-                                                 model.expression_names,
-                                                 fmt.upper(),
-                                                 morph_normals=settings["morph_normals"])
-                if fmt == "fbx" and (staging / f"{stem}_textures").is_dir():
-                    staged["fbx_textures"] = staging / f"{stem}_textures"
-                    targets["fbx_textures"] = targets["fbx"].with_name(f"{stem}_textures")
-    files = {}
-    if "obj" in kinds:
-        names, obj_files = _solver_module("io.export").head_obj_files(
-            staging / f"{stem}.obj", model, result.local_vertices, tiles,
-            staging / f"{stem}_texture.png" if tiles is not None else None)
-        files.update(obj_files)
-        staged.update({k: p for k, p in names.items() if k in ("obj", "mtl")})
-        if tiles is not None:
-            staged["obj_texture"] = names["texture"]
-            targets["obj_texture"] = targets["obj"].with_name(f"{stem}_texture.png")
-    if "texture" in kinds:
-        staged.pop("obj_texture", None)
-        targets.pop("obj_texture", None)
-        tex = staging / f"{stem}_texture.png"
-        if tex not in files:
-            atlas, _, _ = _solver_module("io.export").texture_atlas(model, tiles)
-            files[tex] = _solver_module("io.export").png_bytes(atlas)
-        staged["texture"] = tex
-    if "report" in kinds:
-        rep = _solver_module("io.report")
-        final = {k: targets[k] for k in ("blend", "glb", "fbx", "obj", "mtl", "texture")
-                 if k in targets}
-        final["report"] = targets["report"]
-        text = rep.report_text(rep.fit_report(case, model, result, settings, final,
-                                              {"total": time.perf_counter() - t0}))
-        files[staging / f"{stem}.report.json"] = text
-        staged["report"] = staging / f"{stem}.report.json"
-    if files:
-        _solver_module("io.atomic").write_files_atomic(files)
-    return staged
 
 
 def _outputs_arg(text):
@@ -435,18 +134,6 @@ def _settings(args):
             "morph_normals": args.morph_normals, "method": args.method,
             "components": args.components, "regional": args.regional,
             "exact": args.exact}
-
-
-def _remove_stale_partials(folder):
-    """Remove the temporary folders a killed batch left (their process is gone)."""
-    for tmp in folder.glob(f".*{PARTIAL}*"):
-        try:
-            pid = int(tmp.name.rsplit(PARTIAL, 1)[1])
-            os.kill(pid, 0)  # still running: another batch's head in flight
-        except (ValueError, ProcessLookupError):
-            shutil.rmtree(tmp, ignore_errors=True)
-        except PermissionError:
-            pass
 
 
 def _tasks(heads, settings, force):
@@ -544,17 +231,6 @@ def detected_heads(groups, out):
     return heads
 
 
-def _run_task(task, model):
-    """``write_head`` with any failure as a failed summary row."""
-    t0 = time.perf_counter()
-    try:
-        return write_head(task, model)
-    except Exception as e:  # report and go on with the batch
-        message = str(e) if task["where"] in str(e) else f"{task['where']}: {e}"
-        return batch_summary.failed_row(task["name"], task["where"], message,
-                                        time.perf_counter() - t0)
-
-
 def _cluster_failed(task, message):
     return batch_summary.failed_row(
         task["name"], task["where"],
@@ -562,8 +238,10 @@ def _cluster_failed(task, message):
 
 
 def _in_process(tasks, model):
+    from . import batch_head
+
     for task in tasks:
-        yield task, _run_task(task, model)
+        yield task, batch_head.run_task(task, model)
 
 
 def _head_line(row):
@@ -578,8 +256,10 @@ def _head_line(row):
 
 def serve_worker():
     """A worker process of a batch: load the model once, then fit the heads sent to it."""
+    from . import batch_head
+
     model = load_model()
-    batch_workers.serve(lambda task: _run_task(task, model))
+    batch_workers.serve(lambda task: batch_head.run_task(task, model))
     return 0
 
 
@@ -593,7 +273,7 @@ def main(argv):
         if args.jobs is not None and args.jobs < 1:
             raise ValueError(f"--jobs {args.jobs}: give 1 or more")
         settings = _settings(args)
-        _fit_options(settings)  # a bad option fails here, once, not in every head
+        batch_manifest.fit_options(settings)  # a bad option fails here, once, not in every head
         out_dir = None if Path(args.out).suffix.lower() == ".blend" else Path(args.out)
         n_detect = len(detect_groups(args.detect))
         if out_dir is None and len(args.inputs) + n_detect > 1 and n_detect:
@@ -632,7 +312,7 @@ def _run_batch(args, heads, rows, tasks, jobs, model, out_dir, client):
     this process, on local workers, or on the cluster of ``client``)."""
     folder = out_dir or Path(args.out).parent
     folder.mkdir(parents=True, exist_ok=True)
-    _remove_stale_partials(folder)
+    batch_stamp.remove_stale_partials(folder)
     progress = batch_summary.Progress(len(heads))
     for row in rows:
         if row is not None:
@@ -685,13 +365,10 @@ def exit_process(code):
     """Exit with ``code``. The bpy module before 4.4 crashes while Python shuts down
     (Blender issue #125376, exit status -11 whatever the script returned), so there the
     process ends at once, after flushing its output."""
-    import bpy as _bpy
-
     sys.stdout.flush()
     sys.stderr.flush()
-    if not _bpy.app.binary_path and _bpy.app.version < (4, 4, 0):
-        import os
-
+    bpy = sys.modules.get("bpy")  # not imported by a batch's own process at --jobs 2
+    if bpy is not None and not bpy.app.binary_path and bpy.app.version < (4, 4, 0):
         os._exit(code)
     sys.exit(code)
 

@@ -6,7 +6,7 @@ Makes the sample case if it is missing (``tools/make_sample.py``), detects the h
 outline on both photos (``solver.detect``: the landmarks stay the sample's own), fits it
 with the combined method (``solver.fitting.fit.fit_head``), and writes into ``--out``:
 
-- ``head.blend``: the add-on's scene (``headrecon_addon.headless``): the head with its
+- ``head.blend``: the add-on's scene (``headrecon_addon.head_scene``): the head with its
   identity in shape keys, the baked texture packed, the photo planes with the landmarks;
 - ``head.obj`` + ``head.mtl`` + ``head_texture.png``: the fitted head (model space,
   metres, Y up) with the texture baked from both photos (UDIM tiles side by side);
@@ -167,12 +167,12 @@ def write_obj_and_texture(model, result, photos, out, log):
 def write_blend(model, case, result, photo_paths, textures, out):
     """The add-on's scene for the fit with the texture already baked (``textures``, UDIM
     tile -> texture), saved as head.blend. Returns the head object."""
-    from headrecon_addon import headless
+    from headrecon_addon import head_scene
 
-    headless.reset_scene()
-    head = headless.build_scene_from_fit(model, case, result, images=photo_paths,
-                                         textures=textures, name="Demo head")
-    headless.save_blend(out / "head.blend")
+    head_scene.reset_scene()
+    head = head_scene.build_scene_from_fit(model, case, result, images=photo_paths,
+                                           textures=textures, name="Demo head")
+    head_scene.save_blend(out / "head.blend")
     return head
 
 

@@ -22,11 +22,11 @@ def fit(model, tmp_path_factory):
 @pytest.fixture
 def head(model, fit):
     """A freshly fitted head (identity, regional and detail keys at their values)."""
-    from headrecon_addon import headless
+    from headrecon_addon import head_scene
 
     empty_scene()
     case, result = fit
-    head = headless.build_scene_from_fit(model, case, result, bake=False)
+    head = head_scene.build_scene_from_fit(model, case, result, bake=False)
     bpy.context.scene.headrecon.head = head
     return head
 

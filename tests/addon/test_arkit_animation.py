@@ -23,13 +23,13 @@ def fit(model, tmp_path_factory):
 
 @pytest.fixture
 def head(model, fit):
-    from headrecon_addon import headless
+    from headrecon_addon import head_scene
 
     scene = empty_scene()
     scene.render.fps, scene.render.fps_base = 30, 1.0
     scene.frame_start, scene.frame_end = 1, 2
     case, result = fit
-    head = headless.build_scene_from_fit(model, case, result, bake=False)
+    head = head_scene.build_scene_from_fit(model, case, result, bake=False)
     scene.headrecon.head = head
     return head
 

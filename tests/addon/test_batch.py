@@ -110,13 +110,20 @@ def _run_batch(args):
     return run_python(["-m", "headrecon_addon.headless", *args, "--no-texture"])
 
 
+# The headless command, saying at its exit whether its own process imported bpy.
+_SAYS_BPY = ("import atexit, runpy, sys; "
+             "atexit.register(lambda: print('bpy imported:', 'bpy' in sys.modules)); "
+             "runpy.run_module('headrecon_addon.headless', run_name='__main__')")
+
+
 def test_broken_row_among_good_ones_then_resume_and_force(heads, tmp_path):
     m = _manifest(heads, ["h0,h0.json,10", "h1,h1.json,10", "broken,missing.json,10",
                           "h2,h2.json,11"])
     out = tmp_path / "out"
-    proc = _run_batch([m, "--out", out, "--jobs", "2"])
+    proc = run_python(["-c", _SAYS_BPY, m, "--out", out, "--jobs", "2", "--no-texture"])
     assert proc.returncode == 1, proc.stderr
     assert "3 of 4 heads written" in proc.stdout
+    assert "bpy imported: False" in proc.stdout  # the workers fit; this process only waits
     assert "4/4 heads, 1 failed, 0 skipped" in proc.stderr and "heads/min" in proc.stderr
     rows, jrows = _summary(out)
     assert [rows[n]["status"] for n in ("h0", "h1", "broken", "h2")] == \

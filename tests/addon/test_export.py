@@ -26,11 +26,11 @@ def fit(model, tmp_path_factory):
 
 @pytest.fixture
 def head(model, fit):
-    from headrecon_addon import headless
+    from headrecon_addon import head_scene
 
     empty_scene()
     _, case, result = fit
-    head = headless.build_scene_from_fit(model, case, result, texture_size=128, name="erin")
+    head = head_scene.build_scene_from_fit(model, case, result, texture_size=128, name="erin")
     bpy.context.scene.headrecon.head = head
     return head
 

@@ -1,6 +1,6 @@
 """The headless script writes .blend files that reopen with their shape keys and texture;
-a batch goes on past a bad file and says so in its exit code (subprocesses); a scene built
-from a finished fit shows the fitted cameras and the passpoint checks."""
+a batch goes on past a bad file and says so in its exit code (subprocesses); a batch at
+--jobs 2 plans and waits without importing bpy."""
 
 import json
 import struct
@@ -11,9 +11,7 @@ import numpy as np
 
 from tests.addon.support import (
     ROOT,
-    add_passpoints,
     addon,
-    empty_scene,
     run_python,
     synthetic_files,
 )
@@ -96,17 +94,17 @@ def _glb_json(path):
 def test_summary_names_the_winning_approach(model, tmp_path, monkeypatch, capsys):
     # A "combined" fit runs both approaches and keeps the better one: the summary line
     # (and the head) must name that one, not the method that was asked for.
-    from headrecon_addon import headless
+    from headrecon_addon import batch_head, headless
 
     path, _, _ = synthetic_files(model, tmp_path, seed=13, name="carol", photos=False)
     fits = []
-    fit_head = headless.fit_head
+    fit_head = batch_head.fit_head
 
     def keep_result(*args, **kw):
         fits.append(fit_head(*args, **kw))
         return fits[-1]
 
-    monkeypatch.setattr(headless, "fit_head", keep_result)
+    monkeypatch.setattr(batch_head, "fit_head", keep_result)
     code = headless.main([str(path), "--out", str(tmp_path / "carol.blend"), "--method",
                           "combined", "--components", "20", "--no-texture", "--glb"])
     assert code == 0 and len(fits) == 1
@@ -128,55 +126,6 @@ def test_summary_names_the_winning_approach(model, tmp_path, monkeypatch, capsys
     lashes = next(m for m in doc["materials"] if m["name"].endswith("Eyelashes"))
     assert lashes["alphaMode"] == "BLEND"
     assert "baseColorTexture" in lashes["pbrMetallicRoughness"]
-
-
-def test_given_textures_are_used_without_a_second_bake(model, tmp_path, monkeypatch):
-    from headrecon_addon import headless, material, reference_head
-    from solver.fitting.fit import FitOptions, fit_head
-
-    _, case, _ = synthetic_files(model, tmp_path, seed=14, name="dave")
-    result = fit_head(model, case, FitOptions(n_identity=10))
-    rng = np.random.default_rng(0)
-    given = {tile: rng.integers(0, 256, (48, 64, 3)) / 255.0 for tile in (1001, 1002)}
-
-    def no_bake(*args, **kw):
-        raise AssertionError("build_scene_from_fit baked although textures were given")
-
-    monkeypatch.setattr(headless, "bake_fit_texture", no_bake)
-    headless.reset_scene()
-    head = headless.build_scene_from_fit(model, case, result, textures=given)
-    for group, tile in (("Face", 1001), ("Head", 1002)):
-        img = material.skin_texture(reference_head.part_material(head, group))
-        assert img is not None and tuple(img.size) == (64, 48)
-        px = np.empty(64 * 48 * 4, np.float32)
-        img.pixels.foreach_get(px)
-        got = px.reshape(48, 64, 4)[::-1, :, :3]  # Blender's rows run bottom-up
-        np.testing.assert_allclose(got, given[tile], atol=1e-6)
-
-
-def test_headless_scene_has_fitted_cameras(model):
-    # the batch path (headless.build_scene_from_fit) shows the same cameras and checks
-    from headrecon_addon import headless, photo_cameras, photos, result_to_scene
-    from solver import synthetic
-    from solver.fitting import fit
-
-    addon()
-    case, truth = synthetic.make_perspective_case(model, 2, n_views=2, head_px=(300.0, 320.0))
-    names = add_passpoints(case, truth, "photo1", np.random.default_rng(3))
-    result = fit.fit_head(model, case, fit.FitOptions(n_identity=10))
-    scene = empty_scene()
-    headless.build_scene_from_fit(model, case, result, bake=False)
-    for v in case.views:
-        cam_obj = photos.camera_object(photos.find_plane(scene, v))
-        want = photo_cameras.blender_settings(result.cameras[v])
-        assert np.allclose(np.array(cam_obj.matrix_world), want["matrix_world"], atol=1e-5)
-        assert cam_obj.name in scene.objects
-    rows = result_to_scene.residual_rows(result, result_to_scene.calibration_checks(case)[0])
-    items = list(scene.headrecon.residuals)
-    assert [(it.view, it.landmark, it.kind) for it in items] == \
-        [(r[2], r[3], r[4]) for r in rows]
-    assert sorted(it.landmark for it in items if it.kind == "PASSPOINT") == sorted(names)
-    assert not any(it.flagged for it in items if it.kind == "PASSPOINT")
 
 
 def test_headless_fits_straight_from_photos(sample, tmp_path):

@@ -21,11 +21,11 @@ def fit(model, tmp_path_factory):
 
 @pytest.fixture
 def head(model, fit):
-    from headrecon_addon import headless
+    from headrecon_addon import head_scene
 
     empty_scene()
     _, case, result = fit
-    head = headless.build_scene_from_fit(model, case, result, texture_size=64, name="fay")
+    head = head_scene.build_scene_from_fit(model, case, result, texture_size=64, name="fay")
     bpy.context.scene.headrecon.head = head
     return head
 
@@ -33,9 +33,9 @@ def head(model, fit):
 def test_save_texture_writes_the_tiles_next_to_the_blend(model, head, tmp_path):
     from PIL import Image
 
-    from headrecon_addon import headless, texture_ops
+    from headrecon_addon import head_scene, texture_ops
 
-    blend = headless.save_blend(tmp_path / "fay.blend")
+    blend = head_scene.save_blend(tmp_path / "fay.blend")
     assert bpy.ops.headrecon.save_texture() == {"FINISHED"}
     png = tmp_path / "fay_texture.png"
     assert texture_ops.default_texture_path() == png
