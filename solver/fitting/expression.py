@@ -22,6 +22,11 @@ from scipy.optimize import lsq_linear
 EXPRESSION_SIGMA = 0.5
 #: Weights below this are not reported (and not applied).
 SHOWN = 0.2
+#: A photo's landmarks must show this share of an expression's largest movement over all
+#: the set's landmarks (in pixels, through its camera) for the photo to be fitted with it:
+#: a profile read off its outline (nasion, nose, lips, chin) cannot tell raised brows, and
+#: would explain its points' own errors with them.
+OBSERVED = 0.5
 #: The expressions a photo is fitted with: those people show when photographed (eyes
 #: closed or squinting, a smile, the jaw open, raised brows). The model's other shapes
 #: (a pout, the jaw pushed sideways, the eyes looking away) would mostly fit the
@@ -69,6 +74,8 @@ def estimate_expressions(model, case, result, noise_px, weights=None, lambda2=1.
     lms = model.landmark_set
     world = result.world_vertices
     rot = result.scale * result.rotation.T
+    # every landmark's movement by each expression, to tell which ones a photo shows
+    at_all = expr[chosen[:, None], np.unique(list(lms.vertices.values()))] @ rot
     blocks = []  # per view: (name, identity columns (2n, K), expression columns (2n, E), r)
     for name, view in case.views.items():
         camera = result.cameras.get(name)
@@ -84,8 +91,10 @@ def estimate_expressions(model, case, result, noise_px, weights=None, lambda2=1.
             noise_px.get(name, 1.0), 1e-9)
         r = np.asarray([view.points[key] for key in keys], dtype=np.float64) \
             - camera.project(world[verts])
+        at_view = expr[chosen[:, None], verts] @ rot  # (E, n, 3)
+        seen = _observed(at_view, jac, at_all)
         blocks.append((name, _pixel_columns(basis[:, verts] @ rot, jac, sw),
-                       _pixel_columns(expr[chosen[:, None], verts] @ rot, jac, sw),
+                       _pixel_columns(at_view, jac, sw) * seen[None, :],
                        (r * sw[:, None]).reshape(-1)))
     if not blocks:
         return {}
@@ -110,6 +119,18 @@ def estimate_expressions(model, case, result, noise_px, weights=None, lambda2=1.
         out[name] = np.zeros(len(model.expression_names))
         out[name][chosen] = x[j * n_e:(j + 1) * n_e]
     return out
+
+
+def _observed(at_view, jac, at_all):
+    """Which expressions (E,) a photo shows: the largest pixel movement among its landmarks
+    (``at_view`` (E, n, 3), world offsets through their Jacobians ``jac`` (n, 2, 3)) at
+    least OBSERVED times the expression's largest movement over every landmark of the set
+    (``at_all`` (E, L, 3)) seen face on at the photo's scale (pixels a metre: the
+    Jacobians' median largest singular value)."""
+    moved = np.linalg.norm(np.einsum("nij,snj->sni", jac, at_view), axis=2)
+    scale = np.median(np.linalg.svd(jac, compute_uv=False)[:, 0])
+    full = np.linalg.norm(at_all, axis=2).max(axis=1) * scale
+    return (moved.max(axis=1) >= OBSERVED * full).astype(np.float64)
 
 
 def _bounded_weights(a, rhs, k):

@@ -75,3 +75,24 @@ def test_neutral_case_moves_landmarks_back_by_the_expression(model, closed):
     # what is reported: names at or above SHOWN
     e[model.expression_names.index("jawOpen")] = 0.5 * SHOWN
     assert expression_report(model, {"front": e}) == {"front": {"eyeBlink_L": 1.0}}
+
+
+MIDLINE = ("nasion", "nose_tip", "subnasale", "lip_upper_middle", "pogonion", "chin_bottom")
+
+
+def test_a_photo_is_fitted_only_with_the_expressions_its_landmarks_show(model):
+    # Raised brows: a profile with its brow points shows them; a profile read off its
+    # outline (midline points only) cannot, and must not explain its points with them.
+    case, truth = make_case(model, 32, noise_px=0.5)
+    raised = _with_expression(model, case, truth, {"browInnerUp_L": 1.0, "browInnerUp_R": 1.0},
+                              noise_px=0.5, seed=1)
+    shown = fit_head(model, raised).info["expressions"]
+    assert shown["right"].get("browInnerUp_R", 0.0) > 0.5, shown
+    side = raised.views["right"]
+    midline = dataclasses.replace(raised, views={
+        **raised.views, "right": dataclasses.replace(
+            side, points={k: p for k, p in side.points.items() if k in MIDLINE})})
+    assert len(midline.views["right"].points) == len(MIDLINE)
+    shown = fit_head(model, midline).info["expressions"]
+    assert not any(n.startswith("brow") for n in shown["right"]), shown
+    assert shown["front"].get("browInnerUp_R", 0.0) > 0.5, shown
