@@ -63,25 +63,6 @@ def _scene(case_path):
     return bpy.context.scene
 
 
-def warm_up(texture_size=1024):
-    """One-time costs of a session, paid in the UI by a background thread as soon as photos
-    are loaded (headrecon_addon.warm_up): model load, the bake's UV rasters, the eyelash texture.
-    Returns their seconds."""
-    from headrecon_addon import material
-    from solver import load_model, uv_raster, uv_tiles
-
-    t = time.perf_counter()
-    model = load_model()
-    t_model = time.perf_counter() - t
-    t = time.perf_counter()
-    for tile in uv_tiles(model):
-        uv_raster(model, texture_size, tile=tile)
-    t_raster = time.perf_counter() - t
-    t = time.perf_counter()
-    material.cached_eyelash_alpha()
-    return t_model, t_raster, time.perf_counter() - t
-
-
 def bench_fit(case_path, repeat):
     """Seconds of the Fit operator: the first fit (makes the head) and re-fits."""
     from headrecon_addon import fit_job
@@ -159,9 +140,11 @@ def main(argv=None):
     p.add_argument("--auto-fit", action="store_true",
                    help="Auto Fit on the sample's photos alone (./run sample, ./run detector)")
     args = p.parse_args(argv)
+    from headrecon_addon import warm_up
+
     print(f"machine: {machine_description()}")
     if args.auto_fit:
-        t_model, t_raster, t_lashes = warm_up()
+        warm_up.prepare(1024)  # as the UI's warm-up thread does once photos are loaded
         seconds, parts, error, mean = bench_auto_fit(SAMPLE.parent, args.repeat)
         print(f"Auto Fit on the sample's two photos ({SAMPLE.parent}), detection of landmarks "
               f"and outlines, fit, texture: median {statistics.median(seconds):.2f} s "
@@ -182,9 +165,10 @@ def main(argv=None):
             case = _synthetic_case(tmp)
             print("sample case missing (./run sample): using a synthetic case")
         print(f"case: {case}")
-        t_model, t_raster, t_lashes = warm_up()
-        print(f"once per session (a background thread in the UI): model load {t_model:.3f} s, "
-              f"texture UV rasters {t_raster:.3f} s, eyelash texture {t_lashes:.3f} s")
+        once = warm_up.prepare(1024)
+        print(f"once per session (a background thread in the UI): model load "
+              f"{once['model']:.3f} s, what every fit makes once {once['fit']:.3f} s, texture "
+              f"UV rasters {once['rasters']:.3f} s, eyelash texture {once['lashes']:.3f} s")
         first, again, parts, scene = bench_fit(case, args.repeat)
         head = scene.headrecon.head
         n_keys = len(head.data.shape_keys.key_blocks)

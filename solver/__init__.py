@@ -22,7 +22,7 @@ from .detect.detected_case import face_landmarks
 from .detect.detector import DetectedFace, Detector
 from .detect.view_guess import ViewGuess, guess_view
 from .fitting.engine import forget_fit_subsets
-from .fitting.fit import FitOptions, fit_head, refit_landmarks
+from .fitting.fit import FitOptions, fit_head, prepare_fit, refit_landmarks
 from .fitting.result import FitResult, ViewResidual
 from .io.camera_json import camera_from_json, camera_to_json
 from .io.case import LandmarkCase, View
@@ -60,7 +60,7 @@ __all__ = [
     "fit_dlt", "fit_head", "forget_fit_subsets",
     "guess_view", "landmarks_needed", "landmarks_to_dict", "load_landmark_set",
     "load_landmarks", "load_model", "orient", "oriented_size", "orthographic_lenses",
-    "orthographic_uvs",
+    "orthographic_uvs", "prepare_fit",
     "parse_landmarks", "read_photo_exif", "refit_landmarks", "save_landmarks",
     "usable_cores", "uv_raster", "uv_tiles",
 ]

@@ -66,6 +66,35 @@ def forget_fit_subsets(model):
             cache.pop(k, None)
 
 
+def fitted_model(model, opts):
+    """The model a fit of ``model`` with ``FitOptions`` ``opts`` changes: the first
+    ``n_identity`` global modes, then the regional ones; kept with the model for the next
+    fit of the same sizes (its vertex slices cached on it)."""
+    def make():
+        parts = []
+        if opts.n_identity > 0:
+            parts.append(model.identity.first(int(opts.n_identity)))
+        if opts.n_regional > 0:
+            parts.append(model.regional(int(opts.n_regional)))
+        return StackedModel(parts)
+
+    return memo(model, (FITTED_MODEL, int(opts.n_identity), int(opts.n_regional)), make)
+
+
+def skin_basis32(lin, skin):
+    """The basis of the fitted model ``lin`` over the vertices ``skin`` (S,) as float32
+    (K, 3 S), cached with it (for the per-vertex uncertainty, where display precision is
+    enough)."""
+    slices = memo(lin, "slices", dict)
+    key = ("f32",) + (np.asarray(skin, dtype=np.int64).tobytes(),)
+    hit = slices.get(key)
+    if hit is None:
+        hit = np.concatenate([p.basis[:, skin].reshape(p.n_coeffs, -1).astype(np.float32)
+                              for p in lin.parts])
+        slices[key] = hit
+    return hit
+
+
 def _nbytes(value):
     return sum(a.nbytes for a in value) if isinstance(value, tuple) else value.nbytes
 
@@ -138,20 +167,11 @@ class Engine:
     @classmethod
     def for_fit(cls, model, views, opts):
         """The engine of a fit of ``model`` to ``views`` with ``FitOptions`` ``opts``: the
-        first ``n_identity`` global modes and then the regional ones (kept with the model
-        for the next fit of the same sizes, with the vertex slices cached on it), the
-        profile's outline candidates, and the options' weights."""
-        def make():
-            parts = []
-            if opts.n_identity > 0:
-                parts.append(model.identity.first(int(opts.n_identity)))
-            if opts.n_regional > 0:
-                parts.append(model.regional(int(opts.n_regional)))
-            return StackedModel(parts)
-
-        lin = memo(model, (FITTED_MODEL, int(opts.n_identity), int(opts.n_regional)), make)
-        eng = cls(lin, views, *outline_candidates(model), opts.noise_px, opts.lambda1,
-                  opts.lambda2, opts.prior, opts.contour_weight, opts.contour_threshold_px)
+        model it changes (:func:`fitted_model`), the profile's outline candidates, and the
+        options' weights."""
+        eng = cls(fitted_model(model, opts), views, *outline_candidates(model),
+                  opts.noise_px, opts.lambda1, opts.lambda2, opts.prior, opts.contour_weight,
+                  opts.contour_threshold_px)
         eng.slide_outline = opts.outline_landmarks == "slide"
         eng.profile_chain = np.asarray(model.profile_chain, dtype=np.int64)
         return eng
@@ -243,15 +263,9 @@ class Engine:
         return hit
 
     def skin_basis32(self, skin):
-        """The basis over the skin as float32 (K, 3 S), cached with the model (for the
-        per-vertex uncertainty, where display precision is enough)."""
-        key = ("f32",) + (np.asarray(skin, dtype=np.int64).tobytes(),)
-        hit = self._slices.get(key)
-        if hit is None:
-            hit = np.concatenate([p.basis[:, skin].reshape(p.n_coeffs, -1).astype(np.float32)
-                                  for p in self.lin.parts])
-            self._slices[key] = hit
-        return hit
+        """The basis over the skin as float32 (K, 3 S): :func:`skin_basis32` of the
+        engine's model."""
+        return skin_basis32(self.lin, skin)
 
     def world(self, state, vertices=None):
         return state.scale * self.local(state, vertices) @ state.rotation.T + state.translation

@@ -79,3 +79,28 @@ def test_forgotten_subsets_are_made_again_and_fit_the_same_head(model):
     assert subsets()
     np.testing.assert_array_equal(again, cached)
     np.testing.assert_array_equal(again, first)
+
+
+def test_prepare_fit_makes_what_every_fit_makes_once(model):
+    """``prepare_fit`` (the add-on's warm-up) makes the fitted modes, the skin's float32
+    basis and maps and the expressions of a model no fit has touched; the first fit then
+    uses them as they are and lands on the head an unprepared model's fit does."""
+    from solver import fit_head, prepare_fit
+    from solver.memo import memo_items
+    from solver.model.head_model import HeadModel
+
+    with np.load(model.path) as data:
+        fresh = HeadModel({k: data[k] for k in data.files}, model.path)
+    opts = FitOptions(n_identity=20)
+    key = (engine.FITTED_MODEL, 20, opts.n_regional)
+    assert not memo_items(fresh) and "expressions" not in fresh.__dict__
+    prepare_fit(fresh, opts)
+    made = dict(memo_items(fresh))
+    assert "skin maps" in made and "expressions" in fresh.__dict__
+    slices = dict(memo_items(made[key]))["slices"]
+    assert any(isinstance(k, tuple) and k[0] == "f32" for k in slices)
+    case, _ = make_case(fresh, 7, noise_px=1.0)
+    got = fit_head(fresh, case, opts)
+    assert dict(memo_items(fresh))[key] is made[key]
+    np.testing.assert_array_equal(got.local_vertices,
+                                  fit_head(model, case, opts).local_vertices)
