@@ -3,10 +3,14 @@ their ratio), through a local Dask cluster of 2 workers (``--cluster local --job
 peak memory of the largest process, and the size per head of each output.
 
     python -m bench.bench_batch [--heads 12] [--texture-size 1024] [--keep DIR] [--blend-only]
+                                [--broken-row]
 
 ``--blend-only`` measures the .blend batches only (``--jobs 1``, ``--jobs 2``, the local
-cluster), not the .glb and every-output ones. The cluster batch is left out when Dask
-distributed is not installed.
+cluster), not the .glb and every-output ones. ``--broken-row`` adds a row whose landmarks
+file is missing to the middle of the manifest (the issue's "one broken row among 50 good
+ones": ``--heads 50 --broken-row``); each batch's line then names the failed rows with
+their messages, and every good head must still be written (exit 1). The cluster batch is
+left out when Dask distributed is not installed.
 
 The heads are synthetic cases (``solver.synthetic.make_case``, saved with
 ``solver.io.save_landmarks``) with smooth generated photos, listed in a ``.csv`` manifest;
@@ -58,8 +62,9 @@ def _photo(path, size, seed):
     Image.fromarray((np.clip(rgb, 0, 1) * 255).astype(np.uint8)).save(path)
 
 
-def make_heads(folder, n):
-    """``n`` synthetic heads with photos in ``folder`` and their manifest; returns it."""
+def make_heads(folder, n, broken=False):
+    """``n`` synthetic heads with photos in ``folder`` and their manifest; returns it.
+    ``broken``: one more row in the middle, naming a landmarks file that does not exist."""
     from solver import load_model, save_landmarks, synthetic
 
     model = load_model()
@@ -71,6 +76,8 @@ def make_heads(folder, n):
             view.image = f"head{i:03d}_{vname}.png"
         save_landmarks(case, folder / f"head{i:03d}.json")
         rows.append(f"head{i:03d},head{i:03d}.json")
+    if broken:
+        rows.insert(1 + n // 2, "broken,missing.json")
     manifest = folder / "heads.csv"
     manifest.write_text("\n".join(rows) + "\n")
     return manifest
@@ -108,6 +115,8 @@ def main(argv=None):
     p.add_argument("--keep", type=Path, help="write the inputs and outputs here")
     p.add_argument("--blend-only", action="store_true",
                    help="only the .blend batches: --jobs 1, --jobs 2, the local cluster")
+    p.add_argument("--broken-row", action="store_true",
+                   help="one row of the manifest names a missing landmarks file")
     args = p.parse_args(argv)
     try:
         import distributed  # noqa: F401
@@ -118,8 +127,9 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as tmp:
         work = args.keep or Path(tmp)
         (work / "in").mkdir(parents=True, exist_ok=True)
-        manifest = make_heads(work / "in", args.heads)
-        print(f"{args.heads} synthetic heads, texture {args.texture_size} px per tile")
+        manifest = make_heads(work / "in", args.heads, broken=args.broken_row)
+        print(f"{args.heads} synthetic heads{' and one broken row' if args.broken_row else ''}"
+              f", texture {args.texture_size} px per tile")
         rates, cpu_rates = {}, {}
         configs = [("fit, texture, .blend", 1, "blend", None),
                    ("fit, texture, .blend", 2, "blend", None)]
@@ -144,6 +154,9 @@ def main(argv=None):
                   f"{seconds:.1f} s = {rate:.1f} heads/min (median {fit_s:.1f} s a head in "
                   f"its worker), {cpu / max(ok, 1):.1f} CPU s a head, peak {peak:.0f} MB in "
                   f"the largest process, exit {code} (load average before: {load})")
+            for r in rows:
+                if r["status"] == "failed":
+                    print(f"  failed: {r['name']}: {r['error']}")
             if outputs.count(",") == 4:
                 for kind, size in sizes_per_output([r for r in rows if r["status"] == "done"]
                                                    ).items():
