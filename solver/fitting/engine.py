@@ -262,11 +262,6 @@ class Engine:
                 total -= _nbytes(cache.pop(k))
         return hit
 
-    def skin_basis32(self, skin):
-        """The basis over the skin as float32 (K, 3 S): :func:`skin_basis32` of the
-        engine's model."""
-        return skin_basis32(self.lin, skin)
-
     def world(self, state, vertices=None):
         return state.scale * self.local(state, vertices) @ state.rotation.T + state.translation
 

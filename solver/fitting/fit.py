@@ -110,9 +110,9 @@ class Progress:
 def prepare_fit(model, options=None):
     """Make what every fit of ``model`` with ``options`` (default ``FitOptions()``) makes
     once and keeps with the model: the fitted modes, the skin's float32 basis and maps for
-    the uncertainty, the profile's outline candidates, the expressions. The first fit no
-    longer waits for them (about 0.3 s): the add-on's warm-up runs this while the artist
-    places photos."""
+    the uncertainty, the profile's outline candidates, the expressions; so the first fit
+    does not wait for them (the add-on's warm-up runs this while the artist places
+    photos)."""
     opts = options or FitOptions()
     check_options(opts, model)
     skin_basis32(fitted_model(model, opts), np.asarray(model.skin, dtype=np.int64))

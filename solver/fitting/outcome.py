@@ -10,6 +10,7 @@ from ..cameras import OrthographicCamera
 from ..cameras.mirror import triangulate_mirror
 from ..cameras.projection_check import check_orthographic, check_projection, lens_distance
 from ..memo import memo
+from .engine import skin_basis32
 from .result import FitResult, ViewResidual
 from .tps import ThinPlateSpline
 
@@ -151,7 +152,7 @@ def vertex_uncertainty(model, eng, cov):
     value elsewhere."""
     maps = skin_maps(model)
     skin = np.asarray(model.skin, dtype=np.int64)
-    b32 = eng.skin_basis32(skin)
+    b32 = skin_basis32(eng.lin, skin)
     evals, evecs = np.linalg.eigh(0.5 * (cov + cov.T))
     f = (np.sqrt(np.clip(evals, 0.0, None))[:, None] * evecs.T).astype(np.float32)
     y = f @ b32

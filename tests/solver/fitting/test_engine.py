@@ -31,7 +31,7 @@ def test_many_vertex_subsets_do_not_evict_the_skins_basis(model, monkeypatch):
     eng = Engine.for_fit(model, views, opts)
     one = sum(a.nbytes for a in eng.slice(np.arange(100, 105)))
     monkeypatch.setattr(engine, "SLICE_CACHE_BYTES", 50 * one)  # room for about 50
-    skin = eng.skin_basis32(model.skin)
+    skin = engine.skin_basis32(eng.lin, model.skin)
     first = eng.slice(np.arange(3))
     kept = eng.slice(np.arange(7))
     for i in range(200):  # far more subsets than are kept
@@ -41,7 +41,7 @@ def test_many_vertex_subsets_do_not_evict_the_skins_basis(model, monkeypatch):
             assert eng.slice(np.arange(7)) is kept  # used again: kept
         vm = eng.vertex_major(np.arange(i, i + 5))
         np.testing.assert_array_equal(vm, basis.transpose(1, 2, 0))
-    assert eng.skin_basis32(model.skin) is skin
+    assert engine.skin_basis32(eng.lin, model.skin) is skin
     again = eng.slice(np.arange(3))
     assert again is not first  # the subsets were forgotten, and come back the same
     np.testing.assert_array_equal(again[1], first[1])
