@@ -331,7 +331,7 @@ def _check_views(views):
             raise ValueError(f"views[{i}]: image has NaN or infinite values")
         if img.shape[2] == 4:  # premultiply, so bilinear samples never mix in hidden colour
             img[..., 3] = np.clip(img[..., 3], 0.0, 1.0)
-            img[..., :3] *= img[..., 3:]
+            _by_row(img[..., :3], img[..., 3])
         if not hasattr(camera, "project") or not hasattr(camera, "to_camera"):
             raise ValueError(f"views[{i}]: camera must be a Camera, got {type(camera).__name__}")
         size = getattr(camera, "size", None)
@@ -480,8 +480,17 @@ class _ViewSampler:
         if self.alpha:  # premultiplied: un-premultiply, weigh by coverage
             alpha = rgba[:, 3]
             w *= alpha
-            rgb = rgb / np.maximum(alpha, 1e-6)[:, None]
+            rgb = _by_row(rgb, np.maximum(alpha, 1e-6), np.divide)  # rgba is ours
         return idx, w, rgb
+
+
+def _by_row(a, s, op=np.multiply):
+    """``a`` (..., k) combined in place with ``s`` (...) by ``op`` (multiply or divide),
+    each of its k columns at a time: numpy broadcasting ``s[..., None]`` over a last axis
+    of 3 or 4 runs its inner loop that short, several times slower. Returns ``a``."""
+    for c in range(a.shape[-1]):
+        op(a[..., c], s, out=a[..., c])
+    return a
 
 
 def _bilinear(texels, w, u, v):
@@ -492,20 +501,22 @@ def _bilinear(texels, w, u, v):
     y = v + np.float32(0.5)
     x0 = np.floor(x)
     y0 = np.floor(y)
-    tx = (x - x0)[:, None]
-    ty = (y - y0)[:, None]
+    tx = x - x0
+    ty = y - y0
     stride = w + 2
     i = y0.astype(np.intp) * stride + x0.astype(np.intp)
 
     def gather(j):
         return texels.take(j).view(np.float32).reshape(-1, 4)
 
-    top = gather(i)
-    top += (gather(i + 1) - top) * tx
-    bottom = gather(i + stride)
-    bottom += (gather(i + stride + 1) - bottom) * tx
-    top += (bottom - top) * ty
-    return top
+    def lerp(a, b, t):  # a + (b - a) t, in place in a (b is spent)
+        b -= a
+        a += _by_row(b, t)
+        return a
+
+    top = lerp(gather(i), gather(i + 1), tx)
+    bottom = lerp(gather(i + stride), gather(i + stride + 1), tx)
+    return lerp(top, bottom, ty)
 
 
 @dataclass(frozen=True, eq=False)
@@ -732,7 +743,7 @@ def _sample_tile(raster, ctx):
         b = min(n, a + SAMPLE_BLOCK)
         values = raster.interp[a:b] @ columns
         nrm = values[:, :3]
-        nrm /= np.maximum(np.sqrt(np.einsum("ij,ij->i", nrm, nrm)), 1e-30)[:, None]
+        _by_row(nrm, np.maximum(np.sqrt(np.einsum("ij,ij->i", nrm, nrm)), 1e-30), np.divide)
         col = 3
         for k, (sampler, (_, toward), factor) in enumerate(passes):
             uvz = values[:, col:col + 3]
@@ -844,19 +855,19 @@ def equalised_colours(samples, world, options=None, head_size=None, in_place=Fal
             om = np.minimum(s.seen[ref], s.seen[k])
             om *= om >= np.float32(LEVEL_WEIGHT)  # grazing samples (an outline) say little
             step = out[t][ref] - out[t][k]
-            step *= om[:, None]  # in place: a tile's colours are large
+            _by_row(step, om)  # in place: a tile's colours are large
             diff += r.gather @ step
             both += r.gather @ om
             strength += r.gather @ (om > 0).astype(np.float32)
         if not (both > 0).any():
             return
-        diff /= np.maximum(both, 1e-30)[:, None]
+        _by_row(diff, np.maximum(both, 1e-30), np.divide)
         share = np.where(cover > 0, strength / np.maximum(cover, 1e-30), 0.0)
         field = level_field(diff, share, world, tris, opts.level_length * head_size,
                             decay=opts.level_decay * head_size, operators=operators)
         for t, s in samples.items():
             add = s.raster.interp @ field.astype(np.float32)
-            add *= (s.seen[k] > 0)[:, None]
+            _by_row(add, s.seen[k] > 0)
             out[t][k] += add
 
     _map(level, [k for k in range(p) if k != ref], opts.threads)
@@ -874,9 +885,9 @@ def _blend(samples, colours, opts):
         return acc
     fill = _smooth_fill(raster, acc, wsum, opts.fill_weight)
     short = np.maximum(opts.fill_weight - wsum, 0.0)
-    fill *= short[:, None]  # in place, as below: a tile's colours are large
+    _by_row(fill, short)  # in place, as below: a tile's colours are large
     acc += fill
-    acc /= (wsum + short)[:, None]
+    _by_row(acc, wsum + short, np.divide)
     return np.clip(acc, 0.0, 1.0, out=acc)
 
 
