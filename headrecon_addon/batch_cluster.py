@@ -23,7 +23,6 @@ at the same paths as the client (a shared file system): the tasks carry paths, n
 """
 
 import atexit
-import importlib
 import logging
 import os
 import subprocess
@@ -58,9 +57,9 @@ def distributed():
 
 def model_path():
     """The model file this process would load (``HEADRECON_MODEL`` or the default)."""
-    from .solver_link import solver
+    from .solver_link import solver_module
 
-    paths = importlib.import_module(f"{solver.__name__}.paths")
+    paths = solver_module("paths")
     return str(Path(os.environ.get("HEADRECON_MODEL") or paths.DEFAULT_MODEL_PATH).resolve())
 
 

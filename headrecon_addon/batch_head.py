@@ -7,7 +7,6 @@ and renamed into place; the record (``batch_stamp.write_record``) is written las
 head killed part-way leaves no file and is fitted again.
 """
 
-import importlib
 import os
 import shutil
 import sys
@@ -32,12 +31,8 @@ from .solver_link import (
     forget_fit_subsets,
     load_landmarks,
     orthographic_lenses,
-    solver,
+    solver_module,
 )
-
-
-def _solver_module(name):
-    return importlib.import_module(f"{solver.__name__}.{name}")
 
 
 def run_task(task, model):
@@ -103,7 +98,7 @@ def write_head(task, model):
     targets = _targets(base, kinds)
     inputs = {"the landmarks file": path}
     inputs.update({f"the photo of view {v}": case.image_path(v) for v in case.views})
-    _solver_module("io.atomic").check_outputs(
+    solver_module("io.atomic").check_outputs(
         {f"output {k}": p for k, p in targets.items()}, inputs)
     head_scene.reset_scene()
     heap.release_free_memory()  # the last head's scene, before the fit and bake take more
@@ -169,7 +164,7 @@ def _write_staged(staging, stem, name, kinds, model, case, result, imgs, tiles, 
                     targets["fbx_textures"] = targets["fbx"].with_name(f"{stem}_textures")
     files = {}
     if "obj" in kinds:
-        names, obj_files = _solver_module("io.export").head_obj_files(
+        names, obj_files = solver_module("io.export").head_obj_files(
             staging / f"{stem}.obj", model, result.local_vertices, tiles,
             staging / f"{stem}_texture.png" if tiles is not None else None)
         files.update(obj_files)
@@ -182,11 +177,11 @@ def _write_staged(staging, stem, name, kinds, model, case, result, imgs, tiles, 
         targets.pop("obj_texture", None)
         tex = staging / f"{stem}_texture.png"
         if tex not in files:
-            atlas, _, _ = _solver_module("io.export").texture_atlas(model, tiles)
-            files[tex] = _solver_module("io.export").png_bytes(atlas)
+            atlas, _, _ = solver_module("io.export").texture_atlas(model, tiles)
+            files[tex] = solver_module("io.export").png_bytes(atlas)
         staged["texture"] = tex
     if "report" in kinds:
-        rep = _solver_module("io.report")
+        rep = solver_module("io.report")
         final = {k: targets[k] for k in ("blend", "glb", "fbx", "obj", "mtl", "texture")
                  if k in targets}
         final["report"] = targets["report"]
@@ -195,5 +190,5 @@ def _write_staged(staging, stem, name, kinds, model, case, result, imgs, tiles, 
         files[staging / f"{stem}.report.json"] = text
         staged["report"] = staging / f"{stem}.report.json"
     if files:
-        _solver_module("io.atomic").write_files_atomic(files)
+        solver_module("io.atomic").write_files_atomic(files)
     return staged

@@ -13,7 +13,6 @@ by the next batch (``remove_stale_partials``).
 """
 
 import hashlib
-import importlib
 import json
 import os
 import shutil
@@ -51,9 +50,9 @@ def _photo_paths(landmarks):
 
 
 def _model_path():
-    from .solver_link import solver
+    from .solver_link import solver_module
 
-    paths = importlib.import_module(f"{solver.__name__}.paths")
+    paths = solver_module("paths")
     return Path(os.environ.get("HEADRECON_MODEL") or paths.DEFAULT_MODEL_PATH)
 
 
@@ -103,9 +102,9 @@ def finished_record(base, digest):
 def write_record(base, digest, row):
     """Record that the head ``base`` is done with ``digest`` (atomically, after its
     outputs)."""
-    from .solver_link import solver
+    from .solver_link import solver_module
 
-    atomic = importlib.import_module(f"{solver.__name__}.io.atomic")
+    atomic = solver_module("io.atomic")
     text = json.dumps({"format": STAMP_FORMAT, "version": 1, "hash": digest,
                        "summary": row}, indent=1) + "\n"
     atomic.write_file_atomic(stamp_path(base), text)

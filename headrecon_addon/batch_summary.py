@@ -3,7 +3,6 @@
 progress line (done, failed, rate, time left)."""
 
 import csv
-import importlib
 import io
 import json
 import time
@@ -51,9 +50,9 @@ def summary_texts(rows):
 
 def write_summaries(folder, rows):
     """Write ``folder/summary.csv`` and ``folder/summary.jsonl`` as one atomic set."""
-    from .solver_link import solver
+    from .solver_link import solver_module
 
-    atomic = importlib.import_module(f"{solver.__name__}.io.atomic")
+    atomic = solver_module("io.atomic")
     text_csv, text_jsonl = summary_texts(rows)
     atomic.write_files_atomic({folder / "summary.csv": text_csv,
                                folder / "summary.jsonl": text_jsonl})

@@ -44,17 +44,13 @@ from pathlib import Path
 
 if __package__:  # no bpy here: a batch's own process plans and waits on its workers
     from . import batch_manifest, batch_stamp, batch_summary, batch_workers, blas_threads
-    from .solver_link import SHADING_MODES, load_model, solver, usable_cores
+    from .solver_link import SHADING_MODES, load_model, solver_module, usable_cores
 
 
 OUTPUTS = ("blend", "glb", "fbx", "obj", "texture", "report")
 #: The outputs without ``--outputs``, by ``--no-texture``: the .blend, and the baked
 #: texture as a PNG beside it (as Save Texture writes it in Blender).
 DEFAULT_OUTPUTS = {False: ("blend", "texture"), True: ("blend",)}
-
-
-def _solver_module(name):
-    return importlib.import_module(f"{solver.__name__}.{name}")
 
 
 def _outputs_arg(text):
@@ -203,7 +199,7 @@ def detected_head(head):
     detect command's own code), or with the one-line error when its photos fail."""
     if head.error is not None or head.landmarks is not None or not head.photos:
         return head
-    cli = _solver_module("cli")
+    cli = solver_module("cli")
     landmarks = head.base.with_name(head.base.name + ".landmarks.json")
     try:
         head.base.parent.mkdir(parents=True, exist_ok=True)
@@ -283,7 +279,7 @@ def main(argv):
         heads = [detected_head(h) for h in heads]  # a manifest's photos column
         heads += detected_heads(args.detect, args.out)
         if out_dir is not None:
-            _solver_module("io.atomic").check_outputs(
+            solver_module("io.atomic").check_outputs(
                 {"summary.csv": out_dir / "summary.csv",
                  "summary.jsonl": out_dir / "summary.jsonl"},
                 {f"input {p}": p for p in args.inputs})

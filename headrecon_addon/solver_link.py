@@ -20,4 +20,11 @@ except ImportError as e:  # top-level headrecon_addon (a checkout): the solver i
 
 globals().update({name: getattr(solver, name) for name in solver.__all__})
 
-__all__ = ["solver", *solver.__all__]
+
+def solver_module(name):
+    """The solver's submodule ``name`` ("io.atomic", "cli", ...), whichever package the
+    solver is here."""
+    return importlib.import_module(f"{solver.__name__}.{name}")
+
+
+__all__ = ["solver", "solver_module", *solver.__all__]

@@ -8,7 +8,6 @@ overwritten (``solver/io/atomic.py::check_outputs``).
 the .blend is not saved yet.
 """
 
-import importlib
 from pathlib import Path
 
 import bpy
@@ -17,13 +16,9 @@ from bpy.props import StringProperty
 from . import material, photos, reference_head, result_to_scene
 from .polls import poll_result
 from .reference_head import fitted_head_problem, scene_head
-from .solver_link import load_model, solver
+from .solver_link import load_model, solver_module
 
 SUFFIX = "_texture.png"
-
-
-def _solver_module(name):
-    return importlib.import_module(f"{solver.__name__}.{name}")
 
 
 def baked_tiles(head, model):
@@ -83,11 +78,11 @@ def save_texture(head, path, model=None):
     tiles = baked_tiles(head, model)
     if not tiles:
         raise ValueError(f"{head.name} has no baked texture (Fit with Bake Texture on)")
-    _solver_module("io.atomic").check_outputs({"the texture": path}, _used_image_files())
-    atlas, _, _ = _solver_module("io.export").texture_atlas(model, tiles)
+    solver_module("io.atomic").check_outputs({"the texture": path}, _used_image_files())
+    atlas, _, _ = solver_module("io.export").texture_atlas(model, tiles)
     path.parent.mkdir(parents=True, exist_ok=True)
-    _solver_module("io.atomic").write_file_atomic(
-        path, _solver_module("io.export").png_bytes(atlas[..., :3]))
+    solver_module("io.atomic").write_file_atomic(
+        path, solver_module("io.export").png_bytes(atlas[..., :3]))
     return path
 
 
