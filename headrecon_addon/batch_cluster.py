@@ -24,12 +24,10 @@ at the same paths as the client (a shared file system): the tasks carry paths, n
 
 import atexit
 import logging
-import os
 import subprocess
 import sys
 import threading
 from contextlib import contextmanager
-from pathlib import Path
 
 INSTALL = 'pip install "dask[distributed]==2024.8.2"'
 
@@ -59,8 +57,7 @@ def model_path():
     """The model file this process would load (``HEADRECON_MODEL`` or the default)."""
     from .solver_link import solver_module
 
-    paths = solver_module("paths")
-    return str(Path(os.environ.get("HEADRECON_MODEL") or paths.DEFAULT_MODEL_PATH).resolve())
+    return str(solver_module("paths").model_path().resolve())
 
 
 def _fitter(path, command):

@@ -52,8 +52,7 @@ def _photo_paths(landmarks):
 def _model_path():
     from .solver_link import solver_module
 
-    paths = solver_module("paths")
-    return Path(os.environ.get("HEADRECON_MODEL") or paths.DEFAULT_MODEL_PATH)
+    return solver_module("paths").model_path()
 
 
 def content_hash(landmarks, settings):

@@ -9,7 +9,6 @@ licence travels next to it as ``LICENSE-ICT-FaceKit.txt``.
 
 import functools
 import json
-import os
 import threading
 from pathlib import Path
 
@@ -17,7 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..io.landmark_set import LandmarkSet
-from ..paths import DEFAULT_MODEL_PATH
+from ..paths import model_path
 from .linear_model import LinearModel
 
 MODEL_FORMAT = "headrecon-head-model"
@@ -323,7 +322,7 @@ def load_model(path=None):
         When the file does not exist (the message says how to build it).
     """
     if path is None:
-        path = os.environ.get("HEADRECON_MODEL") or DEFAULT_MODEL_PATH
+        path = model_path()
     path = Path(path).resolve()
     key = str(path)
     with _cache_lock:

@@ -8,7 +8,8 @@ import subprocess
 import numpy as np
 import pytest
 
-from solver.model.head_model import DEFAULT_MODEL_PATH, fan_triangles, load_model, mesh_edges
+from solver.model.head_model import fan_triangles, load_model, mesh_edges
+from solver.paths import DEFAULT_MODEL_PATH
 from tests import ROOT as REPO
 from tools import build_model as bm
 
