@@ -26,6 +26,9 @@ threshold) and the side landmarks. Then:
   camera (no profile stage) it does worse than approach 1 (docs/DECISIONS.md), so there
   combined is approach 1 alone; and the fits after the first (with the estimated noise)
   refine the first one's head with approach 1 alone, which won every such fit measured.
+  A head those fits leave in a wrong minimum (tilted and bent so that a stretch of a
+  traced outline finds no outline row) is fitted once more from the mean head with the
+  settled noise, and the clearly lower posterior cost wins.
 
 Cameras: no photo is assumed to share scale, tilt or framing with another. Each keeps its
 own camera, solved together with the head in every Gauss-Newton step (its parameters as
@@ -121,6 +124,15 @@ def prepare_fit(model, options=None):
     _ = model.expressions
 
 
+#: A fit whose head misses more than this share of a photo's traced outline is run again
+#: from the mean head (a head bent into the wrong minimum leaves a stretch of the outline
+#: unmatched; docs/DECISIONS.md).
+MISSED_OUTLINE = 0.08
+#: ... and that fit's head is kept only if its posterior cost is lower by more than this
+#: share: between two heads near a tie the cost does not tell the better one.
+SECOND_START_GAIN = 0.1
+
+
 def fit_head(model, case, options=None, initial=None):
     """Fit the head model to the landmarks (and contours) of a case.
 
@@ -153,8 +165,11 @@ def fit_head(model, case, options=None, initial=None):
         "plausibility" (the identity's Mahalanobis norm and its percentile under the
         model, ``outcome.plausibility``), "unused" (the views skipped and the
         landmarks left out per view, ``views.unused_views``), "warnings"
-        (messages for the user) and "refit_state" (what :func:`refit_landmarks`
-        continues from).
+        (messages for the user), "refit_state" (what :func:`refit_landmarks`
+        continues from) and, when the head was fitted again from the mean head (it
+        missed more than ``MISSED_OUTLINE`` of a traced outline), "starts": the posterior
+        cost each start ended at ("continued", "mean head"; the lower one's head is kept
+        when lower by more than ``SECOND_START_GAIN``).
 
     Raises
     ------
@@ -198,17 +213,31 @@ def fit_head(model, case, options=None, initial=None):
                 and not expressions_moved(expressions, shown):
             break
         noise, expressions = estimate, shown
-        part = 0.55 + 0.15 * (rounds - 1)
+        part = 0.55 + 0.12 * (rounds - 1)
         result, contour, along, effective, measured, roles, finish = _fit(
             model, neutral_case(model, case, result, expressions), later, result, noise,
-            progress.part(part, part + 0.15), t0, uncertainty=False)
+            progress.part(part, part + 0.12), t0, uncertainty=False)
         rounds += 1
         for stage, seconds in result.info["timings"].items():
             timings[stage] = seconds if stage == "total" else timings.get(stage, 0.0) + seconds
+    starts = None
+    if initial is None and outline_missed(case, result) > MISSED_OUTLINE:
+        # A second start: the fit again from the mean head (approach 1, as the rounds),
+        # with the noise and expressions the rounds settled on.
+        again = _fit(model, neutral_case(model, case, result, expressions), later, None,
+                     noise, progress.part(0.91, 0.99), t0, uncertainty=False)
+        starts = {"continued": _cost(result), "mean head": _cost(again[0])}
+        if starts["mean head"] < (1.0 - SECOND_START_GAIN) * starts["continued"]:
+            result, contour, along, effective, measured, roles, finish = again
+        for stage, seconds in again[0].info["timings"].items():
+            if stage != "total":
+                timings[stage] = timings.get(stage, 0.0) + seconds
     result.uncertainty, result.method = finish(), opts.method
     # the choice between the approaches was made in the first fit, the only one running both
     result.info.update({k: first[0].info[k] for k in ("approach", "candidates")})
     result.info["noise"] = {**noise.report(), "fits": rounds}
+    if starts is not None:
+        result.info["starts"] = starts
     result.info["refit_state"]["noise"] = noise
     if opts.expressions == "fit":
         result.info["expressions"] = expression_report(model, expressions)
@@ -216,6 +245,21 @@ def fit_head(model, case, options=None, initial=None):
     result.info["timings"] = timings
     progress(1.0, f"done ({result.info['approach']}, {rounds} fits)")
     return _checked(model, case, opts, result)
+
+
+def outline_missed(case, result):
+    """The largest share, over the photos with a traced outline, of its points that the
+    fitted head's outline left unmatched (no outline row within the cut-off)."""
+    pairs = result.info["refit_state"]["contour"]
+    shares = [1.0 - len(pairs[n]["pixels"]) / len(v.contour) if n in pairs else 1.0
+              for n, v in case.views.items()
+              if v.contour is not None and len(v.contour) >= 2 and n in result.cameras]
+    return max(shares, default=0.0)
+
+
+def _cost(result):
+    """The posterior cost a fit with estimated noise ended at (its chosen candidate's)."""
+    return result.info["candidates"][result.info["approach"]]["rms_px"]
 
 
 def _checked(model, case, opts, result):

@@ -2,11 +2,14 @@
 with known answers)."""
 
 import copy
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from solver import FitOptions, LandmarkCase, OrthographicCamera, View, fit_head, refit_landmarks
+from solver.fitting import fit
+from solver.fitting.fit import outline_missed
 from solver.fitting.outcome import flag_residuals
 from solver.synthetic import make_case, skin_error_mm
 
@@ -318,3 +321,50 @@ def test_cameras_from_passpoints_and_self_calibration(model):
     views["front"].camera_hints = {"kind": "orthographic"}
     with pytest.raises(ValueError, match=r"view 'front': no camera parameters"):
         fit_head(model, LandmarkCase(views))
+
+
+def test_outline_missed_is_the_largest_share_of_a_traced_outline_left_unmatched():
+    size = (100, 100)
+    cam = OrthographicCamera.nominal("orthographic-front", size)
+    views = {"front": View("front", None, size, cam, {}, contour=np.zeros((10, 2))),
+             "right": View("right", None, size, cam, {}, contour=np.zeros((20, 2))),
+             "left": View("left", None, size, cam, {})}
+    pairs = {"front": {"pixels": np.zeros((9, 2))}, "right": {"pixels": np.zeros((15, 2))}}
+    result = SimpleNamespace(cameras=dict.fromkeys(views),
+                             info={"refit_state": {"contour": pairs}})
+    assert outline_missed(LandmarkCase(views, "<test>"), result) == pytest.approx(0.25)
+    del pairs["front"]  # a traced outline with no pair at all is missed whole
+    assert outline_missed(LandmarkCase(views, "<test>"), result) == 1.0
+
+
+def _profile_read_off_outline(model, seed):
+    """A case as the detector gives it: front landmarks 3 px apart from their vertices
+    (with that uncertainty), the profile's landmarks only those read off its outline."""
+    case, truth = make_case(model, seed, noise_px=3.0)
+    keep = {"nasion", "nose_tip", "subnasale", "lip_upper_middle", "pogonion", "chin_bottom"}
+    side = case.views["right"]
+    side.points = {k: p for k, p in side.points.items() if k in keep}
+    case.views["front"].uncertainty = dict.fromkeys(case.views["front"].points, 3.0)
+    return case, truth
+
+
+def test_a_head_left_in_a_wrong_minimum_is_fitted_again_from_the_mean_head(model,
+                                                                           monkeypatch):
+    case, truth = _profile_read_off_outline(model, 10)
+    res = fit_head(model, case)
+    starts = res.info["starts"]
+    assert starts["mean head"] < (1.0 - fit.SECOND_START_GAIN) * starts["continued"]
+    monkeypatch.setattr(fit, "MISSED_OUTLINE", 2.0)  # never fitted again
+    once = fit_head(model, case)
+    assert "starts" not in once.info
+    err = skin_error_mm(model, res.local_vertices, truth.local_vertices)
+    assert err < skin_error_mm(model, once.local_vertices, truth.local_vertices) - 0.3
+
+
+def test_a_second_start_near_a_tie_keeps_the_continued_head(model, monkeypatch):
+    case, _ = _profile_read_off_outline(model, 2)
+    res = fit_head(model, case)
+    starts = res.info["starts"]
+    assert starts["mean head"] >= (1.0 - fit.SECOND_START_GAIN) * starts["continued"]
+    monkeypatch.setattr(fit, "MISSED_OUTLINE", 2.0)
+    np.testing.assert_array_equal(res.local_vertices, fit_head(model, case).local_vertices)

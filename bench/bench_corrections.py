@@ -1,0 +1,144 @@
+"""The artist's corrections: heads fitted from their photos alone (both photos detected, as
+Auto Fit takes them), then with each group of the front photo's detected iBUG points
+replaced by the exact ones, as an artist correcting the detection would place them.
+A correction should never make the head much worse; a fit left in a wrong minimum does.
+
+    python -m bench.bench_corrections [--heads DIR ...] [--render SEED ...]
+
+Heads: rendered sample folders (``python -m tools.make_sample --seed N --out DIR``: the
+front and profile photos, ``sample.json`` with the exact landmarks, ``truth.npz`` with the
+true head); default the sample (``./run sample``) and ``generated/bench_heads/seed<N>``
+for each ``--render`` seed, rendered there first when missing (about 45 s a head).
+Scores: skin RMS against the true head after a similarity (``skin_error_mm``), mm, for the
+photos alone, each group exact (jaw 1-17, brows 18-27, nose 28-36, eyes 37-48, mouth
+49-68), all 68 exact, and every landmark of both photos exact (``sample.json``). Each fit
+runs twice: as the fit is ("fit"), and with no second start (``fit.MISSED_OUTLINE`` set
+beyond reach: "once"); "*" marks a fit whose second start from the mean head was kept.
+The last lines give the mean and the worst of each column, and how many fits end more
+than 1.5 x the photos-only error of their head.
+"""
+
+import argparse
+import copy
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from bench.common import machine_description
+from solver import fit_head, load_landmarks, load_model
+from solver.detect import Detector
+from solver.detect.detected_case import detect_photos
+from solver.fitting import fit
+from solver.io.landmark_set import load_landmark_set
+from solver.synthetic import skin_error_mm
+
+ROOT = Path(__file__).resolve().parent.parent
+GROUPS = {"jaw": range(1, 18), "brows": range(18, 28), "nose": range(28, 37),
+          "eyes": range(37, 49), "mouth": range(49, 69), "all 68": range(1, 69)}
+#: A fit this many times its head's photos-only error counts as made worse by a correction.
+WORSE = 1.5
+
+
+def render_head(seed, folder):
+    """Render a model head's sample photos into ``folder`` unless they are there."""
+    if (folder / "truth.npz").is_file():
+        return
+    print(f"rendering seed {seed} into {folder} ...", flush=True)
+    subprocess.run([sys.executable, "-m", "tools.make_sample", "--seed", str(seed),
+                    "--out", str(folder)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+
+
+def corrected_cases(folder, model, detector):
+    """(label, case) of one head: the photos-only case and its corrections, and the case of
+    every exact landmark; None when the photos were not detected as front and profile."""
+    exact = load_landmarks(folder / "sample.json", known_names=model)
+    auto = detect_photos([(None, folder / "front.png"), (None, folder / "side.png")],
+                         detector, lambda p: np.asarray(Image.open(p).convert("RGB")),
+                         base_dir=folder)
+    if set(auto.views) != {"front", "right"}:
+        return None
+    names = load_landmark_set().ibug
+    placed = exact.views["front"].points
+    out = [("photos", auto)]
+    for group, numbers in GROUPS.items():
+        case = copy.deepcopy(auto)
+        front = case.views["front"]
+        for n in (names.get(i) for i in numbers):
+            if n in front.points and n in placed:
+                front.points[n] = placed[n]
+                front.uncertainty.pop(n, None)
+        out.append((group, case))
+    out.append(("every exact", exact))
+    return out
+
+
+def fit_error(model, case, truth, second_start):
+    """(skin RMS mm, whether a second start's head was kept)."""
+    missed = fit.MISSED_OUTLINE
+    if not second_start:
+        fit.MISSED_OUTLINE = float("inf")
+    try:
+        res = fit_head(model, case)
+    finally:
+        fit.MISSED_OUTLINE = missed
+    starts = res.info.get("starts")
+    kept = starts is not None and \
+        starts["mean head"] < (1.0 - fit.SECOND_START_GAIN) * starts["continued"]
+    return skin_error_mm(model, res.local_vertices, truth), kept
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--heads", nargs="*", default=None,
+                    help="rendered sample folders (default: the sample and the --render ones)")
+    ap.add_argument("--render", nargs="*", type=int, default=[],
+                    help="model seeds rendered into generated/bench_heads/seed<N> if missing")
+    args = ap.parse_args(argv)
+    print(f"machine: {machine_description()}")
+    folders = [Path(h) for h in args.heads] if args.heads is not None \
+        else [ROOT / "generated" / "sample"]
+    for seed in args.render:
+        folder = ROOT / "generated" / "bench_heads" / f"seed{seed}"
+        render_head(seed, folder)
+        folders.append(folder)
+    model, detector = load_model(), Detector()
+    columns = ["photos", *GROUPS, "every exact"]
+    print("skin RMS vs the true head, mm: fit / once (no second start); * second start kept")
+    print(f"  {'head':<12}" + "".join(f"{c:>16}" for c in columns))
+    table = {"fit": [], "once": []}
+    for folder in folders:
+        if not (folder / "truth.npz").is_file():
+            print(f"  {folder}: no truth.npz; skipped")
+            continue
+        cases = corrected_cases(folder, model, detector)
+        if cases is None:
+            print(f"  {folder}: the photos were not detected as front and right; skipped")
+            continue
+        truth = np.load(folder / "truth.npz", allow_pickle=True)["local_vertices"]
+        row = {k: [] for k in table}
+        cells = []
+        for _, case in cases:
+            e, kept = fit_error(model, case, truth, True)
+            once, _ = fit_error(model, case, truth, False)
+            row["fit"].append(e)
+            row["once"].append(once)
+            cells.append(f"{e:.2f}{'*' if kept else ' '}/{once:.2f}")
+        for k in table:
+            table[k].append(row[k])
+        print(f"  {folder.name:<12}" + "".join(f"{c:>16}" for c in cells), flush=True)
+    if not table["fit"]:
+        return
+    for k, rows in table.items():
+        a = np.array(rows)
+        worse = int((a[:, 1:-1] > WORSE * a[:, :1]).sum())
+        print(f"  {'mean ' + k:<12}" + "".join(f"{v:>16.2f}" for v in a.mean(axis=0)))
+        print(f"  {'worst ' + k:<12}" + "".join(f"{v:>16.2f}" for v in a.max(axis=0)))
+        print(f"  {k}: {worse} of {a[:, 1:-1].size} corrected fits worse than {WORSE} x "
+              "their head's photos-only error")
+
+
+if __name__ == "__main__":
+    main()
