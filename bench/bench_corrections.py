@@ -1,6 +1,7 @@
 """The artist's corrections: heads fitted from their photos alone (both photos detected, as
 Auto Fit takes them), then with each group of the front photo's detected iBUG points
-replaced by the exact ones, as an artist correcting the detection would place them.
+replaced by the exact ones, as an artist correcting the detection would place them (a
+moved landmark forgets the detector's uncertainty and depth, as in Blender).
 A correction should never make the head much worse; a fit left in a wrong minimum does.
 
     python -m bench.bench_corrections [--heads DIR ...] [--render SEED ...]
@@ -11,7 +12,8 @@ true head); default the sample (``./run sample``) and ``generated/bench_heads/se
 for each ``--render`` seed, rendered there first when missing (about 45 s a head).
 Scores: skin RMS against the true head after a similarity (``skin_error_mm``), mm, for the
 photos alone, each group exact (jaw 1-17, brows 18-27, nose 28-36, eyes 37-48, mouth
-49-68), all 68 exact, and every landmark of both photos exact (``sample.json``). Each fit
+49-68), all 68 exact, the profile's four ear points added by hand (the detector finds no
+ear), and every landmark of both photos exact (``sample.json``). Each fit
 runs twice: as the fit is ("fit"), and with no second start (``fit.MISSED_OUTLINE`` set
 beyond reach: "once"); "*" marks a fit whose second start from the mean head was kept.
 The last lines give the mean and the worst of each column, and how many fits end more
@@ -68,9 +70,14 @@ def corrected_cases(folder, model, detector):
         front = case.views["front"]
         for n in (names.get(i) for i in numbers):
             if n in front.points and n in placed:
-                front.points[n] = placed[n]
+                front.points[n] = placed[n]  # hand-placed: no uncertainty, no depth
                 front.uncertainty.pop(n, None)
+                front.depth.pop(n, None)
         out.append((group, case))
+    case = copy.deepcopy(auto)  # the profile's ear points added by hand
+    side = exact.views["side"].points
+    case.views["right"].points.update({n: p for n, p in side.items() if n.startswith("ear_")})
+    out.append(("profile ears", case))
     out.append(("every exact", exact))
     return out
 
@@ -105,7 +112,7 @@ def main(argv=None):
         render_head(seed, folder)
         folders.append(folder)
     model, detector = load_model(), Detector()
-    columns = ["photos", *GROUPS, "every exact"]
+    columns = ["photos", *GROUPS, "profile ears", "every exact"]
     print("skin RMS vs the true head, mm: fit / once (no second start); * second start kept")
     print(f"  {'head':<12}" + "".join(f"{c:>16}" for c in columns))
     table = {"fit": [], "once": []}
