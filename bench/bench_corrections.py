@@ -4,7 +4,7 @@ replaced by the exact ones, as an artist correcting the detection would place th
 moved landmark forgets the detector's uncertainty and depth, as in Blender).
 A correction should never make the head much worse; a fit left in a wrong minimum does.
 
-    python -m bench.bench_corrections [--heads DIR ...] [--render SEED ...]
+    python -m bench.bench_corrections [--heads DIR ...] [--render SEED ...] [--always]
 
 Heads: rendered sample folders (``python -m tools.make_sample --seed N --out DIR``: the
 front and profile photos, ``sample.json`` with the exact landmarks, ``truth.npz`` with the
@@ -17,7 +17,8 @@ ear), and every landmark of both photos exact (``sample.json``). Each fit
 runs twice: as the fit is ("fit"), and with no second start (``fit.MISSED_OUTLINE`` set
 beyond reach: "once"); "*" marks a fit whose second start from the mean head was kept.
 The last lines give the mean and the worst of each column, and how many fits end more
-than 1.5 x the photos-only error of their head.
+than 1.5 x the photos-only error of their head. ``--always`` runs the second start on
+every fit ("fit" column; ``fit.MISSED_OUTLINE`` below 0): what the rule leaves untried.
 """
 
 import argparse
@@ -82,11 +83,11 @@ def corrected_cases(folder, model, detector):
     return out
 
 
-def fit_error(model, case, truth, second_start):
+def fit_error(model, case, truth, second_start, always=False):
     """(skin RMS mm, whether a second start's head was kept)."""
     missed = fit.MISSED_OUTLINE
-    if not second_start:
-        fit.MISSED_OUTLINE = float("inf")
+    if not second_start or always:
+        fit.MISSED_OUTLINE = -1.0 if always else float("inf")
     try:
         res = fit_head(model, case)
     finally:
@@ -103,6 +104,9 @@ def main(argv=None):
                     help="rendered sample folders (default: the sample and the --render ones)")
     ap.add_argument("--render", nargs="*", type=int, default=[],
                     help="model seeds rendered into generated/bench_heads/seed<N> if missing")
+    ap.add_argument("--always", action="store_true",
+                    help="run the second start on every fit, not only on heads that miss "
+                         "their outline")
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
     folders = [Path(h) for h in args.heads] if args.heads is not None \
@@ -113,7 +117,8 @@ def main(argv=None):
         folders.append(folder)
     model, detector = load_model(), Detector()
     columns = ["photos", *GROUPS, "profile ears", "every exact"]
-    print("skin RMS vs the true head, mm: fit / once (no second start); * second start kept")
+    print("skin RMS vs the true head, mm: fit / once (no second start); * second start kept"
+          + (" (run on every fit)" if args.always else ""))
     print(f"  {'head':<12}" + "".join(f"{c:>16}" for c in columns))
     table = {"fit": [], "once": []}
     for folder in folders:
@@ -128,7 +133,7 @@ def main(argv=None):
         row = {k: [] for k in table}
         cells = []
         for _, case in cases:
-            e, kept = fit_error(model, case, truth, True)
+            e, kept = fit_error(model, case, truth, True, args.always)
             once, _ = fit_error(model, case, truth, False)
             row["fit"].append(e)
             row["once"].append(once)
