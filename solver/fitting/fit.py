@@ -27,8 +27,9 @@ threshold) and the side landmarks. Then:
   combined is approach 1 alone; and the fits after the first (with the estimated noise)
   refine the first one's head with approach 1 alone, which won every such fit measured.
   A head those fits leave in a wrong minimum (tilted and bent so that a stretch of a
-  traced outline finds no outline row) is fitted once more from the mean head with the
-  settled noise, and the clearly lower posterior cost wins.
+  traced outline finds no outline row) is fitted once more with the settled noise, from
+  the first fit's other approach's head (else the mean head), and the clearly lower
+  posterior cost wins.
 
 Cameras: no photo is assumed to share scale, tilt or framing with another. Each keeps its
 own camera, solved together with the head in every Gauss-Newton step (its parameters as
@@ -125,7 +126,7 @@ def prepare_fit(model, options=None):
 
 
 #: A fit whose head misses more than this share of a photo's traced outline is run again
-#: from the mean head (a head bent into the wrong minimum leaves a stretch of the outline
+#: from another start (a head bent into the wrong minimum leaves a stretch of the outline
 #: unmatched; docs/DECISIONS.md).
 MISSED_OUTLINE = 0.08
 #: ... and that fit's head is kept only if its posterior cost is lower by more than this
@@ -166,10 +167,10 @@ def fit_head(model, case, options=None, initial=None):
         model, ``outcome.plausibility``), "unused" (the views skipped and the
         landmarks left out per view, ``views.unused_views``), "warnings"
         (messages for the user), "refit_state" (what :func:`refit_landmarks`
-        continues from) and, when the head was fitted again from the mean head (it
+        continues from) and, when the head was fitted again from a second start (it
         missed more than ``MISSED_OUTLINE`` of a traced outline), "starts": the posterior
-        cost each start ended at ("continued", "mean head"; the lower one's head is kept
-        when lower by more than ``SECOND_START_GAIN``).
+        cost each start ended at ("continued", and "other approach" or "mean head"; the
+        second one's head is kept when lower by more than ``SECOND_START_GAIN``).
 
     Raises
     ------
@@ -197,7 +198,7 @@ def fit_head(model, case, options=None, initial=None):
     # starts where the last one ended.
     first = _fit(model, given, opts, initial, start_noise, progress.part(0.0, 0.55), t0,
                  uncertainty=False)
-    result, contour, along, effective, measured, roles, finish = first
+    result, contour, along, effective, measured, roles, finish, _ = first
     later = opts if opts.method != "combined" else dataclasses.replace(opts,
                                                                        method="approach1")
     noise, rounds, expressions = start_noise, 1, start_shown
@@ -214,7 +215,7 @@ def fit_head(model, case, options=None, initial=None):
             break
         noise, expressions = estimate, shown
         part = 0.55 + 0.12 * (rounds - 1)
-        result, contour, along, effective, measured, roles, finish = _fit(
+        result, contour, along, effective, measured, roles, finish, _ = _fit(
             model, neutral_case(model, case, result, expressions), later, result, noise,
             progress.part(part, part + 0.12), t0, uncertainty=False)
         rounds += 1
@@ -222,13 +223,16 @@ def fit_head(model, case, options=None, initial=None):
             timings[stage] = seconds if stage == "total" else timings.get(stage, 0.0) + seconds
     starts = None
     if initial is None and outline_missed(case, result) > MISSED_OUTLINE:
-        # A second start: the fit again from the mean head (approach 1, as the rounds),
-        # with the noise and expressions the rounds settled on.
-        again = _fit(model, neutral_case(model, case, result, expressions), later, None,
+        # A second start, with the noise and expressions the rounds settled on (approach 1,
+        # as the rounds): from the head of the first fit's other approach where it ran two
+        # (a round's cost), else from the mean head.
+        other = first[7]()
+        again = _fit(model, neutral_case(model, case, result, expressions), later, other,
                      noise, progress.part(0.91, 0.99), t0, uncertainty=False)
-        starts = {"continued": _cost(result), "mean head": _cost(again[0])}
-        if starts["mean head"] < (1.0 - SECOND_START_GAIN) * starts["continued"]:
-            result, contour, along, effective, measured, roles, finish = again
+        key = "mean head" if other is None else "other approach"
+        starts = {"continued": _cost(result), key: _cost(again[0])}
+        if starts[key] < (1.0 - SECOND_START_GAIN) * starts["continued"]:
+            result, contour, along, effective, measured, roles, finish, _ = again
         for stage, seconds in again[0].info["timings"].items():
             if stage != "total":
                 timings[stage] = timings.get(stage, 0.0) + seconds
@@ -388,8 +392,24 @@ def _fit(model, case, opts, initial, noise, progress, t0, uncertainty=True):
     roles = ({v.name: {n for n, o in zip(v.names, v.outline_point & ~v.slide, strict=True)
                        if o} for v in eng.views},
              {v.name: dict(zip(v.names, v.relative.tolist(), strict=True)) for v in eng.views})
+    others = [c[0] for n, c in candidates.items() if n != chosen]
+
+    def other_start():
+        """The other approach's head as a FitResult to start from, or None."""
+        if not others:
+            return None
+        other = others[0]
+        eng.use(other)
+        saved = {"coeffs": other.coeffs.copy(),
+                 "planes": {n: {"normal": p.normal.copy(), "offset": p.offset}
+                            for n, p in other.planes.items()}}
+        start = make_result(model, eng, other, opts, opts.method, {"refit_state": saved},
+                            skipped=skipped)
+        eng.use(state)
+        return start
+
     return (result, contour, along, eng.effective_parameters(cov) + measured[1], measured,
-            roles, finish)
+            roles, finish, other_start)
 
 
 def refit_landmarks(model, case, previous, options=None):
