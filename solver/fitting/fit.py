@@ -198,7 +198,7 @@ def fit_head(model, case, options=None, initial=None):
     # starts where the last one ended.
     first = _fit(model, given, opts, initial, start_noise, progress.part(0.0, 0.55), t0,
                  uncertainty=False)
-    result, contour, along, effective, measured, roles, finish, _ = first
+    result, contour, along, effective, measured, roles, finish, other_start = first
     later = opts if opts.method != "combined" else dataclasses.replace(opts,
                                                                        method="approach1")
     noise, rounds, expressions = start_noise, 1, start_shown
@@ -219,23 +219,20 @@ def fit_head(model, case, options=None, initial=None):
             model, neutral_case(model, case, result, expressions), later, result, noise,
             progress.part(part, part + 0.12), t0, uncertainty=False)
         rounds += 1
-        for stage, seconds in result.info["timings"].items():
-            timings[stage] = seconds if stage == "total" else timings.get(stage, 0.0) + seconds
+        _add_timings(timings, result.info["timings"])
     starts = None
     if initial is None and outline_missed(case, result) > MISSED_OUTLINE:
         # A second start, with the noise and expressions the rounds settled on (approach 1,
         # as the rounds): from the head of the first fit's other approach where it ran two
         # (a round's cost), else from the mean head.
-        other = first[7]()
+        other = other_start()
         again = _fit(model, neutral_case(model, case, result, expressions), later, other,
                      noise, progress.part(0.91, 0.99), t0, uncertainty=False)
         key = "mean head" if other is None else "other approach"
         starts = {"continued": _cost(result), key: _cost(again[0])}
         if starts[key] < (1.0 - SECOND_START_GAIN) * starts["continued"]:
             result, contour, along, effective, measured, roles, finish, _ = again
-        for stage, seconds in again[0].info["timings"].items():
-            if stage != "total":
-                timings[stage] = timings.get(stage, 0.0) + seconds
+        _add_timings(timings, again[0].info["timings"])
     result.uncertainty, result.method = finish(), opts.method
     # the choice between the approaches was made in the first fit, the only one running both
     result.info.update({k: first[0].info[k] for k in ("approach", "candidates")})
@@ -249,6 +246,13 @@ def fit_head(model, case, options=None, initial=None):
     result.info["timings"] = timings
     progress(1.0, f"done ({result.info['approach']}, {rounds} fits)")
     return _checked(model, case, opts, result)
+
+
+def _add_timings(timings, more):
+    """Add a later fit's stage seconds to ``timings``; its "total" (since the start) is
+    the new total."""
+    for stage, seconds in more.items():
+        timings[stage] = seconds if stage == "total" else timings.get(stage, 0.0) + seconds
 
 
 def outline_missed(case, result):
@@ -283,9 +287,10 @@ def _fit(model, case, opts, initial, noise, progress, t0, uncertainty=True):
     view, effective number of fitted parameters,
     ``Engine.without_definition_offsets``: the landmark residuals the noise is measured on
     and the definition offsets' size per view, per view the outline landmarks tied to
-    their vertices and each landmark's weight factor from its given uncertainty, and a
-    function giving the result's per-vertex uncertainty). Without ``uncertainty`` the
-    result has none yet (the noise rounds need only the last fit's)."""
+    their vertices and each landmark's weight factor from its given uncertainty, a
+    function giving the result's per-vertex uncertainty, and one giving the head of the
+    approach not chosen as a FitResult to start from, or None). Without ``uncertainty``
+    the result has none yet (the noise rounds need only the last fit's)."""
     cams = None if initial is None else previous_cameras(initial, "initial")
     views, skipped = prepare_views(model, case, opts, cameras=cams, noise=noise)
     eng = Engine.for_fit(model, views, opts)
@@ -354,8 +359,7 @@ def _fit(model, case, opts, initial, noise, progress, t0, uncertainty=True):
         "refit_state": {
             "coeffs": state.coeffs.copy(), "n_identity": int(opts.n_identity),
             "n_regional": int(opts.n_regional),
-            "planes": {n: {"normal": p.normal.copy(), "offset": p.offset}
-                       for n, p in state.planes.items()},
+            "planes": _saved_planes(state.planes),
             "contour": {n: {"vertices": np.concatenate([p[0] for p in lst]),
                             "pixels": np.vstack([p[1] for p in lst])}
                         for n, lst in pairs.items()},
@@ -400,9 +404,7 @@ def _fit(model, case, opts, initial, noise, progress, t0, uncertainty=True):
             return None
         other = others[0]
         eng.use(other)
-        saved = {"coeffs": other.coeffs.copy(),
-                 "planes": {n: {"normal": p.normal.copy(), "offset": p.offset}
-                            for n, p in other.planes.items()}}
+        saved = {"coeffs": other.coeffs.copy(), "planes": _saved_planes(other.planes)}
         start = make_result(model, eng, other, opts, opts.method, {"refit_state": saved},
                             skipped=skipped)
         eng.use(state)
@@ -410,6 +412,11 @@ def _fit(model, case, opts, initial, noise, progress, t0, uncertainty=True):
 
     return (result, contour, along, eng.effective_parameters(cov) + measured[1], measured,
             roles, finish, other_start)
+
+
+def _saved_planes(planes):
+    """Mirror planes (view name -> MirrorPlane) as a fit's ``refit_state`` keeps them."""
+    return {n: {"normal": p.normal.copy(), "offset": p.offset} for n, p in planes.items()}
 
 
 def refit_landmarks(model, case, previous, options=None):
