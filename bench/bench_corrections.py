@@ -13,9 +13,10 @@ for each ``--render`` seed, rendered there first when missing (about 45 s a head
 Scores: skin RMS against the true head after a similarity (``skin_error_mm``), mm, for the
 photos alone, each group exact (jaw 1-17, brows 18-27, nose 28-36, eyes 37-48, mouth
 49-68), all 68 exact, the profile's four ear points added by hand (the detector finds no
-ear), and every landmark of both photos exact (``sample.json``). Each fit
-runs twice: as the fit is ("fit"), and with no second start (``fit.MISSED_OUTLINE`` set
-beyond reach: "once"); "*" marks a fit whose second start was kept.
+ear), and every landmark of both photos exact (``sample.json``). Each fit is scored as
+the fit is ("fit") and with no second start ("once": run again with
+``fit.MISSED_OUTLINE`` beyond reach where a second start ran, else the same fit); "*"
+marks a fit whose second start was kept.
 The last lines give the mean and the worst of each column, and how many fits end more
 than 1.5 x the photos-only error of their head. ``--always`` runs the second start on
 every fit ("fit" column; ``fit.MISSED_OUTLINE`` below 0): what the rule leaves untried.
@@ -83,19 +84,23 @@ def corrected_cases(folder, model, detector):
     return out
 
 
-def fit_error(model, case, truth, second_start, always=False):
-    """(skin RMS mm, whether a second start's head was kept)."""
+def fit_errors(model, case, truth, always=False):
+    """(skin RMS mm as the fit is, whether its second start's head was kept, skin RMS mm
+    with no second start). Without a second start the two fits are one."""
     missed = fit.MISSED_OUTLINE
-    if not second_start or always:
-        fit.MISSED_OUTLINE = -1.0 if always else float("inf")
+    fit.MISSED_OUTLINE = -1.0 if always else missed
     try:
         res = fit_head(model, case)
+        starts = res.info.get("starts")
+        err = skin_error_mm(model, res.local_vertices, truth)
+        if starts is None:
+            return err, False, err
+        fit.MISSED_OUTLINE = float("inf")
+        once = fit_head(model, case)
     finally:
         fit.MISSED_OUTLINE = missed
-    starts = res.info.get("starts")
-    kept = starts is not None and min(v for k, v in starts.items() if k != "continued") \
-        < (1.0 - fit.SECOND_START_GAIN) * starts["continued"]
-    return skin_error_mm(model, res.local_vertices, truth), kept
+    return err, starts["kept"] != "continued", skin_error_mm(model, once.local_vertices,
+                                                             truth)
 
 
 def main(argv=None):
@@ -133,8 +138,7 @@ def main(argv=None):
         row = {k: [] for k in table}
         cells = []
         for _, case in cases:
-            e, kept = fit_error(model, case, truth, True, args.always)
-            once, _ = fit_error(model, case, truth, False)
+            e, kept, once = fit_errors(model, case, truth, args.always)
             row["fit"].append(e)
             row["once"].append(once)
             cells.append(f"{e:.2f}{'*' if kept else ' '}/{once:.2f}")

@@ -168,9 +168,10 @@ def fit_head(model, case, options=None, initial=None):
         landmarks left out per view, ``views.unused_views``), "warnings"
         (messages for the user), "refit_state" (what :func:`refit_landmarks`
         continues from) and, when the head was fitted again from a second start (it
-        missed more than ``MISSED_OUTLINE`` of a traced outline), "starts": the posterior
-        cost each start ended at ("continued", and "other approach" or "mean head"; the
-        second one's head is kept when lower by more than ``SECOND_START_GAIN``).
+        missed more than ``MISSED_OUTLINE`` of a traced outline), "starts": "costs", the
+        posterior cost each start ended at ("continued", and "other approach" or "mean
+        head"), and "kept", the start whose head was kept (the second one's when lower by
+        more than ``SECOND_START_GAIN``).
 
     Raises
     ------
@@ -229,9 +230,11 @@ def fit_head(model, case, options=None, initial=None):
         again = _fit(model, neutral_case(model, case, result, expressions), later, other,
                      noise, progress.part(0.91, 0.99), t0, uncertainty=False)
         key = "mean head" if other is None else "other approach"
-        starts = {"continued": _cost(result), key: _cost(again[0])}
-        if starts[key] < (1.0 - SECOND_START_GAIN) * starts["continued"]:
+        costs = {"continued": _cost(result), key: _cost(again[0])}
+        starts = {"costs": costs, "kept": "continued"}
+        if costs[key] < (1.0 - SECOND_START_GAIN) * costs["continued"]:
             result, contour, along, effective, measured, roles, finish, _ = again
+            starts["kept"] = key
         _add_timings(timings, again[0].info["timings"])
     result.uncertainty, result.method = finish(), opts.method
     # the choice between the approaches was made in the first fit, the only one running both

@@ -351,7 +351,7 @@ def _profile_read_off_outline(model, seed):
 def _second(starts):
     """The cost the second start ended at (from the other approach's head or the mean
     head)."""
-    (cost,) = (v for k, v in starts.items() if k != "continued")
+    (cost,) = (v for k, v in starts["costs"].items() if k != "continued")
     return cost
 
 
@@ -360,8 +360,8 @@ def test_a_head_left_in_a_wrong_minimum_is_fitted_again_from_another_start(model
     case, truth = _profile_read_off_outline(model, 4)
     res = fit_head(model, case)
     starts = res.info["starts"]  # from the head of the first fit's other approach
-    assert _second(starts) < (1.0 - fit.SECOND_START_GAIN) * starts["continued"]
-    assert "other approach" in starts
+    assert _second(starts) < (1.0 - fit.SECOND_START_GAIN) * starts["costs"]["continued"]
+    assert starts["kept"] == "other approach"
     monkeypatch.setattr(fit, "MISSED_OUTLINE", 2.0)  # never fitted again
     once = fit_head(model, case)
     assert "starts" not in once.info
@@ -373,7 +373,8 @@ def test_a_second_start_near_a_tie_keeps_the_continued_head(model, monkeypatch):
     case, _ = _profile_read_off_outline(model, 2)
     res = fit_head(model, case)
     starts = res.info["starts"]
-    assert _second(starts) >= (1.0 - fit.SECOND_START_GAIN) * starts["continued"]
+    assert _second(starts) >= (1.0 - fit.SECOND_START_GAIN) * starts["costs"]["continued"]
+    assert starts["kept"] == "continued"
     monkeypatch.setattr(fit, "MISSED_OUTLINE", 2.0)
     np.testing.assert_array_equal(res.local_vertices, fit_head(model, case).local_vertices)
 
@@ -381,4 +382,4 @@ def test_a_second_start_near_a_tie_keeps_the_continued_head(model, monkeypatch):
 def test_a_fit_of_one_approach_starts_again_from_the_mean_head(model):
     case, _ = _profile_read_off_outline(model, 4)
     res = fit_head(model, case, FitOptions(method="approach1"))  # no other approach's head
-    assert set(res.info["starts"]) == {"continued", "mean head"}
+    assert set(res.info["starts"]["costs"]) == {"continued", "mean head"}
