@@ -48,7 +48,7 @@ class HEADRECON_PT_photos(_Panel, bpy.types.Panel):
         layout = self.layout
         planes = photos.photo_planes(context.scene)
         # several photos at once, each into its view by its name and shape
-        _load_photo(layout, "Load Photos...", "FILE_IMAGE", "", "ORTHOGRAPHIC", photos.AUTO)
+        _load_photo(layout, "Load Photos...", "FILE_IMAGE", "", "FROM_EXIF", photos.AUTO)
         kinds = set()
         for plane in planes:
             props = plane.headrecon
@@ -77,9 +77,9 @@ class HEADRECON_PT_photos(_Panel, bpy.types.Panel):
             if len(planes) > 1 or photos.mirror_of(plane):
                 box.prop(props, "mirror_of")
         if "front" not in kinds:
-            _load_photo(layout, "Load Front Photo...", "FILEBROWSER", "front", "ORTHOGRAPHIC")
+            _load_photo(layout, "Load Front Photo...", "FILEBROWSER", "front", "FROM_EXIF")
         if "side" not in kinds:
-            _load_photo(layout, "Load Profile Photo...", "FILEBROWSER", "side", "ORTHOGRAPHIC",
+            _load_photo(layout, "Load Profile Photo...", "FILEBROWSER", "side", "FROM_EXIF",
                         "orthographic-right")
         _load_photo(layout, "Add Photo (Any Camera)...", "ADD")
 

@@ -37,9 +37,11 @@ from .photo_sorting import sort_photos
 from .polls import ObjectModeOperator, poll_result, view3d_problem
 from .solver_link import (
     ORTHO_VIEWS,
+    VIEW_YAW_DEG,
     OrthographicCamera,
     camera_from_json,
     camera_to_json,
+    lens_hints,
     orient,
     oriented_size,
     read_photo_exif,
@@ -651,9 +653,15 @@ def free_view_name(scene, base):
 
 def on_camera_view(plane, scene):
     """The artist turned a view's nominal direction (e.g. right -> left profile): stand an
-    orthographic photo there, or move a provisional camera there. Known cameras stay."""
+    orthographic photo there, or move a provisional camera there, and hold a camera to
+    compute near it (its ``direction_prior``, where it has one). Known cameras stay."""
     if plane.headrecon.camera_json or plane.headrecon.image_size[1] <= 0:
         return
+    hints = camera_hints(plane)
+    if hints.get("direction_prior"):
+        sigma = hints["direction_prior"][1]
+        set_camera_hints(plane, {**hints, "direction_prior": [
+            VIEW_YAW_DEG[plane.headrecon.camera_view], sigma]})
     place_plane(plane, centre=head_centre(scene))
 
 
@@ -662,6 +670,10 @@ def on_camera_view(plane, scene):
 
 
 PROJECTIONS = (
+    ("FROM_EXIF", "From the Photo",
+     "A photo whose EXIF gives its lens is perspective, its camera held near its direction "
+     "(a camera's photo from a few metres or nearer: a parallel projection would distort "
+     "the head); one without, orthographic"),
     ("ORTHOGRAPHIC", "Orthographic",
      "A front or profile photo taken from far away (long lens): parallel projection"),
     ("PERSPECTIVE", "Perspective",
@@ -695,9 +707,10 @@ class HEADRECON_OT_load_photo(ObjectModeOperator, bpy.types.Operator):
         description="View name in the landmarks file (empty, or several photos: each a new "
                     "view, named after its camera)")
     projection: bpy.props.EnumProperty(name="Projection", items=PROJECTIONS,
-                                       default="ORTHOGRAPHIC",
-                                       description="How the photos were taken: from far "
-                                                   "away (orthographic) or by any camera")
+                                       default="FROM_EXIF",
+                                       description="How the photos were taken: with the "
+                                                   "lens their EXIF gives, from far away "
+                                                   "(orthographic) or by any camera")
     camera_view: bpy.props.EnumProperty(
         name="Direction", items=(
             (AUTO, "From the Photos",
@@ -725,7 +738,7 @@ class HEADRECON_OT_load_photo(ObjectModeOperator, bpy.types.Operator):
         layout.prop(self, "projection")
         layout.prop(self, "camera_view")
         row = layout.row()
-        row.enabled = self.projection == "PERSPECTIVE"
+        row.enabled = self.projection != "ORTHOGRAPHIC"
         row.prop(self, "lens_mm")
 
     def _paths(self):
@@ -735,9 +748,16 @@ class HEADRECON_OT_load_photo(ObjectModeOperator, bpy.types.Operator):
             return [str(folder / n) for n in names]
         return [bpy.path.abspath(self.filepath)]
 
-    def _hints(self, photo):
+    def _hints(self, photo, direction):
         """The camera to compute for a perspective photo, with the operator's focal length
-        or else the EXIF's; and whether the EXIF's was taken."""
+        or else the EXIF's; and whether the EXIF's was taken. "From the Photo": a photo
+        whose EXIF gives its lens gets ``lens_hints`` (held near ``direction``), one
+        without none (orthographic)."""
+        if self.projection == "FROM_EXIF":
+            lens = self.lens_mm if self.lens_mm > 0 else photo.lens_mm()
+            if not lens:
+                return {}, False
+            return lens_hints(lens, VIEW_YAW_DEG[direction]), self.lens_mm <= 0
         if self.projection != "PERSPECTIVE":
             return {}, False
         lens, exif = self.lens_mm, False
@@ -783,9 +803,10 @@ class HEADRECON_OT_load_photo(ObjectModeOperator, bpy.types.Operator):
         """Put one loaded photo into its view (a new one, or the view named); returns a
         line saying where it went."""
         image = photo.image
-        hints, from_exif = self._hints(photo)
+        hints, from_exif = self._hints(photo, direction)
         view = (self.view.strip() if single else "") or free_view_name(
-            scene, "photo" if hints else VIEW_KINDS[direction].replace("right", "side"))
+            scene, "photo" if self.projection == "PERSPECTIVE"
+            else VIEW_KINDS[direction].replace("right", "side"))
         plane = find_plane(scene, view)
         if plane is not None:
             set_plane_image(plane, image)

@@ -12,7 +12,14 @@ cameras), ``model`` (the statistical head model), ``fitting`` (the fit), ``io`` 
 ``texture`` and ``detect`` (automatic landmarks).
 """
 
-from .cameras import ORTHO_VIEWS, Camera, OrthographicCamera, camera_class, camera_from_dict
+from .cameras import (
+    ORTHO_VIEWS,
+    VIEW_YAW_DEG,
+    Camera,
+    OrthographicCamera,
+    camera_class,
+    camera_from_dict,
+)
 from .cameras.blender import blender_to_krc, dlt_to_blender
 from .cameras.calib_errors import check_passpoints
 from .cameras.dlt import DLTCamera, fit_dlt
@@ -44,14 +51,15 @@ from .io.landmarks_file import (
     parse_landmarks,
     save_landmarks,
 )
-from .io.photo_lens import orthographic_lenses
+from .io.photo_lens import DIRECTION_SIGMA_DEG, lens_hints, orthographic_lenses
 from .model.head_model import HeadModel, load_model
 from .texture.bake import SHADING_MODES, BakeOptions, bake_fit_texture, bake_texture
 from .texture.uvs import orthographic_uvs, uv_raster, uv_tiles
 
 __all__ = [
-    "CURRENT_VERSION", "FORMAT", "MIN_LANDMARKS_PER_VIEW", "MIN_LANDMARKS_TOTAL",
-    "MIN_PASSPOINTS", "ORTHO_VIEWS", "SHADING_MODES", "BakeOptions", "Camera", "DLTCamera",
+    "CURRENT_VERSION", "DIRECTION_SIGMA_DEG", "FORMAT", "MIN_LANDMARKS_PER_VIEW",
+    "MIN_LANDMARKS_TOTAL", "MIN_PASSPOINTS", "ORTHO_VIEWS", "SHADING_MODES", "VIEW_YAW_DEG",
+    "BakeOptions", "Camera", "DLTCamera",
     "DetectedFace", "Detector", "Exif", "FitOptions", "FitResult", "HeadModel",
     "LandmarkCase", "LandmarksError", "OrthographicCamera", "PinholeCamera", "View",
     "ViewGuess", "ViewResidual", "bake_fit_texture", "bake_texture", "blender_to_krc",
@@ -59,7 +67,8 @@ __all__ = [
     "check_passpoints", "count_problems", "dlt_to_blender", "face_landmarks",
     "fit_dlt", "fit_head", "forget_fit_subsets",
     "guess_view", "landmarks_needed", "landmarks_to_dict", "load_landmark_set",
-    "load_landmarks", "load_model", "orient", "oriented_size", "orthographic_lenses",
+    "load_landmarks", "load_model", "lens_hints", "orient", "oriented_size",
+    "orthographic_lenses",
     "orthographic_uvs", "prepare_fit",
     "parse_landmarks", "read_photo_exif", "refit_landmarks", "save_landmarks",
     "usable_cores", "uv_raster", "uv_tiles",

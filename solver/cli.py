@@ -423,12 +423,14 @@ def view_entries(photos, views):
     return entries
 
 
-def detect_landmarks(photos, out, views=(), models=None, quiet=False, outlines="all"):
+def detect_landmarks(photos, out, views=(), models=None, quiet=False, outlines="all",
+                     exif_lens=True):
     """Detect the face in each photo, and the head's outline in those ``outlines`` says
-    (``detected_case.wants_outline``), and write the landmarks file ``out``; the lines of
-    ``solver.detect.detected_case.detect_photos`` go to stderr ("warning:" and "note:"
-    lines even when ``quiet``). Returns the case. ``CliError`` / ``ValueError``: one line
-    naming the photo or option."""
+    (``detected_case.wants_outline``), and write the landmarks file ``out`` (a photo whose
+    EXIF gives its lens gets a pinhole camera of it unless ``exif_lens`` is False); the
+    lines of ``solver.detect.detected_case.detect_photos`` go to stderr ("warning:" and
+    "note:" lines even when ``quiet``). Returns the case. ``CliError`` / ``ValueError``:
+    one line naming the photo or option."""
     from .detect import Detector
     from .detect.detected_case import detect_photos
     from .io.landmarks_file import save_landmarks
@@ -448,7 +450,7 @@ def detect_landmarks(photos, out, views=(), models=None, quiet=False, outlines="
             progress(min(faces, len(entries)) / len(entries), line)
 
     case = detect_photos(entries, detector, load_photo, base_dir=out.parent, echo=echo,
-                         outlines=outlines)
+                         outlines=outlines, exif_lens=exif_lens)
     save_landmarks(case, out)
     if not quiet:
         print(f"wrote {out}", file=sys.stderr)
@@ -457,7 +459,7 @@ def detect_landmarks(photos, out, views=(), models=None, quiet=False, outlines="
 
 def _cmd_detect(args):
     detect_landmarks(args.photos, args.out, args.view, args.models, args.quiet,
-                     args.outlines)
+                     args.outlines, not args.orthographic)
     return EXIT_OK
 
 
@@ -589,7 +591,9 @@ def build_parser():
                     "landmarks file: one view per photo, named and its camera guessed from "
                     "which way the face looks: front, right or left (profiles: the few "
                     "points trustworthy there only), three_quarter_right or _left (a "
-                    "pinhole camera the fit calibrates); and the head's outline (the "
+                    "pinhole camera the fit calibrates), a photo whose EXIF gives its lens a "
+                    "pinhole camera of that lens held near its view's direction; and the "
+                    "head's outline (the "
                     "person's segmentation, its skin stretch around the face: hair and "
                     "clothes left out) as each view's contour.")
     det.add_argument("photos", nargs="*", metavar="PHOTO")
@@ -603,6 +607,10 @@ def build_parser():
                      help="photos whose head outline is detected as their contour "
                           "(default: all; on the sample the front's outline took the fit "
                           "from 2.5 to 1.6 mm)")
+    det.add_argument("--orthographic", action="store_true",
+                     help="front and profile photos as parallel projections whatever lens "
+                          "their EXIF gives (e.g. photos cropped after they were taken, "
+                          "whose EXIF lens no longer holds)")
     det.add_argument("--models", metavar="FOLDER",
                      help="folder of the .tflite files (default: generated/detector/)")
     det.add_argument("-q", "--quiet", action="store_true", help="no progress output")

@@ -2,11 +2,13 @@
 landmarks file and the ground truth.
 
     python -m tools.make_sample [--out generated/sample] [--seed N] [--size WxH]
-                                [--samples N] [--force]
+                                [--samples N] [--force] [--lens MM]
 
 A head is sampled from the identity model (seeded), turned a few degrees like a person who
 does not sit perfectly straight, and rendered with Cycles (CPU) through orthographic
-cameras from the front and from the subject's right: ``front.png`` and ``side.png``.
+cameras from the front and from the subject's right: ``front.png`` and ``side.png``
+(with ``--lens``, pinhole cameras of that lens as close as it frames the head alike:
+``front.jpg`` and ``side.jpg`` with the lens in their EXIF, as a camera writes them).
 The person wears a plain shirt whose collar hides the model's neck cut, as in a real
 photo. ``sample.json`` is the landmarks file a user would make: every landmark visible in
 a view (``assets/landmarks.json`` "views", minus any the shirt covers) projected by the
@@ -37,6 +39,7 @@ from solver import (
     ORTHO_VIEWS,
     LandmarkCase,
     OrthographicCamera,
+    PinholeCamera,
     View,
     load_landmarks,
     load_model,
@@ -141,6 +144,59 @@ def frame_cameras(world, collar_z, size, seed):
                            rng.uniform(*TOP_MARGIN) * h + s * top_z])
         cams[view] = OrthographicCamera(ORTHO_VIEWS[kind], s, offset, size, kind)
     return cams
+
+
+def perspective_cameras(cameras, world, lens_mm):
+    """Pinhole cameras of the lens ``lens_mm`` (36 mm equivalent) standing where they see
+    the head at the centre of its depth as ``cameras`` (orthographic) frame it: a photo
+    taken as close as the lens asks for that framing (50 mm: about half a metre), moved
+    back by 5 % at a time while the nearer parts of the head, larger in the photo, would
+    leave it.
+
+    Parameters
+    ----------
+    cameras : dict of str -> OrthographicCamera
+    world : ndarray, shape (V, 3), metres
+    lens_mm : float
+
+    Returns
+    -------
+    dict of str -> PinholeCamera
+    """
+    out = {}
+    for view, cam in cameras.items():
+        w, h = cam.size
+        r = cam.rotation
+        depth = float(np.median(world @ r[2]))
+        # the world point the orthographic photo shows at its centre, at the head's depth
+        target = r.T @ np.array([(w / 2.0 - cam.offset[0]) / cam.scale,
+                                 (h / 2.0 - cam.offset[1]) / cam.scale, depth])
+        f_px = float(lens_mm) * PinholeCamera.px_per_mm(cam.size)
+        distance = f_px / cam.scale
+        for _ in range(40):
+            pin = PinholeCamera.look_at(target - distance * r[2], target, cam.size,
+                                        f_px=f_px, up=-r[1])
+            px = pin.project(world)
+            if px.min() >= 0 and px[:, 0].max() <= w and px[:, 1].max() <= h:
+                break
+            distance *= 1.05
+        out[view] = pin
+    return out
+
+
+def save_jpeg(path, rgb, lens_mm):
+    """A photo as a camera writes it: JPEG (quality 95) whose EXIF gives the lens's 36 mm
+    equivalent focal length (``FocalLengthIn35mmFilm``, by the diagonal as cameras state
+    it, an integer: within 0.5 mm of ``lens_mm``)."""
+    from solver.io import exif as exif_tags
+
+    img = Image.fromarray(np.clip(np.round(np.asarray(rgb) * 255.0), 0, 255).astype(np.uint8))
+    w, h = img.size
+    diagonal = lens_mm * (exif_tags.FULL_FRAME_DIAGONAL_MM / exif_tags.FULL_FRAME_LONG_MM) \
+        * max(w, h) / np.hypot(w, h)  # the inverse of Exif.lens_36mm's rescaling
+    data = Image.Exif()
+    data.get_ifd(exif_tags.EXIF_IFD)[exif_tags.FOCAL_35MM] = int(round(diagonal))
+    img.save(path, "JPEG", quality=95, exif=data)
 
 
 def _polygon_signed_distance(points, polygon):
@@ -585,7 +641,8 @@ def render_views(model, local, pose, torso, cameras, size, samples, seed, log):
     ru.studio_lighting(world[model.skin].mean(axis=0))
     out, cam_objs = {}, {}
     for view, cam in cameras.items():
-        cam_objs[view] = ru.add_ortho_camera(cam, name=f"Camera {view}")
+        add = ru.add_pinhole_camera if cam.perspective else ru.add_ortho_camera
+        cam_objs[view] = add(cam, name=f"Camera {view}")
     for i, view in enumerate(cameras):
         t = time.perf_counter()
         rgba = ru.render_rgba(cam_objs[view])
@@ -622,15 +679,27 @@ def draw_overlay(photo, points, contour=None):
 # --------------------------------------------------------------------------- driver
 
 
-def _params(model, seed, size, samples):
-    return {"version": SAMPLE_VERSION, "seed": int(seed), "size": [int(size[0]), int(size[1])],
-            "samples": int(samples), "model": getattr(model, "build_hash", "")}
+def _params(model, seed, size, samples, lens_mm=None):
+    params = {"version": SAMPLE_VERSION, "seed": int(seed),
+              "size": [int(size[0]), int(size[1])], "samples": int(samples),
+              "model": getattr(model, "build_hash", "")}
+    if lens_mm is not None:
+        params["lens_mm"] = float(lens_mm)
+    return params
+
+
+def _files(params):
+    """The files a sample made with ``params`` holds: perspective photos are JPEGs, as a
+    camera writes them, with the lens in their EXIF."""
+    if "lens_mm" not in params:
+        return FILES
+    return tuple(f.replace(".png", ".jpg") for f in FILES)
 
 
 def is_up_to_date(out, params):
     """True when every output exists and truth.npz says it was made with ``params``."""
     out = Path(out)
-    if not all((out / f).is_file() for f in FILES):
+    if not all((out / f).is_file() for f in _files(params)):
         return False
     try:
         with np.load(out / "truth.npz", allow_pickle=False) as t:
@@ -640,7 +709,7 @@ def is_up_to_date(out, params):
 
 
 def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=DEFAULT_SAMPLES,
-                force=False, model=None, log=print):
+                force=False, model=None, log=print, lens_mm=None):
     """Make the sample case in ``out`` unless it is up to date.
 
     Parameters
@@ -658,6 +727,11 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
     model : HeadModel, optional
         Default: ``load_model()``.
     log : callable
+    lens_mm : float, optional
+        Photograph the head with pinhole cameras of this lens (36 mm equivalent across
+        the long side) instead of orthographic ones, standing where they frame the head
+        alike (``perspective_cameras``): JPEG photos with the lens in their EXIF, views
+        whose cameras the fit calibrates from it (``{"kind": "pinhole", "lens_mm": ...}``).
 
     Returns
     -------
@@ -671,7 +745,9 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
     if min(size) < 64:
         raise ValueError(f"size: photos of at least 64x64 pixels, got {size[0]}x{size[1]}")
     model = load_model() if model is None else model
-    params = _params(model, seed, size, samples)
+    if lens_mm is not None and not 5.0 <= float(lens_mm) <= 1000.0:
+        raise ValueError(f"lens_mm: a lens of 5-1000 mm, got {lens_mm}")
+    params = _params(model, seed, size, samples, lens_mm)
     if not force and is_up_to_date(out, params):
         log(f"sample up to date: {out}")
         return out / "sample.json"
@@ -681,7 +757,7 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir()
     try:
-        _make_into(tmp, model, seed, size, samples, params, log)
+        _make_into(tmp, model, seed, size, samples, params, log, lens_mm)
         old = out.parent / f".{out.name}.old-{os.getpid()}"
         if out.exists():
             out.rename(old)
@@ -693,7 +769,7 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
     return out / "sample.json"
 
 
-def _make_into(folder, model, seed, size, samples, params, log):
+def _make_into(folder, model, seed, size, samples, params, log, lens_mm=None):
     from tools import render_util as ru
 
     coeffs, local, rotation, translation = sample_head(model, seed)
@@ -701,6 +777,8 @@ def _make_into(folder, model, seed, size, samples, params, log):
     torso = torso_mesh(local, model.skin, neck_cut_vertices(model))
     rim = torso[4] @ rotation.T + translation  # the collar's top edge, world
     cameras = frame_cameras(world, float(rim[:, 2].mean()), size, seed)
+    if lens_mm is not None:
+        cameras = perspective_cameras(cameras, world, lens_mm)
     renders, cam_objs = render_views(model, local, (rotation, translation), torso, cameras,
                                      size, samples, seed, log)
 
@@ -709,7 +787,7 @@ def _make_into(folder, model, seed, size, samples, params, log):
     views, exact = {}, {}
     for view, cam in cameras.items():
         r = renders[view]
-        names = _visible_names(model, cam.view)
+        names = _visible_names(model, VIEWS[view])
         idx = np.array([model.landmark_vertex(n) for n in names])
         px_blender = ru.blender_project(cam_objs[view], world[idx], size)
         px_solver = cam.project(world[idx])
@@ -730,11 +808,17 @@ def _make_into(folder, model, seed, size, samples, params, log):
         contour = None
         if view == "side":
             contour = side_contour(r["head_alpha"], cam.project(rim))
-        ru.save_png(folder / f"{view}.png", r["photo"])
+        photo = f"{view}.png"
+        camera, hints = OrthographicCamera.nominal(VIEWS[view], size), {}
+        if lens_mm is None:
+            ru.save_png(folder / photo, r["photo"])
+        else:
+            photo = f"{view}.jpg"
+            save_jpeg(folder / photo, r["photo"], lens_mm)
+            camera, hints = None, {"kind": "pinhole", "lens_mm": float(lens_mm)}
         points = {n: (float(u), float(v)) for n, (u, v) in zip(names, noisy, strict=True)}
-        views[view] = View(name=view, image=f"{view}.png", size=size,
-                           camera=OrthographicCamera.nominal(cam.view, size), points=points,
-                           contour=contour)
+        views[view] = View(name=view, image=photo, size=size, camera=camera, points=points,
+                           contour=contour, camera_hints=hints)
         draw_overlay(r["photo"], points, contour).save(folder / f"overlay_{view}.png")
 
     truth = {
@@ -785,9 +869,13 @@ def main(argv=None):
     parser.add_argument("--samples", type=int, default=DEFAULT_SAMPLES,
                         help="Cycles samples per pixel (default %(default)s)")
     parser.add_argument("--force", action="store_true", help="remake even when up to date")
+    parser.add_argument("--lens", type=float, default=None, metavar="MM",
+                        help="perspective photos taken with this lens (36 mm equivalent), "
+                             "JPEGs with it in their EXIF (default: orthographic)")
     args = parser.parse_args(argv)
     try:
-        make_sample(args.out, args.seed, args.size, args.samples, args.force)
+        make_sample(args.out, args.seed, args.size, args.samples, args.force,
+                    lens_mm=args.lens)
     except (FileNotFoundError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

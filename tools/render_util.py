@@ -158,6 +158,36 @@ def add_ortho_camera(camera, name="Camera", depth=2.0):
     return obj
 
 
+def add_pinhole_camera(camera, name="Camera"):
+    """Blender perspective camera that renders exactly what ``camera`` projects.
+
+    Parameters
+    ----------
+    camera : solver.cameras.pinhole.PinholeCamera
+        Without lens distortion (``k1`` 0: Blender renders none).
+
+    Returns
+    -------
+    bpy.types.Object
+    """
+    params = camera.to_blender()
+    cam = bpy.data.cameras.new(name)
+    cam.type = "PERSP"
+    cam.lens_unit = "MILLIMETERS"
+    cam.sensor_width = params["sensor_width"]
+    cam.sensor_height = params["sensor_height"]
+    cam.sensor_fit = params["sensor_fit"]
+    cam.lens = params["lens"]
+    cam.shift_x = params["shift_x"]
+    cam.shift_y = params["shift_y"]
+    cam.clip_start = 0.01
+    cam.clip_end = 20.0
+    obj = bpy.data.objects.new(name, cam)
+    obj.matrix_world = Matrix(params["matrix_world"])
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
 def blender_project(cam_obj, points, size):
     """Pixel positions of world points as Blender's camera sees them: (n, 3) -> (n, 2).
 

@@ -5,8 +5,9 @@ a mirror, passpoint checks, the parallel-projection check, Blender's camera)."""
 
 from .base import Camera, camera_class, camera_from_dict, camera_kinds, is_side_camera
 from .dlt import DLTCamera, fit_dlt
-from .orthographic import ORTHO_VIEWS, OrthographicCamera
+from .orthographic import ORTHO_VIEWS, VIEW_YAW_DEG, OrthographicCamera
 from .pinhole import PinholeCamera
 
-__all__ = ["ORTHO_VIEWS", "Camera", "DLTCamera", "OrthographicCamera", "PinholeCamera",
-           "camera_class", "camera_from_dict", "camera_kinds", "fit_dlt", "is_side_camera"]
+__all__ = ["ORTHO_VIEWS", "VIEW_YAW_DEG", "Camera", "DLTCamera", "OrthographicCamera",
+           "PinholeCamera", "camera_class", "camera_from_dict", "camera_kinds", "fit_dlt",
+           "is_side_camera"]

@@ -198,6 +198,12 @@ class Camera(ABC):
         holds, seen through ``n_points`` landmarks; None for cameras without one."""
         return None
 
+    def prior_cost(self, n_points):
+        """The cost of the camera's own priors at its parameters, seen through ``n_points``
+        landmarks (as the joint step's prior modes count it at ``lambda2`` 1); 0 for
+        cameras without one."""
+        return 0.0
+
     def pose_only(self):
         """A copy whose ``refit`` moves only what a start from the mean head should (a
         pinhole camera's pose; other kinds: the camera itself)."""

@@ -15,6 +15,10 @@ ORTHO_VIEWS = {
     # camera at the subject's left (+X) looking -X; the face points to the image's left
     "orthographic-left": np.array([[0, 1.0, 0], [0, 0, -1], [-1, 0, 0]]),
 }
+#: Each view's yaw: the camera's direction from the face's front, degrees, toward the
+#: subject's right positive (``PinholeCamera.direction_prior``'s).
+VIEW_YAW_DEG = {"orthographic-front": 0.0, "orthographic-right": 90.0,
+                "orthographic-left": -90.0}
 
 
 @register("orthographic")

@@ -139,6 +139,12 @@ class PinholeCamera(Camera):
         Plausible focal lengths, mm equivalent on a 36 mm sensor: ``refit`` is walled in to
         this range (smoothly), which keeps shallow scenes, where focal length and distance
         trade off, well posed. None: no prior.
+    direction_prior : (float, float) or None
+        (yaw_deg, sigma_deg): a Gaussian prior on the camera's viewing direction in the
+        head's frame, held level at this yaw (the camera's direction from the face's front,
+        toward the subject's right positive: 0 a front photo, +-90 a profile), for the
+        fit's joint steps: a front or profile photo says where its camera stood, which a
+        profile's few points in one plane (the midline) cannot.
     """
 
     #: four non-collinear points fix the pose (with the focal length kept)
@@ -148,7 +154,8 @@ class PinholeCamera(Camera):
 
     def __init__(self, focal_px, rotation, centre, size, principal_point=None, k1=0.0, *,
                  free_principal_point=False, free_k1=False,
-                 focal_range_mm=DEFAULT_FOCAL_RANGE_MM, free_focal=True, focal_prior=None):
+                 focal_range_mm=DEFAULT_FOCAL_RANGE_MM, free_focal=True, focal_prior=None,
+                 direction_prior=None):
         try:
             w, h = (int(size[0]), int(size[1]))
         except (TypeError, IndexError, ValueError):
@@ -200,13 +207,23 @@ class PinholeCamera(Camera):
                                  f"sigma), both positive, got {focal_prior!r}")
             focal_prior = (mm, sigma)
         self.focal_prior = focal_prior
+        if direction_prior is not None:
+            try:
+                yaw, sigma = (float(v) for v in direction_prior)
+            except (TypeError, ValueError):
+                yaw = sigma = np.nan
+            if not (np.isfinite(yaw) and np.isfinite(sigma) and sigma > 0):
+                raise ValueError("camera (pinhole): direction_prior must be (yaw_deg, "
+                                 f"sigma_deg), sigma positive, got {direction_prior!r}")
+            direction_prior = (yaw, sigma)
+        self.direction_prior = direction_prior
 
     # ---- construction helpers
 
     def _options(self):
         return {"free_principal_point": self.free_principal_point, "free_k1": self.free_k1,
                 "focal_range_mm": self.focal_range_mm, "free_focal": self.free_focal,
-                "focal_prior": self.focal_prior}
+                "focal_prior": self.focal_prior, "direction_prior": self.direction_prior}
 
     def replaced(self, focal_px=None, rotation=None, centre=None, principal_point=None, k1=None):
         """A copy with the given parameters replaced (same size and options).
@@ -527,7 +544,9 @@ class PinholeCamera(Camera):
                 "free_principal_point": self.free_principal_point, "free_k1": self.free_k1,
                 "focal_range_mm": None if self.focal_range_mm is None
                 else list(self.focal_range_mm), "free_focal": self.free_focal,
-                "focal_prior": None if self.focal_prior is None else list(self.focal_prior)}
+                "focal_prior": None if self.focal_prior is None else list(self.focal_prior),
+                "direction_prior": None if self.direction_prior is None
+                else list(self.direction_prior)}
 
     @classmethod
     def from_dict(cls, d):
@@ -555,7 +574,8 @@ class PinholeCamera(Camera):
                        free_k1=d.get("free_k1", False),
                        focal_range_mm=d.get("focal_range_mm", DEFAULT_FOCAL_RANGE_MM),
                        free_focal=d.get("free_focal", True),
-                       focal_prior=d.get("focal_prior"))
+                       focal_prior=d.get("focal_prior"),
+                       direction_prior=d.get("direction_prior"))
         except (TypeError, ValueError) as e:
             msg = str(e)
             if not msg.startswith("camera (pinhole)"):
@@ -598,11 +618,36 @@ class PinholeCamera(Camera):
         mm, sigma = self.focal_prior
         return float(np.log(mm * self.px_per_mm(self.size))), float(sigma)
 
+    def direction_offset(self):
+        """(offset (2,), sigma) of ``direction_prior``: the prior direction's tangent offsets
+        from the optical axis across the image's u and v axes (radians for small angles),
+        and its standard deviation in radians; None without one."""
+        if self.direction_prior is None:
+            return None
+        yaw, sigma = (np.radians(v) for v in self.direction_prior)
+        d = self.rotation @ np.array([np.sin(yaw), np.cos(yaw), 0.0])
+        z = max(float(d[2]), 0.1)  # a camera looking away: its offsets stay finite
+        return d[:2] / z, float(sigma)
+
+    def prior_cost(self, n_points):
+        """The cost of the camera's priors at its parameters (the ``lambda2^2 c^2`` of its
+        prior modes at ``lambda2`` 1): the focal length's and the direction's."""
+        total = 0.0
+        focal = self.log_focal_prior(n_points)
+        if focal is not None:
+            total += ((np.log(self.focal_px) - focal[0]) / focal[1]) ** 2
+        direction = self.direction_offset()
+        if direction is not None:
+            total += float((direction[0] ** 2).sum()) / direction[1] ** 2
+        return float(total)
+
     def parameter_modes(self, points, centre_points, n_points, prior_weight, mode_pixels):
         """Rotation, centre and (when free) log focal length; a focal prior is the prior of
         its mode: one unit is ``sigma * prior_weight`` in log f and the mode starts at the
         camera's distance from the prior, so the shape-ICP's ``lambda2^2 c^2`` is exactly
-        the prior's cost."""
+        the prior's cost. A direction prior is the prior of the turns about the image's u
+        and v axes alike (``R <- rot(w) R`` moves the prior direction's offsets (a, b) to
+        (a + w_v, b - w_u))."""
         fields = self.parameter_fields(points, self.focal_free(n_points))
         units, start = unit_scale(fields, mode_pixels)
         prior = np.zeros(len(fields), bool)
@@ -611,6 +656,12 @@ class PinholeCamera(Camera):
             units[6] = focal[1] * prior_weight
             start[6] = (np.log(self.focal_px) - focal[0]) / units[6]
             prior[6] = True
+        direction = self.direction_offset()
+        if direction is not None and prior_weight > 0:
+            (a, b), sigma = direction
+            units[:2] = sigma * prior_weight
+            start[0], start[1] = -b / units[0], a / units[1]
+            prior[:2] = True
         return fields, units, start, prior
 
     def depth_axis(self, points):

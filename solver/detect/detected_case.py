@@ -8,7 +8,10 @@ off its outline, and the outline as the view's contour, so ``python -m solver de
 import os
 from pathlib import Path
 
+from ..cameras import PinholeCamera
 from ..io.case import LandmarkCase, View
+from ..io.exif import photo_lens_mm
+from ..io.landmark_counts import landmarks_needed
 from ..io.landmark_set import load_landmark_set
 from .face_detection import KEYPOINTS
 from .ibug_map import mesh_to_ibug
@@ -85,7 +88,7 @@ def face_landmarks(face, size, side=None, contour=None):
     return points, sigma, detected_depth(face, sigma), False
 
 
-def detected_case(photos, faces, base_dir=None, guesses=None, contours=None):
+def detected_case(photos, faces, base_dir=None, guesses=None, contours=None, lenses=None):
     """A :class:`LandmarkCase` from detected faces.
 
     Parameters
@@ -102,20 +105,29 @@ def detected_case(photos, faces, base_dir=None, guesses=None, contours=None):
     contours : list of (ndarray (n, 2) or None), optional
         Each photo's outline (``Detector.outline``'s points, px), written as the view's
         contour.
+    lenses : list of (float or None), optional
+        Each photo's lens (mm, 36 mm equivalent; its EXIF's, ``photo_lens``): the view's
+        camera is then a pinhole camera of that lens (``ViewGuess.camera``) wherever the
+        view keeps the points to calibrate one (``landmarks_needed`` of a pinhole); a
+        profile with fewer keeps the camera it has without a lens (orthographic).
     """
     views = {}
     if guesses is None:
         guesses = [guess_view(f) or ViewGuess("front", 0.0) for f in faces]
     if contours is None:
         contours = [None] * len(faces)
-    for (name, path, size), face, guess, contour in zip(photos, faces, guesses, contours,
-                                                         strict=True):
+    if lenses is None:
+        lenses = [None] * len(faces)
+    for (name, path, size), face, guess, contour, lens in zip(photos, faces, guesses,
+                                                               contours, lenses, strict=True):
         w, h = size
         points, sigma, depth, _ = face_landmarks(face, size, guess.side, contour)
         image = Path(path).absolute()
         if base_dir is not None:
             image = Path(os.path.relpath(image, Path(base_dir).absolute()))
-        camera, hints = guess.camera((w, h))
+        if len(points) < landmarks_needed(PinholeCamera.min_refit_points):
+            lens = None
+        camera, hints = guess.camera((w, h), lens)
         views[name] = View(name, image.as_posix(), (w, h), camera, points,
                            camera_hints=hints, uncertainty=sigma, depth=depth,
                            contour=contour)
@@ -128,6 +140,12 @@ def _side(name):
     if name.endswith("left"):
         return "left"
     return None
+
+
+def photo_lens(path, size, exif_lens=True):
+    """The lens (mm, 36 mm equivalent) a photo's EXIF gives, or None (none given, or
+    ``exif_lens`` False: the photo is to be taken as a parallel projection)."""
+    return photo_lens_mm(path, size) if exif_lens else None
 
 
 def wants_outline(face, outlines):
@@ -151,7 +169,8 @@ def photo_outline(detector, image, face, path, echo):
     return found.points
 
 
-def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="all"):
+def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="all",
+                  exif_lens=True):
     """Detect the face in each photo and make the case.
 
     Parameters
@@ -171,6 +190,10 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="a
         few points.
     outlines : {"all", "profile", "none"}
         Which photos get the head's outline as their contour (``wants_outline``).
+    exif_lens : bool
+        A photo whose EXIF gives its lens gets a pinhole camera of that lens
+        (``detected_case``'s ``lenses``); False: front and profile photos are orthographic
+        whatever their EXIF says.
 
     Returns
     -------
@@ -182,7 +205,7 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="a
         One line naming the photo: no face in it, or a face whose direction is not told.
     """
     echo = echo or (lambda line: None)
-    photos, faces, guesses, contours, used = [], [], [], [], set()
+    photos, faces, guesses, contours, lenses, used = [], [], [], [], [], set()
     for given, path in entries:
         image = load(path)
         face = detector.detect(image)
@@ -220,8 +243,16 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="a
         photos.append((name, path, (w, h)))
         faces.append(face)
         guesses.append(guess)
-        echo(f"{path}: face (score {face.score:.2f}), {guess.describe()} -> view {name!r}")
+        lenses.append(photo_lens(path, (w, h), exif_lens))
+        lens = f", its {lenses[-1]:.0f} mm lens (EXIF)" if lenses[-1] else ""
+        echo(f"{path}: face (score {face.score:.2f}), {guess.describe()}{lens} -> view "
+             f"{name!r}")
         contours.append(photo_outline(detector, image, face, path, echo)
                         if wants_outline(face, outlines) else None)
-    return detected_case(photos, faces, base_dir=base_dir, guesses=guesses,
-                         contours=contours)
+    case = detected_case(photos, faces, base_dir=base_dir, guesses=guesses,
+                         contours=contours, lenses=lenses)
+    for (name, path, _), lens in zip(photos, lenses, strict=True):
+        if lens and case.views[name].camera is not None:
+            echo(f"note: {path}: taken as a parallel projection despite its {lens:.0f} mm "
+                 "lens: too few landmarks to calibrate its camera on")
+    return case

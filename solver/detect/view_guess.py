@@ -22,6 +22,7 @@ import numpy as np
 
 from ..cameras import OrthographicCamera
 from ..io.json_file import read_json
+from ..io.photo_lens import lens_hints
 from .ibug_map import MAP_PATH
 
 #: Within this yaw (degrees) of the front a photo is written as an orthographic front
@@ -65,10 +66,14 @@ class ViewGuess:
             return None
         return "right" if self.name.endswith("right") else "left"
 
-    def camera(self, size):
-        """(camera, hints) for a view of this photo: a nominal orthographic camera for the
-        front and the profiles, or None with ``{"kind": "pinhole"}`` for a three-quarter
-        view (calibrated by the fit on the head)."""
+    def camera(self, size, lens_mm=None):
+        """(camera, hints) for a view of this photo. A photo whose lens is known (its
+        EXIF's, 36 mm equivalent): None with ``lens_hints`` (a pinhole camera of that lens
+        held near this view's yaw). Without one: a nominal orthographic camera for the
+        front and the profiles, None with ``{"kind": "pinhole"}`` for a three-quarter
+        view."""
+        if lens_mm:
+            return None, lens_hints(lens_mm, self.yaw_deg)
         if self.name in ("front", "right", "left"):
             return OrthographicCamera.nominal(f"orthographic-{self.name}", size), {}
         return None, {"kind": "pinhole"}

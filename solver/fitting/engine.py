@@ -306,9 +306,10 @@ class Engine:
         return float(k - np.trace(prec @ cov))
 
     def camera_prior_cost(self, state, views=None):
-        """The focal-length priors of the free pinhole cameras (of ``views``' real cameras,
-        default all): sum of ((log f - log f0) / sigma)^2, the cost ``PinholeCamera.refit``
-        adds for points weighted as inverse pixel variances."""
+        """The priors of the free pinhole cameras (of ``views``' real cameras, default all):
+        their focal lengths' ((log f - log f0) / sigma)^2, the cost ``PinholeCamera.refit``
+        adds for points weighted as inverse pixel variances, and their directions'
+        (``PinholeCamera.prior_cost``)."""
         total = 0.0
         seen = set()
         for v in self.views if views is None else views:
@@ -317,9 +318,7 @@ class Engine:
                 continue
             seen.add(real.name)
             cam = state.cameras[real.name]
-            prior = cam.log_focal_prior(self.landmark_count(real))
-            if prior is not None:
-                total += ((np.log(cam.focal_px) - prior[0]) / prior[1]) ** 2
+            total += cam.prior_cost(self.landmark_count(real))
         return float(total)
 
     def landmark_count(self, view):

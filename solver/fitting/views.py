@@ -448,6 +448,8 @@ def compute_camera(model, case, view, lms, where):
         options["focal_prior"] = tuple(float(x) for x in hints["focal_prior"])
     if "free_focal" in hints:
         options["free_focal"] = bool(hints["free_focal"])
+    if hints.get("direction_prior") is not None:
+        options["direction_prior"] = tuple(float(x) for x in hints["direction_prior"])
     try:
         if view.passpoints:
             _, xyz, pts = case.passpoint_arrays(view.name)

@@ -9,6 +9,22 @@ from pathlib import Path
 from ..cameras import OrthographicCamera
 from .exif import photo_lens_mm
 
+#: Standard deviation (degrees) of where a photo's camera stood around the head, about the
+#: yaw its view says and level (``PinholeCamera.direction_prior``): what a person stepping
+#: around the sitter keeps (docs/DECISIONS.md, "Photos whose lens is known").
+DIRECTION_SIGMA_DEG = 5.0
+
+
+def lens_hints(lens_mm, yaw_deg):
+    """The camera to compute for a photo whose lens is known (its EXIF's, mm, 36 mm
+    equivalent) and that was taken from about ``yaw_deg`` (degrees from the face's front,
+    toward the subject's right positive; a front photo 0, a profile +-90): a pinhole
+    camera of that lens, calibrated by the fit on the head, held near that direction. A
+    parallel projection of a photo taken from a few metres or nearer distorts the head's
+    proportions more than its landmarks' error does (seed 001 eq. 2.2)."""
+    return {"kind": "pinhole", "lens_mm": float(lens_mm),
+            "direction_prior": [float(yaw_deg), DIRECTION_SIGMA_DEG]}
+
 
 def orthographic_lenses(case, photo_paths=None):
     """Set ``camera_hints["lens_mm"]`` of every orthographic view whose photo's EXIF gives

@@ -114,8 +114,8 @@ def test_a_perspective_photo_takes_its_focal_length_from_exif(scene, tmp_path):
     p2 = photos.find_plane(scene, "p2")
     assert photos.lens_hint(p2) == pytest.approx(85.0) and not p2.headrecon.lens_from_exif
     # an orthographic photo has no focal length to set
-    assert bpy.ops.headrecon.load_photo(filepath=str(tmp_path / "phone.jpg"),
-                                        view="front") == {"FINISHED"}
+    assert bpy.ops.headrecon.load_photo(filepath=str(tmp_path / "phone.jpg"), view="front",
+                                        projection="ORTHOGRAPHIC") == {"FINISHED"}
     front = photos.find_plane(scene, "front")
     assert front.headrecon.lens_mm == 0.0 and photos.lens_hint(front) is None
     # ... but the fit reads its EXIF lens, to say the photo was taken too close for one
@@ -127,6 +127,34 @@ def test_a_perspective_photo_takes_its_focal_length_from_exif(scene, tmp_path):
     export_landmarks(scene, tmp_path / "out.json")  # not a file's business
     assert "camera_hints" not in (doc := (tmp_path / "out.json").read_text()) \
         and doc.count("lens_mm") == 2  # the two perspective views' own
+
+
+def test_a_photo_with_its_lens_in_exif_is_perspective_held_near_its_direction(scene,
+                                                                              tmp_path):
+    # by default (From the Photo) a camera's photo is fitted with its lens, its camera held
+    # near the view's direction (which follows the artist's Direction); one without EXIF
+    # stays orthographic; the fit's case carries both
+    import bpy
+
+    from headrecon_addon import photos
+    from headrecon_addon.scene_to_case import case_for_fit
+    from solver import DIRECTION_SIGMA_DEG
+
+    _photo_jpeg(tmp_path / "profile.jpg", (90, 120), focal_35mm=52)
+    _photo_jpeg(tmp_path / "front.jpg", (90, 120), seed=1)
+    assert bpy.ops.headrecon.load_photo(filepath=str(tmp_path / "profile.jpg"),
+                                        camera_view="orthographic-right") == {"FINISHED"}
+    assert bpy.ops.headrecon.load_photo(filepath=str(tmp_path / "front.jpg")) == {"FINISHED"}
+    side, front = photos.find_plane(scene, "side"), photos.find_plane(scene, "front")
+    assert photos.is_perspective(side) and not photos.is_perspective(front)
+    # 52 mm by the diagonal of a 3:4 photo: 54.1 mm across its long side
+    assert photos.lens_hint(side) == pytest.approx(54.1) and side.headrecon.lens_from_exif
+    assert photos.camera_hints(side)["direction_prior"] == [90.0, DIRECTION_SIGMA_DEG]
+    side.headrecon.camera_view = "orthographic-left"
+    assert photos.camera_hints(side)["direction_prior"] == [-90.0, DIRECTION_SIGMA_DEG]
+    case = case_for_fit(scene)
+    assert case.views["side"].camera is None and case.views["front"].camera is not None
+    assert case.views["side"].camera_hints["direction_prior"] == [-90.0, DIRECTION_SIGMA_DEG]
 
 
 def test_bad_exif_loads_the_photo_as_stored_with_one_line(scene, tmp_path):

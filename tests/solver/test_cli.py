@@ -607,3 +607,25 @@ def test_detect_names_the_views_and_says_a_mislabelled_profile(sample, tmp_path)
     assert load_landmarks(out).views["me"].camera.view == "orthographic-front"
     proc = run_cli("detect", front, "--view", "side.png", "--out", out)
     assert_one_line_error(proc, "--view 'side.png'", "NAME=PHOTO")
+
+
+def test_detect_gives_a_photo_of_a_known_lens_its_pinhole_unless_told(lens_sample, tmp_path):
+    """Photos whose EXIF gives their lens: pinhole cameras of it in the file, held near
+    their views' directions; ``--orthographic`` keeps them parallel projections."""
+    from solver import DIRECTION_SIGMA_DEG, load_landmarks
+
+    folder, _ = lens_sample
+    out = tmp_path / "case.json"
+    photos = (folder / "front.jpg", folder / "side.jpg")
+    proc = run_cli("detect", *photos, "--out", out, "-q")
+    assert proc.returncode == 0, proc.stderr
+    case = load_landmarks(out)
+    side = case.views["right"]
+    assert side.camera is None and side.camera_hints["kind"] == "pinhole"
+    assert side.camera_hints["direction_prior"] == [90.0, DIRECTION_SIGMA_DEG]
+    assert abs(side.camera_hints["lens_mm"] - 50.0) < 0.5
+    proc = run_cli("detect", *photos, "--out", out, "-q", "--orthographic")
+    assert proc.returncode == 0, proc.stderr
+    case = load_landmarks(out)
+    assert case.views["front"].camera.view == "orthographic-front"
+    assert case.views["right"].camera.view == "orthographic-right"

@@ -122,6 +122,30 @@ def test_points_are_the_projected_landmarks(sample, model):
     assert ndimage.binary_erosion(t["head_alpha_front"] >= 128, iterations=10)[v, u]
 
 
+def test_a_lens_sample_is_photographed_by_pinholes_of_its_lens(lens_sample, model):
+    # --lens 50: pinhole cameras standing where they frame the head as the orthographic
+    # sample does, JPEGs whose EXIF gives the lens, views whose cameras the fit computes
+    from solver.io.exif import photo_lens_mm
+
+    folder, t = lens_sample
+    assert not (folder / "front.png").exists()
+    case = load_landmarks(folder / "sample.json", known_names=model)
+    cams = {k: camera_from_dict(d) for k, d in json.loads(str(t["cameras"])).items()}
+    for name, v in case.views.items():
+        cam = cams[name]
+        assert cam.perspective and cam.lens_mm == pytest.approx(50.0)
+        assert v.camera is None and v.camera_hints == {"kind": "pinhole", "lens_mm": 50.0}
+        assert photo_lens_mm(folder / v.image, v.size) == pytest.approx(50.0, abs=0.5)
+        names, vertices, _ = v.arrays(model)
+        np.testing.assert_allclose(cam.project(t["world_vertices"][vertices]),
+                                   t[f"exact_{name}"], atol=0.05)
+        # about half a metre away, the head's middle as large as in the orthographic photo
+        distance = np.linalg.norm(cam.centre - t["world_vertices"][model.skin].mean(axis=0))
+        assert 0.4 < distance < 0.8, distance
+        px = cam.project(t["world_vertices"][model.skin])
+        assert px.min() >= 0 and (px <= SIZE).all()
+
+
 def test_side_contour_traces_the_head_outline(sample, model):
     folder, t = sample
     case = load_landmarks(folder / "sample.json", known_names=model)
@@ -189,4 +213,6 @@ def test_make_sample_rejects_bad_settings(tmp_path, model):
         make_sample(tmp_path / "s", samples=0, model=model)
     with pytest.raises(ValueError, match="size"):
         make_sample(tmp_path / "s", size=(32, 1024), model=model)
+    with pytest.raises(ValueError, match="lens_mm"):
+        make_sample(tmp_path / "s", lens_mm=2.0, model=model)
     assert not (tmp_path / "s").exists()

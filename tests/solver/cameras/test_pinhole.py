@@ -412,3 +412,37 @@ def test_parameter_motions_move_the_points_as_the_camera_s_turn_and_centre_do():
                                    atol=1e-11)
     np.testing.assert_allclose(cam.depth_axis(x), np.tile(-cam.rotation[2], (10, 1)))
     assert cam.to_dlt().parameter_motions(x) is None and not cam.to_dlt().moves_rigidly
+
+
+def test_direction_prior_is_the_prior_of_the_turns_toward_its_direction():
+    # a profile camera 8 degrees past the side and 3 degrees above the level, its prior
+    # at the side (yaw 90): the prior modes start at its offsets, a step of minus their
+    # start turns it onto the prior direction, and the cost is the offsets' over sigma
+    y = np.radians(98.0)
+    look = np.array([np.sin(y), np.cos(y), 0.0])  # the viewing direction at yaw 98
+    cam = PinholeCamera.look_at(-0.6 * look, [0.0, 0.0, 0.0], SIZE, lens_mm=50.0,
+                                direction_prior=(90.0, 10.0))
+    cam = cam.replaced(rotation=rotation_from_vector([np.radians(3.0), 0.0, 0.0])
+                       @ cam.rotation)
+    (a, b), sigma = cam.direction_offset()
+    assert sigma == pytest.approx(np.radians(10.0))
+    assert abs(a) == pytest.approx(np.tan(np.radians(8.0)), rel=0.02)
+    assert abs(b) == pytest.approx(np.tan(np.radians(3.0)), rel=0.02)
+    x = np.random.default_rng(1).normal(0.0, 0.08, (12, 3))
+    _, units, start, prior = cam.parameter_modes(x, x, 12, 1.0, 1.0)
+    assert prior[:2].all() and not prior[2:].any()
+    np.testing.assert_allclose(units[:2], sigma)
+    assert cam.prior_cost(12) == pytest.approx(float(start[0] ** 2 + start[1] ** 2))
+    assert cam.prior_cost(12) == pytest.approx((a * a + b * b) / sigma**2)
+    moved = cam.stepped(np.concatenate([-start[:2] * units[:2], np.zeros(4)]))
+    offset, _ = moved.direction_offset()
+    assert np.abs(offset).max() < 0.05 * np.hypot(a, b)
+    assert moved.prior_cost(12) < 0.01 * cam.prior_cost(12)
+    # no prior: no prior modes, no cost; the prior goes through the file's JSON
+    free = yaw_camera(0.6, -98.0)
+    assert free.direction_offset() is None and free.prior_cost(12) == 0.0
+    assert not free.parameter_modes(x, x, 12, 1.0, 1.0)[3].any()
+    back = camera_from_dict(json.loads(json.dumps(cam.to_dict())))
+    assert back.direction_prior == (90.0, 10.0)
+    with pytest.raises(ValueError, match="direction_prior must be"):
+        yaw_camera(0.6, -90.0, direction_prior=(90.0, 0.0))

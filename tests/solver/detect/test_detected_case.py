@@ -190,3 +190,55 @@ def test_a_profile_s_landmarks_are_read_off_its_outline_and_fit_better(sample, d
     # render, its profile half as many pixels, 2.30 against 2.29 (with the hard outline
     # cut-off 2.16-2.28 against 2.24-2.25 over copies moved by 1/1000 px): no worse.
     assert err["outline"] < err["mesh"] + 0.1, err
+
+
+def test_photos_with_their_lens_in_exif_fit_through_pinholes_of_that_lens(lens_sample,
+                                                                          detector, model):
+    # the sample photographed with a 50 mm lens half a metre away: each photo a pinhole of
+    # its EXIF lens held near its view's direction fits the head far better than the same
+    # photos taken as parallel projections, and finds the profile camera where it stood
+    folder, truth = lens_sample
+    photos = [(None, folder / "front.jpg"), (None, folder / "side.jpg")]
+    lines = []
+    auto = detect_photos(photos, detector, _load, base_dir=folder, echo=lines.append)
+    assert sum("its 50 mm lens (EXIF)" in ln for ln in lines) == 2
+    for name, yaw in (("front", None), ("right", 90.0)):
+        view = auto.views[name]
+        assert view.camera is None and view.camera_hints["kind"] == "pinhole"
+        assert view.camera_hints["lens_mm"] == pytest.approx(50.0, abs=0.5)
+        direction = view.camera_hints["direction_prior"]
+        assert direction[0] == pytest.approx(yaw, abs=1e-9) if yaw else abs(direction[0]) < 5
+    flat = detect_photos(photos, detector, _load, base_dir=folder, exif_lens=False)
+    assert type(flat.views["front"].camera).__name__ == "OrthographicCamera"
+    fitted = fit_head(model, auto)
+    err = {"lens": skin_error_mm(model, fitted.local_vertices, truth["local_vertices"]),
+           **_errors(model, truth, flat=flat),
+           "mean head": skin_error_mm(model, model.vertices, truth["local_vertices"])}
+    # 2.27 against 5.60 mm (the mean head 3.43) on this render
+    assert err["lens"] < 0.6 * err["flat"] and err["lens"] < 0.8 * err["mean head"], err
+    true_side = json.loads(str(truth["cameras"]))["side"]
+    turn = np.degrees(np.arccos(np.clip(
+        np.dot(fitted.cameras["right"].rotation[2], np.asarray(true_side["rotation"])[2]),
+        -1.0, 1.0)))
+    assert turn < 5.0, turn
+
+
+def test_a_profile_too_bare_to_calibrate_a_pinhole_stays_a_parallel_projection(
+        sample, detector, monkeypatch):
+    # both photos said to be taken with a 50 mm lens: the front gets its pinhole; the
+    # profile without an outline keeps three points, too few to calibrate one, and stays
+    # orthographic with a note naming it; without the EXIF rule both are orthographic
+    import solver.detect.detected_case as dc
+
+    monkeypatch.setattr(dc, "photo_lens_mm", lambda path, size: 50.0)
+    folder, _ = sample
+    lines = []
+    case = _both_photos(folder, detector, outlines="none", echo=lines.append)
+    assert case.views["front"].camera is None
+    assert case.views["front"].camera_hints["lens_mm"] == 50.0
+    assert case.views["right"].camera.view == "orthographic-right"
+    assert [ln for ln in lines if "parallel projection" in ln] == [
+        f"note: {folder / 'side.png'}: taken as a parallel projection despite its 50 mm "
+        "lens: too few landmarks to calibrate its camera on"]
+    flat = _both_photos(folder, detector, outlines="none", exif_lens=False)
+    assert all(v.camera is not None for v in flat.views.values())

@@ -130,3 +130,21 @@ def test_view_guess_words_and_a_bad_table_names_its_file(tmp_path):
     bad.write_text(json.dumps({"uncertainty": {"front": {"1": 0.1}, "profile": {}}}))
     with pytest.raises(ValueError, match="map.json: uncertainty.front must give every"):
         uncertainty_table(bad)
+
+
+def test_a_photo_s_camera_is_a_pinhole_of_its_known_lens_held_near_its_yaw():
+    from solver import DIRECTION_SIGMA_DEG, OrthographicCamera
+
+    size = (300, 400)
+    for guess in (ViewGuess("front", 3.5), ViewGuess("right", 90.0),
+                  ViewGuess("three_quarter_left", -31.0)):
+        camera, hints = guess.camera(size, 52.0)
+        assert camera is None and hints == {"kind": "pinhole", "lens_mm": 52.0,
+                                            "direction_prior": [guess.yaw_deg,
+                                                                DIRECTION_SIGMA_DEG]}
+    # without a lens: the nominal parallel projection of a front or a profile, a
+    # three-quarter view's pinhole with its focal length unknown
+    camera, hints = ViewGuess("left", -90.0).camera(size)
+    assert isinstance(camera, OrthographicCamera) and camera.view == "orthographic-left"
+    assert hints == {}
+    assert ViewGuess("three_quarter_right", 40.0).camera(size) == (None, {"kind": "pinhole"})
