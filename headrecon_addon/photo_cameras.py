@@ -71,9 +71,9 @@ def new_camera_object(name):
     return obj
 
 
-def apply_settings(obj, params):
-    """Set a camera object from a ``blender_settings`` dict."""
-    data = obj.data
+def set_lens(data, params):
+    """Make a Blender camera (its data) the perspective camera of a ``blender_settings``
+    dict: lens, sensor and shift (the object's place and the pixel aspect are its own)."""
     data.type = "PERSP"
     data.lens_unit = "MILLIMETERS"
     data.sensor_width = params["sensor_width"]
@@ -82,6 +82,12 @@ def apply_settings(obj, params):
     data.lens = params["lens"]
     data.shift_x = params["shift_x"]
     data.shift_y = params["shift_y"]
+
+
+def apply_settings(obj, params):
+    """Set a camera object from a ``blender_settings`` dict."""
+    data = obj.data
+    set_lens(data, params)
     obj.headrecon.pixel_aspect = (params["pixel_aspect_x"], params["pixel_aspect_y"])
     obj.headrecon.flip_x = bool(params["flip_x"])
     obj.matrix_world = Matrix(params["matrix_world"])

@@ -170,16 +170,11 @@ def add_pinhole_camera(camera, name="Camera"):
     -------
     bpy.types.Object
     """
+    from headrecon_addon.photo_cameras import set_lens
+
     params = camera.to_blender()
     cam = bpy.data.cameras.new(name)
-    cam.type = "PERSP"
-    cam.lens_unit = "MILLIMETERS"
-    cam.sensor_width = params["sensor_width"]
-    cam.sensor_height = params["sensor_height"]
-    cam.sensor_fit = params["sensor_fit"]
-    cam.lens = params["lens"]
-    cam.shift_x = params["shift_x"]
-    cam.shift_y = params["shift_y"]
+    set_lens(cam, params)
     cam.clip_start = 0.01
     cam.clip_end = 20.0
     obj = bpy.data.objects.new(name, cam)
