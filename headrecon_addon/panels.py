@@ -62,7 +62,7 @@ class HEADRECON_PT_photos(_Panel, bpy.types.Panel):
             row.operator("headrecon.view_photo", text="",
                          icon="VIEW_CAMERA" if perspective else "HIDE_OFF").view = props.view
             _load_photo(row, "", "FILEBROWSER", props.view,
-                        "PERSPECTIVE" if perspective else "ORTHOGRAPHIC", props.camera_view,
+                        "PERSPECTIVE" if perspective else "FROM_EXIF", props.camera_view,
                         float(photos.lens_hint(plane) or 0.0))
             row.operator("headrecon.remove_photo", text="", icon="X").view = props.view
             box.label(text=photos.camera_label(plane),

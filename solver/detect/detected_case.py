@@ -106,7 +106,7 @@ def detected_case(photos, faces, base_dir=None, guesses=None, contours=None, len
         Each photo's outline (``Detector.outline``'s points, px), written as the view's
         contour.
     lenses : list of (float or None), optional
-        Each photo's lens (mm, 36 mm equivalent; its EXIF's, ``photo_lens``): the view's
+        Each photo's lens (mm, 36 mm equivalent; its EXIF's, ``photo_lens_mm``): the view's
         camera is then a pinhole camera of that lens (``ViewGuess.camera``) wherever the
         view keeps the points to calibrate one (``landmarks_needed`` of a pinhole); a
         profile with fewer keeps the camera it has without a lens (orthographic).
@@ -140,12 +140,6 @@ def _side(name):
     if name.endswith("left"):
         return "left"
     return None
-
-
-def photo_lens(path, size, exif_lens=True):
-    """The lens (mm, 36 mm equivalent) a photo's EXIF gives, or None (none given, or
-    ``exif_lens`` False: the photo is to be taken as a parallel projection)."""
-    return photo_lens_mm(path, size) if exif_lens else None
 
 
 def wants_outline(face, outlines):
@@ -243,7 +237,7 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="a
         photos.append((name, path, (w, h)))
         faces.append(face)
         guesses.append(guess)
-        lenses.append(photo_lens(path, (w, h), exif_lens))
+        lenses.append(photo_lens_mm(path, (w, h)) if exif_lens else None)
         lens = f", its {lenses[-1]:.0f} mm lens (EXIF)" if lenses[-1] else ""
         echo(f"{path}: face (score {face.score:.2f}), {guess.describe()}{lens} -> view "
              f"{name!r}")
