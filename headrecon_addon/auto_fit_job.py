@@ -76,6 +76,11 @@ class AutoFitJob:
                 if name in task.face.depth:
                     depth[name] = task.face.depth[name]
             view["points"] = points
+            camera = view.get("camera")
+            if isinstance(camera, dict) and camera.get("direction_prior") \
+                    and task.held_yaw() is not None:  # as apply_detection holds it
+                view["camera"] = {**camera, "direction_prior": [
+                    task.held_yaw(), camera["direction_prior"][1]]}
             for key, given in (("uncertainty", sigma), ("depth", depth)):
                 if given:
                     view[key] = given

@@ -64,6 +64,17 @@ class PhotoTask:
     face: object = None
     seconds: float = 0.0
 
+    def held_yaw(self):
+        """The yaw (degrees) the detector measured of the face, which a camera held near
+        its view's direction is held near instead of the nominal one (as ``solver detect``
+        does): a front or three-quarter face on its view's side; None for a profile (its
+        +-90 is nominal, not measured), a face contradicting its view, or none."""
+        guess = self.face.guess if self.face is not None else None
+        if guess is None or guess.profile or (self.kind != "front"
+                                              and guess.side != self.kind):
+            return None
+        return float(guess.yaw_deg)
+
     def lines(self, replace):
         """(level, line) for the report: what was found (or that no face was), and a face
         that contradicts the view the photo was loaded as."""
@@ -237,6 +248,8 @@ def apply_detection(scene, job):
                                      task.face.uncertainty.get(name),
                                      task.face.depth.get(name))
         photos.remove_objects([detected[name] for name in remove])
+        if task.held_yaw() is not None:
+            photos.hold_camera_near(plane, task.held_yaw())
         n += len(place)
     return n
 

@@ -657,12 +657,18 @@ def on_camera_view(plane, scene):
     compute near it (its ``direction_prior``, where it has one). Known cameras stay."""
     if plane.headrecon.camera_json or plane.headrecon.image_size[1] <= 0:
         return
+    hold_camera_near(plane, VIEW_YAW_DEG[plane.headrecon.camera_view])
+    place_plane(plane, centre=head_centre(scene))
+
+
+def hold_camera_near(plane, yaw_deg):
+    """A camera to compute that is held near a direction (its ``direction_prior``, a photo
+    loaded with its EXIF lens) is held near ``yaw_deg`` from now on (degrees from the face's
+    front, toward the subject's right); other cameras are left as they are."""
     hints = camera_hints(plane)
     if hints.get("direction_prior"):
-        sigma = hints["direction_prior"][1]
         set_camera_hints(plane, {**hints, "direction_prior": [
-            VIEW_YAW_DEG[plane.headrecon.camera_view], sigma]})
-    place_plane(plane, centre=head_centre(scene))
+            float(yaw_deg), hints["direction_prior"][1]]})
 
 
 # --------------------------------------------------------------------------------------

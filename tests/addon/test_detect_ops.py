@@ -170,6 +170,30 @@ def test_auto_fit_fits_photos_with_their_exif_lens_as_perspective_photos(lens_sa
         cam = photos.camera_object(plane)
         assert cam.data.type == "PERSP" and 45.0 < cam.data.lens < 55.0
     assert scene.headrecon.status.startswith(head.headrecon.fit_method)
+    # detected, the front's camera is held near the yaw the detector measured (as solver
+    # detect writes it), the profile's near the side
+    from headrecon_addon import photo_faces
+
+    scene = empty_scene()
+    front = _load(folder / "front.jpg", "front", "orthographic-front")
+    side = _load(folder / "side.jpg", "side", "orthographic-right")
+    assert photos.camera_hints(front)["direction_prior"][0] == 0.0
+    assert bpy.ops.headrecon.detect_landmarks(view="") == {"FINISHED"}
+    measured = photo_faces.find_face(photos.detector_pixels(front.headrecon.image)).guess
+    yaw = photos.camera_hints(front)["direction_prior"][0]
+    assert yaw == pytest.approx(measured.yaw_deg) and yaw != 0.0
+    assert photos.camera_hints(side)["direction_prior"][0] == 90.0
+    # ... and so in the case Auto Fit fits
+    from headrecon_addon.auto_fit_job import prepare_auto_fit
+
+    scene = empty_scene()
+    _load(folder / "front.jpg", "front", "orthographic-front")
+    _load(folder / "side.jpg", "side", "orthographic-right")
+    job = prepare_auto_fit(scene)
+    job.detect.run()
+    case = job.merged_case()
+    assert case.views["front"].camera_hints["direction_prior"][0] == pytest.approx(yaw)
+    assert case.views["side"].camera_hints["direction_prior"][0] == 90.0
 
 
 def test_auto_fit_that_cannot_fit_leaves_the_scene_as_it_was(sample, monkeypatch):
