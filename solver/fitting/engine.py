@@ -16,6 +16,7 @@ import dataclasses
 import numpy as np
 
 from ..cameras.mirror import estimate_mirror
+from ..io.contour import SPACING_PX
 from ..io.landmark_counts import MIN_LANDMARKS_PER_VIEW
 from ..memo import memo, memo_items
 from ..model.linear_model import LinearModel
@@ -25,6 +26,7 @@ from .definition import GroupedImageRows, definition_sigmas, group_offsets
 from .joint import Joint
 from .outline import (
     CONTOUR_KEEP_SIGMAS,
+    NORMAL_SPAN_PX,
     ContourRows,
     OutlineAlongRows,
     OutlinePointRows,
@@ -145,6 +147,8 @@ class Engine:
         # sigmas of the placement noise.
         self.contour_keep = CONTOUR_KEEP_SIGMAS * noise_px
         self._by_name = {v.name: v for v in views}
+        # photo pixels per pixel of the outline's spacing and normals (options.pixel_scale)
+        self.pixel_scale = 1.0
         # whether a front photo's outline landmarks slide (FitOptions.outline_landmarks)
         self.slide_outline = False
         # the head's profile line (HeadModel.profile_chain): where a photo with only a
@@ -168,10 +172,11 @@ class Engine:
     def for_fit(cls, model, views, opts):
         """The engine of a fit of ``model`` to ``views`` with ``FitOptions`` ``opts``: the
         model it changes (:func:`fitted_model`), the profile's outline candidates, and the
-        options' weights."""
+        options' weights and ``pixel_scale``."""
         eng = cls(fitted_model(model, opts), views, *outline_candidates(model),
                   opts.noise_px, opts.lambda1, opts.lambda2, opts.prior, opts.contour_weight,
                   opts.contour_threshold_px)
+        eng.pixel_scale = float(opts.pixel_scale or 1.0)
         eng.slide_outline = opts.outline_landmarks == "slide"
         eng.profile_chain = np.asarray(model.profile_chain, dtype=np.int64)
         return eng
@@ -596,7 +601,9 @@ class Engine:
                            faces=faces,
                            edges=edges, max_distance=self.contour_threshold,
                            keep_distance=self.contour_keep if keep_distance is None
-                           else keep_distance, name=f"contour {view.name}")
+                           else keep_distance, spacing_px=SPACING_PX * self.pixel_scale,
+                           normal_span_px=NORMAL_SPAN_PX * self.pixel_scale,
+                           name=f"contour {view.name}")
         return rows, cand
 
     def landmark_targets(self, state):

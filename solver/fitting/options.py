@@ -1,11 +1,17 @@
 """How to fit: the options of ``fit_head`` and their checks."""
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 METHODS = ("combined", "approach1", "approach2")
+#: The head's size in the photos the fit's pixel settings are made for: its landmarks
+#: spread over this many pixels per metre of the same landmarks on the mean head (the
+#: benchmarks' photos, 1024 px high with the head filling them: 1900-2650). A head larger
+#: in its photo gets its settings scaled with it (``pixel_scale``).
+REFERENCE_PX_PER_M = 2700.0
 
 
 @dataclass
@@ -48,7 +54,8 @@ class FitOptions:
         "fixed": every landmark and outline point is placed with ``noise_px``.
     noise_px : float
         Standard deviation of landmark placement the weights assume (the floor of the
-        estimate), pixels.
+        estimate), pixels (of a head the size it is in the benchmarks' 1024-px photos:
+        see ``pixel_scale``).
     expressions : {"fit", "neutral"}
         "fit" (default): with ``noise="estimate"`` each photo's expression (eyes closed, a
         smile) is estimated from its landmarks and taken out of them before the identity
@@ -95,6 +102,12 @@ class FitOptions:
     calibration_rounds : int
         Most re-calibrations of free perspective cameras and mirror planes between joint
         rounds (see ``Joint.settle``).
+    pixel_scale : float or None
+        Photo pixels per pixel of the settings above (``noise_px``,
+        ``contour_threshold_px``, ``flag_min_px``) and of the fit's own outline spacing
+        and normals: None (default) from the head's size in the photos, at least 1
+        (``views.photo_scale``: over ``REFERENCE_PX_PER_M``), so a 12-megapixel photo
+        fits as the same photo 1024 px high does.
     """
 
     method: str = "combined"
@@ -123,6 +136,7 @@ class FitOptions:
     tps_iterations: int = 6
     camera_distance_m: float | None = None
     calibration_rounds: int = 8
+    pixel_scale: float | None = None
 
 
 #: (least, most) of each numeric option: beyond them a fit means nothing or overflows
@@ -132,7 +146,7 @@ RANGES = {
     "front_weight": (0.0, 1e6), "contour_weight": (0.0, 1e6), "flag_sigmas": (0.0, 1e3),
     "flag_min_px": (0.0, 1e6), "noise_px": (1e-3, 1e4), "contour_threshold_px": (1e-2, 1e6),
     "tolerance": (1e-12, 1.0), "camera_distance_m": (1e-2, 1e4),
-    "definition_mm": (0.0, 1e3),
+    "definition_mm": (0.0, 1e3), "pixel_scale": (1e-3, 1e3),
 }
 #: (least, most) of each whole-number option.
 INT_RANGES = {"max_iterations": (1, 10000), "tps_iterations": (1, 1000),
@@ -174,7 +188,8 @@ def check_options(options, model):
     problems = [_integer_problem("n_identity", o.n_identity, model.identity.n_coeffs)]
     problems += [_integer_problem(name, getattr(o, name)) for name in INT_RANGES]
     problems += [_number_problem(name, getattr(o, name)) for name in RANGES
-                 if name != "camera_distance_m" or o.camera_distance_m is not None]
+                 if name not in ("camera_distance_m", "pixel_scale")
+                 or getattr(o, name) is not None]
     problems = [p for p in problems if p is not None]
     if problems:
         raise ValueError(problems[0])
@@ -198,3 +213,14 @@ def check_options(options, model):
     if o.progress is not None and not callable(o.progress):
         raise ValueError("options.progress: must be callable(fraction, message) or None")
     return o
+
+
+
+def in_photo_pixels(opts, scale):
+    """``opts`` with its pixel settings (``noise_px``, ``contour_threshold_px``,
+    ``flag_min_px``) in photo pixels: times ``scale``, the photos' pixels per pixel of the
+    settings (kept as ``pixel_scale``)."""
+    return dataclasses.replace(opts, noise_px=opts.noise_px * scale,
+                               contour_threshold_px=opts.contour_threshold_px * scale,
+                               flag_min_px=opts.flag_min_px * scale,
+                               pixel_scale=float(scale))

@@ -16,8 +16,8 @@ CONTOUR_KEEP_SIGMAS = 3.0
 SOFT_CUT = 0.25
 
 
-# An outline point's normal comes from the outline this many pixels either side of it.
-_NORMAL_SPAN_PX = 10.0
+#: An outline point's normal comes from the outline this many pixels either side of it.
+NORMAL_SPAN_PX = 10.0
 
 
 def _median(x):
@@ -77,6 +77,8 @@ class ContourRows(CameraRows):
     edges : ndarray, shape (E, 4)
         Edges shared by two of those triangles: (vertex a, vertex b, face 1, face 2).
     max_distance, reject_factor, keep_distance, spacing_px : float
+    normal_span_px : float
+        A point's normal is taken across the outline this far either side of it, pixels.
     name : str
     """
 
@@ -84,7 +86,7 @@ class ContourRows(CameraRows):
 
     def __init__(self, vertices, pixels, camera, weights=1.0, faces=None, edges=None,
                  max_distance=20.0, reject_factor=3.0, keep_distance=3.0, spacing_px=6.0,
-                 name="contour"):
+                 normal_span_px=NORMAL_SPAN_PX, name="contour"):
         self.name = name
         self.vertices = np.asarray(vertices, dtype=np.intp)
         self.camera = camera
@@ -104,8 +106,8 @@ class ContourRows(CameraRows):
         arc = np.concatenate([[0.0], np.cumsum(seg)])
         # Normals from the outline 10 px either side: a dense stroke's neighbours are too
         # close to give a direction through their placement noise.
-        ahead = np.stack([np.interp(arc + _NORMAL_SPAN_PX, arc, p[:, k]) for k in (0, 1)], 1)
-        behind = np.stack([np.interp(arc - _NORMAL_SPAN_PX, arc, p[:, k]) for k in (0, 1)], 1)
+        ahead = np.stack([np.interp(arc + normal_span_px, arc, p[:, k]) for k in (0, 1)], 1)
+        behind = np.stack([np.interp(arc - normal_span_px, arc, p[:, k]) for k in (0, 1)], 1)
         tangent = ahead - behind
         normal = np.stack([tangent[:, 1], -tangent[:, 0]], axis=1)
         normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)

@@ -9,9 +9,11 @@ import numpy as np
 from ..cameras import Camera, PinholeCamera, camera_class, fit_dlt, is_side_camera
 from ..cameras.mirror import MirrorPlane
 from ..io.case import LandmarkCase
+from ..io.contour import THIN_SPACING_PX, thin_contour
 from ..io.landmark_counts import landmarks_needed, too_few, too_few_distinct, too_few_in_all
 from ..io.landmark_set import as_landmark_set
 from .depth import DEPTH_SHARE
+from .options import REFERENCE_PX_PER_M
 
 
 @dataclass
@@ -208,6 +210,27 @@ def uncertainty_factors(view, floor_px):
     return relative, floor
 
 
+def photo_scale(model, case):
+    """How much larger the head is in the case's photos than in the photos the fit's pixel
+    settings are made for: the largest over the views with six or more landmarks of their
+    spread in pixels (RMS distance from their mean) per metre of the same landmarks' on
+    the mean head, over ``REFERENCE_PX_PER_M``; at least 1."""
+    lms = as_landmark_set(model)
+    scale = 1.0
+    for view in case.views.values():
+        names = [lms.canonical(k) for k in view.points if lms.canonical(k) is not None]
+        if len(names) < 6:
+            continue
+        px = np.array([view.points[k] for k in view.points if lms.canonical(k) is not None],
+                      dtype=np.float64).reshape(-1, 2)
+        x = model.vertices[[lms.vertices[n] for n in names]]
+        metres = np.sqrt(((x - x.mean(axis=0)) ** 2).sum(axis=1).mean())
+        pixels = np.sqrt(((px - px.mean(axis=0)) ** 2).sum(axis=1).mean())
+        if metres > 0 and np.isfinite(pixels):
+            scale = max(scale, float(pixels / metres) / REFERENCE_PX_PER_M)
+    return scale
+
+
 def prepare_views(model, case, opts, cameras=None, noise=None):
     """The case's views as ``ViewData``; every problem is a ValueError naming the view or
     landmark. ``cameras`` (view name -> Camera, e.g. a previous fit's) replaces the file's
@@ -246,6 +269,8 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
             raise ValueError(f"options.landmark_weights[{key!r}]: must be a finite number "
                              f">= 0, got {val!r}")
     weights = {lms.canonical(k): float(v) for k, v in weights.items()}
+    # a larger photo's outline thinned to as many points as at the reference size
+    thinning = THIN_SPACING_PX * (opts.pixel_scale or 1.0)
     fixed = set(opts.fixed_cameras)
     unknown = fixed - set(case.views)
     if unknown:
@@ -314,6 +339,8 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
             if len(np.unique(c.reshape(-1, 2), axis=0)) < 2:
                 raise ValueError(f"{where}: contour needs at least 2 distinct points")
             contour = c.reshape(-1, 2)
+            if thinning > THIN_SPACING_PX:
+                contour = thin_contour(contour, thinning)
         side = cam is not None and is_side_camera(cam)
         tied.update((v, n) for n, v, wv in zip(names, verts, w, strict=True) if wv > 0 and not (
             sliding and not side and lms.outline_in(n, "front")))

@@ -54,3 +54,13 @@ def test_n_identity_against_the_model_and_regional_against_its_regions():
                                          r"1\.\.20, got 21"):
         check_options(FitOptions(n_regional=21), model)
     check_options(FitOptions(n_regional=20), model)
+
+
+def test_pixel_settings_in_photo_pixels():
+    from solver.fitting.options import in_photo_pixels
+
+    opts = in_photo_pixels(FitOptions(noise_px=2.0, flag_min_px=5.0), 4.0)
+    assert (opts.noise_px, opts.contour_threshold_px, opts.flag_min_px, opts.pixel_scale) \
+        == (8.0, 4.0 * FitOptions().contour_threshold_px, 20.0, 4.0)
+    assert in_photo_pixels(FitOptions(), 1.0).noise_px == FitOptions().noise_px
+    check_options(FitOptions(pixel_scale=None), MODEL)
