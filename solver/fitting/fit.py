@@ -254,10 +254,9 @@ def fit_head(model, case, options=None, initial=None):
 
 def _in_photo_pixels(model, case, opts):
     """``opts`` in the case's photo pixels (``options.in_photo_pixels``): scaled by its own
-    ``pixel_scale``, else by the head's size in the photos (``views.photo_scale``). On ten
-    heads' sample photos upscaled 4 x (from their photos alone) the fit's mean error was
-    1.46 mm with the settings as given (one head 4.3 mm) and 4.5 s a fit; scaled, 1.27 mm
-    and 1.7 s, as at 1024 px (1.21 mm; docs/DECISIONS.md, "Large photos")."""
+    ``pixel_scale``, else by the head's size in the photos (``views.photo_scale``), so a
+    large photo fits as the same photo at the size the settings were made for
+    (docs/DECISIONS.md, "Large photos")."""
     scale = opts.pixel_scale if opts.pixel_scale is not None else photo_scale(model, case)
     return in_photo_pixels(opts, scale)
 

@@ -212,23 +212,24 @@ def uncertainty_factors(view, floor_px):
 
 def photo_scale(model, case):
     """How much larger the head is in the case's photos than in the photos the fit's pixel
-    settings are made for: the largest over the views with six or more landmarks of their
-    spread in pixels (RMS distance from their mean) per metre of the same landmarks' on
-    the mean head, over ``REFERENCE_PX_PER_M``; at least 1."""
+    settings are made for: in the view with the most landmarks (at least six; a profile's
+    few midline points spread differently), their spread in pixels (RMS distance from
+    their mean) per metre of the same landmarks' on the mean head, over
+    ``REFERENCE_PX_PER_M``; at least 1."""
     lms = as_landmark_set(model)
-    scale = 1.0
-    for view in case.views.values():
-        names = [lms.canonical(k) for k in view.points if lms.canonical(k) is not None]
-        if len(names) < 6:
-            continue
-        px = np.array([view.points[k] for k in view.points if lms.canonical(k) is not None],
-                      dtype=np.float64).reshape(-1, 2)
-        x = model.vertices[[lms.vertices[n] for n in names]]
-        metres = np.sqrt(((x - x.mean(axis=0)) ** 2).sum(axis=1).mean())
-        pixels = np.sqrt(((px - px.mean(axis=0)) ** 2).sum(axis=1).mean())
-        if metres > 0 and np.isfinite(pixels):
-            scale = max(scale, float(pixels / metres) / REFERENCE_PX_PER_M)
-    return scale
+    named = {v.name: [k for k in v.points if lms.canonical(k) is not None]
+             for v in case.views.values()}
+    view = max(case.views.values(), key=lambda v: len(named[v.name]), default=None)
+    keys = named[view.name] if view is not None else []
+    if len(keys) < 6:
+        return 1.0
+    px = np.array([view.points[k] for k in keys], dtype=np.float64).reshape(-1, 2)
+    x = model.vertices[[lms.vertices[lms.canonical(k)] for k in keys]]
+    metres = np.sqrt(((x - x.mean(axis=0)) ** 2).sum(axis=1).mean())
+    pixels = np.sqrt(((px - px.mean(axis=0)) ** 2).sum(axis=1).mean())
+    if not (metres > 0 and np.isfinite(pixels)):
+        return 1.0
+    return max(1.0, float(pixels / metres) / REFERENCE_PX_PER_M)
 
 
 def prepare_views(model, case, opts, cameras=None, noise=None):

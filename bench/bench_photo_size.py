@@ -1,0 +1,98 @@
+"""Large photos: heads fitted from their photos alone (detected, as Auto Fit takes them) at
+the size they were rendered (1024 px high) and with the same photos upscaled (a phone's
+12-megapixel photo is 4032 px on its long side), with the fit's pixel settings scaled to
+the head's size in the photos (the default, ``FitOptions.pixel_scale`` None) and as given
+(``pixel_scale=1``).
+
+    python -m bench.bench_photo_size [--scale K ...] [--heads DIR ...] [--render SEED ...]
+
+Heads: the sample (``./run sample``) and ``generated/bench_heads/seed<N>`` for each
+``--render`` seed (rendered there first when missing, ``tools.make_sample``, about 45 s a
+head); the upscaled photos are written to a temporary folder. Scores: skin RMS against
+the true head after a similarity (``skin_error_mm``), mm, and each fit's wall time, s.
+"""
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from bench.bench_corrections import render_head
+from bench.common import machine_description
+from solver import FitOptions, fit_head, load_model
+from solver.detect import Detector
+from solver.detect.detected_case import detect_photos
+from solver.fitting.views import photo_scale
+from solver.synthetic import skin_error_mm
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def upscaled(folder, scale, into):
+    """The head's two photos ``scale`` times larger (bicubic), written into ``into``."""
+    into.mkdir(parents=True, exist_ok=True)
+    for view in ("front", "side"):
+        image = Image.open(folder / f"{view}.png").convert("RGB")
+        image.resize((image.width * scale, image.height * scale), Image.BICUBIC) \
+            .save(into / f"{view}.png")
+    return into
+
+
+def photos_case(folder, detector):
+    """The case ``solver detect`` makes of a folder's front and side photos."""
+    return detect_photos([(None, folder / "front.png"), (None, folder / "side.png")],
+                         detector, lambda p: np.asarray(Image.open(p).convert("RGB")),
+                         base_dir=folder)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scale", nargs="*", type=int, default=[4],
+                    help="how many times larger the photos are made (default 4)")
+    ap.add_argument("--heads", nargs="*", default=None,
+                    help="rendered sample folders (default: the sample and the --render ones)")
+    ap.add_argument("--render", nargs="*", type=int,
+                    default=[101, 201, 202, 203, 204, 205, 206, 207, 208],
+                    help="model seeds rendered into generated/bench_heads/seed<N> if missing")
+    args = ap.parse_args(argv)
+    print(f"machine: {machine_description()}")
+    folders = [Path(h) for h in args.heads] if args.heads is not None \
+        else [ROOT / "generated" / "sample"]
+    for seed in args.render:
+        folder = ROOT / "generated" / "bench_heads" / f"seed{seed}"
+        render_head(seed, folder)
+        folders.append(folder)
+    model, detector = load_model(), Detector()
+    columns = ["as rendered"] + [f"x{k} {label}" for k in args.scale
+                                 for label in ("scaled", "as given")]
+    print("skin RMS vs the true head, mm (fit wall time, s); photo_scale of the largest")
+    print(f"  {'head':<10}" + "".join(f"{c:>18}" for c in columns))
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for folder in folders:
+            truth = np.load(folder / "truth.npz", allow_pickle=True)["local_vertices"]
+            runs = [(photos_case(folder, detector), None)]
+            for k in args.scale:
+                case = photos_case(upscaled(folder, k, Path(tmp) / f"{folder.name}_x{k}"),
+                                   detector)
+                runs += [(case, None), (case, FitOptions(pixel_scale=1.0))]
+            row, cells = [], []
+            for case, opts in runs:
+                t0 = time.perf_counter()
+                res = fit_head(model, case, opts)
+                wall = time.perf_counter() - t0
+                row.append(skin_error_mm(model, res.local_vertices, truth))
+                cells.append(f"{row[-1]:.2f} ({wall:.1f})")
+            rows.append(row)
+            print(f"  {folder.name:<10}" + "".join(f"{c:>18}" for c in cells)
+                  + f"   {photo_scale(model, runs[-1][0]):.2f}", flush=True)
+    a = np.array(rows)
+    print(f"  {'mean':<10}" + "".join(f"{v:>18.2f}" for v in a.mean(axis=0)))
+    print(f"  {'worst':<10}" + "".join(f"{v:>18.2f}" for v in a.max(axis=0)))
+
+
+if __name__ == "__main__":
+    main()
