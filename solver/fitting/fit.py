@@ -371,7 +371,7 @@ def _fit(model, case, opts, initial, noise, progress, t0, uncertainty=True):
         "contour_rms_px": {n: rms(d) for n, d in contour.items()},
         "refit_state": {
             "coeffs": state.coeffs.copy(), "n_identity": int(opts.n_identity),
-            "n_regional": int(opts.n_regional),
+            "n_regional": int(opts.n_regional), "pixel_scale": opts.pixel_scale,
             "planes": _saved_planes(state.planes),
             "contour": {n: {"vertices": np.concatenate([p[0] for p in lst]),
                             "pixels": np.vstack([p[1] for p in lst])}
@@ -465,7 +465,11 @@ def refit_landmarks(model, case, previous, options=None):
     if saved is None:
         raise ValueError("previous: expected a FitResult from fit_head (its info has no "
                          "'refit_state')")
-    opts = _in_photo_pixels(model, case, check_options(options, model))
+    opts = check_options(options, model)
+    if opts.pixel_scale is None and saved.get("pixel_scale") is not None:
+        # the fit's own: a moved landmark does not change what a pixel is
+        opts = dataclasses.replace(opts, pixel_scale=saved["pixel_scale"])
+    opts = _in_photo_pixels(model, case, opts)
     opts = FitOptions(**{**opts.__dict__, "n_identity": int(saved["n_identity"]),
                          "n_regional": int(saved["n_regional"]), "method": previous.method})
     if saved.get("expressions"):

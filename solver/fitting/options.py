@@ -215,7 +215,6 @@ def check_options(options, model):
     return o
 
 
-
 def in_photo_pixels(opts, scale):
     """``opts`` with its pixel settings (``noise_px``, ``contour_threshold_px``,
     ``flag_min_px``) in photo pixels: times ``scale``, the photos' pixels per pixel of the
