@@ -55,6 +55,19 @@ def render_head(seed, folder):
                     "--out", str(folder)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
 
 
+def head_folders(heads, seeds):
+    """The rendered head folders a benchmark runs on: ``heads`` (paths) if given, else the
+    sample; then ``generated/bench_heads/seed<N>`` for each of ``seeds``, rendered first
+    when missing."""
+    folders = [Path(h) for h in heads] if heads is not None \
+        else [ROOT / "generated" / "sample"]
+    for seed in seeds:
+        folder = ROOT / "generated" / "bench_heads" / f"seed{seed}"
+        render_head(seed, folder)
+        folders.append(folder)
+    return folders
+
+
 def corrected_cases(folder, model, detector):
     """(label, case) of one head: the photos-only case and its corrections, and the case of
     every exact landmark; None when the photos were not detected as front and profile."""
@@ -114,12 +127,7 @@ def main(argv=None):
                          "their outline")
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
-    folders = [Path(h) for h in args.heads] if args.heads is not None \
-        else [ROOT / "generated" / "sample"]
-    for seed in args.render:
-        folder = ROOT / "generated" / "bench_heads" / f"seed{seed}"
-        render_head(seed, folder)
-        folders.append(folder)
+    folders = head_folders(args.heads, args.render)
     model, detector = load_model(), Detector()
     columns = ["photos", *GROUPS, "profile ears", "every exact"]
     print("skin RMS vs the true head, mm: fit / once (no second start); * second start kept"

@@ -20,15 +20,13 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from bench.bench_corrections import render_head
+from bench.bench_corrections import head_folders
 from bench.common import machine_description
 from solver import FitOptions, fit_head, load_model
 from solver.detect import Detector
 from solver.detect.detected_case import detect_photos
 from solver.fitting.views import photo_scale
 from solver.synthetic import skin_error_mm
-
-ROOT = Path(__file__).resolve().parent.parent
 
 
 def upscaled(folder, scale, into):
@@ -59,12 +57,7 @@ def main(argv=None):
                     help="model seeds rendered into generated/bench_heads/seed<N> if missing")
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
-    folders = [Path(h) for h in args.heads] if args.heads is not None \
-        else [ROOT / "generated" / "sample"]
-    for seed in args.render:
-        folder = ROOT / "generated" / "bench_heads" / f"seed{seed}"
-        render_head(seed, folder)
-        folders.append(folder)
+    folders = head_folders(args.heads, args.render)
     model, detector = load_model(), Detector()
     columns = ["as rendered"] + [f"x{k} {label}" for k in args.scale
                                  for label in ("scaled", "as given")]
