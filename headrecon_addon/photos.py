@@ -44,6 +44,7 @@ from .solver_link import (
     lens_hints,
     orient,
     oriented_size,
+    plausible_lens,
     read_photo_exif,
 )
 from .warm_up import warm_up
@@ -97,7 +98,7 @@ class LoadedPhoto:
 
     def lens_mm(self):
         """The focal length EXIF gives (mm, 36 mm equivalent across the long side), or
-        None."""
+        None (a lens no camera has is ``problem``, loaded as if EXIF gave none)."""
         if self.exif is None:
             return None
         size = tuple(self.image.size)
@@ -139,7 +140,12 @@ def load_photo(path, size=None):
         turn = 1
     if turn != 1:
         img = _upright_image(img, turn, p)
-    return LoadedPhoto(img, exif, problem)
+    photo = LoadedPhoto(img, exif, problem)
+    if problem is None:
+        lens, photo.problem = plausible_lens(photo.lens_mm(), p.name)
+        if lens is None and photo.problem:
+            photo.exif = dataclasses.replace(exif, focal_length_mm=None, focal_35mm=None)
+    return photo
 
 
 def load_image(path, size=None):

@@ -51,7 +51,12 @@ from .io.landmarks_file import (
     parse_landmarks,
     save_landmarks,
 )
-from .io.photo_lens import DIRECTION_SIGMA_DEG, lens_hints, orthographic_lenses
+from .io.photo_lens import (
+    DIRECTION_SIGMA_DEG,
+    lens_hints,
+    orthographic_lenses,
+    plausible_lens,
+)
 from .model.head_model import HeadModel, load_model
 from .texture.bake import SHADING_MODES, BakeOptions, bake_fit_texture, bake_texture
 from .texture.uvs import orthographic_uvs, uv_raster, uv_tiles
@@ -68,7 +73,7 @@ __all__ = [
     "fit_dlt", "fit_head", "forget_fit_subsets",
     "guess_view", "landmarks_needed", "landmarks_to_dict", "load_landmark_set",
     "load_landmarks", "load_model", "lens_hints", "orient", "oriented_size",
-    "orthographic_lenses",
+    "orthographic_lenses", "plausible_lens",
     "orthographic_uvs", "prepare_fit",
     "parse_landmarks", "read_photo_exif", "refit_landmarks", "save_landmarks",
     "usable_cores", "uv_raster", "uv_tiles",

@@ -13,6 +13,7 @@ from ..io.case import LandmarkCase, View
 from ..io.exif import photo_lens_mm
 from ..io.landmark_counts import landmarks_needed
 from ..io.landmark_set import load_landmark_set
+from ..io.photo_lens import plausible_lens
 from .face_detection import KEYPOINTS
 from .ibug_map import mesh_to_ibug
 from .profile_line import profile_line_points
@@ -237,7 +238,11 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="a
         photos.append((name, path, (w, h)))
         faces.append(face)
         guesses.append(guess)
-        lenses.append(photo_lens_mm(path, (w, h)) if exif_lens else None)
+        lens, problem = plausible_lens(photo_lens_mm(path, (w, h)) if exif_lens else None,
+                                       path)
+        if problem:
+            echo(f"warning: {problem}")
+        lenses.append(lens)
         lens = f", its {lenses[-1]:.0f} mm lens (EXIF)" if lenses[-1] else ""
         echo(f"{path}: face (score {face.score:.2f}), {guess.describe()}{lens} -> view "
              f"{name!r}")

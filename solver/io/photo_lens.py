@@ -7,12 +7,24 @@ it."""
 from pathlib import Path
 
 from ..cameras import OrthographicCamera
+from .camera_json import LENS_MM_RANGE
 from .exif import photo_lens_mm
 
 #: Standard deviation (degrees) of where a photo's camera stood around the head, about the
 #: yaw its view says and level (``PinholeCamera.direction_prior``): what a person stepping
 #: around the sitter keeps (docs/DECISIONS.md, "Photos whose lens is known").
 DIRECTION_SIGMA_DEG = 5.0
+
+
+def plausible_lens(lens_mm, where):
+    """(lens, problem) of a lens a photo's EXIF gives (mm, 36 mm equivalent; None: none):
+    the lens when it is one a landmarks file accepts (``camera_json.LENS_MM_RANGE``), else
+    None and one line naming ``where`` (the photo), as for EXIF that cannot be read."""
+    lo, hi = LENS_MM_RANGE
+    if lens_mm is None or lo <= lens_mm <= hi:
+        return lens_mm, None
+    return None, (f"{where}: its EXIF gives a {lens_mm:g} mm lens (36 mm equivalent), "
+                  f"outside {lo:g}..{hi:g} mm; the photo is used as if it gave none")
 
 
 def lens_hints(lens_mm, yaw_deg):

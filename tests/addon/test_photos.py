@@ -157,6 +157,20 @@ def test_a_photo_with_its_lens_in_exif_is_perspective_held_near_its_direction(sc
     assert case.views["side"].camera_hints["direction_prior"] == [-90.0, DIRECTION_SIGMA_DEG]
 
 
+def test_an_exif_lens_no_camera_has_loads_the_photo_as_without_one(scene, tmp_path):
+    import bpy
+
+    from headrecon_addon import photos
+
+    _photo_jpeg(tmp_path / "odd.jpg", (90, 120), focal_35mm=1)
+    photo = photos.load_photo(tmp_path / "odd.jpg")
+    assert photo.lens_mm() is None
+    assert photo.problem == ("odd.jpg: its EXIF gives a 1 mm lens (36 mm equivalent), "
+                             "outside 2..5000 mm; the photo is used as if it gave none")
+    assert bpy.ops.headrecon.load_photo(filepath=str(tmp_path / "odd.jpg")) == {"FINISHED"}
+    assert not photos.is_perspective(photos.find_plane(scene, "front"))
+
+
 def test_bad_exif_loads_the_photo_as_stored_with_one_line(scene, tmp_path):
     import bpy
 

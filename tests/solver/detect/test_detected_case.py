@@ -242,3 +242,18 @@ def test_a_profile_too_bare_to_calibrate_a_pinhole_stays_a_parallel_projection(
         "lens: too few landmarks to calibrate its camera on"]
     flat = _both_photos(folder, detector, outlines="none", exif_lens=False)
     assert all(v.camera is not None for v in flat.views.values())
+
+
+def test_an_exif_lens_no_camera_has_is_one_warning_and_no_lens(sample, detector,
+                                                               monkeypatch):
+    import solver.detect.detected_case as dc
+
+    monkeypatch.setattr(dc, "photo_lens_mm", lambda path, size: 1.0)
+    folder, _ = sample
+    lines = []
+    case = _both_photos(folder, detector, echo=lines.append)
+    assert all(v.camera is not None for v in case.views.values())  # orthographic
+    assert [ln for ln in lines if "EXIF" in ln] == [
+        f"warning: {folder / name}: its EXIF gives a 1 mm lens (36 mm equivalent), outside "
+        "2..5000 mm; the photo is used as if it gave none" for name in ("front.png",
+                                                                         "side.png")]
