@@ -9,7 +9,7 @@ Esc or an error at any point leaves the scene as it was and one undo takes it al
 
 import dataclasses
 
-from . import detect_job, fit_job, outline_job, scene_to_case
+from . import detect_job, fit_job, outline_job, photos, scene_to_case
 from .solver_link import parse_landmarks
 
 #: The share of the progress bar the detection takes (the fit has the rest).
@@ -76,11 +76,9 @@ class AutoFitJob:
                 if name in task.face.depth:
                     depth[name] = task.face.depth[name]
             view["points"] = points
-            camera = view.get("camera")
-            if isinstance(camera, dict) and camera.get("direction_prior") \
-                    and task.held_yaw() is not None:  # as apply_detection holds it
-                view["camera"] = {**camera, "direction_prior": [
-                    task.held_yaw(), camera["direction_prior"][1]]}
+            yaw = task.held_yaw()
+            if yaw is not None and "camera" in view:  # as apply_detection holds it
+                view["camera"] = photos.held_near(view["camera"], yaw)
             for key, given in (("uncertainty", sigma), ("depth", depth)):
                 if given:
                     view[key] = given

@@ -248,8 +248,9 @@ def apply_detection(scene, job):
                                      task.face.uncertainty.get(name),
                                      task.face.depth.get(name))
         photos.remove_objects([detected[name] for name in remove])
-        if task.held_yaw() is not None:
-            photos.hold_camera_near(plane, task.held_yaw())
+        yaw = task.held_yaw()
+        if yaw is not None:
+            photos.hold_camera_near(plane, yaw)
         n += len(place)
     return n
 

@@ -667,14 +667,22 @@ def on_camera_view(plane, scene):
     place_plane(plane, centre=head_centre(scene))
 
 
+def held_near(hints, yaw_deg):
+    """Camera hints (the file's camera object of a camera to compute) held near ``yaw_deg``
+    (degrees from the face's front, toward the subject's right) where they hold the camera
+    near a direction (``direction_prior``, a photo loaded with its EXIF lens); else the
+    hints as they are. No bpy: Auto Fit's merged case uses it in any thread."""
+    if not isinstance(hints, dict) or not hints.get("direction_prior"):
+        return hints
+    return {**hints, "direction_prior": [float(yaw_deg), hints["direction_prior"][1]]}
+
+
 def hold_camera_near(plane, yaw_deg):
-    """A camera to compute that is held near a direction (its ``direction_prior``, a photo
-    loaded with its EXIF lens) is held near ``yaw_deg`` from now on (degrees from the face's
-    front, toward the subject's right); other cameras are left as they are."""
+    """The plane's camera to compute held near ``yaw_deg`` from now on (``held_near``);
+    other cameras are left as they are."""
     hints = camera_hints(plane)
     if hints.get("direction_prior"):
-        set_camera_hints(plane, {**hints, "direction_prior": [
-            float(yaw_deg), hints["direction_prior"][1]]})
+        set_camera_hints(plane, held_near(hints, yaw_deg))
 
 
 # --------------------------------------------------------------------------------------
