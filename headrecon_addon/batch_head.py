@@ -117,6 +117,7 @@ def write_head(task, model):
                 model, result, arrays, size=int(settings["texture_size"]),
                 options=BakeOptions(shading=settings.get("texture_shading") or "keep",
                                     threads=1))
+        del arrays  # the photos as float arrays (25 MB a head): not held through the export
         heap.release_free_memory()  # the bake's temporaries, before Blender takes more
     if "texture" in kinds and tiles is None:
         raise ValueError(f"{task['where']}: no photo to bake the texture from")
@@ -153,6 +154,11 @@ def _write_staged(staging, stem, name, kinds, model, case, result, imgs, tiles, 
             apply_identity.apply_identity(head, model.expression_names)
         if "blend" in kinds:
             staged["blend"] = head_scene.save_blend(staging / f"{stem}.blend")
+        if {"glb", "fbx"} & set(kinds) and apply_identity.identity_key_names(
+                head, model.expression_names):
+            # The .blend is written; a game file has the fitted base alone, so the identity
+            # keys go now, before the exporter's copy of the head doubles them.
+            apply_identity.apply_identity(head, model.expression_names)
         for fmt in ("glb", "fbx"):
             if fmt in kinds:
                 staged[fmt] = export.export_head(staging / f"{stem}.{fmt}", head,

@@ -177,3 +177,19 @@ def test_headless_bakes_the_identity_and_exports(model, fit, tmp_path, capsys):
     names = [kb.name for kb in key_blocks(head)]
     assert "jawOpen" in names and not any(n.startswith("identity_") for n in names)
     assert "fit_detail" not in names
+
+
+def test_headless_exports_the_head_its_blend_holds(model, fit, tmp_path, capsys):
+    from headrecon_addon import export, headless
+
+    path, _, _ = fit
+    code = headless.main([str(path), "--out", str(tmp_path / "gina.blend"), "--components",
+                          "10", "--no-texture", "--export", "glb"])
+    assert code == 0, capsys.readouterr()
+    addon()
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "gina.blend"))
+    head = next(o for o in bpy.data.objects if o.headrecon.role == "HEAD")
+    names = [kb.name for kb in key_blocks(head)]
+    assert "jawOpen" in names and any(n.startswith("identity_") for n in names)
+    again = export.export_head(tmp_path / "again.glb", head, model.expression_names)
+    assert (tmp_path / "gina.glb").read_bytes() == again.read_bytes()

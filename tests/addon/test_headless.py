@@ -122,10 +122,11 @@ def test_summary_names_the_winning_approach(model, tmp_path, monkeypatch, capsys
     assert targets == {59}  # 51 ARKit + 8 extras
     assert not any("NORMAL" in t for p in doc["meshes"][0]["primitives"] for t in p["targets"])
     assert doc["meshes"][0]["extras"]["targetNames"][:2] == ["eyeBlinkLeft", "eyeLookDownLeft"]
-    assert "identity_000" in bpy.data.objects["carol"].data.shape_keys.key_blocks
     lashes = next(m for m in doc["materials"] if m["name"].endswith("Eyelashes"))
     assert lashes["alphaMode"] == "BLEND"
     assert "baseColorTexture" in lashes["pbrMetallicRoughness"]
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "carol.blend"))
+    assert "identity_000" in bpy.data.objects["carol"].data.shape_keys.key_blocks
 
 
 def test_headless_fits_straight_from_photos(sample, tmp_path):
