@@ -7,7 +7,7 @@ photos without EXIF get), and the fit from every exact landmark (``sample.json``
 cameras self-calibrated with the lens).
 
     python -m bench.bench_lens [--lens MM ...] [--render SEED ...] [--heads DIR ...]
-                               [--direction-sigma DEG ...]
+                               [--direction-sigma DEG ...] [--given-lens MM ...]
 
 Heads: ``generated/bench_heads/seed<N>_lens<MM>`` for each ``--render`` seed and
 ``--lens``, rendered there first when missing (``tools.make_sample --lens``, about 45 s a
@@ -15,6 +15,8 @@ head: JPEG photos with the lens in their EXIF), or given folders. Scores: skin R
 the true head after a similarity (``skin_error_mm``), mm, and each fit's wall time.
 ``--direction-sigma`` adds a column per value: the EXIF-lens fit with that standard
 deviation of the cameras' direction prior instead of ``photo_lens.DIRECTION_SIGMA_DEG``.
+``--given-lens`` adds a column per value: the photos as if their EXIF were gone (a
+messaging app's copies) and that lens given (``solver detect --lens``), right or not.
 """
 
 import argparse
@@ -48,10 +50,11 @@ def render_head(seed, lens, folder):
                    stdout=subprocess.DEVNULL)
 
 
-def head_cases(folder, model, detector, sigmas=()):
+def head_cases(folder, model, detector, sigmas=(), given=()):
     """(label, case) of one head: the photos detected with their EXIF lens, the same taken
-    as orthographic, every exact landmark, and the EXIF-lens case with each of ``sigmas``
-    (degrees) as its cameras' direction prior."""
+    as orthographic, every exact landmark, the EXIF-lens case with each of ``sigmas``
+    (degrees) as its cameras' direction prior, and the photos without their EXIF with
+    each of ``given`` (mm) as their lens."""
     photos = [(None, folder / "front.jpg"), (None, folder / "side.jpg")]
 
     def load(path):
@@ -68,6 +71,9 @@ def head_cases(folder, model, detector, sigmas=()):
             if "direction_prior" in view.camera_hints:
                 view.camera_hints["direction_prior"][1] = float(sigma)
         out.append((f"sigma {sigma:g} deg", case))
+    for lens_mm in given:
+        out.append((f"given {lens_mm:g} mm", detect_photos(
+            photos, detector, load, base_dir=folder, exif_lens=False, lens_mm=lens_mm)))
     return out
 
 
@@ -84,6 +90,9 @@ def main(argv=None):
     ap.add_argument("--direction-sigma", nargs="*", type=float, default=[],
                     help="also fit with these standard deviations (degrees) of the cameras' "
                          f"direction prior (default {photo_lens.DIRECTION_SIGMA_DEG:g})")
+    ap.add_argument("--given-lens", nargs="*", type=float, default=[],
+                    help="also fit the photos without their EXIF, each of these lenses (mm) "
+                         "given instead")
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
     folders = [Path(h) for h in args.heads]
@@ -94,13 +103,15 @@ def main(argv=None):
             folders.append(folder)
     model, detector = load_model(), Detector()
     print("skin RMS vs the true head, mm (fit wall time, s)")
-    columns = [*COLUMNS, *(f"sigma {s:g} deg" for s in args.direction_sigma)]
+    columns = [*COLUMNS, *(f"sigma {s:g} deg" for s in args.direction_sigma),
+               *(f"given {g:g} mm" for g in args.given_lens)]
     print(f"  {'head':<18}" + "".join(f"{c:>20}" for c in columns))
     errors = []
     for folder in folders:
         truth = np.load(folder / "truth.npz", allow_pickle=True)["local_vertices"]
         row, cells = [], []
-        for _, case in head_cases(folder, model, detector, args.direction_sigma):
+        for _, case in head_cases(folder, model, detector, args.direction_sigma,
+                                  args.given_lens):
             t0 = time.perf_counter()
             res = fit_head(model, case)
             wall = time.perf_counter() - t0

@@ -27,7 +27,8 @@ any landmarks file (the head named after the .blend, or in a folder ``OUT`` afte
 photos' folder). ``--detect FOLDER``: the photos in it are one head (named after the
 folder), or, with no photo but sub-folders of photos, each sub-folder is one. A manifest's
 ``photos`` column (the photos separated by ";") does the same for its row. A photo
-without a face fails that head only.
+without a face fails that head only. ``--lens MM`` gives the lens of detected photos whose
+EXIF gives none (they are then perspective photos, as with ``solver detect --lens``).
 
 This process plans the batch and, at ``--jobs 2`` or more, only waits on its workers: it
 never imports bpy then (``batch_head``, the head's fit and outputs, does), so the workers
@@ -101,6 +102,10 @@ def _parser():
                    help="fit a head straight from its photos (landmarks detected, written as "
                         "<name>.landmarks.json beside the outputs); or a folder of one "
                         "head's photos, or of sub-folders one per head; repeatable")
+    p.add_argument("--lens", type=solver_module("cli").lens_mm_arg, metavar="MM",
+                   help="the lens (mm, 36 mm equivalent) of detected photos whose EXIF gives "
+                        "none (as solver detect --lens): they are fitted as perspective "
+                        "photos of it")
     p.add_argument("--cluster", metavar="ADDRESS",
                    help="run the heads on a Dask distributed cluster: its scheduler "
                         "(tcp://host:8786, or a scheduler file .json), or 'local' for a "
@@ -193,17 +198,19 @@ def detect_groups(groups):
     return out
 
 
-def detected_head(head):
+def detected_head(head, lens_mm=None):
     """``head`` (a ``batch_manifest.Head`` with ``photos`` and no landmarks file) with its
     landmarks detected into ``<base>.landmarks.json`` (``solver.cli.detect_landmarks``, the
-    detect command's own code), or with the one-line error when its photos fail."""
+    detect command's own code; ``lens_mm``: its ``--lens``), or with the one-line error
+    when its photos fail."""
     if head.error is not None or head.landmarks is not None or not head.photos:
         return head
     cli = solver_module("cli")
     landmarks = head.base.with_name(head.base.name + ".landmarks.json")
     try:
         head.base.parent.mkdir(parents=True, exist_ok=True)
-        cli.detect_landmarks([str(p) for p in head.photos], landmarks, quiet=True)
+        cli.detect_landmarks([str(p) for p in head.photos], landmarks, quiet=True,
+                             lens_mm=lens_mm)
     except (cli.CliError, ValueError, OSError) as e:
         message = str(e) if head.where in str(e) else f"{head.where}: {e}"
         return batch_manifest.Head(head.name, None, head.base, head.where, head.options,
@@ -212,7 +219,7 @@ def detected_head(head):
                                photos=head.photos)
 
 
-def detected_heads(groups, out):
+def detected_heads(groups, out, lens_mm=None):
     """Heads from ``--detect`` groups (``detect_groups``), each run through
     :func:`detected_head`."""
     out = Path(out)
@@ -223,7 +230,7 @@ def detected_heads(groups, out):
             name = out.stem
         base = out.with_suffix("") if single else out / name
         heads.append(detected_head(batch_manifest.Head(name, None, base, where,
-                                                       photos=tuple(photos))))
+                                                       photos=tuple(photos)), lens_mm))
     return heads
 
 
@@ -276,8 +283,8 @@ def main(argv):
             raise ValueError(f"--out {args.out}: one .blend file for several heads; give a "
                              "folder instead")
         heads = batch_manifest.plan_heads(args.inputs, args.out) if args.inputs else []
-        heads = [detected_head(h) for h in heads]  # a manifest's photos column
-        heads += detected_heads(args.detect, args.out)
+        heads = [detected_head(h, args.lens) for h in heads]  # a manifest's photos column
+        heads += detected_heads(args.detect, args.out, args.lens)
         if out_dir is not None:
             solver_module("io.atomic").check_outputs(
                 {"summary.csv": out_dir / "summary.csv",

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .io.camera_json import camera_to_json
+from .io.camera_json import LENS_MM_RANGE, camera_to_json
 from .io.exif import orient, oriented_size, read_photo_exif
 from .io.landmark_counts import MIN_LANDMARKS_PER_VIEW, MIN_LANDMARKS_TOTAL
 from .io.landmark_set import load_landmark_set
@@ -424,10 +424,11 @@ def view_entries(photos, views):
 
 
 def detect_landmarks(photos, out, views=(), models=None, quiet=False, outlines="all",
-                     exif_lens=True):
+                     exif_lens=True, lens_mm=None):
     """Detect the face in each photo, and the head's outline in those ``outlines`` says
     (``detected_case.wants_outline``), and write the landmarks file ``out`` (a photo whose
-    EXIF gives its lens gets a pinhole camera of it unless ``exif_lens`` is False); the
+    EXIF gives its lens gets a pinhole camera of it unless ``exif_lens`` is False, one
+    whose EXIF gives none a pinhole of ``lens_mm`` when given); the
     lines of ``solver.detect.detected_case.detect_photos`` go to stderr ("warning:" and
     "note:" lines even when ``quiet``). Returns the case. ``CliError`` / ``ValueError``:
     one line naming the photo or option."""
@@ -450,7 +451,7 @@ def detect_landmarks(photos, out, views=(), models=None, quiet=False, outlines="
             progress(min(faces, len(entries)) / len(entries), line)
 
     case = detect_photos(entries, detector, load_photo, base_dir=out.parent, echo=echo,
-                         outlines=outlines, exif_lens=exif_lens)
+                         outlines=outlines, exif_lens=exif_lens, lens_mm=lens_mm)
     save_landmarks(case, out)
     if not quiet:
         print(f"wrote {out}", file=sys.stderr)
@@ -458,8 +459,11 @@ def detect_landmarks(photos, out, views=(), models=None, quiet=False, outlines="
 
 
 def _cmd_detect(args):
+    if args.orthographic and args.lens is not None:
+        raise CliError("--lens and --orthographic: give one (--lens makes the photos "
+                       "without an EXIF lens perspective, --orthographic every photo parallel)")
     detect_landmarks(args.photos, args.out, args.view, args.models, args.quiet,
-                     args.outlines, not args.orthographic)
+                     args.outlines, not args.orthographic, args.lens)
     return EXIT_OK
 
 
@@ -479,6 +483,17 @@ def _positive_int(text):
     value = _parsed(text, int, "a whole number")
     if value < 0:
         raise argparse.ArgumentTypeError(f"expected 0 or more, got {value}")
+    return value
+
+
+def lens_mm_arg(text):
+    """A lens given on the command line (mm, 36 mm equivalent), one a landmarks file
+    accepts (``LENS_MM_RANGE``); else argparse's error naming it."""
+    value = _parsed(text, float, "a focal length in mm")
+    lo, hi = LENS_MM_RANGE
+    if not lo <= value <= hi:  # NaN too
+        raise argparse.ArgumentTypeError(
+            f"expected {lo:g} to {hi:g} mm (36 mm equivalent), got {text}")
     return value
 
 
@@ -613,6 +628,11 @@ def build_parser():
                      help="front and profile photos as parallel projections whatever lens "
                           "their EXIF gives (e.g. photos cropped after they were taken, "
                           "whose EXIF lens no longer holds)")
+    det.add_argument("--lens", type=lens_mm_arg, metavar="MM",
+                     help="the lens (mm, 36 mm equivalent) of the photos whose EXIF gives "
+                          "none, e.g. 26 for a phone's main camera when a messaging app "
+                          "removed the EXIF: they are fitted as perspective photos of it "
+                          "(default: such photos are parallel projections)")
     det.add_argument("--models", metavar="FOLDER",
                      help="folder of the .tflite files (default: generated/detector/)")
     det.add_argument("-q", "--quiet", action="store_true", help="no progress output")

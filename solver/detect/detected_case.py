@@ -165,7 +165,7 @@ def photo_outline(detector, image, face, path, echo):
 
 
 def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="all",
-                  exif_lens=True):
+                  exif_lens=True, lens_mm=None):
     """Detect the face in each photo and make the case.
 
     Parameters
@@ -189,6 +189,10 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="a
         A photo whose EXIF gives its lens gets a pinhole camera of that lens
         (``detected_case``'s ``lenses``); False: front and profile photos are orthographic
         whatever their EXIF says.
+    lens_mm : float, optional
+        The lens (mm, 36 mm equivalent) of the photos whose EXIF gives none (or is not
+        read): they get a pinhole camera of it as if their EXIF said so (a phone photo
+        whose EXIF a messaging app removed). None: such photos are orthographic.
 
     Returns
     -------
@@ -242,8 +246,9 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="a
                                        path)
         if problem:
             echo(f"warning: {problem}")
-        lenses.append(lens)
-        lens = f", its {lenses[-1]:.0f} mm lens (EXIF)" if lenses[-1] else ""
+        source = "EXIF" if lens else "as given"
+        lenses.append(lens or lens_mm)
+        lens = f", its {lenses[-1]:.0f} mm lens ({source})" if lenses[-1] else ""
         echo(f"{path}: face (score {face.score:.2f}), {guess.describe()}{lens} -> view "
              f"{name!r}")
         contours.append(photo_outline(detector, image, face, path, echo)

@@ -158,6 +158,12 @@ def test_headless_fits_straight_from_photos(sample, tmp_path):
     assert head.data.shape_keys is not None and len(head.data.shape_keys.key_blocks) > 10
     proc = run_python(args)
     assert proc.returncode == 0 and "unchanged, skipped" in proc.stdout, proc.stdout
+    # the photos' lens given (they have no EXIF): the detected file changes, so the head
+    # is fitted again, through pinhole cameras of that lens
+    proc = run_python(args + ["--lens", "50"])
+    assert proc.returncode == 0 and "head: method" in proc.stdout, proc.stdout
+    case = load_landmarks(out.with_name("head.landmarks.json"))
+    assert {v.camera_hints.get("lens_mm") for v in case.views.values()} == {50.0}
 
 
 def test_headless_detect_folder_of_heads_fails_a_photo_without_a_face(sample, tmp_path):

@@ -629,3 +629,21 @@ def test_detect_gives_a_photo_of_a_known_lens_its_pinhole_unless_told(lens_sampl
     case = load_landmarks(out)
     assert case.views["front"].camera.view == "orthographic-front"
     assert case.views["right"].camera.view == "orthographic-right"
+    proc = run_cli("detect", *photos, "--out", out, "-q", "--orthographic", "--lens", "50")
+    assert_one_line_error(proc, "--lens and --orthographic")
+
+
+def test_detect_lens_makes_photos_without_exif_perspective(sample, tmp_path):
+    from solver import load_landmarks
+
+    folder, _ = sample
+    out = tmp_path / "case.json"
+    photos = (folder / "front.png", folder / "side.png")  # no EXIF
+    proc = run_cli("detect", *photos, "--out", out, "-q", "--lens", "26")
+    assert proc.returncode == 0, proc.stderr
+    front = load_landmarks(out).views["front"]
+    assert front.camera is None and front.camera_hints["kind"] == "pinhole"
+    assert front.camera_hints["lens_mm"] == 26.0
+    for bad in ("1", "nan", "wide"):
+        proc = run_cli("detect", *photos, "--out", out, "--lens", bad)
+        assert proc.returncode == 2 and "--lens" in proc.stderr, proc.stderr

@@ -223,6 +223,30 @@ def test_photos_with_their_lens_in_exif_fit_through_pinholes_of_that_lens(lens_s
     assert turn < 5.0, turn
 
 
+def test_photos_without_an_exif_lens_take_the_lens_given(lens_sample, detector,
+                                                          monkeypatch):
+    # the same photos with their EXIF gone (a messaging app's copies) and the lens given:
+    # the case is the one their EXIF made; a lens their EXIF gives wins over the one given
+    import solver.detect.detected_case as dc
+
+    folder, _ = lens_sample
+    photos = [(None, folder / "front.jpg"), (None, folder / "side.jpg")]
+    with_exif = detect_photos(photos, detector, _load, base_dir=folder)
+    lines = []
+    monkeypatch.setattr(dc, "photo_lens_mm", lambda path, size: None)
+    given = detect_photos(photos, detector, _load, base_dir=folder, echo=lines.append,
+                          lens_mm=with_exif.views["front"].camera_hints["lens_mm"])
+    assert sum("mm lens (as given)" in ln for ln in lines) == 2
+    for name, view in with_exif.views.items():
+        assert given.views[name].camera is None
+        assert given.views[name].camera_hints == view.camera_hints
+    assert all(v.camera is not None for v in detect_photos(
+        photos, detector, _load, base_dir=folder).views.values())  # none given: parallel
+    monkeypatch.setattr(dc, "photo_lens_mm", lambda path, size: 85.0)
+    exif = detect_photos(photos, detector, _load, base_dir=folder, lens_mm=24.0)
+    assert {v.camera_hints["lens_mm"] for v in exif.views.values()} == {85.0}
+
+
 def test_a_profile_too_bare_to_calibrate_a_pinhole_stays_a_parallel_projection(
         sample, detector, monkeypatch):
     # both photos said to be taken with a 50 mm lens: the front gets its pinhole; the
