@@ -283,6 +283,10 @@ def main(argv):
             raise ValueError(f"--out {args.out}: one .blend file for several heads; give a "
                              "folder instead")
         heads = batch_manifest.plan_heads(args.inputs, args.out) if args.inputs else []
+        if args.lens is not None and not (args.detect or any(h.photos for h in heads)):
+            raise ValueError(f"--lens {args.lens:g}: only for photos the batch detects "
+                             "(--detect, a manifest's photos column); a landmarks file's "
+                             "cameras give their own lens")
         heads = [detected_head(h, args.lens) for h in heads]  # a manifest's photos column
         heads += detected_heads(args.detect, args.out, args.lens)
         if out_dir is not None:

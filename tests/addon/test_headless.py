@@ -238,3 +238,14 @@ def test_an_orthographic_phone_photo_is_warned_about(model, tmp_path):
     warned = [ln for ln in proc.stderr.splitlines() if "parallel projection" in ln]
     assert len(warned) == 1 and warned[0].startswith("phone: warning: view 'front'")
     assert "mm lens, EXIF" in warned[0]
+
+
+def test_lens_is_only_for_photos_the_batch_detects(model, tmp_path, capsys):
+    from headrecon_addon import headless
+
+    path, _, _ = synthetic_files(model, tmp_path, seed=13, name="dora", photos=False)
+    code = headless.main([str(path), "--out", str(tmp_path / "dora.blend"), "--lens", "26"])
+    assert code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("headless: --lens 26: only for photos")
+    assert not (tmp_path / "dora.blend").exists()
