@@ -1,15 +1,17 @@
-"""Large photos: heads fitted from their photos alone (detected, as Auto Fit takes them) at
-the size they were rendered (1024 px high) and with the same photos upscaled (a phone's
-12-megapixel photo is 4032 px on its long side), with the fit's pixel settings scaled to
-the head's size in the photos (the default, ``FitOptions.pixel_scale`` None) and as given
-(``pixel_scale=1``).
+"""Large and small photos: heads fitted from their photos alone (detected, as Auto Fit
+takes them) at the size they were rendered (1024 px high) and with the same photos
+resized (a phone's 12-megapixel photo is 4032 px on its long side, ``--scale 4``; a
+webcam's or a web page's photo 512 px or less, ``--scale 0.5``), with the fit's pixel
+settings scaled to the head's size in the photos (the default, ``FitOptions.pixel_scale``
+None) and as given (``pixel_scale=1``).
 
     python -m bench.bench_photo_size [--scale K ...] [--heads DIR ...] [--render SEED ...]
 
 Heads: the sample (``./run sample``) and ``generated/bench_heads/seed<N>`` for each
 ``--render`` seed (rendered there first when missing, ``tools.make_sample``, about 45 s a
-head); the upscaled photos are written to a temporary folder. Scores: skin RMS against
-the true head after a similarity (``skin_error_mm``), mm, and each fit's wall time, s.
+head); the resized photos (bicubic up, Lanczos down) are written to a temporary folder.
+Scores: skin RMS against the true head after a similarity (``skin_error_mm``), mm, and
+each fit's wall time, s.
 """
 
 import argparse
@@ -29,12 +31,14 @@ from solver.fitting.views import photo_scale
 from solver.synthetic import skin_error_mm
 
 
-def upscaled(folder, scale, into):
-    """The head's two photos ``scale`` times larger (bicubic), written into ``into``."""
+def resized(folder, scale, into):
+    """The head's two photos ``scale`` times the size (bicubic up, Lanczos down), written
+    into ``into``."""
     into.mkdir(parents=True, exist_ok=True)
     for view in ("front", "side"):
         image = Image.open(folder / f"{view}.png").convert("RGB")
-        image.resize((image.width * scale, image.height * scale), Image.BICUBIC) \
+        size = (round(image.width * scale), round(image.height * scale))
+        image.resize(size, Image.BICUBIC if scale > 1 else Image.LANCZOS) \
             .save(into / f"{view}.png")
     return into
 
@@ -48,8 +52,9 @@ def photos_case(folder, detector):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--scale", nargs="*", type=int, default=[4],
-                    help="how many times larger the photos are made (default 4)")
+    ap.add_argument("--scale", nargs="*", type=float, default=[4.0],
+                    help="how many times the photos' size they are made (default 4; 0.5: "
+                         "half)")
     ap.add_argument("--heads", nargs="*", default=None,
                     help="rendered sample folders (default: the sample and the --render ones)")
     ap.add_argument("--render", nargs="*", type=int,
@@ -59,9 +64,9 @@ def main(argv=None):
     print(f"machine: {machine_description()}")
     folders = head_folders(args.heads, args.render)
     model, detector = load_model(), Detector()
-    columns = ["as rendered"] + [f"x{k} {label}" for k in args.scale
+    columns = ["as rendered"] + [f"x{k:g} {label}" for k in args.scale
                                  for label in ("scaled", "as given")]
-    print("skin RMS vs the true head, mm (fit wall time, s); photo_scale of the largest")
+    print("skin RMS vs the true head, mm (fit wall time, s); photo_scale of the last size")
     print(f"  {'head':<10}" + "".join(f"{c:>18}" for c in columns))
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -69,7 +74,7 @@ def main(argv=None):
             truth = np.load(folder / "truth.npz", allow_pickle=True)["local_vertices"]
             runs = [(photos_case(folder, detector), None)]
             for k in args.scale:
-                case = photos_case(upscaled(folder, k, Path(tmp) / f"{folder.name}_x{k}"),
+                case = photos_case(resized(folder, k, Path(tmp) / f"{folder.name}_x{k:g}"),
                                    detector)
                 runs += [(case, None), (case, FitOptions(pixel_scale=1.0))]
             row, cells = [], []
