@@ -7,11 +7,15 @@ from dataclasses import dataclass
 import numpy as np
 
 METHODS = ("combined", "approach1", "approach2")
-#: The head's size in the photos the fit's pixel settings are made for: its landmarks
-#: spread over this many pixels per metre of the same landmarks on the mean head (the
-#: benchmarks' photos, 1024 px high with the head filling them: 1900-2650). A head larger
-#: in its photo gets its settings scaled with it (``pixel_scale``).
-REFERENCE_PX_PER_M = 2700.0
+#: The head's sizes in the photos the fit's pixel settings are made for, (smallest,
+#: largest): its landmarks spread over this many pixels per metre of the same landmarks on
+#: the mean head (the benchmarks' photos, 1024 px high with the head filling them:
+#: 1870-2650). A head larger or smaller in its photo gets its settings scaled with it from
+#: the nearer end (``pixel_scale``).
+REFERENCE_PX_PER_M = (1800.0, 2700.0)
+#: The least placement noise (px) a scaled-down noise floor reaches: no landmark is placed
+#: finer than half a pixel of its photo (a pixel's own quantisation is 0.29 px a coordinate).
+LEAST_NOISE_PX = 0.5
 
 
 @dataclass
@@ -105,9 +109,10 @@ class FitOptions:
     pixel_scale : float or None
         Photo pixels per pixel of the settings above (``noise_px``,
         ``contour_threshold_px``, ``flag_min_px``) and of the fit's own outline spacing
-        and normals: None (default) from the head's size in the photos, at least 1
-        (``views.photo_scale``: over ``REFERENCE_PX_PER_M``), so a 12-megapixel photo
-        fits as the same photo 1024 px high does.
+        and normals: None (default) from the head's size in the photos
+        (``views.photo_scale``: 1 within ``REFERENCE_PX_PER_M``, else over its nearer
+        end), so a 12-megapixel photo fits as the same photo 1024 px high does, and a
+        512-px one closer to it than with the settings as given.
     """
 
     method: str = "combined"
@@ -218,8 +223,12 @@ def check_options(options, model):
 def in_photo_pixels(opts, scale):
     """``opts`` with its pixel settings (``noise_px``, ``contour_threshold_px``,
     ``flag_min_px``) in photo pixels: times ``scale``, the photos' pixels per pixel of the
-    settings (kept as ``pixel_scale``)."""
-    return dataclasses.replace(opts, noise_px=opts.noise_px * scale,
+    settings (kept as ``pixel_scale``); scaled down, the noise stops at ``LEAST_NOISE_PX``
+    (or at its own value, where that is smaller)."""
+    noise = opts.noise_px * scale
+    if scale < 1.0:
+        noise = max(noise, min(opts.noise_px, LEAST_NOISE_PX))
+    return dataclasses.replace(opts, noise_px=noise,
                                contour_threshold_px=opts.contour_threshold_px * scale,
                                flag_min_px=opts.flag_min_px * scale,
                                pixel_scale=float(scale))

@@ -211,11 +211,11 @@ def uncertainty_factors(view, floor_px):
 
 
 def photo_scale(model, case):
-    """How much larger the head is in the case's photos than in the photos the fit's pixel
-    settings are made for: in the view with the most landmarks (at least six; a profile's
-    few midline points spread differently), their spread in pixels (RMS distance from
-    their mean) per metre of the same landmarks' on the mean head, over
-    ``REFERENCE_PX_PER_M``; at least 1."""
+    """How much larger (or smaller) the head is in the case's photos than in the photos the
+    fit's pixel settings are made for: in the view with the most landmarks (at least six;
+    a profile's few midline points spread differently), their spread in pixels (RMS
+    distance from their mean) per metre of the same landmarks' on the mean head, over the
+    nearer end of ``REFERENCE_PX_PER_M``; 1 within it."""
     lms = as_landmark_set(model)
     named = {v.name: [k for k in v.points if lms.canonical(k) is not None]
              for v in case.views.values()}
@@ -227,9 +227,12 @@ def photo_scale(model, case):
     x = model.vertices[[lms.vertices[lms.canonical(k)] for k in keys]]
     metres = np.sqrt(((x - x.mean(axis=0)) ** 2).sum(axis=1).mean())
     pixels = np.sqrt(((px - px.mean(axis=0)) ** 2).sum(axis=1).mean())
-    if not (metres > 0 and np.isfinite(pixels)):
+    if not (metres > 0 and pixels > 0 and np.isfinite(pixels)):
         return 1.0
-    return max(1.0, float(pixels / metres) / REFERENCE_PX_PER_M)
+    density = float(pixels / metres)
+    smallest, largest = REFERENCE_PX_PER_M
+    return density / largest if density > largest else \
+        density / smallest if density < smallest else 1.0
 
 
 def prepare_views(model, case, opts, cameras=None, noise=None):

@@ -230,9 +230,14 @@ def test_fit_a_synthetic_case_writes_obj_texture_and_report(tmp_path, model):
     assert report["uncertainty_mm"]["median"] > 0
     assert report["timings_s"]["fit"] > 0
     assert set(report["outputs"]) == {"obj", "mtl", "texture", "report"}
-    # the estimated placement noise and the head's plausibility are in the report
+    # the estimated placement noise and the head's plausibility are in the report; the
+    # noise floor (1 px at the settings' size) in these 512-px photos' pixels
+    from solver.fitting.views import photo_scale
+
     noise = report["info"]["noise"]
-    assert set(noise["landmark_px"]) == set(case.views) and noise["floor_px"] == 1.0
+    assert set(noise["landmark_px"]) == set(case.views)
+    assert noise["floor_px"] == pytest.approx(max(photo_scale(model, case), 0.5))
+    assert 0.5 <= noise["floor_px"] < 1.0
     assert 0 <= report["info"]["plausibility"]["percentile"] <= 100
 
 
@@ -421,8 +426,7 @@ def test_a_failed_write_leaves_the_old_output_set_and_names_the_file(tmp_path, m
         Image.new("RGB", tuple(view.size), (200, 150, 100)).save(tmp_path / f"{name}.png")
     save_landmarks(case, tmp_path / "case.json")
     argv = ["fit", "case.json", "--out", "out/head.obj", "--texture", "out/head.png",
-            "--texture-size", 64, "--report", "out/report.json", "--components", 10,
-            "--noise", "fixed", "-q"]
+            "--texture-size", 64, "--report", "out/report.json", "--components", 10, "-q"]
     assert run_cli(*argv, cwd=tmp_path).returncode == 0
     old = {p.name: p.read_bytes() for p in (tmp_path / "out").iterdir()}
     assert set(old) == {"head.obj", "head.mtl", "head.png", "report.json"}

@@ -91,8 +91,9 @@ def test_the_detected_front_s_depth_follows_the_true_head_and_helps_its_fit(samp
     gap = (seen[b] - seen[a]) - (true[b] - true[a])
     assert len(pairs) >= 15 and np.sqrt(np.mean(np.square(gap))) < 2.0, gap
     # the front detected without its outline (the profile as placed): the depths hold the
-    # head's turn and make the fit better (1.86 against 2.05 mm on this small render; with
-    # the front's outline, which holds the turn too, 1.16 either way)
+    # head's turn and make the fit better (1.56 against 1.69 mm on this small render, its
+    # settings scaled to its size; 1.86 against 2.05 with them as given; with the front's
+    # outline, which holds the turn too, 1.16 either way)
     case = load_landmarks(folder / "sample.json", known_names=model)
     given, flat = copy.deepcopy(case), copy.deepcopy(case)
     given.views["front"] = copy.deepcopy(front)
@@ -109,8 +110,9 @@ def test_a_fit_from_the_photos_alone_started_from_its_own_head_stays_there(sampl
     # again from the landmarks alone (the staged start meant for the mean head), it left
     # that head and latched the outlines anew, so a change of 1/1000 px in the input sent
     # the rendered sample's head anywhere from 1.4 to 3.9 mm (docs/DECISIONS.md). A fit
-    # from a given head also goes on with its noise and expressions: here 0.0 mm away,
-    # 0.22 staged; from the default noise 0.50, the landmarks as given 0.69.
+    # from a given head also goes on with its noise and expressions: here 0.17 mm away
+    # (0.0 with this small render's settings as given; then 0.22 staged, from the default
+    # noise 0.50, the landmarks as given 0.69).
     folder, truth = sample
     auto = _both_photos(folder, detector)
     first = fit_head(model, auto)
@@ -125,8 +127,10 @@ def test_photos_moved_by_a_thousandth_of_a_pixel_fit_the_same_head(sample, detec
     # from the true head; the fading cut-off (outline.SOFT_CUT) fits them alike. What is
     # left is the outline's own choice of rim vertices: where an ICP round ends between two
     # alternating choices, a copy can settle in the neighbouring minimum (on the Intel
-    # host of 2026-12-03 two of three copies 0.34 mm from the third, 2.30 against 2.36 mm
-    # from the true head; on the AMD host before, all three within 0.05 mm).
+    # host of 2026-12-03, with this small render's settings as given, two of three copies
+    # 0.34 mm from the third, 2.30 against 2.36 mm from the true head; on the AMD host
+    # before, all three within 0.05 mm; with its settings scaled to its size 0.08 and
+    # 0.14 mm, 1.78-1.79 mm).
     folder, truth = sample
     auto = _both_photos(folder, detector)
     heads = []
@@ -193,8 +197,9 @@ def test_a_profile_s_landmarks_are_read_off_its_outline_and_fit_better(sample, d
     mesh.views["right"].uncertainty = bare.views["right"].uncertainty
     err = _errors(model, truth, outline=auto, mesh=mesh)
     # On the full-size sample 1.35 against 1.68 mm (bench_detect --fit); on this small
-    # render, its profile half as many pixels, 2.30 against 2.29 (with the hard outline
-    # cut-off 2.16-2.28 against 2.24-2.25 over copies moved by 1/1000 px): no worse.
+    # render, its profile half as many pixels, 1.79 against 1.71 with its settings scaled
+    # to its size (2.30 against 2.29 as given; with the hard outline cut-off 2.16-2.28
+    # against 2.24-2.25 over copies moved by 1/1000 px): no worse than 0.1 mm.
     assert err["outline"] < err["mesh"] + 0.1, err
 
 
@@ -220,7 +225,8 @@ def test_photos_with_their_lens_in_exif_fit_through_pinholes_of_that_lens(lens_s
     err = {"lens": skin_error_mm(model, fitted.local_vertices, truth["local_vertices"]),
            **_errors(model, truth, flat=flat),
            "mean head": skin_error_mm(model, model.vertices, truth["local_vertices"])}
-    # 2.27 against 5.60 mm (the mean head 3.43) on this render
+    # 1.94 against 4.51 mm (the mean head 3.43) on this render (2.27 against 5.60 with
+    # its settings as given)
     assert err["lens"] < 0.6 * err["flat"] and err["lens"] < 0.8 * err["mean head"], err
     true_side = json.loads(str(truth["cameras"]))["side"]
     turn = np.degrees(np.arccos(np.clip(

@@ -102,6 +102,28 @@ def _scaled(case, k):
     return big
 
 
+def test_a_head_smaller_in_its_photos_fits_as_at_the_smallest_reference_size(model):
+    # a third of the pixels (a 350-px photo) scales the settings down from the smallest
+    # size they are made for (the noise floor to half a pixel): 0.85 mm from the true head
+    # against 1.08 with the settings as given (0.69 at full size; the half-pixel floor is
+    # above this synthetic case's 0.35 px of noise)
+    from solver.fitting.views import photo_scale
+    from solver.synthetic import skin_error_mm
+
+    case, truth = make_case(model, 13, noise_px=1.0)
+    small = _scaled(case, 0.35)
+    assert photo_scale(model, case) == 1.0 and 0.3 < photo_scale(model, small) < 0.4
+    scaled = fit_head(model, small)
+    assert scaled.info["noise"]["floor_px"] == 0.5
+
+    def error(r):
+        return skin_error_mm(model, r.local_vertices, truth.local_vertices)
+
+    full, as_given = error(fit_head(model, case)), error(fit_head(model, small,
+                                                                 FitOptions(pixel_scale=1.0)))
+    assert error(scaled) < as_given - 0.15 and error(scaled) < full + 0.25
+
+
 def test_a_head_larger_in_its_photos_fits_as_at_the_reference_size(model):
     # the benchmarks' photos (1024 px high, the head filling them) keep the settings as
     # given; four times the pixels scale them: the head comes out as from the photos at
