@@ -553,8 +553,8 @@ def build_parser():
                      help="the least placement noise of a landmark assumed (standard "
                           "deviation, pixels; default 1): the fit estimates each photo's "
                           "noise from its residuals, never below this; pixels of a head "
-                          "the size it is in a 1024-px photo (a larger head's are scaled "
-                          "with it)")
+                          "the size it is in a 1024-px photo (a larger or smaller head's "
+                          "are scaled with it, a smaller one's not below half a pixel)")
     fit.add_argument("--noise", choices=("estimate", "fixed"),
                      help="'estimate' (default): placement noise and per-landmark weights "
                           "from the fit itself; 'fixed': every landmark placed with "

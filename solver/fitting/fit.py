@@ -255,7 +255,7 @@ def fit_head(model, case, options=None, initial=None):
 def _in_photo_pixels(model, case, opts):
     """``opts`` in the case's photo pixels (``options.in_photo_pixels``): scaled by its own
     ``pixel_scale``, else by the head's size in the photos (``views.photo_scale``), so a
-    large photo fits as the same photo at the size the settings were made for
+    large or small photo fits as the same photo at the size the settings were made for
     (docs/DECISIONS.md, "Large photos")."""
     scale = opts.pixel_scale if opts.pixel_scale is not None else photo_scale(model, case)
     return in_photo_pixels(opts, scale)
