@@ -44,12 +44,15 @@ by the same rule on the model and on the scan; "head": all the skin (synthetic o
 scan covers the face). Heads scored: "fit" the default fit (``fit_head(model, case)``),
 "mean" the model's mean head, "oracle" the model's identity registered to the true surface
 in 3-D (``register``; for the face score only the face's vertices are matched, for the
-head all the skin): the best the model can represent. "fit/mean", "fit/oracle": ratios of
+head all the skin): the best the model can represent; "eos" the open landmark fitter's
+method on one photo (the front, else the one with most landmarks; identity only, at the
+best of its regularisation weights 1-100 for the case: ``bench/eos_baseline.py``), as the
+issue compares with it. "fit/mean", "fit/oracle": ratios of
 the face errors. "lm px": RMS distance of the given landmarks from the true projections
 of their vertices. "|c|": norm of the fit's identity coefficients (a head drawn from the
 model has about 10). "nz=x": the face error of the fit with ``FitOptions(noise_px=x)``.
 
-Targets (issue 15): the fit beats the mean head on every case; median face error at most
+Targets (issue 15): the fit beats the mean head and eos on every case; median face error at most
 0.6 x the mean head's and at most 1.3 x the oracle's; whole-head error below the mean
 head's; no ``--noise-px`` value beats the default by more than 10 % (median face error).
 The benchmark measures; it prints "met" or "NOT met" and asserts nothing.
@@ -93,6 +96,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from bench.common import load_average, machine_description, option_values  # noqa: E402
+from bench.eos_baseline import eos_heads  # noqa: E402
 from bench.realistic_cases import (  # noqa: E402
     EXPRESSIONS,
     Placement,
@@ -185,6 +189,13 @@ def fits(model, case, grid):
     return out
 
 
+def eos_face(truth, model, case):
+    """Face error (mm) of the eos baseline at its best lambda on this case
+    (``eos_baseline``), NaN when its photo has too few landmarks."""
+    errors = [truth.score(v)["face"] for v in eos_heads(model, case).values()]
+    return min(errors) if errors else float("nan")
+
+
 def scored(truth, results, others):
     """Scores of the fits in ``results`` and of the heads in ``others`` (name -> local
     vertices, or name -> {region: local vertices} for one head per region)."""
@@ -213,8 +224,10 @@ def run_synthetic(model, group, n, samples, grid):
         scores = scored(t, results, {"mean": model.vertices, "oracle": oracle})
         label = f"{seed} {truth.displacement_mm:.1f} mm" + (f", {expression}" if expression
                                                               else "")
-        rows.append(Row(label, {k: s["face"] for k, s in scores.items()},
-                        {k: s["head"] for k, s in scores.items()}, truth.landmark_rms_px,
+        face = {k: s["face"] for k, s in scores.items()}
+        face["eos"] = eos_face(t, model, case)
+        rows.append(Row(label, face, {k: s["head"] for k, s in scores.items()},
+                        truth.landmark_rms_px,
                         float(np.linalg.norm(results["fit"].identity_coeffs))))
     return rows
 
@@ -333,6 +346,7 @@ def run_james(model, folder, samples, grid):
                      for photo, view in case.views.items()
                      for truth_px in [exact_px(group, photo, view)]
                      for name, p in named(view.points).items() if name in truth_px]
+            face["eos"] = eos_face(t, model, case)
             rows.append(Row(label, {**face, **fixed}, landmark_px=float(np.sqrt(np.mean(
                 np.square(given)))), coeff_norm=float(np.linalg.norm(
                     results["fit"].identity_coeffs))))
@@ -348,9 +362,9 @@ def print_group(title, rows, grid):
     nz = [f"nz={x:g}" for x in grid]
     has_head = bool(rows[0].head)
     print(f"\n{title}")
-    top = f"  {'':<38}{'':>12}   {' face, mm ':-^42}"
+    top = f"  {'':<38}{'':>12}   {' face, mm ':-^51}"
     cols = f"  {'case':<38}{'lm px':>6}{'|c|':>6}" + "".join(
-        f"{c:>9}" for c in ("fit", "mean", "oracle", "fit/mean", "fit/orac"))
+        f"{c:>9}" for c in ("fit", "mean", "oracle", "eos", "fit/mean", "fit/orac"))
     if has_head:
         top += f"   {' whole head, mm ':-^24}"
         cols += "".join(f"{c:>9}" for c in ("fit", "mean", "oracle"))
@@ -362,7 +376,7 @@ def print_group(title, rows, grid):
 
     def line(label, lm, norm, face, whole):
         s = f"  {label:<38}{lm:>6.1f}{norm:>6.1f}"
-        s += "".join(f"{face[c]:>9.2f}" for c in ("fit", "mean", "oracle"))
+        s += "".join(f"{face[c]:>9.2f}" for c in ("fit", "mean", "oracle", "eos"))
         s += f"{face['fit'] / face['mean']:>9.2f}{face['fit'] / face['oracle']:>9.2f}"
         if has_head:
             s += "".join(f"{whole[c]:>9.2f}" for c in ("fit", "mean", "oracle"))
@@ -370,7 +384,7 @@ def print_group(title, rows, grid):
 
     for r in rows:
         print(line(r.label, r.landmark_px, r.coeff_norm, r.face, r.head))
-    med = {c: _median(rows, "face", c) for c in ["fit", "mean", "oracle"] + nz}
+    med = {c: _median(rows, "face", c) for c in ["fit", "mean", "oracle", "eos"] + nz}
     med_head = {c: _median(rows, "head", c) for c in ("fit", "mean", "oracle")} if has_head \
         else {}
     print(line("median", statistics.median(r.landmark_px for r in rows),
@@ -385,6 +399,9 @@ def verdicts(rows, grid):
 
     beaten = sum(r.face["fit"] < r.face["mean"] for r in rows)
     say(beaten == len(rows), f"fit beats the mean head on every case: {beaten} of {len(rows)}")
+    eos = sum(r.face["fit"] < r.face["eos"] for r in rows)
+    say(eos == len(rows), f"fit beats eos (its best lambda) on every case: {eos} of "
+        f"{len(rows)}")
     fit, mean, oracle = (_median(rows, "face", c) for c in ("fit", "mean", "oracle"))
     say(fit <= 0.6 * mean, f"median face error <= 0.6 x the mean head's: {fit / mean:.2f} x")
     say(fit <= 1.3 * oracle, f"median face error <= 1.3 x the oracle's: {fit / oracle:.2f} x")
