@@ -354,7 +354,10 @@ def run_james(model, folder, samples, grid):
 
 
 def _median(rows, region, name):
-    return statistics.median(getattr(r, region)[name] for r in rows)
+    """Median of a head's scores over the rows, NaN (a baseline that did not run: eos on
+    a photo of fewer than 4 of its landmarks) left out."""
+    values = [v for r in rows if np.isfinite(v := getattr(r, region)[name])]
+    return statistics.median(values) if values else float("nan")
 
 
 def print_group(title, rows, grid):
