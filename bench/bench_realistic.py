@@ -47,14 +47,15 @@ in 3-D (``register``; for the face score only the face's vertices are matched, f
 head all the skin): the best the model can represent; "eos" the open landmark fitter's
 method on one photo (the front, else the one with most landmarks; identity only, at the
 best of its regularisation weights 1-100 for the case: ``bench/eos_baseline.py``), as the
-issue compares with it. "fit/mean", "fit/oracle": ratios of
-the face errors. "lm px": RMS distance of the given landmarks from the true projections
-of their vertices. "|c|": norm of the fit's identity coefficients (a head drawn from the
-model has about 10). "nz=x": the face error of the fit with ``FitOptions(noise_px=x)``.
+issue compares with it. "fit/mean", "fit/oracle": ratios of the face errors. "lm px": RMS
+distance of the given landmarks from the true projections of their vertices. "|c|": norm
+of the fit's identity coefficients (a head drawn from the model has about 10). "nz=x":
+the face error of the fit with ``FitOptions(noise_px=x)``.
 
-Targets (issue 15): the fit beats the mean head and eos on every case; median face error at most
-0.6 x the mean head's and at most 1.3 x the oracle's; whole-head error below the mean
-head's; no ``--noise-px`` value beats the default by more than 10 % (median face error).
+Targets (issue 15): the fit beats the mean head and eos on every case; median face error
+at most 0.6 x the mean head's and at most 1.3 x the oracle's; whole-head error below the
+mean head's; no ``--noise-px`` value beats the default by more than 10 % (median face
+error).
 The benchmark measures; it prints "met" or "NOT met" and asserts nothing.
 """
 

@@ -69,12 +69,12 @@ def eos_fit(model, pixels, vertices, lam, iterations=ITERATIONS, n_coeffs=None):
     basis = model.identity.basis[:n_coeffs, vertices]  # (K, n, 3)
     mean = model.vertices[vertices]
     c = np.zeros(len(basis))
+    w, prior = 1.0 / DETECTOR_SIGMA_PX ** 2, lam * np.eye(len(basis))
     for _ in range(iterations):
         scale, rows, t = scaled_orthographic(mean + np.tensordot(c, basis, axes=1), pixels)
         a = scale * np.einsum("ij,knj->nik", rows, basis).reshape(-1, len(basis))
         b = (pixels - t - scale * mean @ rows.T).reshape(-1)
-        w = 1.0 / DETECTOR_SIGMA_PX ** 2
-        c = np.linalg.solve(w * a.T @ a + lam * np.eye(len(basis)), w * a.T @ b)
+        c = np.linalg.solve(w * a.T @ a + prior, w * a.T @ b)
     return c
 
 
