@@ -15,8 +15,10 @@ texture (``bake_samples``), and the colour difference between views across the s
 blend weight, averaged over 16 x 16 texel cells) printed before the equalisation, with
 the gains and offsets (``fit_view_gains``, printed too) and with the levelling as well
 (``equalised_colours``, the default); the back of the head's mean colour on either side
-(each seen by one profile pass only); and how much low-frequency light the shading
-removal takes out (the spread of the smoothed luminance over the skin).
+(each seen by one profile pass only); how much low-frequency light the shading
+removal takes out (the spread of the smoothed luminance over the skin); and the clothes
+the bake leaves out (``clothes.py``: the shirt against the truth's masks, the skin, and
+the texels bluer than red with the clothes kept and left out).
 """
 
 import argparse
@@ -33,6 +35,7 @@ from bench.common import (
 )
 from solver import OrthographicCamera, fit_head, load_landmarks, load_model
 from solver.texture.bake import (
+    CLOTHES_MODES,
     BakeOptions,
     bake_fit_texture,
     bake_samples,
@@ -41,6 +44,7 @@ from solver.texture.bake import (
     equalised_colours,
     fit_view_gains,
 )
+from solver.texture.clothes import clothes_mask
 from solver.texture.equalise import apply_gains, seam_difference
 from solver.texture.shading import LUMA, smooth_on_mesh, srgb_to_linear
 from solver.texture.uvs import clear_raster_cache, uv_raster, uv_tiles
@@ -171,6 +175,38 @@ def sample_seams(model, folder, size):
         print(f"    shading {shading}: low-frequency light spread (std / mean of the skin's "
               f"luminance smoothed over {100 * length:.1f} cm) "
               f"{100 * light_spread(model, result, tiles, length):.1f} %")
+    sample_clothes(model, folder, case, result, photos, size)
+
+
+def sample_clothes(model, folder, case, result, photos, size):
+    """The clothes left out of the bake (``clothes.py``) against the sample's truth: the
+    shirt is what its photo shows of the person but not of the head alone (its truth's
+    alpha masks), counted where the head is (its columns); skin is a clearly warm pixel.
+    Then the texels bluer than red (the shirt's grey-blue, never skin) with the clothes
+    kept and left out."""
+    truth_path = Path(folder) / "truth.npz"
+    if not truth_path.is_file():
+        return
+    truth = np.load(truth_path)
+    for name in case.views:
+        key = "front" if name == "front" else "side"
+        mask = clothes_mask(model, result.world_vertices, result.cameras[name], photos[name])
+        if mask is None:
+            print(f"    clothes, {name}: the cheeks not seen; nothing left out")
+            continue
+        head = truth[f"head_alpha_{key}"] > 127
+        person = truth[f"alpha_{key}"] > 127
+        cols = np.flatnonzero(head.any(axis=0))
+        where = np.zeros_like(head)
+        where[:, cols.min():cols.max() + 1] = True
+        img = photos[name]
+        warm = person & (img[..., 0] - img[..., 2] > 0.1)
+        print(f"    clothes, {name}: {100 * mask[person & ~head & where].mean():.2f} % of the "
+              f"shirt where the head is left out, {100 * mask[warm].mean():.2f} % of the skin")
+    for mode in CLOTHES_MODES:
+        tiles = bake_fit_texture(model, result, photos, size, options=BakeOptions(clothes=mode))
+        cold = sum(int((t[..., 2] > t[..., 0] + 0.02).sum()) for t in tiles.values())
+        print(f"    clothes {mode}: {cold} texels bluer than red")
 
 
 def main(argv=None):

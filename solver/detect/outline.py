@@ -197,7 +197,13 @@ def face_skin(image, face, mask):
     pts = pts[mask.at(pts) >= 0.5]
     if len(pts) < 5:
         raise ValueError("no skin sampled between the face's keypoints")
-    colours = sample_photo(image, pts)
+    return skin_colour(sample_photo(image, pts))
+
+
+def skin_colour(colours):
+    """The skin colour :func:`skin_like` compares with, from samples (n, 3) of skin:
+    (median chromaticity (2,), its robust spread, median brightness, median warmth), as
+    :func:`face_skin` returns it."""
     chroma, bright = _chroma_brightness(colours)
     centre = np.median(chroma, axis=0)
     spread = 1.4826 * np.median(np.linalg.norm(chroma - centre, axis=1))
@@ -205,14 +211,17 @@ def face_skin(image, face, mask):
             float(np.median(_warmth(colours))))
 
 
-def skin_like(colours, skin):
+def skin_like(colours, skin, clipped=True):
     """Whether each colour (n, 3) is the face's skin (``face_skin``) in chromaticity
     (within ``SKIN_SPREADS``, at least ``SKIN_CHROMA``), brightness (within a factor
-    ``SKIN_BRIGHTNESS``) and warmth (``SKIN_WARMTH``, or clipped: ``SKIN_CLIPPED``)."""
+    ``SKIN_BRIGHTNESS``) and warmth (``SKIN_WARMTH``, or with ``clipped`` a channel at
+    ``SKIN_CLIPPED``: a highlight has no colour left to tell)."""
     centre, spread, bright, warmth = skin
     chroma, b = _chroma_brightness(colours)
     near = np.linalg.norm(chroma - centre, axis=1) <= max(SKIN_SPREADS * spread, SKIN_CHROMA)
-    warm = (_warmth(colours) >= SKIN_WARMTH * warmth) | (colours.max(-1) >= SKIN_CLIPPED)
+    warm = _warmth(colours) >= SKIN_WARMTH * warmth
+    if clipped:
+        warm |= colours.max(-1) >= SKIN_CLIPPED
     return near & warm & (b >= bright / SKIN_BRIGHTNESS) & (b <= bright * SKIN_BRIGHTNESS)
 
 

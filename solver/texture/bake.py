@@ -40,6 +40,7 @@ import scipy.sparse.linalg as spla
 from ..cores import usable_cores
 from ..errors import as_points
 from ..geometry import vertex_normals
+from .clothes import clothes_mask
 from .equalise import apply_gains, default_reference, fit_gains
 from .levelling import level_field
 from .raster import depth_buffer
@@ -59,6 +60,8 @@ SAMPLE_BLOCK = 1 << 17
 
 #: ``BakeOptions.shading``: keep the photos' light, or remove its low-frequency part.
 SHADING_MODES = ("keep", "remove")
+#: ``BakeOptions.clothes``: leave out what the photos show of the clothes, or keep it.
+CLOTHES_MODES = ("leave out", "keep")
 
 #: Overlap texels the colour equalisation is fitted on at most (every k-th is taken): the
 #: twelve numbers per photo are settled long before that.
@@ -153,6 +156,10 @@ class BakeOptions:
         "keep" the photos' light in the texture, or "remove" its low-frequency part (a
         smoothed luminance over the surface, divided out: ``shading.py``) for a flat,
         albedo-like texture.
+    clothes : str
+        ``bake_fit_texture``: "leave out" what a photo shows below the chin that is not
+        skin and reaches its bottom edge (a collar, a shirt: ``clothes.py``), so the neck
+        the model has under them gets the smooth fill; or "keep" every pixel.
     shading_length : float
         Smoothing length of the light estimate, as a fraction of the head's size (0.06:
         about 3 cm).
@@ -178,6 +185,7 @@ class BakeOptions:
     seam_feather: float = 0.03
     shading: str = "keep"
     shading_length: float = 0.06
+    clothes: str = "leave out"
     threads: int = 0
 
     def __post_init__(self):
@@ -188,6 +196,7 @@ class BakeOptions:
                   "depth_tolerance": self.depth_tolerance >= 0, "feather": self.feather >= 0,
                   "bleed": self.bleed >= 0, "seam_feather": self.seam_feather >= 0,
                   "shading": self.shading in SHADING_MODES,
+                  "clothes": self.clothes in CLOTHES_MODES,
                   "shading_length": self.shading_length > 0,
                   "level_length": self.level_length > 0,
                   "level_decay": self.level_decay > self.level_length,
@@ -245,11 +254,13 @@ def bake_texture(model, world_vertices, views, size=1024, *, parts=None, tile=No
 
 
 def bake_tiles(model, world_vertices, views, size=1024, *, parts=None, similarity=None,
-               mirror=True, occluders=None, rasters=None, options=None):
+               mirror=True, occluders=None, rasters=None, options=None, keep=None):
     """Bake every UV tile the chosen parts use (the skin: tiles 1001 and 1002).
 
     Parameters are those of :func:`bake_texture`; ``rasters`` optionally gives the cached
-    rasters (a dict tile -> UVRaster, e.g. from a previous call's :func:`uv_raster`).
+    rasters (a dict tile -> UVRaster, e.g. from a previous call's :func:`uv_raster`);
+    ``keep``, per view, None or an (H, W) bool mask of its image: pixels outside it are
+    not baked (as alpha 0).
 
     Returns
     -------
@@ -258,7 +269,8 @@ def bake_tiles(model, world_vertices, views, size=1024, *, parts=None, similarit
     """
     opts = _options(options)
     rs = _rasters(model, size, parts, rasters, opts)
-    return _bake(model, world_vertices, views, rs, parts, occluders, similarity, mirror, opts)
+    return _bake(model, world_vertices, views, rs, parts, occluders, similarity, mirror, opts,
+                 keep)
 
 
 def bake_fit_texture(model, result, images, size=1024, *, parts=None, mirror=True,
@@ -278,15 +290,38 @@ def bake_fit_texture(model, result, images, size=1024, *, parts=None, mirror=Tru
     -------
     dict of int -> ndarray (size, size, 3) float32
     """
+    opts = _options(options)
     views = []
     for name, image in images.items():
         if name not in result.cameras:
             raise ValueError(f"images: view {name!r} has no camera in the fit result "
                              f"(it has {', '.join(result.cameras)})")
         views.append((image, result.cameras[name]))
+    keep = None
+    if opts.clothes == "leave out":
+        keep = _map(lambda v: _without_clothes(model, result.world_vertices, v[1], v[0]),
+                    views, opts.threads)
     return bake_tiles(model, result.world_vertices, views, size, parts=parts,
                       similarity=(result.scale, result.rotation, result.translation),
-                      mirror=mirror, occluders=occluders, options=options)
+                      mirror=mirror, occluders=occluders, options=opts, keep=keep)
+
+
+def _without_clothes(model, world, camera, image):
+    """The pixels of a view's image that are not clothes (``clothes.clothes_mask``), or
+    None (every pixel) where that cannot be told: an image of another size than its
+    camera's photo and the photo reduced, or too little cheek in it."""
+    img = np.asarray(image)
+    if img.ndim != 3 or img.shape[2] not in (3, 4):
+        return None  # the bake names the fault
+    size = getattr(camera, "size", None)
+    scale = (1.0, 1.0) if size is None else _photo_scale(
+        (img.shape[1], img.shape[0]), (int(size[0]), int(size[1])))
+    if scale is None:
+        return None
+    if np.issubdtype(img.dtype, np.integer):
+        img = img.astype(np.float32) / np.iinfo(img.dtype).max
+    clothes = clothes_mask(model, world, camera, img, scale)
+    return None if clothes is None else ~clothes
 
 
 def _options(options):
@@ -309,9 +344,14 @@ def _check_raster(raster, model, size, parts, tile):
                          f"parts {names}, tile {tile}, {n} vertices")
 
 
-def _check_views(views):
+def _check_views(views, keep=None):
+    """[(image float32 (H, W, 3|4) premultiplied, camera, (sx, sy))] of the views; a
+    ``keep`` mask (H, W) bool of a view (None: all) becomes its image's alpha."""
     if isinstance(views, tuple) and len(views) == 2 and hasattr(views[1], "project"):
         views = [views]  # a single (image, camera) pair
+    keep = list(keep) if keep is not None else [None] * len(views)
+    if len(keep) != len(views):
+        raise ValueError(f"keep: {len(keep)} masks for {len(views)} views")
     out = []
     for i, view in enumerate(views):
         try:
@@ -326,9 +366,20 @@ def _check_views(views):
             img = img.astype(np.float32) / np.iinfo(img.dtype).max
         elif not np.issubdtype(img.dtype, np.floating):
             raise ValueError(f"views[{i}]: image dtype {img.dtype} is not numeric")
-        img = np.array(img, dtype=np.float32)
+        if keep[i] is not None and img.shape[2] == 3:  # the mask as alpha, in one copy
+            rgba = np.empty(img.shape[:2] + (4,), np.float32)
+            rgba[..., :3] = img
+            rgba[..., 3] = 1.0
+            img = rgba
+        else:
+            img = np.array(img, dtype=np.float32)
         if not np.isfinite(img).all():
             raise ValueError(f"views[{i}]: image has NaN or infinite values")
+        if keep[i] is not None:
+            if np.shape(keep[i]) != img.shape[:2]:
+                raise ValueError(f"keep[{i}]: mask of shape {np.shape(keep[i])} for an image "
+                                 f"of {img.shape[1]}x{img.shape[0]} pixels")
+            img[..., 3] *= np.asarray(keep[i], dtype=bool)
         if img.shape[2] == 4:  # premultiply, so bilinear samples never mix in hidden colour
             img[..., 3] = np.clip(img[..., 3], 0.0, 1.0)
             _by_row(img[..., :3], img[..., 3])
@@ -636,13 +687,13 @@ def _rasters(model, size, parts, rasters, opts):
 
 
 def _context(model, world_vertices, views, rasters, parts, occluders, similarity, mirror,
-             opts):
+             opts, keep=None):
     n_vertices = int(np.asarray(model.vertices).shape[0])
     world = as_points(world_vertices, "world_vertices")
     if len(world) != n_vertices:
         raise ValueError(f"world_vertices: expected {n_vertices} vertices (the model's), "
                          f"got {len(world)}")
-    views = _check_views(views)
+    views = _check_views(views, keep)
     point, normal_m = _plane(similarity)
     idx, _ = resolve_parts(model, parts)
     if occluders is None:
@@ -678,9 +729,9 @@ def _context(model, world_vertices, views, rasters, parts, occluders, similarity
 
 
 def _bake(model, world_vertices, views, rasters, parts, occluders, similarity, mirror,
-          options):
+          options, keep=None):
     ctx = _context(model, world_vertices, views, rasters, parts, occluders, similarity,
-                   mirror, options)
+                   mirror, options, keep)
     samples = _samples(ctx, rasters)
     ctx = replace(ctx, samplers=())  # the photos and their depth buffers: sampled, let go
     colours = equalised_colours(samples, ctx.world, ctx.opts, ctx.head_size, in_place=True)

@@ -57,6 +57,11 @@ def test_skin_lit_or_shaded_is_skin_and_clothes_hair_collar_are_not():
     assert skin_like(colours, SKIN).tolist() == [True, True, True, False, False, False]
     # the shirt is within the wider spread's chromaticity, but cold (more blue than red)
     assert skin_like(colours, SKIN_WIDE).tolist() == [True, True, True, False, False, False]
+    # a clipped highlight has no colour left: skin, unless clipped colours are not asked
+    # for (below the chin a clipped white is a shirt's, clothes.py)
+    white = np.array([[1.0, 1.0, 1.0]])
+    assert skin_like(white, SKIN).tolist() == [True]
+    assert skin_like(white, SKIN, clipped=False).tolist() == [False]
 
 
 @pytest.fixture(scope="module")

@@ -244,7 +244,8 @@ def test_bake_from_a_fit_result_uses_its_pose_and_cameras():
     result = FitResult("combined", 0.9, rot, np.array([0.0, 0.01, 0.0]), np.zeros(0),
                        np.zeros(0), (), np.zeros((n, 3)), m.vertices, cams, {}, np.zeros(n))
     images = {"front": coded_photo(), "right": _stripes()}
-    got = bake_fit_texture(m, result, images, 64)
+    # a sphere has no cheeks or chin to tell clothes by (test_clothes.py bakes a head)
+    got = bake_fit_texture(m, result, images, 64, options=BakeOptions(clothes="keep"))
     want = bake_tiles(m, result.world_vertices, [(images["front"], cams["front"]),
                                                  (images["right"], cams["right"])], 64,
                       similarity=(0.9, rot, result.translation))
@@ -280,6 +281,22 @@ def test_alpha_zero_pixels_are_ignored():
     tex = bake_texture(m, m.vertices, [(img, cam)], 64, mirror=False)
     got = tex.reshape(-1, 3)[uv_raster(m, 64).texel]
     np.testing.assert_allclose(got, 0.3, atol=1e-5)
+
+
+def test_pixels_outside_keep_are_not_baked_and_a_wrong_mask_is_named():
+    m = uv_sphere()
+    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
+    img = np.full((H, W, 3), 0.3, np.float32)
+    img[:, : W // 2] = [1.0, 0.0, 0.0]  # red, but outside the mask: must not show
+    keep = np.ones((H, W), bool)
+    keep[:, : W // 2] = False
+    tiles = bake_tiles(m, m.vertices, [(img, cam)], 64, mirror=False, keep=[keep])
+    got = tiles[1001].reshape(-1, 3)[uv_raster(m, 64).texel]
+    np.testing.assert_allclose(got, 0.3, atol=1e-5)
+    with pytest.raises(ValueError, match=r"keep\[0\]: mask of shape \(64, 96\)"):
+        bake_tiles(m, m.vertices, [(img, cam)], 64, keep=[keep[:64]])
+    with pytest.raises(ValueError, match="keep: 2 masks for 1 views"):
+        bake_tiles(m, m.vertices, [(img, cam)], 64, keep=[keep, keep])
 
 
 def test_tiles_and_parts():

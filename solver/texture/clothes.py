@@ -1,0 +1,75 @@
+"""Clothes in a photo: what it shows below the chin that is not skin and reaches the
+photo's bottom edge (a collar, a shirt, a jacket). The model's neck goes on under them, so
+the bake would paint the shirt onto the neck; left out, the neck there gets the smooth
+fill from the skin around it.
+
+Skin is told by the rule the outline detection uses (``detect.outline.skin_like``),
+against the skin of the fitted head's cheeks in the same photo.
+"""
+
+import numpy as np
+import scipy.ndimage as ndi
+
+from ..detect.outline import sample_photo, skin_colour, skin_like
+
+#: Cheeks: the skin nearest the point halfway between two iBUG landmarks (nose wing and
+#: jaw, per side); the skin vertices within ``CHEEK_RADIUS_M`` of it give the photo's skin
+#: colour.
+CHEEKS = ((32, 4), (36, 14))
+CHEEK_RADIUS_M = 0.012
+#: Clothes begin at least this far below the menton (the jaw's own shade stays).
+BELOW_CHIN_M = 0.015
+#: Pixels the clothes are grown by: their edge against the skin is a blend of both.
+GROW_PX = 2
+#: Fewest cheek samples the skin colour is taken from; fewer leave the photo as it is.
+MIN_SKIN_SAMPLES = 20
+
+
+def clothes_mask(model, world, camera, image, scale=(1.0, 1.0)):
+    """Pixels of ``image`` (H, W, 3 or 4, floats in [0, 1]) that show clothes, (H, W)
+    bool; None when the photo shows too little of the cheeks to tell skin.
+
+    ``world`` (V, 3) is the fitted head in world space and ``camera`` its camera in this
+    photo; ``scale`` (sx, sy) maps the camera's pixels to the image's (a reduced photo).
+    """
+    world = np.asarray(world, dtype=np.float64)
+    sx, sy = scale
+    to_image = np.array([sx, sy])
+    skin = world[np.asarray(model.skin, dtype=np.intp)]
+    inside = np.array([(world[model.landmark_vertex(f"ibug{a:02d}")]
+                        + world[model.landmark_vertex(f"ibug{b:02d}")]) / 2.0
+                       for a, b in CHEEKS])  # below the cheek: on the chord between them
+    to_skin = np.linalg.norm(skin[:, None] - inside[None], axis=2)  # (n, 2)
+    centres = skin[np.argmin(to_skin, axis=0)]  # the cheeks' surface points
+    near = np.min(np.linalg.norm(skin[:, None] - centres[None], axis=2), axis=1)
+    h, w = image.shape[:2]
+    px = camera.project(skin[near <= CHEEK_RADIUS_M]) * to_image
+    px = px[(px[:, 0] >= 0) & (px[:, 0] < w) & (px[:, 1] >= 0) & (px[:, 1] < h)]
+    if len(px) < MIN_SKIN_SAMPLES:
+        return None
+    rgb = image[..., :3]
+    reference = skin_colour(sample_photo(rgb, px))
+    chin = world[model.landmark_vertex("chin_bottom")]
+    jac = np.asarray(camera.jacobian(chin[None]), dtype=np.float64)[0] * to_image[:, None]
+    px_per_m = np.sqrt((jac ** 2).sum() / 2.0)
+    top = camera.project(chin[None])[0, 1] * sy + BELOW_CHIN_M * px_per_m
+    # Only where the head is, from below its chin to the photo's bottom edge: the bake
+    # samples nothing else.
+    u = camera.project(skin)[:, 0] * sx
+    r0 = int(np.clip(np.ceil(top), 0, h))
+    c0 = int(np.clip(np.floor(u.min()) - GROW_PX - 1, 0, w))
+    c1 = int(np.clip(np.ceil(u.max()) + GROW_PX + 2, 0, w))
+    clothes = np.zeros((h, w), bool)
+    if r0 >= h or c1 <= c0:
+        return clothes
+    # each pixel's colour over its 3 x 3 neighbourhood: single noisy pixels tell nothing
+    smooth = ndi.uniform_filter(rgb[r0:, c0:c1], size=(3, 3, 1), mode="nearest")
+    # a white shirt's highlights are clipped too: below the chin no clipped colour is skin
+    candidate = ~skin_like(smooth.reshape(-1, 3), reference, clipped=False).reshape(
+        smooth.shape[:2])
+    labels, _ = ndi.label(candidate, structure=np.ones((3, 3), bool))
+    bottom = np.unique(labels[-1][labels[-1] > 0])
+    found = np.isin(labels, bottom)
+    clothes[r0:, c0:c1] = ndi.binary_dilation(found, iterations=GROW_PX) if GROW_PX \
+        else found
+    return clothes
