@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..photo_colour import sample_photo, skin_colour, skin_like
 from .crop import Square
 from .iso_line import iso_lines
 from .segmentation import person_mask
@@ -31,22 +32,6 @@ SQUARE_SCALE = 2.5
 #: How far along the normal the photo's colour edge is looked for: this many map pixels
 #: (the mask's own error, 1-2 px median, up to about 3 px, is under one map pixel of 3-4 px).
 SEARCH_MAP_PX = 1.5
-#: A point's colour counts as skin within these bounds of the face's: chromaticity
-#: distance in robust spreads of the face's, but at least ``SKIN_CHROMA`` (light at a
-#: silhouette washes skin out toward white: 0.06 on the sample's neck and skull, where
-#: its shirt is 0.085-0.09 away and james' white collar 0.096-0.13); brightness within a
-#: factor (the shade under the sample's chin is 0.43 of the face's, james' dark hair
-#: 0.01-0.25).
-SKIN_SPREADS = 4.0
-SKIN_CHROMA = 0.075
-SKIN_BRIGHTNESS = 3.0
-#: Skin is warm: its red share exceeds its blue share by at least this fraction of the
-#: face's own excess (the sample's face 0.09-0.10, its shade under the ear 0.12, skin
-#: washed out by the light 0.02; its grey-blue shirt -0.04 to -0.06 and a white collar
-#: -0.01, both within ``SKIN_CHROMA`` of the face), unless a channel is clipped (a
-#: highlight on the skull is plain white: no colour is left to tell).
-SKIN_WARMTH = 0.2
-SKIN_CLIPPED = 0.99
 #: The outline found must be at least this many times the face's size (the detector's
 #: box) long: on james' front photo the only skin on the person's edge is a strip of neck
 #: between hair and collar.
@@ -95,19 +80,6 @@ def _normals(points, reach=2):
     t = np.roll(points, -reach, axis=0) - np.roll(points, reach, axis=0)
     n = np.stack([t[:, 1], -t[:, 0]], axis=1)
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-
-
-def sample_photo(image, uv):
-    """Bilinear colours of ``image`` (H, W, C) at continuous photo points ``uv``
-    (..., 2), the photo's border extended."""
-    h, w = image.shape[:2]
-    x = np.clip(uv[..., 0] - 0.5, 0, w - 1)
-    y = np.clip(uv[..., 1] - 0.5, 0, h - 1)
-    x0 = np.minimum(np.floor(x).astype(int), w - 2)
-    y0 = np.minimum(np.floor(y).astype(int), h - 2)
-    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
-    return ((image[y0, x0] * (1 - fx) + image[y0, x0 + 1] * fx) * (1 - fy)
-            + (image[y0 + 1, x0] * (1 - fx) + image[y0 + 1, x0 + 1] * fx) * fy)
 
 
 def refine_edge(image, points, normals, reach, passes=2):
@@ -164,16 +136,6 @@ def _edge_pass(image, points, normals, reach):
     return moved, ok, inside
 
 
-def _chroma_brightness(colours):
-    total = np.maximum(colours.sum(-1), 1e-3)
-    return colours[..., :2] / total[..., None], total
-
-
-def _warmth(colours):
-    """Red share less blue share (n,) of colours (n, 3)."""
-    return (colours[..., 0] - colours[..., 2]) / np.maximum(colours.sum(-1), 1e-3)
-
-
 def face_skin(image, face, mask):
     """The face's skin colour: samples on the lines between the detector's keypoints
     (eye-mouth, nose-mouth, mouth-ear, eye-ear: cheeks and jaw), those inside the person.
@@ -198,31 +160,6 @@ def face_skin(image, face, mask):
     if len(pts) < 5:
         raise ValueError("no skin sampled between the face's keypoints")
     return skin_colour(sample_photo(image, pts))
-
-
-def skin_colour(colours):
-    """The skin colour :func:`skin_like` compares with, from samples (n, 3) of skin:
-    (median chromaticity (2,), its robust spread, median brightness, median warmth), as
-    :func:`face_skin` returns it."""
-    chroma, bright = _chroma_brightness(colours)
-    centre = np.median(chroma, axis=0)
-    spread = 1.4826 * np.median(np.linalg.norm(chroma - centre, axis=1))
-    return (centre, max(float(spread), 0.005), float(np.median(bright)),
-            float(np.median(_warmth(colours))))
-
-
-def skin_like(colours, skin, clipped=True):
-    """Whether each colour (n, 3) is the face's skin (``face_skin``) in chromaticity
-    (within ``SKIN_SPREADS``, at least ``SKIN_CHROMA``), brightness (within a factor
-    ``SKIN_BRIGHTNESS``) and warmth (``SKIN_WARMTH``, or with ``clipped`` a channel at
-    ``SKIN_CLIPPED``: a highlight has no colour left to tell)."""
-    centre, spread, bright, warmth = skin
-    chroma, b = _chroma_brightness(colours)
-    near = np.linalg.norm(chroma - centre, axis=1) <= max(SKIN_SPREADS * spread, SKIN_CHROMA)
-    warm = _warmth(colours) >= SKIN_WARMTH * warmth
-    if clipped:
-        warm |= colours.max(-1) >= SKIN_CLIPPED
-    return near & warm & (b >= bright / SKIN_BRIGHTNESS) & (b <= bright * SKIN_BRIGHTNESS)
 
 
 def _runs(flags):

@@ -3,14 +3,14 @@ photo's bottom edge (a collar, a shirt, a jacket). The model's neck goes on unde
 the bake would paint the shirt onto the neck; left out, the neck there gets the smooth
 fill from the skin around it.
 
-Skin is told by the rule the outline detection uses (``detect.outline.skin_like``),
+Skin is told by the rule the outline detection uses (``photo_colour.skin_like``),
 against the skin of the fitted head's cheeks in the same photo.
 """
 
 import numpy as np
 import scipy.ndimage as ndi
 
-from ..detect.outline import sample_photo, skin_colour, skin_like
+from ..photo_colour import sample_photo, skin_colour, skin_like
 
 #: Cheeks: the skin nearest the point halfway between two iBUG landmarks (nose wing and
 #: jaw, per side); the skin vertices within ``CHEEK_RADIUS_M`` of it give the photo's skin

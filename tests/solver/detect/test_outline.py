@@ -1,19 +1,14 @@
-"""The head's outline: the photo's colour edge found to a fraction of a pixel, skin told from
-clothes and hair, and on the rendered sample's profile the true silhouette from the front
-of the neck to the nape, hair painted on it left out."""
+"""The head's outline: the photo's colour edge found to a fraction of a pixel, and on the
+rendered sample's profile the true silhouette from the front of the neck to the nape, hair
+painted on it left out (the skin rule it ends by: tests/solver/test_photo_colour.py)."""
 
 import numpy as np
 import pytest
 from PIL import Image
 
 from solver.detect import Detector
-from solver.detect.outline import refine_edge, skin_like
+from solver.detect.outline import refine_edge
 from solver.paths import DETECTOR_DIR
-
-SKIN = (np.array([0.396, 0.323]), 0.015, 2.49, 0.10)  # the sample's face, as face_skin gives it
-# the same face as the full-size render's detector gives it: a wider spread, within which
-# the grey-blue shirt's chromaticity falls
-SKIN_WIDE = (np.array([0.3836, 0.3288]), 0.0192, 2.607, 0.097)
 
 
 def _distance_to_line(points, line):
@@ -43,25 +38,6 @@ def test_an_edge_between_pixels_is_found_to_a_tenth_of_a_pixel():
     flat = np.full((60, 80, 3), 0.5)
     moved, refined, _ = refine_edge(flat, points, normals, reach=6.0)
     assert not refined.any() and (moved == points).all()
-
-
-def test_skin_lit_or_shaded_is_skin_and_clothes_hair_collar_are_not():
-    colours = np.array([
-        [0.95, 0.78, 0.69],     # the face
-        [1.00, 1.00, 0.93],     # skin washed out by the light at the silhouette
-        [0.45, 0.35, 0.31],     # skin in the shade under the chin
-        [0.42, 0.44, 0.47],     # the sample's shirt
-        [0.05, 0.04, 0.03],     # dark hair
-        [0.88, 0.96, 0.91],     # a white collar
-    ])
-    assert skin_like(colours, SKIN).tolist() == [True, True, True, False, False, False]
-    # the shirt is within the wider spread's chromaticity, but cold (more blue than red)
-    assert skin_like(colours, SKIN_WIDE).tolist() == [True, True, True, False, False, False]
-    # a clipped highlight has no colour left: skin, unless clipped colours are not asked
-    # for (below the chin a clipped white is a shirt's, clothes.py)
-    white = np.array([[1.0, 1.0, 1.0]])
-    assert skin_like(white, SKIN).tolist() == [True]
-    assert skin_like(white, SKIN, clipped=False).tolist() == [False]
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,72 @@
+"""Colours in a photo: bilinear samples, and whether a colour is the face's skin (the rule
+the outline detection ends the head's outline by, ``detect/outline.py``, and the bake
+leaves clothes out by, ``texture/clothes.py``; measured in docs/DECISIONS.md, "The
+head's outline" and "Clothes end the outline: skin is warm").
+"""
+
+import numpy as np
+
+#: A point's colour counts as skin within these bounds of the face's: chromaticity
+#: distance in robust spreads of the face's, but at least ``SKIN_CHROMA`` (light at a
+#: silhouette washes skin out toward white: 0.06 on the sample's neck and skull, where
+#: its shirt is 0.085-0.09 away and james' white collar 0.096-0.13); brightness within a
+#: factor (the shade under the sample's chin is 0.43 of the face's, james' dark hair
+#: 0.01-0.25).
+SKIN_SPREADS = 4.0
+SKIN_CHROMA = 0.075
+SKIN_BRIGHTNESS = 3.0
+#: Skin is warm: its red share exceeds its blue share by at least this fraction of the
+#: face's own excess (the sample's face 0.09-0.10, its shade under the ear 0.12, skin
+#: washed out by the light 0.02; its grey-blue shirt -0.04 to -0.06 and a white collar
+#: -0.01, both within ``SKIN_CHROMA`` of the face), unless a channel is clipped (a
+#: highlight on the skull is plain white: no colour is left to tell).
+SKIN_WARMTH = 0.2
+SKIN_CLIPPED = 0.99
+
+
+def sample_photo(image, uv):
+    """Bilinear colours of ``image`` (H, W, C) at continuous photo points ``uv``
+    (..., 2), the photo's border extended."""
+    h, w = image.shape[:2]
+    x = np.clip(uv[..., 0] - 0.5, 0, w - 1)
+    y = np.clip(uv[..., 1] - 0.5, 0, h - 1)
+    x0 = np.minimum(np.floor(x).astype(int), w - 2)
+    y0 = np.minimum(np.floor(y).astype(int), h - 2)
+    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
+    return ((image[y0, x0] * (1 - fx) + image[y0, x0 + 1] * fx) * (1 - fy)
+            + (image[y0 + 1, x0] * (1 - fx) + image[y0 + 1, x0 + 1] * fx) * fy)
+
+
+def _chroma_brightness(colours):
+    total = np.maximum(colours.sum(-1), 1e-3)
+    return colours[..., :2] / total[..., None], total
+
+
+def _warmth(colours):
+    """Red share less blue share (n,) of colours (n, 3)."""
+    return (colours[..., 0] - colours[..., 2]) / np.maximum(colours.sum(-1), 1e-3)
+
+
+def skin_colour(colours):
+    """The skin colour :func:`skin_like` compares with, from samples (n, 3) of skin:
+    (median chromaticity (2,), its robust spread, median brightness, median warmth), as
+    ``detect.outline.face_skin`` returns it."""
+    chroma, bright = _chroma_brightness(colours)
+    centre = np.median(chroma, axis=0)
+    spread = 1.4826 * np.median(np.linalg.norm(chroma - centre, axis=1))
+    return (centre, max(float(spread), 0.005), float(np.median(bright)),
+            float(np.median(_warmth(colours))))
+
+
+def skin_like(colours, skin, clipped=True):
+    """Whether each colour (n, 3) is the face's skin (:func:`skin_colour`) in chromaticity
+    (within ``SKIN_SPREADS``, at least ``SKIN_CHROMA``), brightness (within a factor
+    ``SKIN_BRIGHTNESS``) and warmth (``SKIN_WARMTH``, or with ``clipped`` a channel at
+    ``SKIN_CLIPPED``: a highlight has no colour left to tell)."""
+    centre, spread, bright, warmth = skin
+    chroma, b = _chroma_brightness(colours)
+    near = np.linalg.norm(chroma - centre, axis=1) <= max(SKIN_SPREADS * spread, SKIN_CHROMA)
+    warm = _warmth(colours) >= SKIN_WARMTH * warmth
+    if clipped:
+        warm |= colours.max(-1) >= SKIN_CLIPPED
+    return near & warm & (b >= bright / SKIN_BRIGHTNESS) & (b <= bright * SKIN_BRIGHTNESS)

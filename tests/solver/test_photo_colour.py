@@ -1,0 +1,46 @@
+"""Colours in a photo (solver/photo_colour.py): skin told from clothes and hair, lit or
+shaded, against the face's skin colour; a bilinear sample between pixels."""
+
+import numpy as np
+import pytest
+
+from solver.photo_colour import sample_photo, skin_colour, skin_like
+
+SKIN = (np.array([0.396, 0.323]), 0.015, 2.49, 0.10)  # the sample's face, as face_skin gives it
+# the same face as the full-size render's detector gives it: a wider spread, within which
+# the grey-blue shirt's chromaticity falls
+SKIN_WIDE = (np.array([0.3836, 0.3288]), 0.0192, 2.607, 0.097)
+
+
+def test_skin_lit_or_shaded_is_skin_and_clothes_hair_collar_are_not():
+    colours = np.array([
+        [0.95, 0.78, 0.69],     # the face
+        [1.00, 1.00, 0.93],     # skin washed out by the light at the silhouette
+        [0.45, 0.35, 0.31],     # skin in the shade under the chin
+        [0.42, 0.44, 0.47],     # the sample's shirt
+        [0.05, 0.04, 0.03],     # dark hair
+        [0.88, 0.96, 0.91],     # a white collar
+    ])
+    assert skin_like(colours, SKIN).tolist() == [True, True, True, False, False, False]
+    # the shirt is within the wider spread's chromaticity, but cold (more blue than red)
+    assert skin_like(colours, SKIN_WIDE).tolist() == [True, True, True, False, False, False]
+    # a clipped highlight has no colour left: skin, unless clipped colours are not asked
+    # for (below the chin a clipped white is a shirt's, clothes.py)
+    white = np.array([[1.0, 1.0, 1.0]])
+    assert skin_like(white, SKIN).tolist() == [True]
+    assert skin_like(white, SKIN, clipped=False).tolist() == [False]
+
+
+def test_the_skin_colour_is_the_samples_median_and_spread():
+    colours = np.array([[0.9, 0.6, 0.5]] * 8 + [[0.2, 0.2, 0.8]])  # one blue outlier
+    centre, spread, bright, warmth = skin_colour(colours)
+    np.testing.assert_allclose(centre, [0.45, 0.30])
+    assert spread == 0.005  # none among the eight: the least spread
+    assert bright == pytest.approx(2.0) and warmth == pytest.approx(0.2)
+
+
+def test_a_sample_between_pixels_is_their_blend():
+    image = np.zeros((4, 4, 3))
+    image[:, 2:] = 1.0  # pixels 2 and 3 of each row, centred on 2.5 and 3.5
+    got = sample_photo(image, np.array([[2.0, 1.5], [2.5, 1.5], [0.0, 0.0]]))
+    np.testing.assert_allclose(got, [[0.5] * 3, [1.0] * 3, [0.0] * 3])
