@@ -313,15 +313,27 @@ def _without_clothes(model, world, camera, image):
     img = np.asarray(image)
     if img.ndim != 3 or img.shape[2] not in (3, 4):
         return None  # the bake names the fault
-    size = getattr(camera, "size", None)
-    scale = (1.0, 1.0) if size is None else _photo_scale(
-        (img.shape[1], img.shape[0]), (int(size[0]), int(size[1])))
+    scale = _camera_to_image(img, camera)
     if scale is None:
         return None
-    if np.issubdtype(img.dtype, np.integer):
-        img = img.astype(np.float32) / np.iinfo(img.dtype).max
-    clothes = clothes_mask(model, world, camera, img, scale)
+    clothes = clothes_mask(model, world, camera, _unit_range(img), scale)
     return None if clothes is None else ~clothes
+
+
+def _unit_range(img):
+    """An image's integer values as floats in [0, 1]; float images as they are."""
+    if np.issubdtype(img.dtype, np.integer):
+        return img.astype(np.float32) / np.iinfo(img.dtype).max
+    return img
+
+
+def _camera_to_image(img, camera):
+    """(sx, sy) from the camera's pixels to the image's (``_photo_scale``; 1 for a camera
+    without a size), or None when the image is not its photo."""
+    size = getattr(camera, "size", None)
+    if size is None:
+        return 1.0, 1.0
+    return _photo_scale((img.shape[1], img.shape[0]), (int(size[0]), int(size[1])))
 
 
 def _options(options):
@@ -362,10 +374,9 @@ def _check_views(views, keep=None):
         if img.ndim != 3 or img.shape[2] not in (3, 4) or min(img.shape[:2]) < 1:
             raise ValueError(f"views[{i}]: image must have shape (H, W, 3) or (H, W, 4), "
                              f"got {img.shape}")
-        if np.issubdtype(img.dtype, np.integer):
-            img = img.astype(np.float32) / np.iinfo(img.dtype).max
-        elif not np.issubdtype(img.dtype, np.floating):
+        if not (np.issubdtype(img.dtype, np.integer) or np.issubdtype(img.dtype, np.floating)):
             raise ValueError(f"views[{i}]: image dtype {img.dtype} is not numeric")
+        img = _unit_range(img)
         if keep[i] is not None and img.shape[2] == 3:  # the mask as alpha, in one copy
             rgba = np.empty(img.shape[:2] + (4,), np.float32)
             rgba[..., :3] = img
@@ -385,11 +396,10 @@ def _check_views(views, keep=None):
             _by_row(img[..., :3], img[..., 3])
         if not hasattr(camera, "project") or not hasattr(camera, "to_camera"):
             raise ValueError(f"views[{i}]: camera must be a Camera, got {type(camera).__name__}")
-        size = getattr(camera, "size", None)
-        h, w = img.shape[:2]
-        scale = (1.0, 1.0) if size is None else _photo_scale((w, h), (int(size[0]),
-                                                                      int(size[1])))
+        scale = _camera_to_image(img, camera)
         if scale is None:
+            h, w = img.shape[:2]
+            size = camera.size
             raise ValueError(f"views[{i}]: image is {w}x{h} pixels but its camera expects "
                              f"{int(size[0])}x{int(size[1])} (or that photo reduced)")
         out.append((img, camera, scale))
