@@ -156,13 +156,13 @@ class BakeOptions:
         "keep" the photos' light in the texture, or "remove" its low-frequency part (a
         smoothed luminance over the surface, divided out: ``shading.py``) for a flat,
         albedo-like texture.
+    shading_length : float
+        Smoothing length of the light estimate, as a fraction of the head's size (0.06:
+        about 3 cm).
     clothes : str
         ``bake_fit_texture``: "leave out" what a photo shows below the chin that is not
         skin and reaches its bottom edge (a collar, a shirt: ``clothes.py``), so the neck
         the model has under them gets the smooth fill; or "keep" every pixel.
-    shading_length : float
-        Smoothing length of the light estimate, as a fraction of the head's size (0.06:
-        about 3 cm).
     threads : int
         Threads the bake works in at once (blocks of texels, each photo's depth buffer,
         each photo's levelling, each tile's blend); 0 (default): as many as the process

@@ -43,7 +43,8 @@ def clothes_mask(model, world, camera, image, scale=(1.0, 1.0)):
     centres = skin[np.argmin(to_skin, axis=0)]  # the cheeks' surface points
     near = np.min(np.linalg.norm(skin[:, None] - centres[None], axis=2), axis=1)
     h, w = image.shape[:2]
-    px = camera.project(skin[near <= CHEEK_RADIUS_M]) * to_image
+    projected = camera.project(skin) * to_image  # the skin in the image, once
+    px = projected[near <= CHEEK_RADIUS_M]
     px = px[(px[:, 0] >= 0) & (px[:, 0] < w) & (px[:, 1] >= 0) & (px[:, 1] < h)]
     if len(px) < MIN_SKIN_SAMPLES:
         return None
@@ -55,7 +56,7 @@ def clothes_mask(model, world, camera, image, scale=(1.0, 1.0)):
     top = camera.project(chin[None])[0, 1] * sy + BELOW_CHIN_M * px_per_m
     # Only where the head is, from below its chin to the photo's bottom edge: the bake
     # samples nothing else.
-    u = camera.project(skin)[:, 0] * sx
+    u = projected[:, 0]
     r0 = int(np.clip(np.ceil(top), 0, h))
     c0 = int(np.clip(np.floor(u.min()) - GROW_PX - 1, 0, w))
     c1 = int(np.clip(np.ceil(u.max()) + GROW_PX + 2, 0, w))
