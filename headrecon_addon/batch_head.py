@@ -27,6 +27,7 @@ from . import (
 from .solver_link import (
     BakeOptions,
     bake_fit_texture,
+    clothes_mode,
     fit_head,
     forget_fit_subsets,
     load_landmarks,
@@ -82,8 +83,8 @@ def write_head(task, model):
     task : dict
         "name", "landmarks", "base" (outputs' path without suffix), "where" (the input
         in messages), "settings" (``outputs``, ``texture_size``, ``bake``,
-        ``bake_identity``, ``morph_normals`` and the fit options), "hash" (recorded with
-        the outputs, ``batch_stamp``).
+        ``texture_shading``, ``texture_clothes``, ``bake_identity``, ``morph_normals`` and
+        the fit options), "hash" (recorded with the outputs, ``batch_stamp``).
     model : HeadModel
 
     Every output is written into a temporary folder beside the outputs and renamed into
@@ -116,6 +117,8 @@ def write_head(task, model):
             tiles = bake_fit_texture(  # one thread: the batch's processes share the cores
                 model, result, arrays, size=int(settings["texture_size"]),
                 options=BakeOptions(shading=settings.get("texture_shading") or "keep",
+                                    clothes=clothes_mode(settings.get("texture_clothes")
+                                                         or "leave-out"),
                                     threads=1))
         del arrays  # the photos as float arrays (25 MB a head): not held through the export
         heap.release_free_memory()  # the bake's temporaries, before Blender takes more

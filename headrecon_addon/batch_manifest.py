@@ -44,6 +44,13 @@ def _shading(text):
     return text
 
 
+def _clothes(text):
+    from .solver_link import clothes_mode  # the solver's rule, read when a row names it
+
+    clothes_mode(text)
+    return text
+
+
 def _flag(text):
     low = str(text).strip().lower()
     if low in TRUE:
@@ -61,6 +68,7 @@ OPTION_COLUMNS = {
     "exact": ("exact", _flag),
     "texture_size": ("texture_size", _positive_int),
     "texture_shading": ("texture_shading", _shading),
+    "texture_clothes": ("texture_clothes", _clothes),
     "bake_identity": ("bake_identity", _flag),
 }
 KNOWN_COLUMNS = ("name", "landmarks", "photos", *OPTION_COLUMNS)

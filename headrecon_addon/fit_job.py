@@ -18,6 +18,7 @@ from .solver_link import (
     LandmarksError,
     bake_fit_texture,
     check_case,
+    clothes_mode,
     fit_head,
     load_model,
 )
@@ -34,6 +35,7 @@ class FitJob(Progress):
     texture_size: int = 1024
     bake: bool = True
     texture_shading: str = "keep"
+    texture_clothes: str = "leave-out"
     result: object = None
     calibration: dict = dataclasses.field(default_factory=dict)
     calibration_notes: list = dataclasses.field(default_factory=list)
@@ -65,9 +67,10 @@ class FitJob(Progress):
         try:
             self.progress(1.0, "baking the texture")
             t = time.perf_counter()
+            options = BakeOptions(shading=self.texture_shading,
+                                  clothes=clothes_mode(self.texture_clothes))
             self.textures = bake_fit_texture(self.model, self.result, self.photos,
-                                             size=self.texture_size,
-                                             options=BakeOptions(shading=self.texture_shading))
+                                             size=self.texture_size, options=options)
             self.timings["bake"] = time.perf_counter() - t
         except BaseException as e:  # noqa: B036
             self.error = e
@@ -105,6 +108,7 @@ def job_from_scene(scene, case):
                   photos=scene_to_case.photo_arrays(scene) if props.bake_texture else {},
                   texture_size=int(props.texture_size), bake=props.bake_texture,
                   texture_shading=props.texture_shading,
+                  texture_clothes=props.texture_clothes,
                   scene_notes=plane_removal.orphan_notes(scene),
                   deleted_views=plane_removal.deleted_views(scene))
 

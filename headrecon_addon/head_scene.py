@@ -14,7 +14,7 @@ import numpy as np
 
 from . import case_to_scene, photos, result_to_scene, scene_collections
 from .data import Transaction
-from .solver_link import BakeOptions, bake_fit_texture
+from .solver_link import BakeOptions, bake_fit_texture, clothes_mode
 
 
 def ensure_registered():
@@ -57,7 +57,8 @@ def _only(case, view):
 
 
 def build_scene_from_fit(model, case, result, images=None, scene=None, texture_size=1024,
-                         bake=True, name=None, textures=None, texture_shading="keep"):
+                         bake=True, name=None, textures=None, texture_shading="keep",
+                         texture_clothes="leave-out"):
     """Build the artist's scene for a finished fit: photo planes with landmarks (and
     contour, passpoints), a Blender camera per perspective photo set to its fitted camera,
     and the head with shape keys, transform, uncertainty and baked texture; the residual
@@ -84,6 +85,9 @@ def build_scene_from_fit(model, case, result, images=None, scene=None, texture_s
         -> texture, row 0 at the top): used as it is, nothing is baked again.
     texture_shading : str
         ``BakeOptions.shading`` of the bake: "keep" or "remove" the photos' light.
+    texture_clothes : str
+        ``BakeOptions.clothes`` of the bake as the command line spells it: "leave-out"
+        what the photos show of clothes below the chin, or "keep" the photos as they are.
 
     Returns
     -------
@@ -102,8 +106,10 @@ def build_scene_from_fit(model, case, result, images=None, scene=None, texture_s
             arrays = {v: photos.image_to_array(img) for v, img in imgs.items()
                       if not img.get(photos.PLACEHOLDER)}
             if arrays:
+                options = BakeOptions(shading=texture_shading,
+                                      clothes=clothes_mode(texture_clothes))
                 textures = bake_fit_texture(model, result, arrays, size=int(texture_size),
-                                            options=BakeOptions(shading=texture_shading))
+                                            options=options)
         calibration, _ = result_to_scene.calibration_checks(case)
         head = result_to_scene.apply_result(scene, model, result, textures, name=name,
                                             calibration=calibration)

@@ -45,7 +45,13 @@ from pathlib import Path
 
 if __package__:  # no bpy here: a batch's own process plans and waits on its workers
     from . import batch_manifest, batch_stamp, batch_summary, batch_workers, blas_threads
-    from .solver_link import SHADING_MODES, load_model, solver_module, usable_cores
+    from .solver_link import (
+        CLOTHES_SPELLINGS,
+        SHADING_MODES,
+        load_model,
+        solver_module,
+        usable_cores,
+    )
 
 
 OUTPUTS = ("blend", "glb", "fbx", "obj", "texture", "report")
@@ -98,6 +104,10 @@ def _parser():
     p.add_argument("--texture-shading", choices=SHADING_MODES, default="keep",
                    help="keep the photos' light in the texture, or remove its low-frequency "
                         "part for a flat, albedo-like texture (default keep)")
+    p.add_argument("--texture-clothes", choices=CLOTHES_SPELLINGS, default="leave-out",
+                   help="leave out what the photos show of clothes below the chin (a collar, "
+                        "a shirt) so the neck there gets the smooth fill, or keep the photos "
+                        "as they are (default leave-out)")
     p.add_argument("--detect", nargs="+", action="append", metavar="PHOTO",
                    help="fit a head straight from its photos (landmarks detected, written as "
                         "<name>.landmarks.json beside the outputs); or a folder of one "
@@ -131,6 +141,7 @@ def _settings(args):
         raise ValueError("--outputs texture: the texture is not baked with --no-texture")
     return {"outputs": [k for k in OUTPUTS if k in kinds], "bake": not args.no_texture,
             "texture_size": args.texture_size, "texture_shading": args.texture_shading,
+            "texture_clothes": args.texture_clothes,
             "bake_identity": args.bake_identity,
             "morph_normals": args.morph_normals, "method": args.method,
             "components": args.components, "regional": args.regional,

@@ -178,6 +178,9 @@ class HEADRECON_PT_fit(_Panel, bpy.types.Panel):
         sub = col.row()
         sub.enabled = props.bake_texture
         sub.prop(props, "texture_shading")
+        sub = col.row()
+        sub.enabled = props.bake_texture
+        sub.prop(props, "texture_clothes")
         layout.operator("headrecon.fit", icon="MOD_SHRINKWRAP")
         row = layout.row(align=True)
         row.prop(props, "live_refit", toggle=True, icon="PLAY")

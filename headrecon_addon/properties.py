@@ -284,6 +284,13 @@ class HEADRECON_PG_scene(bpy.types.PropertyGroup):
                                     "brightness) for a flat, albedo-like texture to light "
                                     "in Blender; fine shadows stay")),
         description="What the baked texture keeps of the light in the photos")
+    texture_clothes: EnumProperty(
+        name="Clothes", default="leave-out",
+        items=(("leave-out", "Leave Out", "Leave out what the photos show of clothes below "
+                                          "the chin (a collar, a shirt): the neck there gets "
+                                          "the smooth fill from the skin around it"),
+               ("keep", "Keep", "Bake the photos as they are, clothes on the neck too")),
+        description="What the baked texture takes of the clothes in the photos")
     replace_hand_placed: BoolProperty(
         name="Replace Hand-Placed", default=False,
         description="Detect Landmarks and Auto Fit replace the landmarks placed or moved by "

@@ -270,8 +270,7 @@ def visible_landmarks(model, world, camera, normals=None, min_cos=0.0, grid=1024
     g = np.clip(np.floor(px * f).astype(int), 0, [gw - 1, gh - 1])
     near = buf[g[:, 1], g[:, 0]]
     # metres a grid cell spans at the landmark, times the slope there (cos >= min_cos)
-    jac = np.asarray(camera.jacobian(x), dtype=np.float64)
-    cell = (1.0 / f) / np.sqrt(0.5 * (jac**2).sum(axis=(1, 2)))
+    cell = (1.0 / f) / camera.pixels_per_metre(x)
     slope = np.minimum(np.sqrt(np.maximum(1.0 - cos**2, 0.0)) / np.maximum(cos, 1e-3), 5.0)
     uncovered = camera.depth(x) <= near + tolerance + cell * slope
     keep = (cos > min_cos) & inside & uncovered

@@ -120,6 +120,14 @@ class Camera(ABC):
         correspondences(points, pixels, weights, self.min_refit_points)
         return self
 
+    def pixels_per_metre(self, points, scale=(1.0, 1.0)):
+        """Pixels a metre spans at each world point, (n, 3) metres -> (n,) pixels per metre:
+        the RMS length of the Jacobian's two rows, after scaling its u and v rows by
+        ``scale`` (sx, sy), the image's pixels per camera pixel (a reduced photo)."""
+        jac = np.asarray(self.jacobian(points), dtype=np.float64)
+        jac = jac * np.asarray(scale, dtype=np.float64)[:, None]
+        return np.sqrt((jac ** 2).sum(axis=(1, 2)) / 2.0)
+
     def reprojection_error(self, points, pixels):
         """Pixel distance between ``project(points)`` and ``pixels``: (n,) pixels."""
         px = as_points(pixels, "pixels", dim=2)

@@ -62,6 +62,9 @@ SAMPLE_BLOCK = 1 << 17
 SHADING_MODES = ("keep", "remove")
 #: ``BakeOptions.clothes``: leave out what the photos show of the clothes, or keep it.
 CLOTHES_MODES = ("leave out", "keep")
+#: ``CLOTHES_MODES`` as command lines, manifests and the add-on spell them: hyphens for
+#: spaces, so a shell needs no quotes (``clothes_mode`` reads them back).
+CLOTHES_SPELLINGS = tuple(mode.replace(" ", "-") for mode in CLOTHES_MODES)
 
 #: Overlap texels the colour equalisation is fitted on at most (every k-th is taken): the
 #: twelve numbers per photo are settled long before that.
@@ -71,6 +74,15 @@ EQUALISE_TEXELS = 50_000
 #: both passes at a texel the levelling matches them on: 0.02 is about 75 degrees off each
 #: camera at power 3; grazing samples near a photo's outline are darker and blurred.
 LEVEL_WEIGHT = 0.02
+
+
+def clothes_mode(spelling):
+    """The ``BakeOptions.clothes`` mode a user's choice names ("leave-out" -> "leave out",
+    one of ``CLOTHES_SPELLINGS``); ValueError listing them for anything else."""
+    modes = dict(zip(CLOTHES_SPELLINGS, CLOTHES_MODES, strict=True))
+    if spelling not in modes:
+        raise ValueError(f"{spelling!r} is not one of {', '.join(CLOTHES_SPELLINGS)}")
+    return modes[spelling]
 
 
 def bake_photo_size(photo_size, texture_size):
@@ -467,9 +479,7 @@ class _ViewSampler:
         near = ndi.minimum_filter(depth, size=3, mode="nearest")
         self.depth = near.astype(np.float32).ravel()
         # one buffer pixel in metres at the head, for the slope part of the tolerance
-        jac = np.asarray(camera.jacobian(centre[None]), dtype=np.float64)[0]
-        jac = jac * self.scale[:, None]
-        ppm = np.sqrt((jac ** 2).sum() / 2.0)
+        ppm = camera.pixels_per_metre(centre[None], self.scale)[0]
         self.footprint = np.float32(1.0 / (ppm * min(self.fx, self.fy)))
         self.tol = np.float32(opts.depth_tolerance * head_size)
         self.feather = self._feather(depth, opts.feather * head_size / self.footprint)

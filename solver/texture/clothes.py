@@ -51,8 +51,7 @@ def clothes_mask(model, world, camera, image, scale=(1.0, 1.0)):
     rgb = image[..., :3]
     reference = skin_colour(sample_photo(rgb, px))
     chin = world[model.landmark_vertex("chin_bottom")]
-    jac = np.asarray(camera.jacobian(chin[None]), dtype=np.float64)[0] * to_image[:, None]
-    px_per_m = np.sqrt((jac ** 2).sum() / 2.0)
+    px_per_m = camera.pixels_per_metre(chin[None], to_image)[0]
     top = camera.project(chin[None])[0, 1] * sy + BELOW_CHIN_M * px_per_m
     # Only where the head is, from below its chin to the photo's bottom edge: the bake
     # samples nothing else.

@@ -198,6 +198,46 @@ def test_texture_shading_option_and_column(heads, tmp_path):
     assert c.error == f"{m} row 4: column texture_shading: 'flat' is not one of keep, remove"
 
 
+def test_texture_clothes_option_and_column(model, tmp_path):
+    import numpy as np
+    from PIL import Image
+
+    from headrecon_addon import headless
+    from headrecon_addon.batch_manifest import plan_heads
+
+    folder = tmp_path / "in"
+    _, case, _ = synthetic_files(model, folder, seed=43, name="shirt", image_height=256)
+    for name, view in case.views.items():
+        w, h = view.size
+        img = np.tile(np.uint8([230, 170, 140]), (h, w, 1))  # skin
+        img[int(0.75 * h):] = (70, 90, 120)  # a grey-blue shirt up from the bottom edge
+        Image.fromarray(img).save(case.image_path(name))
+    # the command line keeps the clothes; a row leaves them out again
+    m = _manifest(folder, ["kept,shirt.json,", "left,shirt.json,leave-out"],
+                  header="name,landmarks,texture_clothes")
+    out = tmp_path / "out"
+    assert headless.main([str(m), "--out", str(out), "--jobs", "1", "--components", "10",
+                          "--texture-size", "64", "--outputs", "texture,report",
+                          "--texture-clothes", "keep"]) == 0
+    cold = {}
+    for name, clothes in (("kept", "keep"), ("left", "leave-out")):
+        report = json.loads((out / f"{name}.report.json").read_text())
+        assert report["options"]["texture_clothes"] == clothes
+        with Image.open(out / f"{name}_texture.png") as tex:
+            rgb = np.asarray(tex.convert("RGB"), dtype=np.int64)
+        cold[name] = np.count_nonzero(rgb[..., 2] > rgb[..., 0])  # the shirt, never skin
+    assert cold["left"] == 0 < cold["kept"], cold  # the option reached the bake
+    m = _manifest(tmp_path, ["a,a.json,keep", "b,b.json,", "c,c.json,leave out"],
+                  header="name,landmarks,texture_clothes")
+    a, b, c = plan_heads([m], tmp_path / "out")
+    assert a.options == {"texture_clothes": "keep"} and b.options == {}
+    assert c.error == (f"{m} row 4: column texture_clothes: 'leave out' is not one of "
+                       "leave-out, keep")
+    with pytest.raises(SystemExit) as bad:
+        headless.main([str(m), "--out", str(out), "--texture-clothes", "off"])
+    assert bad.value.code == 2
+
+
 def test_a_killed_batch_loses_only_heads_in_flight(heads, tmp_path):
     m = _manifest(heads, [f"h{i},h{i}.json,10" for i in range(4)])
     out = tmp_path / "out"

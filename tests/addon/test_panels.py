@@ -157,9 +157,12 @@ def test_fit_panel_shows_the_defaults_up_front_and_the_rest_under_advanced():
     from headrecon_addon.properties import ADVANCED_FIT_SETTINGS
 
     empty_scene()
-    main = {n for k, n in _draw(panels.HEADRECON_PT_fit) if k == "prop"}
+    shown = [n for k, n in _draw(panels.HEADRECON_PT_fit) if k == "prop"]
+    main = set(shown)
     advanced = _draw(panels.HEADRECON_PT_fit_advanced)
     assert {"method", "bake_texture", "texture_size", "live_refit"} <= main
+    # the bake's options together: the clothes beside the shading
+    assert shown.index("texture_clothes") == shown.index("texture_shading") + 1
     assert not main & set(ADVANCED_FIT_SETTINGS)
     assert [n for k, n in advanced if k == "prop"] == list(ADVANCED_FIT_SETTINGS)
     assert ("operator", "headrecon.reset_fit_settings") in advanced

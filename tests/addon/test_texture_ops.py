@@ -1,6 +1,6 @@
 """Save Texture (headrecon_addon/texture_ops.py): the baked texture as a PNG next to the
 saved .blend, a path asked for when it is not saved, never over a photo; and the Shading
-option reaching the bake."""
+and Clothes options reaching the bake."""
 
 import bpy
 import numpy as np
@@ -88,3 +88,34 @@ def test_the_shading_option_reaches_the_bake(fit):
     scene.headrecon.texture_shading = "remove"
     job = fit_job.prepare_job(scene)
     assert job.texture_shading == "remove"
+
+
+def test_the_clothes_option_reaches_the_bake(model, fit, monkeypatch):
+    from headrecon_addon import fit_job, head_scene
+    from solver import CLOTHES_SPELLINGS, BakeOptions, clothes_mode
+
+    path, case, result = fit
+    scene = imported_scene(path, texture_size="256")
+    items = scene.headrecon.bl_rna.properties["texture_clothes"].enum_items
+    assert [i.identifier for i in items] == list(CLOTHES_SPELLINGS)
+    assert clothes_mode(scene.headrecon.texture_clothes) == BakeOptions().clothes
+    scene.headrecon.texture_clothes = "keep"
+    job = fit_job.prepare_job(scene)
+    assert job.texture_clothes == "keep"
+    seen = []
+
+    def bake(*args, options, **kw):
+        seen.append(options.clothes)
+        return real(*args, options=options, **kw)
+
+    real = fit_job.bake_fit_texture
+    monkeypatch.setattr(fit_job, "bake_fit_texture", bake)
+    job.result, job.texture_size = result, 64
+    job.run_bake()
+    assert job.error is None and job.textures and seen == ["keep"]
+    monkeypatch.setattr(head_scene, "bake_fit_texture", bake)
+    empty_scene()
+    head_scene.build_scene_from_fit(model, case, result, texture_size=64,
+                                    texture_clothes="keep")
+    head_scene.build_scene_from_fit(model, case, result, texture_size=64)
+    assert seen == ["keep", "keep", "leave out"]

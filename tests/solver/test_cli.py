@@ -575,6 +575,46 @@ def test_texture_shading_remove_flattens_the_light_of_the_photos(tmp_path, model
     assert proc.returncode == 2 and "--texture-shading" in proc.stderr
 
 
+def test_texture_clothes_keep_bakes_the_shirt_that_leave_out_leaves_off(tmp_path, model):
+    from PIL import Image
+
+    from solver.cli import build_parser
+    from solver.io.landmarks_file import save_landmarks
+    from solver.synthetic import make_case
+    from solver.texture.bake import BakeOptions, clothes_mode
+
+    case, _ = make_case(model, 17, noise_px=0.5, image_height=256)
+    for name, view in case.views.items():
+        view.image = f"{name}.png"
+        w, h = view.size
+        img = np.tile(np.uint8([230, 170, 140]), (h, w, 1))  # skin
+        img[int(0.75 * h):] = (70, 90, 120)  # a grey-blue shirt up from the bottom edge
+        Image.fromarray(img).save(tmp_path / f"{name}.png")
+    save_landmarks(case, tmp_path / "case.json")
+    cold = {}
+    for clothes in ("leave-out", "keep"):
+        argv = ["fit", "case.json", "--out", f"{clothes}/head.obj", "--texture",
+                f"{clothes}/head.png", "--texture-size", 64, "--components", 10,
+                "--noise", "fixed", "-q", "--texture-clothes", clothes, "--report",
+                f"{clothes}/report.json"]
+        proc = run_cli(*argv, cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+        with Image.open(tmp_path / clothes / "head.png") as tex:
+            rgb = np.asarray(tex.convert("RGB"), dtype=np.int64)
+        cold[clothes] = np.count_nonzero(rgb[..., 2] > rgb[..., 0])  # the shirt, never skin
+        report = json.loads((tmp_path / clothes / "report.json").read_text(encoding="utf-8"))
+        assert report["options"]["texture_clothes"] == clothes
+    assert cold["leave-out"] == 0 < cold["keep"], cold
+    # without the flag: the bake's own default
+    args = build_parser().parse_args(["fit", "case.json", "--out", "h.obj"])
+    assert clothes_mode(args.texture_clothes) == BakeOptions().clothes
+    proc = run_cli("fit", "case.json", "--out", "h.obj", "--texture-clothes", "leave out",
+                   cwd=tmp_path)
+    last = proc.stderr.strip().splitlines()[-1]
+    assert proc.returncode == 2 and "--texture-clothes" in last and "leave-out" in last, \
+        proc.stderr
+
+
 def test_detect_names_the_views_and_says_a_mislabelled_profile(sample, tmp_path):
     """``solver detect`` on the rendered sample's photos: the front and the right profile
     told apart (whatever the order), each point with its uncertainty; ``--view`` names a

@@ -1,4 +1,5 @@
-"""Cameras: the orthographic camera's projection and its refit (a 2-D similarity)."""
+"""Cameras: the orthographic camera's projection and its refit (a 2-D similarity), and the
+base class's pixels per metre."""
 
 import numpy as np
 import pytest
@@ -122,3 +123,20 @@ def test_orthographic_jacobian_matches_projection():
     jac = cam.jacobian(x)[0]
     d = np.array([1e-4, -2e-4, 3e-4])
     np.testing.assert_allclose(cam.project(x + d) - cam.project(x), (jac @ d)[None], atol=1e-9)
+
+
+def test_pixels_per_metre_is_the_scale_of_a_parallel_and_f_over_depth_of_a_pinhole():
+    from solver import PinholeCamera
+
+    pts = np.array([[0.0, 0.0, 0.0], [0.05, -0.1, 0.08]])
+    ortho = _tilted("orthographic-right", 0.2, 2600.0, (380.0, 515.0))
+    np.testing.assert_allclose(ortho.pixels_per_metre(pts), [2600.0, 2600.0], rtol=1e-12)
+    # a photo reduced to half: half the pixels; halved across only: the rows' RMS
+    np.testing.assert_allclose(ortho.pixels_per_metre(pts, (0.5, 0.5)), 1300.0, rtol=1e-12)
+    np.testing.assert_allclose(ortho.pixels_per_metre(pts, (0.5, 1.0)),
+                               2600.0 * np.sqrt((0.25 + 1.0) / 2.0), rtol=1e-12)
+    # a pinhole 1.2 m in front of the head, f = 1500 px: f / depth on its axis
+    cam = PinholeCamera.look_at((0.0, -1.2, 0.0), (0.0, 0.0, 0.0), (1920, 1080), f_px=1500.0)
+    on_axis = np.array([[0.0, 0.0, 0.0], [0.0, -0.3, 0.0]])
+    np.testing.assert_allclose(cam.pixels_per_metre(on_axis), [1250.0, 1500.0 / 0.9],
+                               rtol=1e-12)

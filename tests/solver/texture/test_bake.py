@@ -7,11 +7,14 @@ import pytest
 from solver import FitResult, OrthographicCamera
 from solver.io.export import texture_atlas
 from solver.texture.bake import (
+    CLOTHES_MODES,
+    CLOTHES_SPELLINGS,
     BakeOptions,
     bake_fit_texture,
     bake_photo_size,
     bake_texture,
     bake_tiles,
+    clothes_mode,
 )
 from solver.texture.uvs import resolve_parts, uv_raster, uv_tiles
 from tests.solver.texture.support import H, W, coded_photo, two_sheets, uv_sphere
@@ -349,6 +352,17 @@ def test_bad_input_names_the_culprit():
         bake_texture(m, m.vertices, [(good, cam)], 32, similarity=(1.0, np.eye(2), 0))
     with pytest.raises(ValueError, match="BakeOptions.power"):
         BakeOptions(power=0)
+
+
+def test_clothes_spellings_name_every_mode_and_nothing_else():
+    assert [clothes_mode(s) for s in CLOTHES_SPELLINGS] == list(CLOTHES_MODES)
+    assert clothes_mode("leave-out") == "leave out" == BakeOptions().clothes
+    assert all(" " not in s for s in CLOTHES_SPELLINGS)  # no quoting in a shell
+    for bad in ("leave out", "Keep", "", None):
+        with pytest.raises(ValueError, match="is not one of leave-out, keep$"):
+            clothes_mode(bad)
+    with pytest.raises(ValueError, match="BakeOptions.clothes"):
+        BakeOptions(clothes="leave-out")
 
 
 # ---------------------------------------------------------------------------------------
