@@ -14,7 +14,12 @@ Groups of cases (bench/realistic_cases.py; seeds fixed):
   landmark (3-5 px RMS) plus random noise (3-6 px RMS); the jaw and chin outline points
   (iBUG 1-17) on the front photo's apparent outline anywhere on their own stretch of it;
   in the profile photo only the menton (iBUG 9), on the traced outline, the other 16
-  dropped (no clear place there).
+  dropped (no clear place there). With ``--three-quarter none|cheek|head`` the same heads
+  are photographed instead as james' photos are taken (two pinholes the fit calibrates,
+  30 degrees from the front on the subject's right and 21 on the left, 1.5 m away), their
+  visible iBUG points given, and of each photo's outline nothing, the far cheek from the
+  brow's height to the chin (what a photo of a person with hair shows as skin on the
+  person's edge) or the whole head traced.
 - with expression: the same, the head in the photos with eyes closed, a slight smile, the
   jaw a little open, or eyes closed and smiling (``model.expressions`` at moderate
   weights). The fit assumes a neutral face; it is scored against the neutral true head.
@@ -83,6 +88,11 @@ def _parse():
                         "without noise: what the fit loses to the out-of-model part alone")
     p.add_argument("--front-outline", action="store_true",
                    help="synthetic heads: the front photo's outline traced too")
+    p.add_argument("--three-quarter", choices=("none", "cheek", "head"), default=None,
+                   help="synthetic heads: photographed from two three-quarter angles as "
+                        "james' photos are (pinholes the fit calibrates) instead of front "
+                        "and profile, with this much of each photo's outline traced: none, "
+                        "the far cheek (a person with hair) or the whole head (bald)")
     blas_threads.option_argument(p)
     return p.parse_args()
 
@@ -178,7 +188,7 @@ def synthetic_truth(model, truth, samples, seed):
 #: FitOptions fields every fit of the run shares (``--outline-landmarks``, ``--set``).
 SHARED = {}
 #: ``make_realistic_case`` options of the synthetic heads (``--exact-placement``,
-#: ``--front-outline``).
+#: ``--front-outline``, ``--three-quarter``).
 CASE_OPTIONS = {}
 
 
@@ -437,6 +447,8 @@ def main(args):
         CASE_OPTIONS["placement"] = Placement(0.0, 0.0, 0.0)
     if args.front_outline:
         CASE_OPTIONS["front_outline"] = True
+    if args.three_quarter:
+        CASE_OPTIONS["three_quarter"] = args.three_quarter
     n_expr = args.cases // 2 if args.expression_cases is None else args.expression_cases
     print(f"machine: {machine_description()}")
     print(f"cases: {args.cases} out-of-model, {n_expr} with expression, the scan james' "
@@ -447,7 +459,9 @@ def main(args):
           + "".join(f"; {k}={v!r}" for k, v in SHARED.items()
                     if k not in ("outline_landmarks", "definition_mm"))
           + ("; landmarks placed exactly" if args.exact_placement else "")
-          + ("; the front's outline traced" if args.front_outline else ""))
+          + ("; the front's outline traced" if args.front_outline else "")
+          + (f"; synthetic heads from two three-quarter angles, outline traced: "
+             f"{args.three_quarter}" if args.three_quarter else ""))
     groups = {}
     if args.cases > 0:
         groups["out-of-model heads"] = run_synthetic(model, "out-of-model", args.cases,

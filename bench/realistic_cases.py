@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from solver import DLTCamera, LandmarkCase, OrthographicCamera, View, fit_dlt
+from solver import DLTCamera, LandmarkCase, OrthographicCamera, PinholeCamera, View, fit_dlt
 from solver.cameras import ORTHO_VIEWS
 from solver.detect.detected_case import detected_depth
 from solver.detect.view_guess import point_uncertainty
@@ -37,7 +37,13 @@ from solver.geometry import rotation_from_vector, skew, vertex_normals
 from solver.io.landmark_set import load_landmark_set
 from solver.io.obj import read_obj as solver_read_obj
 from solver.procrustes import Similarity, similarity_procrustes
-from solver.synthetic import random_rotation, resample_polyline, trace_outline, trace_silhouette
+from solver.synthetic import (
+    random_rotation,
+    resample_polyline,
+    trace_outline,
+    trace_silhouette,
+    visible_landmarks,
+)
 from solver.texture.raster import depth_buffer, rasterize
 
 #: iBUG numbers of the outline landmarks (jaw and chin: points of the face's outline).
@@ -476,9 +482,10 @@ def _camera(rng, cam_name, size, skin_world, fill=(0.75, 0.9)):
 
 def make_realistic_case(model, seed, expression=None, displacement_mm=(1.5, 3.0),
                         rotation_deg=5.0, image_height=1024, contour_points=100,
-                        placement=None, front_outline=False):
+                        placement=None, front_outline=False, three_quarter=None):
     """A realistic synthetic case: an out-of-model head, photographed front and right
-    profile (orthographic, 1024 px high, 3:4), landmarks as people give them.
+    profile (orthographic, 1024 px high, 3:4), landmarks as people give them; or from two
+    three-quarter angles (``three_quarter``).
 
     Parameters
     ----------
@@ -494,6 +501,13 @@ def make_realistic_case(model, seed, expression=None, displacement_mm=(1.5, 3.0)
     front_outline : bool
         Trace the front photo's outline too (the head's silhouette there, as a
         segmentation would give it), with the profile's tracing noise.
+    three_quarter : str, optional
+        Photograph the head as james' photos are taken instead (``THREE_QUARTER``: two
+        pinhole photos, 1200 x 1600 px, 1.5 m away, 30 degrees from the front on the
+        subject's right and 21 on the left, cameras left for the fit to calibrate), the
+        visible iBUG landmarks given, and trace of each photo's outline "none", the far
+        "cheek" (temple to chin: what a photo of a person with hair shows as skin on the
+        person's edge) or the whole "head" (a bald person).
 
     Returns
     -------
@@ -514,6 +528,21 @@ def make_realistic_case(model, seed, expression=None, displacement_mm=(1.5, 3.0)
     drawn = Placement.draw(rng)  # drawn either way, so the rest of the case stays the same
     placement = drawn if placement is None else placement
 
+    if three_quarter is not None:
+        views, cams, offsets, missed = _three_quarter_views(model, world, placement, rng,
+                                                            three_quarter, contour_points)
+    else:
+        views, cams, offsets, missed = _front_profile_views(
+            model, world, placement, rng, seed, image_height, contour_points, front_outline)
+    truth = RealisticTruth(local, 1e3 * rms, weights, placement,
+                           float(np.sqrt(np.mean(np.square(offsets)))), missed, cams)
+    return LandmarkCase(views, "<realistic>"), truth
+
+
+def _front_profile_views(model, world, placement, rng, seed, image_height, contour_points,
+                         front_outline):
+    """The front and right profile photos of ``make_realistic_case``: (views, cameras,
+    landmark offsets, missed outline landmarks)."""
     h = int(image_height)
     size = (int(round(0.75 * h)), h)
     skin_tris = part_triangles(model)
@@ -544,9 +573,56 @@ def make_realistic_case(model, seed, expression=None, displacement_mm=(1.5, 3.0)
         views[view] = View(name=view, image=None, size=size,
                            camera=OrthographicCamera.nominal(f"orthographic-{view}", size),
                            points=pts, contour=contour)
-    truth = RealisticTruth(local, 1e3 * rms, weights, placement,
-                           float(np.sqrt(np.mean(np.square(offsets)))), missed, cams)
-    return LandmarkCase(views, "<realistic>"), truth
+    return views, cams, offsets, missed
+
+
+#: ``make_realistic_case(three_quarter=...)``'s photos: name -> degrees from the front
+#: (positive: on the subject's right), as james' two photos are taken.
+THREE_QUARTER = {"three_quarter_right": 30.0, "three_quarter_left": -21.0}
+#: What of a three-quarter photo's outline is traced.
+THREE_QUARTER_OUTLINES = ("none", "cheek", "head")
+
+
+def _three_quarter_views(model, world, placement, rng, outline, contour_points,
+                         size=(1200, 1600), distance=1.5, f_px=6400.0):
+    """The three-quarter photos of ``make_realistic_case``: (views, cameras, landmark
+    offsets, missed outline landmarks)."""
+    if outline not in THREE_QUARTER_OUTLINES:
+        raise ValueError(f"three_quarter: one of {THREE_QUARTER_OUTLINES}, got {outline!r}")
+    skin_tris = part_triangles(model)
+    ibug = {e["name"]: int(e["ibug"]) for e in model.landmark_info if e.get("ibug")}
+    at = model.landmarks
+    target = world[at["nasion"]] + np.array([0.0, 0.05, -0.03])  # inside the head
+    views, cams, offsets, missed = {}, {}, [], []
+    for name, yaw in THREE_QUARTER.items():
+        a = np.radians(yaw)
+        cam = PinholeCamera.look_at(target + distance * np.array([-np.sin(a), -np.cos(a), 0.0]),
+                                    target, size, f_px=f_px)
+        cams[name] = cam
+        names = [n for n in visible_landmarks(model, world, cam, triangles=skin_tris)
+                 if n in ibug]
+        traced = trace_silhouette(model, world, cam, skin_tris)
+        contour = None
+        if outline != "none":
+            keep = np.ones(len(traced), bool)
+            if outline == "cheek":  # the far side, from the brow's height to the chin's
+                nose = cam.project(world[[at["nose_tip"]]])[0, 0]
+                brow = cam.project(world[[at["brow_outer_left"], at["brow_outer_right"]]])
+                chin = cam.project(world[[at["chin_bottom"]]])[0, 1]
+                keep = (np.sign(yaw) * (traced[:, 0] - nose) > 0) \
+                    & (traced[:, 1] > brow[:, 1].min()) & (traced[:, 1] < chin)
+            contour = resample_polyline(traced[keep], contour_points)
+            contour = np.clip(contour + placement.contour_noise_px
+                              * rng.normal(size=contour.shape), 0.0, size)
+        seen = apparent_outline(world, skin_tris, cam, model.skin, outline=traced)
+        nominal = cam.project(world[[at[n] for n in names]])
+        placed, miss = place_landmarks(names, nominal, placement, rng, seen, ibug)
+        missed += [f"{name}/{n}" for n in miss]
+        pts = {n: np.clip(p, 0.0, size) for n, p in placed.items()}
+        offsets += [np.linalg.norm(pts[n] - q) for n, q in zip(names, nominal, strict=True)]
+        views[name] = View(name=name, image=None, size=size, camera=None, points=pts,
+                           contour=contour, camera_hints={"kind": "pinhole"})
+    return views, cams, offsets, missed
 
 
 # ---------------------------------------------------------------- the real scan "james"

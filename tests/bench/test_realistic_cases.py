@@ -9,6 +9,7 @@ import pytest
 
 from bench.realistic_cases import (
     OUTLINE_IBUG,
+    THREE_QUARTER,
     Placement,
     Surface,
     align_icp,
@@ -128,6 +129,34 @@ def test_a_realistic_case_can_be_placed_exactly_and_traced_in_front(model):
             for v in ("front", "right") for n in exact.views[v].points
             if ibug.get(n) not in OUTLINE_IBUG]
     assert np.median(gaps) > 2.0
+
+
+def test_a_realistic_head_photographed_from_three_quarter_angles(model):
+    _, front_truth = make_realistic_case(model, 5000)
+    cases = {o: make_realistic_case(model, 5000, three_quarter=o) for o in
+             ("none", "cheek", "head")}
+    none, truth = cases["none"]
+    # the same head as the front and profile photos show, only photographed otherwise
+    np.testing.assert_array_equal(truth.local_vertices, front_truth.local_vertices)
+    assert set(none.views) == set(THREE_QUARTER)
+    ibug = {e["name"]: e["ibug"] for e in model.landmark_info if e.get("ibug")}
+    world = truth.cameras  # the true cameras: pinholes on the side of their yaw
+    for name, yaw in THREE_QUARTER.items():
+        view = none.views[name]
+        assert view.camera is None and view.camera_hints == {"kind": "pinhole"}
+        assert view.contour is None
+        assert set(view.points) <= set(ibug) and len(view.points) >= 50
+        assert np.sign(world[name].centre[0]) == -np.sign(yaw)  # the subject's right: -X
+        cheek = cases["cheek"][0].views[name].contour
+        head = cases["head"][0].views[name].contour
+        assert cheek.shape == head.shape == (100, 2)
+        # the cheek: on the face's far side (beyond its nose), below the head's top
+        nose = view.points["nose_tip"][0]
+        beyond = np.sign(yaw) * (cheek[:, 0] - nose)
+        assert np.all(beyond > -20.0) and np.median(beyond) > 30.0  # placed: a few px off
+        assert cheek[:, 1].min() > head[:, 1].min() + 100.0
+    with pytest.raises(ValueError, match="three_quarter"):
+        make_realistic_case(model, 5000, three_quarter="ear")
 
 
 @pytest.fixture(scope="module")
