@@ -86,8 +86,10 @@ def _parse():
                    help="synthetic heads: landmarks exactly on their vertices' projections "
                         "(outline points still anywhere on their stretch), outlines traced "
                         "without noise: what the fit loses to the out-of-model part alone")
-    p.add_argument("--front-outline", action="store_true",
-                   help="synthetic heads: the front photo's outline traced too")
+    p.add_argument("--front-outline", nargs="?", const="head", choices=("head", "face"),
+                   default=None,
+                   help="synthetic heads: the front photo's outline traced too (face: only "
+                        "below the brows, as a person with hair shows it)")
     p.add_argument("--three-quarter", choices=("none", "cheek", "head"), default=None,
                    help="synthetic heads: photographed from two three-quarter angles as "
                         "james' photos are (pinholes the fit calibrates) instead of front "
@@ -446,7 +448,7 @@ def main(args):
     if args.exact_placement:
         CASE_OPTIONS["placement"] = Placement(0.0, 0.0, 0.0)
     if args.front_outline:
-        CASE_OPTIONS["front_outline"] = True
+        CASE_OPTIONS["front_outline"] = args.front_outline
     if args.three_quarter:
         CASE_OPTIONS["three_quarter"] = args.three_quarter
     n_expr = args.cases // 2 if args.expression_cases is None else args.expression_cases
@@ -459,7 +461,8 @@ def main(args):
           + "".join(f"; {k}={v!r}" for k, v in SHARED.items()
                     if k not in ("outline_landmarks", "definition_mm"))
           + ("; landmarks placed exactly" if args.exact_placement else "")
-          + ("; the front's outline traced" if args.front_outline else "")
+          + (f"; the front's outline traced ({args.front_outline})" if args.front_outline
+             else "")
           + (f"; synthetic heads from two three-quarter angles, outline traced: "
              f"{args.three_quarter}" if args.three_quarter else ""))
     groups = {}

@@ -498,9 +498,11 @@ def make_realistic_case(model, seed, expression=None, displacement_mm=(1.5, 3.0)
     placement : Placement, optional
         How the landmarks are placed instead of the drawn one (the same head, cameras and
         outline stretches otherwise), e.g. ``Placement(0, 0, 0)``: exactly.
-    front_outline : bool
+    front_outline : bool or str
         Trace the front photo's outline too (the head's silhouette there, as a
-        segmentation would give it), with the profile's tracing noise.
+        segmentation would give it), with the profile's tracing noise; "face": only its
+        stretch on the subject's right below the brows (the one skin run a photo of a
+        person with hair shows on the person's edge).
     three_quarter : str, optional
         Photograph the head as james' photos are taken instead (``THREE_QUARTER``: two
         pinhole photos, 1200 x 1600 px, 1.5 m away, 30 degrees from the front on the
@@ -561,6 +563,14 @@ def _front_profile_views(model, world, placement, rng, seed, image_height, conto
                      or ibug[n] in PROFILE_OUTLINE_IBUG]
             outline = traced
         if view == "right" or front_outline:
+            if view == "front" and front_outline == "face":
+                # one side below the brows: the one skin run on the person's edge that a
+                # photo of a person with hair shows (``solver detect`` keeps one run)
+                at = model.landmarks
+                brow = cam.project(world[[at["brow_outer_left"],
+                                          at["brow_outer_right"]]])[:, 1].min()
+                nose = cam.project(world[[at["nose_tip"]]])[0, 0]
+                traced = traced[(traced[:, 1] > brow) & (traced[:, 0] < nose)]
             contour = resample_polyline(traced, contour_points)
             noise = rng.normal(size=contour.shape) if view == "right" \
                 else np.random.default_rng([seed, 1]).normal(size=contour.shape)

@@ -159,6 +159,17 @@ def test_a_realistic_head_photographed_from_three_quarter_angles(model):
         make_realistic_case(model, 5000, three_quarter="ear")
 
 
+def test_a_front_outline_of_the_face_alone_is_one_side_below_the_brows(model):
+    head, _ = make_realistic_case(model, 5000, front_outline="head")
+    face, _ = make_realistic_case(model, 5000, front_outline="face")
+    full, side = head.views["front"].contour, face.views["front"].contour
+    assert side.shape == full.shape == (100, 2)
+    nose = face.views["front"].points["nose_tip"]
+    brow = min(face.views["front"].points[n][1] for n in ("brow_outer_left", "brow_outer_right"))
+    assert np.all(side[:, 0] < nose[0])  # the subject's right, left in the photo
+    assert side[:, 1].min() > brow - 15.0 > full[:, 1].min()  # placed: a few px off
+
+
 @pytest.fixture(scope="module")
 def scan():
     folder = james_folder(ROOT)
