@@ -542,7 +542,9 @@ def test_detect_errors_name_the_photo(tmp_path):
     assert not (tmp_path / "case.json").exists()
 
 
-def test_texture_shading_remove_flattens_the_light_of_the_photos(tmp_path, model):
+def _painted_case(tmp_path, model, paint):
+    """A small synthetic case saved as ``case.json`` with photos ``paint(w, h)`` (uint8
+    (h, w, 3)) beside it."""
     from PIL import Image
 
     from solver.io.landmarks_file import save_landmarks
@@ -551,23 +553,36 @@ def test_texture_shading_remove_flattens_the_light_of_the_photos(tmp_path, model
     case, _ = make_case(model, 17, noise_px=0.5, image_height=256)
     for name, view in case.views.items():
         view.image = f"{name}.png"
-        w, h = view.size
-        light = np.linspace(0.3, 1.0, w)[None, :, None]  # a key light from one side
-        img = np.broadcast_to(light * np.array([230, 170, 140]), (h, w, 3))
-        Image.fromarray(img.astype(np.uint8)).save(tmp_path / f"{name}.png")
+        Image.fromarray(paint(*view.size)).save(tmp_path / f"{name}.png")
     save_landmarks(case, tmp_path / "case.json")
+
+
+def _textured_fit(tmp_path, flag, value):
+    """``solver fit case.json --texture`` with ``flag value`` into ``value/``: (the
+    texture as float (H, W, 3), the report)."""
+    from PIL import Image
+
+    proc = run_cli("fit", "case.json", "--out", f"{value}/head.obj", "--texture",
+                   f"{value}/head.png", "--texture-size", 64, "--components", 10, "--noise",
+                   "fixed", "-q", flag, value, "--report", f"{value}/report.json",
+                   cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    with Image.open(tmp_path / value / "head.png") as tex:
+        rgb = np.asarray(tex.convert("RGB"), dtype=np.float64)
+    return rgb, json.loads((tmp_path / value / "report.json").read_text(encoding="utf-8"))
+
+
+def test_texture_shading_remove_flattens_the_light_of_the_photos(tmp_path, model):
+    def lit(w, h):  # a key light from one side
+        light = np.linspace(0.3, 1.0, w)[None, :, None]
+        return np.broadcast_to(light * np.array([230, 170, 140]), (h, w, 3)).astype(np.uint8)
+
+    _painted_case(tmp_path, model, lit)
     spread = {}
     for shading in ("keep", "remove"):
-        argv = ["fit", "case.json", "--out", f"{shading}/head.obj", "--texture",
-                f"{shading}/head.png", "--texture-size", 64, "--components", 10,
-                "--noise", "fixed", "-q", "--texture-shading", shading, "--report",
-                f"{shading}/report.json"]
-        proc = run_cli(*argv, cwd=tmp_path)
-        assert proc.returncode == 0, proc.stderr
-        with Image.open(tmp_path / shading / "head.png") as tex:
-            lum = np.asarray(tex.convert("L"), dtype=np.float64)
+        rgb, report = _textured_fit(tmp_path, "--texture-shading", shading)
+        lum = rgb @ np.array([0.299, 0.587, 0.114])
         spread[shading] = lum.std() / lum.mean()
-        report = json.loads((tmp_path / shading / "report.json").read_text(encoding="utf-8"))
         assert report["options"]["texture_shading"] == shading
     assert spread["remove"] < 0.5 * spread["keep"], spread
     proc = run_cli("fit", "case.json", "--out", "h.obj", "--texture-shading", "flat",
@@ -576,33 +591,19 @@ def test_texture_shading_remove_flattens_the_light_of_the_photos(tmp_path, model
 
 
 def test_texture_clothes_keep_bakes_the_shirt_that_leave_out_leaves_off(tmp_path, model):
-    from PIL import Image
-
     from solver.cli import build_parser
-    from solver.io.landmarks_file import save_landmarks
-    from solver.synthetic import make_case
     from solver.texture.bake import BakeOptions, clothes_mode
 
-    case, _ = make_case(model, 17, noise_px=0.5, image_height=256)
-    for name, view in case.views.items():
-        view.image = f"{name}.png"
-        w, h = view.size
+    def shirt(w, h):
         img = np.tile(np.uint8([230, 170, 140]), (h, w, 1))  # skin
         img[int(0.75 * h):] = (70, 90, 120)  # a grey-blue shirt up from the bottom edge
-        Image.fromarray(img).save(tmp_path / f"{name}.png")
-    save_landmarks(case, tmp_path / "case.json")
+        return img
+
+    _painted_case(tmp_path, model, shirt)
     cold = {}
     for clothes in ("leave-out", "keep"):
-        argv = ["fit", "case.json", "--out", f"{clothes}/head.obj", "--texture",
-                f"{clothes}/head.png", "--texture-size", 64, "--components", 10,
-                "--noise", "fixed", "-q", "--texture-clothes", clothes, "--report",
-                f"{clothes}/report.json"]
-        proc = run_cli(*argv, cwd=tmp_path)
-        assert proc.returncode == 0, proc.stderr
-        with Image.open(tmp_path / clothes / "head.png") as tex:
-            rgb = np.asarray(tex.convert("RGB"), dtype=np.int64)
+        rgb, report = _textured_fit(tmp_path, "--texture-clothes", clothes)
         cold[clothes] = np.count_nonzero(rgb[..., 2] > rgb[..., 0])  # the shirt, never skin
-        report = json.loads((tmp_path / clothes / "report.json").read_text(encoding="utf-8"))
         assert report["options"]["texture_clothes"] == clothes
     assert cold["leave-out"] == 0 < cold["keep"], cold
     # without the flag: the bake's own default
