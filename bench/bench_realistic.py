@@ -90,6 +90,8 @@ def _parse():
                    default=None,
                    help="synthetic heads: the front photo's outline traced too (face: only "
                         "below the brows, as a person with hair shows it)")
+    # realistic_cases.THREE_QUARTER_OUTLINES, spelt out: nothing that imports numpy is
+    # loaded before the BLAS threads are set
     p.add_argument("--three-quarter", choices=("none", "cheek", "head"), default=None,
                    help="synthetic heads: photographed from two three-quarter angles as "
                         "james' photos are (pinholes the fit calibrates) instead of front "

@@ -563,15 +563,12 @@ def _front_profile_views(model, world, placement, rng, seed, image_height, conto
                      or ibug[n] in PROFILE_OUTLINE_IBUG]
             outline = traced
         if view == "right" or front_outline:
+            drawn = traced
             if view == "front" and front_outline == "face":
-                # one side below the brows: the one skin run on the person's edge that a
-                # photo of a person with hair shows (``solver detect`` keeps one run)
-                at = model.landmarks
-                brow = cam.project(world[[at["brow_outer_left"],
-                                          at["brow_outer_right"]]])[:, 1].min()
-                nose = cam.project(world[[at["nose_tip"]]])[0, 0]
-                traced = traced[(traced[:, 1] > brow) & (traced[:, 0] < nose)]
-            contour = resample_polyline(traced, contour_points)
+                # the one skin run on the person's edge that a photo of a person with
+                # hair shows (``solver detect`` keeps one run): the subject's right side
+                drawn = _face_side(model, world, cam, traced, -1.0)
+            contour = resample_polyline(drawn, contour_points)
             noise = rng.normal(size=contour.shape) if view == "right" \
                 else np.random.default_rng([seed, 1]).normal(size=contour.shape)
             contour = np.clip(contour + placement.contour_noise_px * noise, 0.0, size)
@@ -591,6 +588,19 @@ def _front_profile_views(model, world, placement, rng, seed, image_height, conto
 THREE_QUARTER = {"three_quarter_right": 30.0, "three_quarter_left": -21.0}
 #: What of a three-quarter photo's outline is traced.
 THREE_QUARTER_OUTLINES = ("none", "cheek", "head")
+
+
+def _face_side(model, world, camera, traced, sign, to_chin=False):
+    """The points of a traced outline (n, 2) on one side of the nose tip in the photo
+    (``sign`` +1: beyond it along the image's u, -1: before it) below the brows' height,
+    and with ``to_chin`` above the chin's: the face's side alone."""
+    at = model.landmarks
+    brow = camera.project(world[[at["brow_outer_left"], at["brow_outer_right"]]])[:, 1].min()
+    nose, chin = camera.project(world[[at["nose_tip"], at["chin_bottom"]]])
+    keep = (sign * (traced[:, 0] - nose[0]) > 0) & (traced[:, 1] > brow)
+    if to_chin:
+        keep &= traced[:, 1] < chin[1]
+    return traced[keep]
 
 
 def _three_quarter_views(model, world, placement, rng, outline, contour_points,
@@ -613,17 +623,12 @@ def _three_quarter_views(model, world, placement, rng, outline, contour_points,
                  if n in ibug]
         traced = trace_silhouette(model, world, cam, skin_tris)
         contour = None
+        noise = rng.normal(size=(contour_points, 2))  # drawn either way: the same landmarks
         if outline != "none":
-            keep = np.ones(len(traced), bool)
-            if outline == "cheek":  # the far side, from the brow's height to the chin's
-                nose = cam.project(world[[at["nose_tip"]]])[0, 0]
-                brow = cam.project(world[[at["brow_outer_left"], at["brow_outer_right"]]])
-                chin = cam.project(world[[at["chin_bottom"]]])[0, 1]
-                keep = (np.sign(yaw) * (traced[:, 0] - nose) > 0) \
-                    & (traced[:, 1] > brow[:, 1].min()) & (traced[:, 1] < chin)
-            contour = resample_polyline(traced[keep], contour_points)
-            contour = np.clip(contour + placement.contour_noise_px
-                              * rng.normal(size=contour.shape), 0.0, size)
+            drawn = traced if outline == "head" else \
+                _face_side(model, world, cam, traced, np.sign(yaw), to_chin=True)  # far side
+            contour = resample_polyline(drawn, contour_points)
+            contour = np.clip(contour + placement.contour_noise_px * noise, 0.0, size)
         seen = apparent_outline(world, skin_tris, cam, model.skin, outline=traced)
         nominal = cam.project(world[[at[n] for n in names]])
         placed, miss = place_landmarks(names, nominal, placement, rng, seen, ibug)

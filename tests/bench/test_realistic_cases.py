@@ -149,6 +149,11 @@ def test_a_realistic_head_photographed_from_three_quarter_angles(model):
         assert np.sign(world[name].centre[0]) == -np.sign(yaw)  # the subject's right: -X
         cheek = cases["cheek"][0].views[name].contour
         head = cases["head"][0].views[name].contour
+        for other in ("cheek", "head"):  # the landmarks the same whatever is traced
+            placed = cases[other][0].views[name].points
+            assert placed.keys() == view.points.keys()
+            np.testing.assert_array_equal([placed[n] for n in view.points],
+                                          list(view.points.values()))
         assert cheek.shape == head.shape == (100, 2)
         # the cheek: on the face's far side (beyond its nose), below the head's top
         nose = view.points["nose_tip"][0]
