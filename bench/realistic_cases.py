@@ -371,8 +371,7 @@ def visible(world, triangles, camera, normals, points=None, min_cos=0.0, toleran
     inside = (px >= 0).all(axis=1) & (px[:, 0] < w) & (px[:, 1] < h)
     g = np.clip(np.floor(px).astype(int), 0, [w - 1, h - 1])
     cos = np.einsum("ij,ij->i", normals, camera.toward_camera(x))
-    jac = np.asarray(camera.jacobian(x), dtype=np.float64)
-    pixel = 1.0 / np.sqrt(0.5 * (jac**2).sum(axis=(1, 2)))  # metres per pixel
+    pixel = 1.0 / camera.pixels_per_metre(x)  # metres per pixel
     slope = np.minimum(np.sqrt(np.maximum(1.0 - cos**2, 0.0)) / np.maximum(cos, 1e-3), 20.0)
     near = depth_of(camera, x) <= buf[g[:, 1], g[:, 0]] + tolerance + 2.0 * pixel * slope
     return (cos > min_cos) & inside & near

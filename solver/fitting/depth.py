@@ -70,9 +70,7 @@ class DepthPairRows(CameraRows):
         a, b = self.pairs[:, 0], self.pairs[:, 1]
         ends = world[np.concatenate([a, b])]
         toward = np.asarray(self.camera.depth_axis(ends), dtype=np.float64)
-        jac = np.asarray(self.camera.jacobian(ends), dtype=np.float64).reshape(-1, 2, 3)
-        k = np.sqrt(0.5 * (jac ** 2).sum(axis=(1, 2)))  # px per metre
-        g = k[:, None] * toward
+        g = self.camera.pixels_per_metre(ends)[:, None] * toward
         g = 0.5 * (g[:len(a)] + g[len(a):])
         return g, self.observed - np.einsum("ij,ij->i", g, world[b] - world[a])
 
