@@ -27,7 +27,6 @@ from . import (
 from .solver_link import (
     BakeOptions,
     bake_fit_texture,
-    clothes_mode,
     fit_head,
     forget_fit_subsets,
     load_landmarks,
@@ -117,8 +116,7 @@ def write_head(task, model):
             tiles = bake_fit_texture(  # one thread: the batch's processes share the cores
                 model, result, arrays, size=int(settings["texture_size"]),
                 options=BakeOptions(shading=settings.get("texture_shading") or "keep",
-                                    clothes=clothes_mode(settings.get("texture_clothes")
-                                                         or "leave-out"),
+                                    clothes=settings.get("texture_clothes") or "leave-out",
                                     threads=1))
         del arrays  # the photos as float arrays (25 MB a head): not held through the export
         heap.release_free_memory()  # the bake's temporaries, before Blender takes more

@@ -18,7 +18,6 @@ from .solver_link import (
     LandmarksError,
     bake_fit_texture,
     check_case,
-    clothes_mode,
     fit_head,
     load_model,
 )
@@ -67,8 +66,7 @@ class FitJob(Progress):
         try:
             self.progress(1.0, "baking the texture")
             t = time.perf_counter()
-            options = BakeOptions(shading=self.texture_shading,
-                                  clothes=clothes_mode(self.texture_clothes))
+            options = BakeOptions(shading=self.texture_shading, clothes=self.texture_clothes)
             self.textures = bake_fit_texture(self.model, self.result, self.photos,
                                              size=self.texture_size, options=options)
             self.timings["bake"] = time.perf_counter() - t

@@ -14,7 +14,7 @@ import numpy as np
 
 from . import case_to_scene, photos, result_to_scene, scene_collections
 from .data import Transaction
-from .solver_link import BakeOptions, bake_fit_texture, clothes_mode
+from .solver_link import BakeOptions, bake_fit_texture
 
 
 def ensure_registered():
@@ -86,8 +86,8 @@ def build_scene_from_fit(model, case, result, images=None, scene=None, texture_s
     texture_shading : str
         ``BakeOptions.shading`` of the bake: "keep" or "remove" the photos' light.
     texture_clothes : str
-        ``BakeOptions.clothes`` of the bake as the command line spells it: "leave-out"
-        what the photos show of clothes below the chin, or "keep" the photos as they are.
+        ``BakeOptions.clothes`` of the bake: "leave-out" what the photos show of clothes
+        below the chin, or "keep" the photos as they are.
 
     Returns
     -------
@@ -106,10 +106,9 @@ def build_scene_from_fit(model, case, result, images=None, scene=None, texture_s
             arrays = {v: photos.image_to_array(img) for v, img in imgs.items()
                       if not img.get(photos.PLACEHOLDER)}
             if arrays:
-                options = BakeOptions(shading=texture_shading,
-                                      clothes=clothes_mode(texture_clothes))
                 textures = bake_fit_texture(model, result, arrays, size=int(texture_size),
-                                            options=options)
+                                            options=BakeOptions(shading=texture_shading,
+                                                                clothes=texture_clothes))
         calibration, _ = result_to_scene.calibration_checks(case)
         head = result_to_scene.apply_result(scene, model, result, textures, name=name,
                                             calibration=calibration)

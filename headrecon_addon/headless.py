@@ -46,7 +46,7 @@ from pathlib import Path
 if __package__:  # no bpy here: a batch's own process plans and waits on its workers
     from . import batch_manifest, batch_stamp, batch_summary, batch_workers, blas_threads
     from .solver_link import (
-        CLOTHES_SPELLINGS,
+        CLOTHES_MODES,
         SHADING_MODES,
         load_model,
         solver_module,
@@ -104,7 +104,7 @@ def _parser():
     p.add_argument("--texture-shading", choices=SHADING_MODES, default="keep",
                    help="keep the photos' light in the texture, or remove its low-frequency "
                         "part for a flat, albedo-like texture (default keep)")
-    p.add_argument("--texture-clothes", choices=CLOTHES_SPELLINGS, default="leave-out",
+    p.add_argument("--texture-clothes", choices=CLOTHES_MODES, default="leave-out",
                    help="leave out what the photos show of clothes below the chin (a collar, "
                         "a shirt) so the neck there gets the smooth fill, or keep the photos "
                         "as they are (default leave-out)")

@@ -59,17 +59,16 @@ from .io.photo_lens import (
 )
 from .model.head_model import HeadModel, load_model
 from .texture.bake import (
-    CLOTHES_SPELLINGS,
+    CLOTHES_MODES,
     SHADING_MODES,
     BakeOptions,
     bake_fit_texture,
     bake_texture,
-    clothes_mode,
 )
 from .texture.uvs import orthographic_uvs, uv_raster, uv_tiles
 
 __all__ = [
-    "CLOTHES_SPELLINGS", "CURRENT_VERSION", "DIRECTION_SIGMA_DEG", "FORMAT",
+    "CLOTHES_MODES", "CURRENT_VERSION", "DIRECTION_SIGMA_DEG", "FORMAT",
     "MIN_LANDMARKS_PER_VIEW", "MIN_LANDMARKS_TOTAL", "MIN_PASSPOINTS", "ORTHO_VIEWS",
     "SHADING_MODES", "VIEW_YAW_DEG",
     "BakeOptions", "Camera", "DLTCamera",
@@ -77,7 +76,7 @@ __all__ = [
     "LandmarkCase", "LandmarksError", "OrthographicCamera", "PinholeCamera", "View",
     "ViewGuess", "ViewResidual", "bake_fit_texture", "bake_texture", "blender_to_krc",
     "camera_class", "camera_from_dict", "camera_from_json", "camera_to_json", "check_case",
-    "check_passpoints", "clothes_mode", "count_problems", "dlt_to_blender", "face_landmarks",
+    "check_passpoints", "count_problems", "dlt_to_blender", "face_landmarks",
     "fit_dlt", "fit_head", "forget_fit_subsets",
     "guess_view", "landmarks_needed", "landmarks_to_dict", "load_landmark_set",
     "load_landmarks", "load_model", "lens_hints", "orient", "oriented_size",

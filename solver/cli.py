@@ -22,7 +22,7 @@ from .io.landmark_counts import MIN_LANDMARKS_PER_VIEW, MIN_LANDMARKS_TOTAL
 from .io.landmark_set import load_landmark_set
 from .io.landmarks_file import LandmarksError, load_landmarks
 from .io.photo_lens import orthographic_lenses
-from .texture.bake import CLOTHES_SPELLINGS
+from .texture.bake import CLOTHES_MODES
 
 PROG = "python -m solver"
 EXIT_OK, EXIT_FAILED, EXIT_INTERRUPTED = 0, 1, 130  # argparse exits 2 on bad usage
@@ -275,13 +275,13 @@ def _cmd_fit(args):
 
     tiles = None
     if args.texture:
-        from .texture.bake import BakeOptions, bake_fit_texture, clothes_mode
+        from .texture.bake import BakeOptions, bake_fit_texture
 
         progress(1.0, f"baking the texture from {len(photos)} photo(s)")
         t = time.perf_counter()
         tiles = bake_fit_texture(model, result, photos, size=args.texture_size,
                                  options=BakeOptions(shading=args.texture_shading,
-                                                     clothes=clothes_mode(args.texture_clothes)))
+                                                     clothes=args.texture_clothes))
         timings["texture"] = time.perf_counter() - t
 
     progress(1.0, f"writing {args.out}")
@@ -534,7 +534,7 @@ def build_parser():
                      help="keep the photos' light in the texture, or remove its "
                           "low-frequency part (a smoothed luminance divided out) for a flat, "
                           "albedo-like texture (default keep)")
-    fit.add_argument("--texture-clothes", choices=CLOTHES_SPELLINGS, default="leave-out",
+    fit.add_argument("--texture-clothes", choices=CLOTHES_MODES, default="leave-out",
                      help="leave out what the photos show of clothes below the chin (a "
                           "collar, a shirt) so the neck there gets the smooth fill, or keep "
                           "the photos as they are (default leave-out)")

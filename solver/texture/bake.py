@@ -60,11 +60,9 @@ SAMPLE_BLOCK = 1 << 17
 
 #: ``BakeOptions.shading``: keep the photos' light, or remove its low-frequency part.
 SHADING_MODES = ("keep", "remove")
-#: ``BakeOptions.clothes``: leave out what the photos show of the clothes, or keep it.
-CLOTHES_MODES = ("leave out", "keep")
-#: ``CLOTHES_MODES`` as command lines, manifests and the add-on spell them: hyphens for
-#: spaces, so a shell needs no quotes (``clothes_mode`` reads them back).
-CLOTHES_SPELLINGS = tuple(mode.replace(" ", "-") for mode in CLOTHES_MODES)
+#: ``BakeOptions.clothes``: leave out what the photos show of the clothes, or keep it
+#: (spelt as command lines, manifests and the add-on take it: no space to quote).
+CLOTHES_MODES = ("leave-out", "keep")
 
 #: Overlap texels the colour equalisation is fitted on at most (every k-th is taken): the
 #: twelve numbers per photo are settled long before that.
@@ -74,15 +72,6 @@ EQUALISE_TEXELS = 50_000
 #: both passes at a texel the levelling matches them on: 0.02 is about 75 degrees off each
 #: camera at power 3; grazing samples near a photo's outline are darker and blurred.
 LEVEL_WEIGHT = 0.02
-
-
-def clothes_mode(spelling):
-    """The ``BakeOptions.clothes`` mode a user's choice names ("leave-out" -> "leave out",
-    one of ``CLOTHES_SPELLINGS``); ValueError listing them for anything else."""
-    modes = dict(zip(CLOTHES_SPELLINGS, CLOTHES_MODES, strict=True))
-    if spelling not in modes:
-        raise ValueError(f"{spelling!r} is not one of {', '.join(CLOTHES_SPELLINGS)}")
-    return modes[spelling]
 
 
 def bake_photo_size(photo_size, texture_size):
@@ -172,7 +161,7 @@ class BakeOptions:
         Smoothing length of the light estimate, as a fraction of the head's size (0.06:
         about 3 cm).
     clothes : str
-        ``bake_fit_texture``: "leave out" what a photo shows below the chin that is not
+        ``bake_fit_texture``: "leave-out" what a photo shows below the chin that is not
         skin and reaches its bottom edge (a collar, a shirt: ``clothes.py``), so the neck
         the model has under them gets the smooth fill; or "keep" every pixel.
     threads : int
@@ -197,7 +186,7 @@ class BakeOptions:
     seam_feather: float = 0.03
     shading: str = "keep"
     shading_length: float = 0.06
-    clothes: str = "leave out"
+    clothes: str = "leave-out"
     threads: int = 0
 
     def __post_init__(self):
@@ -310,7 +299,7 @@ def bake_fit_texture(model, result, images, size=1024, *, parts=None, mirror=Tru
                              f"(it has {', '.join(result.cameras)})")
         views.append((image, result.cameras[name]))
     keep = None
-    if opts.clothes == "leave out":
+    if opts.clothes == "leave-out":
         keep = _map(lambda v: _without_clothes(model, result.world_vertices, v[1], v[0]),
                     views, opts.threads)
     return bake_tiles(model, result.world_vertices, views, size, parts=parts,

@@ -92,13 +92,13 @@ def test_the_shading_option_reaches_the_bake(fit):
 
 def test_the_clothes_option_reaches_the_bake(model, fit, monkeypatch):
     from headrecon_addon import fit_job, head_scene
-    from solver import CLOTHES_SPELLINGS, BakeOptions, clothes_mode
+    from solver import CLOTHES_MODES, BakeOptions
 
     path, case, result = fit
     scene = imported_scene(path, texture_size="256")
     items = scene.headrecon.bl_rna.properties["texture_clothes"].enum_items
-    assert [i.identifier for i in items] == list(CLOTHES_SPELLINGS)
-    assert clothes_mode(scene.headrecon.texture_clothes) == BakeOptions().clothes
+    assert [i.identifier for i in items] == list(CLOTHES_MODES)
+    assert scene.headrecon.texture_clothes == BakeOptions().clothes
     scene.headrecon.texture_clothes = "keep"
     job = fit_job.prepare_job(scene)
     assert job.texture_clothes == "keep"
@@ -118,4 +118,4 @@ def test_the_clothes_option_reaches_the_bake(model, fit, monkeypatch):
     head_scene.build_scene_from_fit(model, case, result, texture_size=64,
                                     texture_clothes="keep")
     head_scene.build_scene_from_fit(model, case, result, texture_size=64)
-    assert seen == ["keep", "keep", "leave out"]
+    assert seen == ["keep", "keep", "leave-out"]

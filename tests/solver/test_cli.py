@@ -592,7 +592,7 @@ def test_texture_shading_remove_flattens_the_light_of_the_photos(tmp_path, model
 
 def test_texture_clothes_keep_bakes_the_shirt_that_leave_out_leaves_off(tmp_path, model):
     from solver.cli import build_parser
-    from solver.texture.bake import BakeOptions, clothes_mode
+    from solver.texture.bake import BakeOptions
 
     def shirt(w, h):
         img = np.tile(np.uint8([230, 170, 140]), (h, w, 1))  # skin
@@ -608,7 +608,7 @@ def test_texture_clothes_keep_bakes_the_shirt_that_leave_out_leaves_off(tmp_path
     assert cold["leave-out"] == 0 < cold["keep"], cold
     # without the flag: the bake's own default
     args = build_parser().parse_args(["fit", "case.json", "--out", "h.obj"])
-    assert clothes_mode(args.texture_clothes) == BakeOptions().clothes
+    assert args.texture_clothes == BakeOptions().clothes
     proc = run_cli("fit", "case.json", "--out", "h.obj", "--texture-clothes", "leave out",
                    cwd=tmp_path)
     last = proc.stderr.strip().splitlines()[-1]

@@ -75,14 +75,14 @@ def test_the_bake_from_a_fit_leaves_the_shirt_off_the_neck(model, sample_fit):
     result, photos, _ = sample_fit
     tiles = {mode: bake_fit_texture(model, result, photos, 256,
                                     options=BakeOptions(clothes=mode, threads=1))
-             for mode in ("keep", "leave out")}
+             for mode in ("keep", "leave-out")}
 
     def cold(tex):  # texels bluer than red: the grey-blue shirt, never skin
         return int((tex[..., 2] > tex[..., 0] + 0.02).sum())
 
     assert cold(tiles["keep"][1002]) > 500  # the shirt on the neck's sides and back
-    assert cold(tiles["leave out"][1002]) < 0.05 * cold(tiles["keep"][1002])
+    assert cold(tiles["leave-out"][1002]) < 0.05 * cold(tiles["keep"][1002])
     # the face, above the collar, is the same but for the photos' equalisation, fitted on
     # fewer texels (about 1e-3)
-    np.testing.assert_allclose(tiles["keep"][1001][:128], tiles["leave out"][1001][:128],
+    np.testing.assert_allclose(tiles["keep"][1001][:128], tiles["leave-out"][1001][:128],
                                atol=0.01)
