@@ -17,9 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 MANIFEST_SUFFIXES = (".csv", ".jsonl")
-METHODS = ("combined", "approach1", "approach2")
 TRUE, FALSE = ("1", "true", "yes"), ("0", "false", "no")
-SHADINGS = ("keep", "remove")  # the solver's BakeOptions.shading (this module imports no solver)
 
 
 def _positive_int(text):
@@ -32,24 +30,30 @@ def _positive_int(text):
     return value
 
 
-def _method(text):
-    if text not in METHODS:
-        raise ValueError(f"{text!r} is not one of {', '.join(METHODS)}")
+def _one_of(text, choices):
+    if text not in choices:
+        raise ValueError(f"{text!r} is not one of {', '.join(choices)}")
     return text
+
+
+# The solver's own lists of values, read when a row names the option (the plan of a batch
+# without per-head options does not import the solver).
+def _method(text):
+    from .solver_link import FIT_METHODS
+
+    return _one_of(text, FIT_METHODS)
 
 
 def _shading(text):
-    if text not in SHADINGS:
-        raise ValueError(f"{text!r} is not one of {', '.join(SHADINGS)}")
-    return text
+    from .solver_link import SHADING_MODES
+
+    return _one_of(text, SHADING_MODES)
 
 
 def _clothes(text):
-    from .solver_link import CLOTHES_MODES  # the solver's rule, read when a row names it
+    from .solver_link import CLOTHES_MODES
 
-    if text not in CLOTHES_MODES:
-        raise ValueError(f"{text!r} is not one of {', '.join(CLOTHES_MODES)}")
-    return text
+    return _one_of(text, CLOTHES_MODES)
 
 
 def _flag(text):

@@ -47,6 +47,7 @@ if __package__:  # no bpy here: a batch's own process plans and waits on its wor
     from . import batch_manifest, batch_stamp, batch_summary, batch_workers, blas_threads
     from .solver_link import (
         CLOTHES_MODES,
+        FIT_METHODS,
         SHADING_MODES,
         load_model,
         solver_module,
@@ -95,7 +96,7 @@ def _parser():
     p.add_argument("--bake-identity", action="store_true",
                    help="apply the identity in the .blend: the fitted face becomes the base "
                         "mesh, the identity keys are removed, the expression keys still work")
-    p.add_argument("--method", choices=batch_manifest.METHODS)
+    p.add_argument("--method", choices=FIT_METHODS)
     p.add_argument("--components", type=int, help="identity components to fit")
     p.add_argument("--regional", type=int, help="regional components per region (0: none)")
     p.add_argument("--exact", action="store_true", help="make the landmarks hit exactly")

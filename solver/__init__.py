@@ -30,6 +30,7 @@ from .detect.detector import DetectedFace, Detector
 from .detect.view_guess import ViewGuess, guess_view
 from .fitting.engine import forget_fit_subsets
 from .fitting.fit import FitOptions, fit_head, prepare_fit, refit_landmarks
+from .fitting.options import FIT_METHODS
 from .fitting.result import FitResult, ViewResidual
 from .io.camera_json import camera_from_json, camera_to_json
 from .io.case import LandmarkCase, View
@@ -68,7 +69,7 @@ from .texture.bake import (
 from .texture.uvs import orthographic_uvs, uv_raster, uv_tiles
 
 __all__ = [
-    "CLOTHES_MODES", "CURRENT_VERSION", "DIRECTION_SIGMA_DEG", "FORMAT",
+    "CLOTHES_MODES", "CURRENT_VERSION", "DIRECTION_SIGMA_DEG", "FIT_METHODS", "FORMAT",
     "MIN_LANDMARKS_PER_VIEW", "MIN_LANDMARKS_TOTAL", "MIN_PASSPOINTS", "ORTHO_VIEWS",
     "SHADING_MODES", "VIEW_YAW_DEG",
     "BakeOptions", "Camera", "DLTCamera",

@@ -6,7 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-METHODS = ("combined", "approach1", "approach2")
+#: ``FitOptions.method``: both thesis approaches keeping the better fit, or one of them.
+FIT_METHODS = ("combined", "approach1", "approach2")
 #: The head's sizes in the photos the fit's pixel settings are made for, (smallest,
 #: largest): its landmarks spread over this many pixels per metre of the same landmarks on
 #: the mean head (the benchmarks' photos, 1024 px high with the head filling them:
@@ -188,8 +189,8 @@ def check_options(options, model):
     o = FitOptions() if options is None else options
     if not isinstance(o, FitOptions):
         raise ValueError(f"options: expected FitOptions, got {type(o).__name__}")
-    if o.method not in METHODS:
-        raise ValueError(f"options.method: {o.method!r}; use one of {', '.join(METHODS)}")
+    if o.method not in FIT_METHODS:
+        raise ValueError(f"options.method: {o.method!r}; use one of {', '.join(FIT_METHODS)}")
     problems = [_integer_problem("n_identity", o.n_identity, model.identity.n_coeffs)]
     problems += [_integer_problem(name, getattr(o, name)) for name in INT_RANGES]
     problems += [_number_problem(name, getattr(o, name)) for name in RANGES

@@ -380,3 +380,14 @@ def test_a_worker_s_second_head_is_the_head_fitted_alone(heads, tmp_path):
         np.testing.assert_array_equal(second[key], value, err_msg=key)
     first = _blend_content(tmp_path / "both" / "h0.blend")
     assert any(not np.array_equal(first[k], v) for k, v in alone.items() if k in first)
+
+
+def test_a_manifest_row_with_a_method_the_fit_has_not(tmp_path):
+    from headrecon_addon.batch_manifest import plan_heads
+
+    m = _manifest(tmp_path, ["a,a.json,approach1", "b,b.json,icp"],
+                  header="name,landmarks,method")
+    a, b = plan_heads([m], tmp_path / "out")
+    assert a.options == {"method": "approach1"}
+    assert b.error == f"{m} row 3: column method: 'icp' is not one of combined, approach1, " \
+                      "approach2"
