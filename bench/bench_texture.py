@@ -18,7 +18,10 @@ the gains and offsets (``fit_view_gains``, printed too) and with the levelling a
 (each seen by one profile pass only); how much low-frequency light the shading
 removal takes out (the spread of the smoothed luminance over the skin); and the clothes
 the bake leaves out (``clothes.py``: the shirt against the truth's masks, the skin, and
-the texels bluer than red with the clothes kept and left out).
+the texels bluer than red with the clothes kept and left out). On james' two real photos
+(``../shared/realdata/james``, skipped when missing), detected and fitted as ``solver
+detect`` makes the case, the texels of his white collar's colour (light, red not above
+green or blue: never skin, nor his dark hair) with the clothes kept and left out.
 """
 
 import argparse
@@ -209,6 +212,30 @@ def sample_clothes(model, folder, case, result, photos, size):
         print(f"    clothes {mode}: {cold} texels bluer than red")
 
 
+def james_clothes(model, size):
+    """The texels of james' white collar's colour (mean over 0.4, red not above green or
+    blue) in the bake from his two real photos (detected, fitted), with the clothes kept
+    and left out; nothing when the scan is missing."""
+    from bench.realistic_cases import james_folder, scan_photo_halves
+    from solver.detect import Detector
+    from solver.detect.detected_case import detect_photos
+
+    folder = james_folder(ROOT)
+    if not folder.is_dir():
+        print(f"    james: {folder} missing; skipped")
+        return
+    halves = scan_photo_halves(folder)
+    case = detect_photos([(None, p) for p in halves], Detector(), halves.__getitem__)
+    result = fit_head(model, case)
+    photos = {name: halves[Path(view.image).name].astype(np.float32) / 255.0
+              for name, view in case.views.items()}
+    for mode in CLOTHES_MODES:
+        tiles = bake_fit_texture(model, result, photos, size, options=BakeOptions(clothes=mode))
+        collar = sum(int(((t[..., 0] <= np.maximum(t[..., 1], t[..., 2]))
+                          & (t[..., :3].mean(-1) > 0.4)).sum()) for t in tiles.values())
+        print(f"    james, clothes {mode}: {collar} texels of the white collar's colour")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=int, default=1024, help="texels per tile side")
@@ -224,6 +251,7 @@ def main(argv=None):
     if args.seams_only:
         print("bench_texture: seams of the texture bake")
         sample_seams(model, args.sample, args.size)
+        james_clothes(model, args.size)
         return
     views = photos()
     world = model.vertices
@@ -273,6 +301,7 @@ def main(argv=None):
           f"{peak_cold / 2**20:.0f} MiB; process max RSS {max_rss_mb():.0f} MiB "
           "(model included)")
     sample_seams(model, args.sample, args.size)
+    james_clothes(model, args.size)
 
 
 if __name__ == "__main__":

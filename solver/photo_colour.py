@@ -58,6 +58,12 @@ def skin_colour(colours):
             float(np.median(_warmth(colours))))
 
 
+def lighter_than_skin(colours, skin):
+    """Whether each colour (n, 3) is brighter than the face's skin (:func:`skin_colour`):
+    what a white or light collar is, and a jaw's shade or dark hair is not."""
+    return _chroma_brightness(colours)[1] > skin[2]
+
+
 def skin_like(colours, skin, clipped=True):
     """Whether each colour (n, 3) is the face's skin (:func:`skin_colour`) in chromaticity
     (within ``SKIN_SPREADS``, at least ``SKIN_CHROMA``), brightness (within a factor

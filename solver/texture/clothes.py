@@ -1,5 +1,6 @@
 """Clothes in a photo: what it shows below the chin that is not skin and reaches the
-photo's bottom edge (a collar, a shirt, a jacket). The model's neck goes on under them, so
+photo's bottom edge (a collar, a shirt, a jacket), and the light collar rising from there
+up the neck's sides and back. The model's neck goes on under them, so
 the bake would paint the shirt onto the neck; left out, the neck there gets the smooth
 fill from the skin around it.
 
@@ -10,7 +11,7 @@ against the skin of the fitted head's cheeks in the same photo.
 import numpy as np
 import scipy.ndimage as ndi
 
-from ..photo_colour import sample_photo, skin_colour, skin_like
+from ..photo_colour import lighter_than_skin, sample_photo, skin_colour, skin_like
 
 #: Cheeks: the skin nearest the point halfway between two iBUG landmarks (nose wing and
 #: jaw, per side); the skin vertices within ``CHEEK_RADIUS_M`` of it give the photo's skin
@@ -19,6 +20,11 @@ CHEEKS = ((32, 4), (36, 14))
 CHEEK_RADIUS_M = 0.012
 #: Clothes begin at least this far below the menton (the jaw's own shade stays).
 BELOW_CHIN_M = 0.015
+#: A collar rises above the chin's line at the neck's sides and back (a photo from the side
+#: or three-quarters shows it there): from the clothes below, what is not skin and lighter
+#: than the face's skin counts up to the lower of these landmarks (a jaw's shade and the
+#: nape's hair are darker, so a dark collar above the line stays).
+RISES_TO = ("ear_lobe_right", "ear_lobe_left")
 #: Pixels the clothes are grown by: their edge against the skin is a blend of both.
 GROW_PX = 2
 #: Fewest cheek samples the skin colour is taken from; fewer leave the photo as it is.
@@ -53,23 +59,27 @@ def clothes_mask(model, world, camera, image, scale=(1.0, 1.0)):
     chin = world[model.landmark_vertex("chin_bottom")]
     px_per_m = camera.pixels_per_metre(chin[None], to_image)[0]
     top = camera.project(chin[None])[0, 1] * sy + BELOW_CHIN_M * px_per_m
-    # Only where the head is, from below its chin to the photo's bottom edge: the bake
+    lobes = camera.project(world[[model.landmark_vertex(n) for n in RISES_TO]])[:, 1] * sy
+    # Only where the head is, from its ear lobes to the photo's bottom edge: the bake
     # samples nothing else.
     u = projected[:, 0]
     r0 = int(np.clip(np.ceil(top), 0, h))
+    r1 = int(np.clip(np.ceil(lobes.max()), 0, r0))
     c0 = int(np.clip(np.floor(u.min()) - GROW_PX - 1, 0, w))
     c1 = int(np.clip(np.ceil(u.max()) + GROW_PX + 2, 0, w))
     clothes = np.zeros((h, w), bool)
     if r0 >= h or c1 <= c0:
         return clothes
     # each pixel's colour over its 3 x 3 neighbourhood: single noisy pixels tell nothing
-    smooth = ndi.uniform_filter(rgb[r0:, c0:c1], size=(3, 3, 1), mode="nearest")
+    smooth = ndi.uniform_filter(rgb[r1:, c0:c1], size=(3, 3, 1), mode="nearest")
+    flat = smooth.reshape(-1, 3)
     # a white shirt's highlights are clipped too: below the chin no clipped colour is skin
-    candidate = ~skin_like(smooth.reshape(-1, 3), reference, clipped=False).reshape(
-        smooth.shape[:2])
+    candidate = ~skin_like(flat, reference, clipped=False).reshape(smooth.shape[:2])
+    above = np.arange(r1, h) < r0
+    candidate[above] &= lighter_than_skin(flat, reference).reshape(smooth.shape[:2])[above]
     labels, _ = ndi.label(candidate, structure=np.ones((3, 3), bool))
     bottom = np.unique(labels[-1][labels[-1] > 0])
     found = np.isin(labels, bottom)
-    clothes[r0:, c0:c1] = ndi.binary_dilation(found, iterations=GROW_PX) if GROW_PX \
+    clothes[r1:, c0:c1] = ndi.binary_dilation(found, iterations=GROW_PX) if GROW_PX \
         else found
     return clothes

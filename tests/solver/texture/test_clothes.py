@@ -9,7 +9,7 @@ from PIL import Image
 
 from solver import OrthographicCamera, fit_head, load_landmarks
 from solver.texture.bake import BakeOptions, bake_fit_texture
-from solver.texture.clothes import BELOW_CHIN_M, clothes_mask
+from solver.texture.clothes import BELOW_CHIN_M, RISES_TO, clothes_mask
 
 SKIN = (0.80, 0.56, 0.46)
 
@@ -62,6 +62,21 @@ def test_only_what_reaches_the_bottom_below_the_chin_is_clothes(model):
     half = img[::2, ::2]
     small = clothes_mask(model, model.vertices, cam, half, scale=(0.5, 0.5))
     assert small[(top + 45) // 2 + 1:, 20:140].all() and not small[:(top + 37) // 2].any()
+
+
+def test_a_light_collar_rising_up_the_neck_is_clothes_a_shade_is_not(model):
+    img, cam, chin, top = _photo_of_the_mean_head(model)
+    lobes = cam.project(model.vertices[[model.landmark_vertex(n) for n in RISES_TO]])[:, 1]
+    lobe = int(np.ceil(lobes.max()))
+    img[top + 40:, :] = (0.30, 0.35, 0.45)              # a shirt up from the bottom edge
+    img[lobe + 5:, 60:80] = (0.95, 0.97, 0.96)          # its white collar up the neck's side
+    img[lobe - 30:, 220:240] = (0.90, 0.92, 0.95)       # another, past the ear lobes
+    img[chin - 10:, 120:135] = (0.25, 0.18, 0.15)       # the jaw's shade, down to the shirt
+    mask = clothes_mask(model, model.vertices, cam, img)
+    assert mask[lobe + 5:, 62:78].all()                 # the collar, from the bottom up
+    assert mask[lobe + 2:, 222:238].all() and not mask[:lobe - 2, 220:240].any()
+    assert not mask[:top - 2, 122:133].any()            # the shade above the chin's line stays
+    assert not mask[:top + 37, 90:110].any()            # and the skin
 
 
 def test_a_photo_that_misses_the_cheeks_tells_nothing(model):
