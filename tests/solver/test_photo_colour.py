@@ -4,7 +4,7 @@ shaded, against the face's skin colour; a bilinear sample between pixels."""
 import numpy as np
 import pytest
 
-from solver.photo_colour import sample_photo, skin_colour, skin_like
+from solver.photo_colour import lighter_than_skin, sample_photo, skin_colour, skin_like
 
 SKIN = (np.array([0.396, 0.323]), 0.015, 2.49, 0.10)  # the sample's face, as face_skin gives it
 # the same face as the full-size render's detector gives it: a wider spread, within which
@@ -29,6 +29,16 @@ def test_skin_lit_or_shaded_is_skin_and_clothes_hair_collar_are_not():
     white = np.array([[1.0, 1.0, 1.0]])
     assert skin_like(white, SKIN).tolist() == [True]
     assert skin_like(white, SKIN, clipped=False).tolist() == [False]
+
+
+def test_a_white_collar_is_lighter_than_the_skin_a_shade_or_hair_is_not():
+    colours = np.array([
+        [0.88, 0.96, 0.91],     # a white collar
+        [0.45, 0.35, 0.31],     # skin in the shade under the chin
+        [0.05, 0.04, 0.03],     # dark hair
+        [0.95, 0.78, 0.69],     # the face itself: no lighter than its own colour
+    ])
+    assert lighter_than_skin(colours, SKIN).tolist() == [True, False, False, False]
 
 
 def test_the_skin_colour_is_the_samples_median_and_spread():
