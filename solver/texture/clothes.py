@@ -72,11 +72,12 @@ def clothes_mask(model, world, camera, image, scale=(1.0, 1.0)):
         return clothes
     # each pixel's colour over its 3 x 3 neighbourhood: single noisy pixels tell nothing
     smooth = ndi.uniform_filter(rgb[r1:, c0:c1], size=(3, 3, 1), mode="nearest")
-    flat = smooth.reshape(-1, 3)
     # a white shirt's highlights are clipped too: below the chin no clipped colour is skin
-    candidate = ~skin_like(flat, reference, clipped=False).reshape(smooth.shape[:2])
-    above = np.arange(r1, h) < r0
-    candidate[above] &= lighter_than_skin(flat, reference).reshape(smooth.shape[:2])[above]
+    candidate = ~skin_like(smooth.reshape(-1, 3), reference, clipped=False).reshape(
+        smooth.shape[:2])
+    above = smooth[:r0 - r1]  # the rows a collar rises into
+    candidate[:r0 - r1] &= lighter_than_skin(above.reshape(-1, 3), reference).reshape(
+        above.shape[:2])
     labels, _ = ndi.label(candidate, structure=np.ones((3, 3), bool))
     bottom = np.unique(labels[-1][labels[-1] > 0])
     found = np.isin(labels, bottom)
