@@ -30,30 +30,19 @@ def _positive_int(text):
     return value
 
 
-def _one_of(text, choices):
-    if text not in choices:
-        raise ValueError(f"{text!r} is not one of {', '.join(choices)}")
-    return text
+def _solver_choice(name):
+    """A parser of a cell that must be one of the solver's values ``solver.<name>``, read
+    when a row names the option (the plan of a batch without per-head options does not
+    import the solver)."""
+    def parse(text):
+        from . import solver_link
 
+        choices = getattr(solver_link, name)
+        if text not in choices:
+            raise ValueError(f"{text!r} is not one of {', '.join(choices)}")
+        return text
 
-# The solver's own lists of values, read when a row names the option (the plan of a batch
-# without per-head options does not import the solver).
-def _method(text):
-    from .solver_link import FIT_METHODS
-
-    return _one_of(text, FIT_METHODS)
-
-
-def _shading(text):
-    from .solver_link import SHADING_MODES
-
-    return _one_of(text, SHADING_MODES)
-
-
-def _clothes(text):
-    from .solver_link import CLOTHES_MODES
-
-    return _one_of(text, CLOTHES_MODES)
+    return parse
 
 
 def _flag(text):
@@ -67,13 +56,13 @@ def _flag(text):
 
 # column -> (setting it overrides, parser of the cell's text)
 OPTION_COLUMNS = {
-    "method": ("method", _method),
+    "method": ("method", _solver_choice("FIT_METHODS")),
     "components": ("components", _positive_int),
     "regional": ("regional", _positive_int),
     "exact": ("exact", _flag),
     "texture_size": ("texture_size", _positive_int),
-    "texture_shading": ("texture_shading", _shading),
-    "texture_clothes": ("texture_clothes", _clothes),
+    "texture_shading": ("texture_shading", _solver_choice("SHADING_MODES")),
+    "texture_clothes": ("texture_clothes", _solver_choice("CLOTHES_MODES")),
     "bake_identity": ("bake_identity", _flag),
 }
 KNOWN_COLUMNS = ("name", "landmarks", "photos", *OPTION_COLUMNS)
