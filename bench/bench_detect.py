@@ -4,7 +4,7 @@ three-quarter, with the yaw), and detected vs true iBUG-68 landmarks in pixels (
 90th percentile, per group; also as % of the eye-to-mouth distance).
 
     python -m bench.bench_detect [--sample generated/sample] [--james FOLDER] [--fit]
-                                 [--uncertainty] [--profile-line]
+                                 [--uncertainty] [--profile-line] [--small-faces]
 
 Photos: the rendered sample's front photo (``./run sample``; truth: the exact landmark
 pixels in ``truth.npz``) and the two real photos of the scan "james" (its texture's
@@ -25,7 +25,9 @@ landmarks against its 68 projected exactly (face RMS against the scan, as
 ``bench.bench_realistic`` scores it). The profile line's points read off the outline
 (``solver.detect.profile_line``) are measured on the sample's and james' profiles against
 their true landmarks, and with ``--profile-line`` on 40 profiles of model heads (the
-table of its ``MEDIAN_ERROR`` and ``ARC_SHIFT``).
+table of its ``MEDIAN_ERROR`` and ``ARC_SHIFT``). ``--small-faces`` detects each front
+photo placed in the middle of one 2-6 times its size (the face as small as in a photo
+from further away) and a grey 12-megapixel photo with no face.
 """
 
 import argparse
@@ -406,6 +408,36 @@ def james_fit_errors(folder, detector, samples=4000):
     return out
 
 
+def padded(image, truth, factor):
+    """``image`` in the middle of a photo ``factor`` times its size (its corner's colour
+    around it), and its true points moved with it: a face as small as a photo taken from
+    further away shows it."""
+    h, w = image.shape[:2]
+    big = np.empty((int(factor * h), int(factor * w), 3), np.uint8)
+    big[:] = image[2, 2]
+    at = np.array([(big.shape[1] - w) // 2, (big.shape[0] - h) // 3])
+    big[at[1]:at[1] + h, at[0]:at[0] + w] = image
+    return big, {i: np.asarray(p, float) + at for i, p in truth.items()}
+
+
+def small_faces(name, detector, image, truth, factors=(1, 2, 3, 4, 6)):
+    """Each photo's face made small (:func:`padded`): found or not, its box, the median
+    landmark error (% of the eye-to-mouth distance) and the time."""
+    scale = eye_to_mouth(truth)
+    for factor in factors:
+        big, moved = padded(image, truth, factor)
+        t = median_time(lambda b=big: detector.detect(b), repeats=1, warmup=0)
+        face = t.result
+        size = f"{big.shape[1]}x{big.shape[0]}"
+        if face is None:
+            print(f"  {name} x{factor} ({size}): no face found ({t.median:.2f} s)")
+            continue
+        err = np.median([np.linalg.norm(face.ibug[i - 1] - p) for i, p in moved.items()])
+        print(f"  {name} x{factor} ({size}): face box {face.face_size:.0f} px "
+              f"({face.face_size / max(big.shape[:2]):.2f} of the longer side), median "
+              f"error {err:.1f} px ({100 * err / scale:.1f} %), {t.median:.2f} s")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sample", default=str(ROOT / "generated" / "sample"))
@@ -414,6 +446,8 @@ def main(argv=None):
                     help="also fit the sample from detected front landmarks")
     ap.add_argument("--profile-line", action="store_true",
                     help="also measure the profile line read off outlines of model heads")
+    ap.add_argument("--small-faces", action="store_true",
+                    help="also detect each front photo placed in a 2-6 times larger one")
     ap.add_argument("--uncertainty", action="store_true",
                     help="print the per-group relative errors (the uncertainty table)")
     args = ap.parse_args(argv)
@@ -451,6 +485,17 @@ def main(argv=None):
             james_fit_errors(folder, detector)
     else:
         print(f"james: {folder} not found; skipped")
+    if args.small_faces:
+        print("small faces (each photo in the middle of a larger one; one run each):")
+        if (Path(args.sample) / "truth.npz").is_file():
+            small_faces("sample front", detector, *sample_truth(args.sample))
+        if (folder / "james.obj").is_file():
+            for name, image, truth in james_truth(folder):
+                small_faces(name, detector, image, truth)
+        grey = np.full((4032, 3024, 3), 128, np.uint8)
+        t = median_time(lambda: detector.detect(grey), repeats=1, warmup=0)
+        print(f"  a grey 3024x4032 photo: {'no face' if t.result is None else 'a face'} "
+              f"in {t.median:.2f} s")
     if args.profile_line:
         profile_line_errors()
     if args.uncertainty:

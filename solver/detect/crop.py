@@ -35,15 +35,29 @@ class Square:
                 + self.size * st[:, 1:2] * ey)
 
 
-def _shrink(image, k):
+def shrink(image, k):
     """Mean of k×k blocks (an area filter before bilinear resampling to a much smaller
-    crop, so a 1024-px photo is not aliased down to 128 px)."""
+    crop, so a 1024-px photo is not aliased down to 128 px); the remainder rows and
+    columns are dropped. Pixel coordinates map by :func:`shrunk_square` and
+    :func:`unshrink`."""
     h, w = image.shape[0] // k, image.shape[1] // k
     out = np.zeros((h, w) + image.shape[2:], np.float32)
     for a in range(k):
         for b in range(k):
             out += image[a:h * k:k, b:w * k:k]
     return out / (k * k)
+
+
+def shrunk_square(square, k):
+    """``square`` in the photo :func:`shrink` makes by ``k``: the crop of one is the
+    crop of the other (one photo shrunk once for many squares)."""
+    return Square(tuple((np.asarray(square.center, float) + 0.5) / k - 0.5),
+                  square.size / k, square.angle)
+
+
+def unshrink(points, k):
+    """Points (..., 2) in a photo shrunk by ``k`` -> in the photo."""
+    return np.asarray(points, float) * k + (k - 1) / 2
 
 
 def crop(image, square, n, border="zero"):
@@ -66,7 +80,7 @@ def crop(image, square, n, border="zero"):
     image = image[lo[1]:hi[1], lo[0]:hi[0]]
     scale = 1.0
     if k >= 2:
-        image = _shrink(image, k)
+        image = shrink(image, k)
         scale = 1.0 / k
     idx = np.arange(n, dtype=float)
     jj, ii = np.meshgrid(idx, idx, indexing="ij")

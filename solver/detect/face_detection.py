@@ -1,6 +1,7 @@
 """Faces in a photo with MediaPipe's short-range BlazeFace model
-(``face_detection_short_range.tflite``): the whole photo letterboxed into 128 px, 896
-SSD anchors decoded into boxes and six keypoints, weighted non-maximum suppression.
+(``face_detection_short_range.tflite``): the whole photo letterboxed into 128 px (then,
+if no face is found, overlapping parts of it), 896 SSD anchors decoded into boxes and six
+keypoints, weighted non-maximum suppression.
 
 The settings are those of MediaPipe's ``face_detection_short_range.pbtxt``: anchors of
 strides 8, 16, 16, 16 (fixed size), scale 128, score sigmoid clipped at ±100, minimum
@@ -11,11 +12,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .crop import Square, crop
+from .crop import Square, crop, shrink, shrunk_square, unshrink
 
 INPUT = 128
 MIN_SCORE = 0.5
 MIN_SUPPRESSION_IOU = 0.3
+#: A photo whose whole shows no face is searched in squares of half and a quarter of its
+#: longer side, none smaller than ``MIN_TILE`` px: a face down to about 4 % of the
+#: photo's longer side is found (docs/DECISIONS.md, "Small faces").
+TILE_LEVELS = 2
+MIN_TILE = 256
+#: A face narrower than this fraction of the square it was found in is found again in a
+#: square it fills by ``FACE_FILL`` (the sample's and james' photos: 0.40-0.42 of the
+#: photo, left as they are).
+SMALL_FACE = 0.3
+FACE_FILL = 0.45
 #: The detector's keypoints, in its order (sides are the subject's own).
 KEYPOINTS = ("eye_right", "eye_left", "nose_tip", "mouth_center", "tragion_right",
              "tragion_left")
@@ -88,16 +99,9 @@ def weighted_nms(boxes, keypoints, score, min_score=MIN_SCORE, iou=MIN_SUPPRESSI
     return out
 
 
-def detect_faces(network, image, min_score=MIN_SCORE):
-    """Faces in ``image`` (H, W, 3) float32 in [0, 1], best first.
-
-    Parameters
-    ----------
-    network : Network
-        The short-range face detection model.
-    """
-    h, w = image.shape[:2]
-    square = Square((w / 2, h / 2), float(max(h, w)))
+def _faces_in(network, image, square, min_score):
+    """Faces the model finds in one ``square`` of ``image``, in photo pixels, best
+    first."""
     x = crop(image, square, INPUT, border="zero") * 2 - 1
     regressors, scores = network(x[None])
     boxes, keypoints, score = decode(regressors[0], scores[0])
@@ -107,3 +111,71 @@ def detect_faces(network, image, min_score=MIN_SCORE):
         faces.append(Face(corners, square.to_photo(kp * INPUT, INPUT), s))
     return faces
 
+
+def _tiles(w, h, side):
+    """Squares of ``side`` px covering a (``w``, ``h``) photo, each overlapping the next
+    by half, so any face under half a side lies wholly inside one."""
+    def centres(length):
+        n = max(1, int(np.ceil((length - side) / (side / 2))) + 1)
+        return np.linspace(side / 2, max(length - side / 2, side / 2), n)
+    return [Square((float(u), float(v)), side) for v in centres(h) for u in centres(w)]
+
+
+def _faces_in_tiles(network, image, side, min_score):
+    """Faces in the overlapping squares of ``side`` px (:func:`_tiles`), best first, one
+    each; the photo is shrunk once for all of them (as each square's crop would be)."""
+    h, w = image.shape[:2]
+    k = max(int(side / INPUT / 1.5), 1)
+    small = shrink(image, k) if k > 1 else image
+    faces = []
+    for square in _tiles(w, h, side):
+        faces += [Face(unshrink(f.box.reshape(2, 2), k).ravel(), unshrink(f.keypoints, k),
+                       f.score)
+                  for f in _faces_in(network, small, shrunk_square(square, k), min_score)]
+    return _distinct(faces)
+
+
+def _distinct(faces):
+    """``faces`` best first, without those overlapping a better one (the same face found
+    in two tiles)."""
+    faces = sorted(faces, key=lambda f: -f.score)
+    out = []
+    for f in faces:
+        if not out or not np.any(_iou(f.box, np.array([g.box for g in out]))
+                                 > MIN_SUPPRESSION_IOU):
+            out.append(f)
+    return out
+
+
+def detect_faces(network, image, min_score=MIN_SCORE):
+    """Faces in ``image`` (H, W, 3) float32 in [0, 1], best first.
+
+    The model sees the whole photo in 128 px, where a face narrower than about a fifth of
+    the photo's longer side is not found (docs/DECISIONS.md, "Small faces"); then it sees
+    halves and quarters of it in overlapping squares (``TILE_LEVELS``, none under
+    ``MIN_TILE`` px). The best face, if small in the square it was found in
+    (``SMALL_FACE``), is found once more in a square around it that it fills as a
+    portrait's face fills its photo (``FACE_FILL``): its box and keypoints come out as
+    on a portrait.
+
+    Parameters
+    ----------
+    network : Network
+        The short-range face detection model.
+    """
+    h, w = image.shape[:2]
+    side = float(max(h, w))
+    faces = _faces_in(network, image, Square((w / 2, h / 2), side), min_score)
+    for _ in range(TILE_LEVELS):
+        if faces or side / 2 < MIN_TILE:
+            break
+        side /= 2
+        faces = _faces_in_tiles(network, image, side, min_score)
+    if faces and faces[0].box[2] - faces[0].box[0] < SMALL_FACE * side:
+        box = faces[0].box
+        square = Square(((box[0] + box[2]) / 2, (box[1] + box[3]) / 2),
+                        float(box[2] - box[0]) / FACE_FILL)
+        again = _faces_in(network, image, square, min_score)
+        if again:
+            faces = again[:1] + faces[1:]
+    return faces

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from solver.detect.crop import Square, crop
+from solver.detect.crop import Square, crop, shrink, shrunk_square, unshrink
 
 
 def test_crop_rotates_and_maps_back():
@@ -16,3 +16,18 @@ def test_crop_rotates_and_maps_back():
     np.testing.assert_allclose(out[..., 0], bright.astype(float), atol=1e-6)
     # the crop's x axis runs down the photo
     np.testing.assert_allclose(sq.to_photo(np.array([[20.0, 10.0]]), 20), [[45.0, 35.0]])
+
+
+def test_a_photo_shrunk_once_crops_as_each_square_would():
+    rng = np.random.default_rng(3)
+    image = rng.random((300, 420, 3)).astype(np.float32)
+    k = 4
+    small = shrink(image, k)
+    assert small.shape == (75, 105, 3)
+    np.testing.assert_allclose(small[2, 3], image[8:12, 12:16].mean((0, 1)), rtol=1e-5)
+    for square in (Square((210.0, 150.0), 96.0), Square((96.5, 120.25), 100.0, 0.3)):
+        # 96 / 16 / 1.5 = 4: the crop of the photo filters it over the same 4 px blocks
+        np.testing.assert_allclose(crop(small, shrunk_square(square, k), 16),
+                                   crop(image, square, 16), atol=1e-5)
+    # a shrunk pixel's centre is the centre of its block
+    np.testing.assert_allclose(unshrink([[2.0, 3.0]], k), [[9.5, 13.5]])
