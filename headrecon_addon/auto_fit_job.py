@@ -100,7 +100,7 @@ class AutoFitJob:
                 continue
             task.face = face.found
             if face.outline is not None:
-                task.points, task.notes = face.outline.points, list(face.outline.notes)
+                task.points, task.notes = face.outline.contour, list(face.outline.notes)
 
     def run(self):
         """Detect, merge, fit, bake. Errors are kept in ``error``, never raised."""

@@ -64,7 +64,7 @@ class OutlineJob(PhotosJob):
             return  # found already (Auto Fit: by the landmarks' detection on a profile)
         try:
             found = photo_faces.find_outline(task.pixels, task.face)
-            task.points, task.notes = found.points, found.notes
+            task.points, task.notes = found.contour, found.notes
         except ValueError as e:
             task.problem = str(e)
 

@@ -21,6 +21,9 @@ SKIN_BRIGHTNESS = 3.0
 #: -0.01, both within ``SKIN_CHROMA`` of the face), unless a channel is clipped (a
 #: highlight on the skull is plain white: no colour is left to tell).
 SKIN_WARMTH = 0.2
+#: A photo whose face's skin is less warm than this has no colour to tell skin by (a
+#: black-and-white photo: 0).
+MIN_COLOUR = 0.02
 SKIN_CLIPPED = 0.99
 
 
@@ -56,6 +59,12 @@ def skin_colour(colours):
     spread = 1.4826 * np.median(np.linalg.norm(chroma - centre, axis=1))
     return (centre, max(float(spread), 0.005), float(np.median(bright)),
             float(np.median(_warmth(colours))))
+
+
+def has_colour(skin):
+    """Whether the face's skin (:func:`skin_colour`) has a colour :func:`skin_like` can
+    tell skin from clothes and hair by (``MIN_COLOUR``)."""
+    return skin[3] >= MIN_COLOUR
 
 
 def lighter_than_skin(colours, skin):

@@ -129,7 +129,7 @@ def detect_outlines(case, photos):
         try:
             if face is None:
                 raise ValueError("no face found")
-            points = detector.outline(image, face).points
+            points = detector.outline(image, face).contour
         except ValueError as e:
             raise DemoError(f"{case.image_path(name)}: {e}") from None
         case.views[name].contour = points

@@ -89,7 +89,7 @@ def face_landmarks(face, size, side=None, contour=None):
     return points, sigma, detected_depth(face, sigma), False
 
 
-def detected_case(photos, faces, base_dir=None, guesses=None, contours=None, lenses=None):
+def detected_case(photos, faces, base_dir=None, guesses=None, outlines=None, lenses=None):
     """A :class:`LandmarkCase` from detected faces.
 
     Parameters
@@ -103,9 +103,9 @@ def detected_case(photos, faces, base_dir=None, guesses=None, contours=None, len
         Each photo's view (its camera). Default: ``guess_view`` of each face (a front photo
         where it says nothing). The points kept are the face's (``point_uncertainty``: a
         profile keeps only those trustworthy there), whatever the view says.
-    contours : list of (ndarray (n, 2) or None), optional
-        Each photo's outline (``Detector.outline``'s points, px), written as the view's
-        contour.
+    outlines : list of (Outline or None), optional
+        Each photo's outline (``Detector.outline``'s): its ``contour`` is written as the
+        view's contour, and a profile's landmarks are read off its ``points``.
     lenses : list of (float or None), optional
         Each photo's lens (mm, 36 mm equivalent; its EXIF's, ``photo_lens_mm``): the view's
         camera is then a pinhole camera of that lens (``ViewGuess.camera``) wherever the
@@ -115,14 +115,16 @@ def detected_case(photos, faces, base_dir=None, guesses=None, contours=None, len
     views = {}
     if guesses is None:
         guesses = [guess_view(f) or ViewGuess("front", 0.0) for f in faces]
-    if contours is None:
-        contours = [None] * len(faces)
+    if outlines is None:
+        outlines = [None] * len(faces)
     if lenses is None:
         lenses = [None] * len(faces)
-    for (name, path, size), face, guess, contour, lens in zip(photos, faces, guesses,
-                                                               contours, lenses, strict=True):
+    for (name, path, size), face, guess, outline, lens in zip(photos, faces, guesses,
+                                                               outlines, lenses, strict=True):
         w, h = size
-        points, sigma, depth, _ = face_landmarks(face, size, guess.side, contour)
+        points, sigma, depth, _ = face_landmarks(
+            face, size, guess.side, None if outline is None else outline.points)
+        contour = None if outline is None else outline.contour
         image = Path(path).absolute()
         if base_dir is not None:
             image = Path(os.path.relpath(image, Path(base_dir).absolute()))
@@ -153,15 +155,15 @@ def wants_outline(face, outlines):
 
 
 def photo_outline(detector, image, face, path, echo):
-    """The outline's points (n, 2) of ``image`` (``Detector.outline``), or None with one
+    """The :class:`~.outline.Outline` of ``image`` (``Detector.outline``), or None with one
     line naming the photo given to ``echo`` when none is found; its ends are said too."""
     try:
         found = detector.outline(image, face)
     except ValueError as err:
         echo(f"warning: {path}: {err}; the view gets no outline")
         return None
-    echo(f"{path}: outline of {len(found.points)} points, {'; '.join(found.notes)}")
-    return found.points
+    echo(f"{path}: outline of {len(found.contour)} points, {'; '.join(found.notes)}")
+    return found
 
 
 def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="all",
@@ -204,7 +206,7 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="a
         One line naming the photo: no face in it, or a face whose direction is not told.
     """
     echo = echo or (lambda line: None)
-    photos, faces, guesses, contours, lenses, used = [], [], [], [], [], set()
+    photos, faces, guesses, traced, lenses, used = [], [], [], [], [], set()
     for given, path in entries:
         image = load(path)
         face = detector.detect(image)
@@ -251,10 +253,10 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="a
         lens = f", its {lenses[-1]:.0f} mm lens ({source})" if lenses[-1] else ""
         echo(f"{path}: face (score {face.score:.2f}), {guess.describe()}{lens} -> view "
              f"{name!r}")
-        contours.append(photo_outline(detector, image, face, path, echo)
-                        if wants_outline(face, outlines) else None)
+        traced.append(photo_outline(detector, image, face, path, echo)
+                      if wants_outline(face, outlines) else None)
     case = detected_case(photos, faces, base_dir=base_dir, guesses=guesses,
-                         contours=contours, lenses=lenses)
+                         outlines=traced, lenses=lenses)
     for (name, path, _), lens in zip(photos, lenses, strict=True):
         if lens and case.views[name].camera is not None:
             echo(f"note: {path}: taken as a parallel projection despite its {lens:.0f} mm "

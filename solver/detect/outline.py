@@ -12,14 +12,17 @@ Steps (numbers in docs/DECISIONS.md, "The head's outline"):
 3. the colour just inside each point against the face's skin (sampled between the
    detector's keypoints: eyes, nose, mouth, ears): the outline is the run of skin that
    holds the face's front (the nose tip), so hair (on the forehead, the crown, the nape)
-   and the collar or clothes below the neck end it, and so does the photo's border.
+   and the collar or clothes below the neck end it, and so does the photo's border;
+4. on a photo without colour (black and white), where skin cannot be told from clothes,
+   the outline ends under the chin (``NECK_CUT``), and the fit gets only the points moved
+   onto the photo's edge (``Outline.contour``).
 """
 
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..photo_colour import sample_photo, skin_colour, skin_like
+from ..photo_colour import has_colour, sample_photo, skin_colour, skin_like
 from .crop import Square
 from .iso_line import iso_lines
 from .segmentation import person_mask
@@ -40,6 +43,10 @@ MIN_LENGTH = 1.0
 #: cut the skin run (the lips' red on a profile: 30-40 px of james' 346-px face; a
 #: highlight) and does not make one.
 MIN_STRETCH = 0.12
+#: On a photo without colour (``photo_colour.has_colour``: black and white), where skin
+#: cannot be told from clothes, the outline ends this many eye-to-mouth distances below
+#: the mouth (along the line from the eyes to the mouth): about 2 cm under the chin.
+NECK_CUT = 1.0
 
 
 @dataclass
@@ -58,11 +65,22 @@ class Outline:
     notes : list of str
         What ended the outline at each end ("hair, clothes or background", "the photo's
         border") and other facts for the report.
+    colour : bool
+        The photo has colour (``photo_colour.has_colour``).
     """
 
     points: np.ndarray
     refined: np.ndarray
     notes: list = field(default_factory=list)
+    colour: bool = True
+
+    @property
+    def contour(self):
+        """The points the fit gets as the view's contour (n, 2) px: all of them; on a
+        photo without colour only those moved onto its edge (the segmentation's own edge,
+        where they stay, lies 7-9 px off there: docs/DECISIONS.md, "Black-and-white
+        photos"). The profile line is read off all of them (``points``)."""
+        return self.points if self.colour else self.points[self.refined]
 
 
 def _closed_resample(points, spacing):
@@ -224,13 +242,16 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
     h, w = image.shape[:2]
     reach = SEARCH_MAP_PX * mask.pixel_size
     moved, refined, inside = refine_edge(image, loop, _normals(loop), reach)
-    skin = skin_like(inside, face_skin(image, face, mask))
+    on_photo = ((moved[:, 0] > 1) & (moved[:, 0] < w - 1) & (moved[:, 1] > 1)
+                & (moved[:, 1] < h - 1))
+    skin_of_face = face_skin(image, face, mask)
+    colour = has_colour(skin_of_face)
+    above = np.ones(len(moved), bool) if colour else _above_neck_cut(moved, face)
+    skin = skin_like(inside, skin_of_face)
     size = float(box[2] - box[0])
     shortest = max(int(round(MIN_STRETCH * size / spacing_px)), 1)
     skin = _close_short_gaps(skin, shortest)
-    on_photo = ((moved[:, 0] > 1) & (moved[:, 0] < w - 1) & (moved[:, 1] > 1)
-                & (moved[:, 1] < h - 1))
-    keep = skin & on_photo
+    keep = skin & on_photo & above
     if not keep.any():
         raise ValueError("no skin on the person's outline")
     front = int(np.argmin(np.linalg.norm(moved - nose, axis=1)))
@@ -246,22 +267,36 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
         raise ValueError(f"the skin on the person's outline near the face is "
                          f"{len(idx) * spacing_px:.0f} px long, under {MIN_LENGTH:g} x the "
                          f"face's {size:.0f} px (hair or clothes around it): no outline")
-    notes = [_end_note(i % n, skin, on_photo) for i in (run[0] - 1, run[1])]
+    notes = [_end_note(i % n, skin, on_photo, above) for i in (run[0] - 1, run[1])]
     # drawn from the chin's side: the mouth comes before the nose
     mouth = np.asarray(face.keypoints, float)[3]
     at = {name: int(np.argmin(np.linalg.norm(moved[idx] - p, axis=1)))
           for name, p in (("nose", nose), ("mouth", mouth))}
     if at["mouth"] > at["nose"]:
         idx, notes = idx[::-1], notes[::-1]
-    return Outline(moved[idx], refined[idx],
-                   [f"starts at {notes[0]}", f"ends at {notes[1]}",
-                    f"{int(refined[idx].sum())} of {len(idx)} points moved onto a colour edge"])
+    notes = [f"starts at {notes[0]}", f"ends at {notes[1]}",
+             f"{int(refined[idx].sum())} of {len(idx)} points moved onto a colour edge"]
+    if not colour:
+        notes.append("the photo has no colour: the outline ends under the chin and the fit "
+                     "gets only its points on an edge")
+    return Outline(moved[idx], refined[idx], notes, colour)
 
 
-def _end_note(i, skin, on_photo):
+def _above_neck_cut(points, face):
+    """Whether each point (n, 2) lies above ``NECK_CUT`` (the detector's keypoints give
+    the eyes, the mouth and which way is down the face)."""
+    k = np.asarray(face.keypoints, float)
+    down = k[3] - k[:2].mean(0)
+    d = float(np.linalg.norm(down))
+    return (points - k[3]) @ (down / max(d, 1e-9)) <= NECK_CUT * d
+
+
+def _end_note(i, skin, on_photo, above):
     if not on_photo[i]:
         return "the photo's border"
-    return "hair, clothes or background (not the face's skin)" if not skin[i] else "?"
+    if not skin[i]:
+        return "hair, clothes or background (not the face's skin)"
+    return "the neck (no colour to tell skin from clothes by)" if not above[i] else "?"
 
 
 def _contains(polygon, point):

@@ -5,13 +5,15 @@ the bake would paint the shirt onto the neck; left out, the neck there gets the 
 fill from the skin around it.
 
 Skin is told by the rule the outline detection uses (``photo_colour.skin_like``),
-against the skin of the fitted head's cheeks in the same photo.
+against the skin of the fitted head's cheeks in the same photo. A photo without colour
+(``photo_colour.has_colour``: black and white) cannot tell them: there everything from
+``BELOW_CHIN_M`` under the chin down is left out.
 """
 
 import numpy as np
 import scipy.ndimage as ndi
 
-from ..photo_colour import lighter_than_skin, sample_photo, skin_colour, skin_like
+from ..photo_colour import has_colour, lighter_than_skin, sample_photo, skin_colour, skin_like
 
 #: Cheeks: the skin nearest the point halfway between two iBUG landmarks (nose wing and
 #: jaw, per side); the skin vertices within ``CHEEK_RADIUS_M`` of it give the photo's skin
@@ -69,6 +71,9 @@ def clothes_mask(model, world, camera, image, scale=(1.0, 1.0)):
     c1 = int(np.clip(np.ceil(u.max()) + GROW_PX + 2, 0, w))
     clothes = np.zeros((h, w), bool)
     if r0 >= h or c1 <= c0:
+        return clothes
+    if not has_colour(reference):
+        clothes[r0:, c0:c1] = True
         return clothes
     # each pixel's colour over its 3 x 3 neighbourhood: single noisy pixels tell nothing
     smooth = ndi.uniform_filter(rgb[r1:, c0:c1], size=(3, 3, 1), mode="nearest")

@@ -336,10 +336,10 @@ def test_auto_fit_finds_each_face_and_outline_once(sample, monkeypatch):
     assert calls.count("detect") == 2 and len(calls) == 4
     side = next(t for t in job.detect.tasks if t.view == "side")
     drawn = next(t for t in job.outlines.tasks if t.view == "side")
-    assert side.face.off_outline and drawn.points is side.face.outline.points
+    assert side.face.off_outline and drawn.points is side.face.outline.contour
     assert all(t.points is not None for t in job.outlines.tasks)
     front = next(t for t in job.outlines.tasks if t.view == "front")
     assert front.face is next(t for t in job.detect.tasks if t.view == "front").face.found
     # the same outline as a Detect Outline that looks for the face itself
     alone = photo_faces.find_outline(np.array(front.pixels))
-    assert np.array_equal(alone.points, front.points)
+    assert np.array_equal(alone.contour, front.points)

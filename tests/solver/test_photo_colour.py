@@ -4,7 +4,13 @@ shaded, against the face's skin colour; a bilinear sample between pixels."""
 import numpy as np
 import pytest
 
-from solver.photo_colour import lighter_than_skin, sample_photo, skin_colour, skin_like
+from solver.photo_colour import (
+    has_colour,
+    lighter_than_skin,
+    sample_photo,
+    skin_colour,
+    skin_like,
+)
 
 SKIN = (np.array([0.396, 0.323]), 0.015, 2.49, 0.10)  # the sample's face, as face_skin gives it
 # the same face as the full-size render's detector gives it: a wider spread, within which
@@ -54,3 +60,12 @@ def test_a_sample_between_pixels_is_their_blend():
     image[:, 2:] = 1.0  # pixels 2 and 3 of each row, centred on 2.5 and 3.5
     got = sample_photo(image, np.array([[2.0, 1.5], [2.5, 1.5], [0.0, 0.0]]))
     np.testing.assert_allclose(got, [[0.5] * 3, [1.0] * 3, [0.0] * 3])
+
+
+def test_a_black_and_white_photo_has_no_colour_to_tell_skin_by():
+    face = np.array([[0.95, 0.78, 0.69], [0.80, 0.62, 0.55], [0.90, 0.74, 0.66]])
+    assert has_colour(skin_colour(face))
+    grey = face.mean(1, keepdims=True).repeat(3, axis=1)
+    assert not has_colour(skin_colour(grey))
+    # skin under a cold light keeps some warmth
+    assert has_colour(skin_colour(face * [0.9, 1.0, 1.05]))

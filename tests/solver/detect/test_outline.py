@@ -112,3 +112,25 @@ def test_no_person_is_said(detector, sample):
     wall = np.full_like(image, 128)
     with pytest.raises(ValueError, match="no person found for an outline"):
         detector.outline(wall, face)
+
+
+def test_a_black_and_white_profile_ends_under_the_chin_and_gives_its_edge(sample, detector):
+    from solver import load_landmarks
+    from solver.detect.outline import NECK_CUT
+
+    folder, _ = sample
+    grey = np.asarray(Image.open(folder / "side.png").convert("L").convert("RGB"))
+    face = detector.detect(grey)
+    outline = detector.outline(grey, face)
+    assert not outline.colour and "no colour" in outline.notes[-1]
+    k = np.asarray(face.keypoints, float)
+    down = k[3] - k[:2].mean(0)
+    below = (outline.points - k[3]) @ down / np.linalg.norm(down) ** 2
+    assert below.max() <= NECK_CUT < below.max() + 0.1   # the shirt's dark grey is not left
+    # the contour is the points on the photo's own edge, on the true silhouette
+    np.testing.assert_array_equal(outline.contour, outline.points[outline.refined])
+    truth = load_landmarks(folder / "sample.json").views["side"].contour
+    d, _ = _distance_to_line(outline.contour, truth)
+    assert np.median(d) < 1.0 and np.percentile(d, 90) < 2.5
+    colour = detector.outline(_photo(folder), detector.detect(_photo(folder)))
+    assert colour.colour and colour.contour is colour.points

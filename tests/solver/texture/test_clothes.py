@@ -1,6 +1,7 @@
 """Clothes in a photo (solver/texture/clothes.py): on the rendered sample the shirt is
 clothes and the skin is not; only what is not skin, lies below the chin and reaches the
-photo's bottom edge counts; a photo that misses the cheeks tells nothing; and the bake
+photo's bottom edge counts (on a black-and-white photo, all below the chin's line); a
+photo that misses the cheeks tells nothing; and the bake
 from a fit leaves the clothes out, so the neck under the shirt is not painted blue."""
 
 import numpy as np
@@ -77,6 +78,18 @@ def test_a_light_collar_rising_up_the_neck_is_clothes_a_shade_is_not(model):
     assert mask[lobe + 2:, 222:238].all() and not mask[:lobe - 2, 220:240].any()
     assert not mask[:top - 2, 122:133].any()            # the shade above the chin's line stays
     assert not mask[:top + 37, 90:110].any()            # and the skin
+
+
+def test_below_the_chin_a_black_and_white_photo_is_left_out(model):
+    img, cam, chin, top = _photo_of_the_mean_head(model)
+    img[top + 40:, :] = (0.30, 0.35, 0.45)              # a shirt up from the bottom edge
+    grey = np.repeat(img.mean(2, keepdims=True), 3, axis=2)
+    mask = clothes_mask(model, model.vertices, cam, grey)
+    u = cam.project(model.vertices[model.skin])[:, 0]
+    inside = slice(int(u.min()) + 1, int(u.max()))
+    assert mask[top + 1:, inside].all()                 # the neck too: nothing tells skin
+    assert not mask[:top - 1].any()                     # the face above the chin's line
+    assert not clothes_mask(model, model.vertices, cam, img)[top + 1:top + 37].any()
 
 
 def test_a_photo_that_misses_the_cheeks_tells_nothing(model):

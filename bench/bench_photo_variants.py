@@ -1,0 +1,105 @@
+"""Photos as users give them: heads fitted from their photos alone (detected, as Auto Fit
+takes them) as rendered and changed as real photos are: black and white, the head small in
+a larger photo, JPEG-compressed, darker, turned in their plane.
+
+    python -m bench.bench_photo_variants [--variants NAME ...] [--heads DIR ...]
+                                         [--render SEED ...]
+
+Heads: as ``bench.bench_photo_size`` (the sample and ``generated/bench_heads/seed<N>``).
+Variants (``VARIANTS``; all by default), each applied to both photos, written to a
+temporary folder: ``grey`` (black and white), ``small`` (the photo in the middle of one
+four times its size, its corner's colour around it: the face 10 % of the longer side),
+``jpeg50`` (JPEG at quality 50), ``dark`` (half as bright), ``turned10`` (turned by 10
+degrees, the corners filled with its corner's colour). Scores: skin RMS against the true
+head after a similarity (``skin_error_mm``), mm, the mean head's beside them; a variant
+whose photos ``solver detect`` refuses is said and left out of the mean.
+"""
+
+import argparse
+import io
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from bench.bench_corrections import head_folders
+from bench.bench_detect import padded
+from bench.bench_photo_size import photos_case
+from bench.common import machine_description
+from solver import fit_head, load_model
+from solver.detect import Detector
+from solver.synthetic import skin_error_mm
+
+
+def _jpeg(image, quality=50):
+    buffer = io.BytesIO()
+    image.save(buffer, "JPEG", quality=quality)
+    return Image.open(io.BytesIO(buffer.getvalue())).convert("RGB")
+
+
+def _corner(image):
+    return tuple(int(c) for c in np.asarray(image)[2, 2])
+
+
+#: name -> PIL RGB image -> PIL RGB image
+VARIANTS = {
+    "grey": lambda im: im.convert("L").convert("RGB"),
+    "small": lambda im: Image.fromarray(padded(np.asarray(im), {}, 4)[0]),
+    "jpeg50": _jpeg,
+    "dark": lambda im: Image.fromarray((np.asarray(im) * 0.5).astype(np.uint8)),
+    "turned10": lambda im: im.rotate(10, Image.BICUBIC, expand=True, fillcolor=_corner(im)),
+}
+
+
+def changed(folder, variant, into):
+    """The head's two photos changed by ``VARIANTS[variant]``, written into ``into``."""
+    into.mkdir(parents=True, exist_ok=True)
+    for view in ("front", "side"):
+        image = Image.open(folder / f"{view}.png").convert("RGB")
+        VARIANTS[variant](image).save(into / f"{view}.png")
+    return into
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--variants", nargs="*", choices=list(VARIANTS), default=list(VARIANTS))
+    ap.add_argument("--heads", nargs="*", default=None,
+                    help="rendered sample folders (default: the sample and the --render ones)")
+    ap.add_argument("--render", nargs="*", type=int,
+                    default=[101, 201, 202, 203, 204, 205, 206, 207, 208],
+                    help="model seeds rendered into generated/bench_heads/seed<N> if missing")
+    args = ap.parse_args(argv)
+    print(f"machine: {machine_description()}")
+    folders = head_folders(args.heads, args.render)
+    model, detector = load_model(), Detector()
+    columns = ["mean head", "as rendered"] + args.variants
+    print("skin RMS vs the true head, mm, from the photos alone")
+    print(f"  {'head':<10}" + "".join(f"{c:>12}" for c in columns))
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for folder in folders:
+            truth = np.load(folder / "truth.npz", allow_pickle=True)["local_vertices"]
+            row = [skin_error_mm(model, model.vertices, truth)]
+            for variant in [None] + args.variants:
+                photos = folder if variant is None else \
+                    changed(folder, variant, Path(tmp) / f"{folder.name}_{variant}")
+                try:
+                    case = photos_case(photos, detector)
+                except ValueError as err:
+                    print(f"  {folder.name} {variant}: {err}")
+                    row.append(np.nan)
+                    continue
+                row.append(skin_error_mm(model, fit_head(model, case).local_vertices, truth))
+            rows.append(row)
+            print(f"  {folder.name:<10}" + "".join(f"{v:>12.2f}" for v in row), flush=True)
+    a = np.array(rows)
+    print(f"  {'mean':<10}" + "".join(f"{v:>12.2f}" for v in np.nanmean(a, axis=0)))
+    print(f"  {'worst':<10}" + "".join(f"{v:>12.2f}" for v in np.nanmax(a, axis=0)))
+    beats = (a[:, 1:] < a[:, :1]).sum(axis=0)
+    print(f"  {'beat mean':<10}" + " " * 12 + "".join(f"{f'{b} of {len(a)}':>12}"
+                                                     for b in beats))
+
+
+if __name__ == "__main__":
+    main()
