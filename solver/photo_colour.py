@@ -73,6 +73,13 @@ def lighter_than_skin(colours, skin):
     return _chroma_brightness(colours)[1] > skin[2]
 
 
+def white_level(image):
+    """The photo's white (H, W, 3 or more) floats: the brightest channel value its pixels
+    reach, the 99.9th percentile (a few hot pixels do not set it). A photo darkened after
+    it was taken has its white, its clipped highlights, below 1."""
+    return float(np.percentile(image[::4, ::4, :3].max(-1), 99.9))
+
+
 def skin_like(colours, skin, clipped=True):
     """Whether each colour (n, 3) is the face's skin (:func:`skin_colour`) in chromaticity
     (within ``SKIN_SPREADS``, at least ``SKIN_CHROMA``), brightness (within a factor

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..paths import DETECTOR_DIR
+from ..photo_colour import white_level
 from .crop import Square
 from .face_detection import detect_faces
 from .face_landmarks import face_mesh, square_from_detection, square_from_mesh
@@ -33,6 +34,8 @@ MIN_PRESENCE = 0.5
 #: three-quarter views at 22 and 30 degrees 0.38 and 0.35). The mesh may still report a
 #: face there (0.51 on the mirrored profile) while its points are 45 px off.
 PROFILE_EYES = 0.2
+#: A photo is stretched to its own white by at most this factor (a photo of the night).
+MAX_STRETCH = 10.0
 
 
 @dataclass
@@ -147,11 +150,16 @@ class Detector:
 
 
 def _as_float(image):
-    """(H, W, 3+) uint8 or float -> (H, W, 3) float32 in [0, 1]."""
+    """(H, W, 3+) uint8 or float -> (H, W, 3) float32 in [0, 1], stretched to its own
+    white (``photo_colour.white_level``, at most ``MAX_STRETCH`` times): a photo darkened
+    after it was taken is detected as it was shot (docs/DECISIONS.md, "Darker photos")."""
     image = np.asarray(image)
     if image.ndim != 3 or image.shape[2] < 3:
         raise ValueError(f"image must be (H, W, 3), got shape {image.shape}")
     image = image[:, :, :3]
-    if image.dtype == np.uint8:
-        return image.astype(np.float32) / 255.0
-    return image.astype(np.float32)
+    image = image.astype(np.float32) / 255.0 if image.dtype == np.uint8 \
+        else image.astype(np.float32)
+    white = white_level(image)
+    if 0.0 < white < 1.0:
+        image = np.minimum(image / max(white, 1.0 / MAX_STRETCH), 1.0)
+    return image

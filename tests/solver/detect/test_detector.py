@@ -34,3 +34,19 @@ def test_detected_case_names_points_and_keeps_them_inside(tmp_path):
     assert "jaw_1_right" not in view.points and len(view.points) == 67
     assert view.points["nose_tip"] == (50.0, 60.0)
     assert view.camera.view == "orthographic-front"
+
+
+def test_a_photo_darkened_after_it_was_taken_is_detected_as_it_was_shot(sample):
+    from PIL import Image
+
+    if not (DETECTOR_DIR / "face_landmark.tflite").is_file():
+        pytest.skip(f"models missing in {DETECTOR_DIR}: run ./run detector")
+    folder, _ = sample
+    d = Detector()
+    photo = np.asarray(Image.open(folder / "side.png").convert("RGB"))
+    dark = (photo * 0.5).astype(np.uint8)
+    face, face_dark = d.detect(photo), d.detect(dark)
+    assert np.median(np.linalg.norm(face.mesh[:, :2] - face_dark.mesh[:, :2], axis=1)) < 1.0
+    outline, outline_dark = d.outline(photo, face), d.outline(dark, face_dark)
+    # its skull's clipped highlight, now grey, is still skin: the whole outline is kept
+    assert abs(len(outline_dark.points) - len(outline.points)) < 0.03 * len(outline.points)
