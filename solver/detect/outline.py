@@ -32,6 +32,11 @@ from .segmentation import person_mask
 SPACING_PX = 3.0
 #: The square the segmentation sees: this many times the detector's box, centred on it.
 SQUARE_SCALE = 2.5
+#: Where the person reaches that square's side or top above the mouth (a profile's skull,
+#: a head turned in the photo), it is segmented once more in one this many times larger,
+#: moved toward that side by ``REGROW_SHIFT`` of the first one's size.
+REGROW = 1.4
+REGROW_SHIFT = 0.2
 #: How far along the normal the photo's colour edge is looked for: this many map pixels
 #: (the mask's own error, 1-2 px median, up to about 3 px, is under one map pixel of 3-4 px).
 SEARCH_MAP_PX = 1.5
@@ -233,6 +238,11 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
     centre = ((box[0] + box[2]) / 2, (box[1] + box[3]) / 2)
     square = Square(centre, SQUARE_SCALE * float(max(box[2] - box[0], box[3] - box[1])))
     mask = person_mask(network, image, square)
+    reach = _reaching(mask, np.asarray(face.keypoints, float)[3])
+    if reach.any():                      # the head goes on past the square: a larger one
+        shift = REGROW_SHIFT * square.size * reach @ np.array([[-1, 0], [1, 0], [0, -1]])
+        square = Square(tuple(np.asarray(centre) + shift), REGROW * square.size)
+        mask = person_mask(network, image, square)
     nose = np.asarray(face.keypoints, float)[2]
     loops = [mask.to_photo(line) for line in iso_lines(mask.probability)]
     loops = [p for p in loops if _contains(p, nose)] or loops[:1]
@@ -242,8 +252,9 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
     h, w = image.shape[:2]
     reach = SEARCH_MAP_PX * mask.pixel_size
     moved, refined, inside = refine_edge(image, loop, _normals(loop), reach)
+    # the photo's border ends the outline, and so does the segmentation square's
     on_photo = ((moved[:, 0] > 1) & (moved[:, 0] < w - 1) & (moved[:, 1] > 1)
-                & (moved[:, 1] < h - 1))
+                & (moved[:, 1] < h - 1)) & mask.inside(loop)
     skin_of_face = face_skin(image, face, mask)
     colour = has_colour(skin_of_face)
     above = np.ones(len(moved), bool) if colour else _above_neck_cut(moved, face)
@@ -282,6 +293,15 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
     return Outline(moved[idx], refined[idx], notes, colour)
 
 
+def _reaching(mask, mouth):
+    """Whether the person reaches the segmented square's left, right and top edges (3,)
+    bool; at the sides only above the ``mouth`` (below it the shoulders may)."""
+    p = mask.probability >= 0.5
+    x, y = mask.to_map(np.asarray(mouth, float)[None])
+    rows = slice(0, int(np.clip(y[0], 0, p.shape[0])))
+    return np.array([p[rows, 0].any(), p[rows, -1].any(), p[0].any()])
+
+
 def _above_neck_cut(points, face):
     """Whether each point (n, 2) lies above ``NECK_CUT`` (the detector's keypoints give
     the eyes, the mouth and which way is down the face)."""
@@ -293,7 +313,7 @@ def _above_neck_cut(points, face):
 
 def _end_note(i, skin, on_photo, above):
     if not on_photo[i]:
-        return "the photo's border"
+        return "the photo's border (or the edge of the part of it segmented)"
     if not skin[i]:
         return "hair, clothes or background (not the face's skin)"
     return "the neck (no colour to tell skin from clothes by)" if not above[i] else "?"

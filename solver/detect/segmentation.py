@@ -43,13 +43,24 @@ class PersonMask:
         (r, c) covers [c, c + 1) × [r, r + 1))."""
         return self.square.to_photo(np.asarray(xy, float).reshape(-1, 2), INPUT) + 0.5
 
-    def at(self, uv):
-        """The probability at photo points ``uv`` (P, 2), bilinear; 0 off the map."""
+    def inside(self, uv, margin=1.0):
+        """Whether photo points ``uv`` (P, 2) lie at least ``margin`` map pixels inside
+        the map's square: an iso-line along its edge is the square's, not the person's."""
+        x, y = self.to_map(uv)
+        return (x >= margin) & (x <= INPUT - 1 - margin) & (y >= margin) \
+            & (y <= INPUT - 1 - margin)
+
+    def to_map(self, uv):
+        """Photo points ``uv`` (P, 2) -> map coordinates (x (P,), y (P,)), as
+        :meth:`to_photo` inverts."""
         ex, ey = self.square.axes()
         d = np.asarray(uv, float).reshape(-1, 2) - 0.5 - np.asarray(self.square.center)
         scale = INPUT / self.square.size
-        x = d @ ex * scale + INPUT / 2
-        y = d @ ey * scale + INPUT / 2
+        return d @ ex * scale + INPUT / 2, d @ ey * scale + INPUT / 2
+
+    def at(self, uv):
+        """The probability at photo points ``uv`` (P, 2), bilinear; 0 off the map."""
+        x, y = self.to_map(uv)
         x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
         fx, fy = x - x0, y - y0
         p = np.pad(self.probability, 1)

@@ -114,6 +114,20 @@ def test_no_person_is_said(detector, sample):
         detector.outline(wall, face)
 
 
+@pytest.mark.parametrize("degrees", [10, 20])
+def test_a_turned_profile_keeps_its_skull_and_neck(sample, detector, degrees):
+    folder, _ = sample
+    photo = Image.open(folder / "side.png").convert("RGB")
+    turned = np.asarray(photo.rotate(degrees, Image.BICUBIC, expand=True,
+                                     fillcolor=tuple(int(c) for c in _photo(folder)[2, 2])))
+    upright = detector.outline(_photo(folder), detector.detect(_photo(folder)))
+    outline = detector.outline(turned, detector.detect(turned))
+    # the skull's back reaches past the square first segmented: segmented again, larger;
+    # the square's edge is never taken for the head's (the neck ran along it: "all skin")
+    assert abs(len(outline.points) - len(upright.points)) < 0.03 * len(upright.points)
+    assert all("clothes" in note for note in outline.notes[:2])
+
+
 def test_a_black_and_white_profile_ends_under_the_chin_and_gives_its_edge(sample, detector):
     from solver import load_landmarks
     from solver.detect.outline import NECK_CUT

@@ -21,6 +21,11 @@ def test_the_map_and_the_photo_agree_both_ways():
     np.testing.assert_allclose(mask.at(uv), mask.probability[rc[:, 0], rc[:, 1]], atol=1e-5)
     far = mask.to_photo(np.array([[-5.0, 10.0], [10.0, INPUT + 4.0]]))
     assert (mask.at(far) == 0).all()
+    x, y = mask.to_map(uv)
+    np.testing.assert_allclose(np.stack([x, y], axis=1), rc[:, ::-1], atol=1e-9)
+    # the square's own edge is not inside it; a map pixel in from it is
+    edge = mask.to_photo(np.array([[0.0, 100.0], [INPUT - 1.0, 3.0], [1.5, 1.5], [20.0, 30.0]]))
+    assert mask.inside(edge).tolist() == [False, False, True, True]
     assert photo_square((1024, 768, 3)) == Square((384.0, 512.0), 1024.0)
 
 
