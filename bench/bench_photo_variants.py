@@ -21,7 +21,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from PIL import Image
+from PIL import Image, ImageFilter
 
 from bench.bench_corrections import head_folders
 from bench.bench_detect import padded
@@ -38,6 +38,16 @@ def _jpeg(image, quality=50):
     return Image.open(io.BytesIO(buffer.getvalue())).convert("RGB")
 
 
+def _noisy(image, sigma=8.0):
+    pixels = np.asarray(image, float)
+    pixels += np.random.default_rng(0).normal(0, sigma, pixels.shape)
+    return Image.fromarray(np.clip(pixels, 0, 255).astype(np.uint8))
+
+
+def _cast(image, gains):
+    return Image.fromarray(np.clip(np.asarray(image, float) * gains, 0, 255).astype(np.uint8))
+
+
 def _corner(image):
     return tuple(int(c) for c in np.asarray(image)[2, 2])
 
@@ -49,6 +59,11 @@ VARIANTS = {
     "jpeg50": _jpeg,
     "dark": lambda im: Image.fromarray((np.asarray(im) * 0.5).astype(np.uint8)),
     "turned10": lambda im: im.rotate(10, Image.BICUBIC, expand=True, fillcolor=_corner(im)),
+    "cropped": lambda im: im.crop((0, im.height // 8, im.width, im.height)),
+    "blurred": lambda im: im.filter(ImageFilter.GaussianBlur(2)),
+    "noisy": lambda im: _noisy(im),
+    "warm": lambda im: _cast(im, (1.15, 1.0, 0.8)),
+    "cool": lambda im: _cast(im, (0.85, 1.0, 1.15)),
 }
 
 

@@ -73,11 +73,12 @@ def lighter_than_skin(colours, skin):
     return _chroma_brightness(colours)[1] > skin[2]
 
 
-def white_level(image):
-    """The photo's white (H, W, 3 or more) floats: the brightest channel value its pixels
-    reach, the 99.9th percentile (a few hot pixels do not set it). A photo darkened after
-    it was taken has its white, its clipped highlights, below 1."""
-    return float(np.percentile(image[::4, ::4, :3].max(-1), 99.9))
+def white_point(image):
+    """The photo's white (3,): the brightest value each channel reaches over the photo (H,
+    W, 3 or more) floats, its 99.9th percentile (a few hot pixels do not set it). Clipped
+    highlights and white things are white in the scene: a photo darkened after it was
+    taken has its white below 1 in every channel, one with a colour cast in some."""
+    return np.percentile(image[::4, ::4, :3].reshape(-1, 3), 99.9, axis=0)
 
 
 def skin_like(colours, skin, clipped=True):

@@ -36,7 +36,10 @@ def test_detected_case_names_points_and_keeps_them_inside(tmp_path):
     assert view.camera.view == "orthographic-front"
 
 
-def test_a_photo_darkened_after_it_was_taken_is_detected_as_it_was_shot(sample):
+@pytest.mark.parametrize("gains", [(0.5, 0.5, 0.5), (0.85, 1.0, 1.15), (1.0, 0.95, 0.8)],
+                         ids=["darker", "cool", "warm"])
+def test_a_photo_darkened_or_cast_after_it_was_taken_is_detected_as_it_was_shot(sample,
+                                                                              gains):
     from PIL import Image
 
     if not (DETECTOR_DIR / "face_landmark.tflite").is_file():
@@ -44,9 +47,15 @@ def test_a_photo_darkened_after_it_was_taken_is_detected_as_it_was_shot(sample):
     folder, _ = sample
     d = Detector()
     photo = np.asarray(Image.open(folder / "side.png").convert("RGB"))
-    dark = (photo * 0.5).astype(np.uint8)
-    face, face_dark = d.detect(photo), d.detect(dark)
-    assert np.median(np.linalg.norm(face.mesh[:, :2] - face_dark.mesh[:, :2], axis=1)) < 1.0
-    outline, outline_dark = d.outline(photo, face), d.outline(dark, face_dark)
-    # its skull's clipped highlight, now grey, is still skin: the whole outline is kept
-    assert abs(len(outline_dark.points) - len(outline.points)) < 0.03 * len(outline.points)
+    changed = np.clip(photo * np.array(gains), 0, 255).astype(np.uint8)
+    face, face_changed = d.detect(photo), d.detect(changed)
+    # (a profile's mesh, 22 px from the truth, is not what is kept of it)
+    assert np.median(np.linalg.norm(face.mesh[:, :2] - face_changed.mesh[:, :2], axis=1)) < 2.0
+    outline, outline_changed = d.outline(photo, face), d.outline(changed, face_changed)
+    # its skull's clipped highlight, grey or tinted now, is still the skin's highlight, and
+    # the skin at its edge, washed out by the light, still skin: the whole outline is kept
+    assert abs(len(outline_changed.points) - len(outline.points)) < 0.03 * len(outline.points)
+    t = np.linspace(0, 1, 10, endpoint=False)[:, None, None]
+    dense = (outline.points[:-1] * (1 - t) + outline.points[1:] * t).reshape(-1, 2)
+    apart = np.linalg.norm(outline_changed.points[:, None] - dense[None], axis=2).min(1)
+    assert np.median(apart) < 0.5
