@@ -262,8 +262,9 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
     size = float(box[2] - box[0])
     shortest = max(int(round(MIN_STRETCH * size / spacing_px)), 1)
     skin = _close_short_gaps(skin, shortest)
-    keep = skin & on_photo & above
-    if not keep.any():
+    # off the photo nothing is seen: the head's outline goes on across the photo's border
+    keep = (skin | ~on_photo) & above
+    if not (keep & on_photo).any():
         raise ValueError("no skin on the person's outline")
     front = int(np.argmin(np.linalg.norm(moved - nose, axis=1)))
     n = len(moved)
@@ -273,12 +274,17 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
         run = min(_runs(keep), key=lambda r: min(abs(r[0] - front), abs(r[1] - front)))
     idx = np.arange(run[0], run[1]) % n
     if len(idx) == n:
-        raise ValueError("the person's outline is all skin: cannot tell where the neck ends")
+        if on_photo.all():
+            raise ValueError("the person's outline is all skin: cannot tell where the neck "
+                             "ends")
+        idx = np.roll(idx, -int(np.flatnonzero(~on_photo)[-1]) - 1)  # from the border on
+    crossed = not on_photo[idx].all()
+    idx = idx[on_photo[idx]]
     if len(idx) * spacing_px < MIN_LENGTH * size:
         raise ValueError(f"the skin on the person's outline near the face is "
                          f"{len(idx) * spacing_px:.0f} px long, under {MIN_LENGTH:g} x the "
                          f"face's {size:.0f} px (hair or clothes around it): no outline")
-    notes = [_end_note(i % n, skin, on_photo, above) for i in (run[0] - 1, run[1])]
+    notes = [_end_note(i % n, skin, on_photo, above) for i in (idx[0] - 1, idx[-1] + 1)]
     # drawn from the chin's side: the mouth comes before the nose
     mouth = np.asarray(face.keypoints, float)[3]
     at = {name: int(np.argmin(np.linalg.norm(moved[idx] - p, axis=1)))
@@ -287,6 +293,8 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
         idx, notes = idx[::-1], notes[::-1]
     notes = [f"starts at {notes[0]}", f"ends at {notes[1]}",
              f"{int(refined[idx].sum())} of {len(idx)} points moved onto a colour edge"]
+    if crossed:
+        notes.append("the photo's border cuts the head: its outline goes on beyond it")
     if not colour:
         notes.append("the photo has no colour: the outline ends under the chin and the fit "
                      "gets only its points on an edge")

@@ -128,6 +128,21 @@ def test_a_turned_profile_keeps_its_skull_and_neck(sample, detector, degrees):
     assert all("clothes" in note for note in outline.notes[:2])
 
 
+def test_a_head_cut_by_the_photo_s_top_keeps_its_outline_on_both_sides(sample, detector):
+    folder, _ = sample
+    photo = _photo(folder)
+    face = detector.detect(photo)
+    top = int(face.keypoints[0][1] - 0.5 * (face.box[2] - face.box[0]))  # above the brow
+    cropped = photo[top:]
+    whole = detector.outline(photo, face)
+    outline = detector.outline(cropped, detector.detect(cropped))
+    assert "the photo's border cuts the head" in outline.notes[-1]
+    # the face's side and the skull's back below the cut: the whole outline below it
+    below = whole.points[whole.points[:, 1] > top + 2]
+    assert abs(len(outline.points) - len(below)) < 0.05 * len(below)
+    assert outline.points[:, 0].min() < face.keypoints[4][0] - 50   # behind the ear
+
+
 def test_a_black_and_white_profile_ends_under_the_chin_and_gives_its_edge(sample, detector):
     from solver import load_landmarks
     from solver.detect.outline import NECK_CUT
