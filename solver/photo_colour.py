@@ -25,6 +25,10 @@ SKIN_WARMTH = 0.2
 #: black-and-white photo: 0).
 MIN_COLOUR = 0.02
 SKIN_CLIPPED = 0.99
+#: A colour this near white in every channel is a highlight too (a clipped one a little
+#: blurred: 0.988 on the sample's skull under a 2 px blur; a white collar in the light
+#: 0.88-0.96).
+SKIN_WHITE = 0.97
 
 
 def sample_photo(image, uv):
@@ -85,11 +89,11 @@ def skin_like(colours, skin, clipped=True):
     """Whether each colour (n, 3) is the face's skin (:func:`skin_colour`) in chromaticity
     (within ``SKIN_SPREADS``, at least ``SKIN_CHROMA``), brightness (within a factor
     ``SKIN_BRIGHTNESS``) and warmth (``SKIN_WARMTH``, or with ``clipped`` a channel at
-    ``SKIN_CLIPPED``: a highlight has no colour left to tell)."""
+    ``SKIN_CLIPPED`` or all at ``SKIN_WHITE``: a highlight has no colour left to tell)."""
     centre, spread, bright, warmth = skin
     chroma, b = _chroma_brightness(colours)
     near = np.linalg.norm(chroma - centre, axis=1) <= max(SKIN_SPREADS * spread, SKIN_CHROMA)
     warm = _warmth(colours) >= SKIN_WARMTH * warmth
     if clipped:
-        warm |= colours.max(-1) >= SKIN_CLIPPED
+        warm |= (colours.max(-1) >= SKIN_CLIPPED) | (colours.min(-1) >= SKIN_WHITE)
     return near & warm & (b >= bright / SKIN_BRIGHTNESS) & (b <= bright * SKIN_BRIGHTNESS)

@@ -35,6 +35,9 @@ def test_skin_lit_or_shaded_is_skin_and_clothes_hair_collar_are_not():
     # for (below the chin a clipped white is a shirt's, clothes.py)
     white = np.array([[1.0, 1.0, 1.0]])
     assert skin_like(white, SKIN).tolist() == [True]
+    # a clipped highlight blurred a little is white still; a white collar is not so white
+    blurred = np.array([[0.988, 0.988, 0.988], [0.88, 0.96, 0.91]])
+    assert skin_like(blurred, SKIN).tolist() == [True, False]
     assert skin_like(white, SKIN, clipped=False).tolist() == [False]
 
 
