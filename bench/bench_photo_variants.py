@@ -1,6 +1,7 @@
 """Photos as users give them: heads fitted from their photos alone (detected, as Auto Fit
 takes them) as rendered and changed as real photos are: black and white, the head small in
-a larger photo, JPEG-compressed, darker, turned in their plane.
+a larger photo, JPEG-compressed, darker, turned in their plane, cropped, blurred, noisy,
+with a colour cast.
 
     python -m bench.bench_photo_variants [--variants NAME ...] [--heads DIR ...]
                                          [--render SEED ...]
@@ -10,7 +11,10 @@ Variants (``VARIANTS``; all by default), each applied to both photos, written to
 temporary folder: ``grey`` (black and white), ``small`` (the photo in the middle of one
 four times its size, its corner's colour around it: the face 10 % of the longer side),
 ``jpeg50`` (JPEG at quality 50), ``dark`` (half as bright), ``turned10`` (turned by 10
-degrees, the corners filled with its corner's colour). Scores: skin RMS against the true
+degrees, the corners filled with its corner's colour), ``cropped`` (its top eighth cut
+off: the skull's top), ``blurred`` (a 2 px Gaussian), ``noisy`` (Gaussian noise of 8
+levels), ``warm`` and ``cool`` (red and blue scaled by 1.15 and 0.8, or 0.85 and 1.15: a
+white balance off). Scores: skin RMS against the true
 head after a similarity (``skin_error_mm``), mm, the mean head's beside them; a variant
 whose photos ``solver detect`` refuses is said and left out of the mean.
 """
