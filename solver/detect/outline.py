@@ -1,18 +1,21 @@
 """The head's outline in a photo, as the fit wants a traced contour: the person's
 segmentation's edge, moved onto the colour edge in the photo itself, and only the stretch
-of skin that holds the face (hair, clothes and the photo's border cut off).
+of skin that holds the face (hair and clothes cut off, the photo's border left out).
 
 Steps (numbers in docs/DECISIONS.md, "The head's outline"):
 
-1. the selfie segmentation (``segmentation.person_mask``) on a square around the face,
-   its 0.5 iso-line (``iso_line``) around the face: 1.2-1.7 px (median) from the true
-   silhouette on the rendered photos, its map's pixel 3.4-3.8 photo pixels;
+1. the selfie segmentation (``segmentation.person_mask``) on a square around the face
+   (a larger one where the head reaches its side or top), its 0.5 iso-line
+   (``iso_line``) around the face: 1.2-1.7 px (median) from the true silhouette on the
+   rendered photos, its map's pixel 3.4-3.8 photo pixels;
 2. each point moved along the outline's normal to where the photo's colour crosses
    halfway between the colours inside and outside (sub-pixel, on the photo itself);
 3. the colour just inside each point against the face's skin (sampled between the
    detector's keypoints: eyes, nose, mouth, ears): the outline is the run of skin that
    holds the face's front (the nose tip), so hair (on the forehead, the crown, the nape)
-   and the collar or clothes below the neck end it, and so does the photo's border;
+   and the collar or clothes below the neck end it; the photo's border and the segmented
+   square's do not (nothing is seen beyond them): the outline goes on past them, the
+   points there left out;
 4. on a photo without colour (black and white), where skin cannot be told from clothes,
    the outline ends under the chin (``NECK_CUT``), and the fit gets only the points moved
    onto the photo's edge (``Outline.contour``).
