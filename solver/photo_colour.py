@@ -21,14 +21,14 @@ SKIN_BRIGHTNESS = 3.0
 #: -0.01, both within ``SKIN_CHROMA`` of the face), unless a channel is clipped (a
 #: highlight on the skull is plain white: no colour is left to tell).
 SKIN_WARMTH = 0.2
-#: A photo whose face's skin is less warm than this has no colour to tell skin by (a
-#: black-and-white photo: 0).
-MIN_COLOUR = 0.02
 SKIN_CLIPPED = 0.99
 #: A colour this near white in every channel is a highlight too (a clipped one a little
 #: blurred: 0.988 on the sample's skull under a 2 px blur; a white collar in the light
 #: 0.88-0.96).
 SKIN_WHITE = 0.97
+#: A photo whose face's skin is less warm than this has no colour to tell skin by (a
+#: black-and-white photo: 0; the rendered faces 0.09-0.12, james 0.19-0.20).
+MIN_COLOUR = 0.02
 
 
 def sample_photo(image, uv):

@@ -66,7 +66,8 @@ class Outline:
     points : ndarray (n, 2)
         (u, v) photo pixels (continuous: pixel (r, c) covers [c, c + 1) × [r, r + 1)),
         in drawing order from the chin's side (on a profile: from the front of the neck
-        over the chin, the face, the forehead and the skull toward the nape).
+        over the chin, the face, the forehead and the skull toward the nape); where the
+        photo's border cuts the head, the points beyond it are left out (a jump).
     refined : ndarray (n,) bool
         Moved onto a colour edge in the photo (else left on the segmentation's edge: too
         little contrast there).
@@ -86,8 +87,8 @@ class Outline:
     def contour(self):
         """The points the fit gets as the view's contour (n, 2) px: all of them; on a
         photo without colour only those moved onto its edge (the segmentation's own edge,
-        where they stay, lies 7-9 px off there: docs/DECISIONS.md, "Black-and-white
-        photos"). The profile line is read off all of them (``points``)."""
+        where they stay, lies 7-9 px off there: docs/DECISIONS.md, "Photos as users give
+        them, measured"). The profile line is read off all of them (``points``)."""
         return self.points if self.colour else self.points[self.refined]
 
 
@@ -241,9 +242,9 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
     centre = ((box[0] + box[2]) / 2, (box[1] + box[3]) / 2)
     square = Square(centre, SQUARE_SCALE * float(max(box[2] - box[0], box[3] - box[1])))
     mask = person_mask(network, image, square)
-    reach = _reaching(mask, np.asarray(face.keypoints, float)[3])
-    if reach.any():                      # the head goes on past the square: a larger one
-        shift = REGROW_SHIFT * square.size * reach @ np.array([[-1, 0], [1, 0], [0, -1]])
+    past = _reaching(mask, np.asarray(face.keypoints, float)[3])
+    if past.any():                       # the head goes on past the square: a larger one
+        shift = REGROW_SHIFT * square.size * past @ np.array([[-1, 0], [1, 0], [0, -1]])
         square = Square(tuple(np.asarray(centre) + shift), REGROW * square.size)
         mask = person_mask(network, image, square)
     nose = np.asarray(face.keypoints, float)[2]
@@ -255,7 +256,7 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
     h, w = image.shape[:2]
     reach = SEARCH_MAP_PX * mask.pixel_size
     moved, refined, inside = refine_edge(image, loop, _normals(loop), reach)
-    # the photo's border ends the outline, and so does the segmentation square's
+    # seen: on the photo and inside the segmented square (beyond them nothing is)
     on_photo = ((moved[:, 0] > 1) & (moved[:, 0] < w - 1) & (moved[:, 1] > 1)
                 & (moved[:, 1] < h - 1)) & mask.inside(loop)
     skin_of_face = face_skin(image, face, mask)
