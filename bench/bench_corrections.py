@@ -55,6 +55,22 @@ def render_head(seed, folder):
                     "--out", str(folder)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
 
 
+#: The model heads the photos-only benchmarks render and fit besides the sample.
+TEN_HEADS = [101, 201, 202, 203, 204, 205, 206, 207, 208]
+
+
+def add_head_options(parser, render=None):
+    """``--heads`` (rendered sample folders; default the sample) and ``--render`` (model
+    seeds; default ``render``, else ``TEN_HEADS``), as :func:`head_folders` takes them."""
+    parser.add_argument("--heads", nargs="*", default=None,
+                        help="rendered sample folders (default: the sample and the --render "
+                             "ones)")
+    parser.add_argument("--render", nargs="*", type=int,
+                        default=TEN_HEADS if render is None else render,
+                        help="model seeds rendered into generated/bench_heads/seed<N> if "
+                             "missing")
+
+
 def head_folders(heads, seeds):
     """The rendered head folders a benchmark runs on: ``heads`` (paths) if given, else the
     sample; then ``generated/bench_heads/seed<N>`` for each of ``seeds``, rendered first
@@ -118,10 +134,7 @@ def fit_errors(model, case, truth, always=False):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--heads", nargs="*", default=None,
-                    help="rendered sample folders (default: the sample and the --render ones)")
-    ap.add_argument("--render", nargs="*", type=int, default=[],
-                    help="model seeds rendered into generated/bench_heads/seed<N> if missing")
+    add_head_options(ap, render=[])
     ap.add_argument("--always", action="store_true",
                     help="run the second start on every fit, not only on heads that miss "
                          "their outline")

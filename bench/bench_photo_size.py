@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from bench.bench_corrections import head_folders
+from bench.bench_corrections import add_head_options, head_folders
 from bench.common import machine_description
 from solver import FitOptions, fit_head, load_model
 from solver.detect import Detector
@@ -55,11 +55,7 @@ def main(argv=None):
     ap.add_argument("--scale", nargs="*", type=float, default=[4.0],
                     help="how many times the photos' size they are made (default 4; 0.5: "
                          "half)")
-    ap.add_argument("--heads", nargs="*", default=None,
-                    help="rendered sample folders (default: the sample and the --render ones)")
-    ap.add_argument("--render", nargs="*", type=int,
-                    default=[101, 201, 202, 203, 204, 205, 206, 207, 208],
-                    help="model seeds rendered into generated/bench_heads/seed<N> if missing")
+    add_head_options(ap)
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
     folders = head_folders(args.heads, args.render)

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageFilter
 
-from bench.bench_corrections import head_folders
+from bench.bench_corrections import add_head_options, head_folders
 from bench.bench_detect import padded
 from bench.bench_photo_size import photos_case
 from bench.common import machine_description
@@ -83,11 +83,7 @@ def changed(folder, variant, into):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--variants", nargs="*", choices=list(VARIANTS), default=list(VARIANTS))
-    ap.add_argument("--heads", nargs="*", default=None,
-                    help="rendered sample folders (default: the sample and the --render ones)")
-    ap.add_argument("--render", nargs="*", type=int,
-                    default=[101, 201, 202, 203, 204, 205, 206, 207, 208],
-                    help="model seeds rendered into generated/bench_heads/seed<N> if missing")
+    add_head_options(ap)
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
     folders = head_folders(args.heads, args.render)
