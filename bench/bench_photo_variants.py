@@ -1,22 +1,24 @@
 """Photos as users give them: heads fitted from their photos alone (detected, as Auto Fit
-takes them) as rendered and changed as real photos are: black and white, the head small in
-a larger photo, JPEG-compressed, darker, turned in their plane, cropped, blurred, noisy,
-with a colour cast.
+takes them) as rendered and changed as real photos are: with hair, black and white, the
+head small in a larger photo, JPEG-compressed, darker, turned in their plane, cropped,
+blurred, noisy, with a colour cast.
 
     python -m bench.bench_photo_variants [--variants NAME ...] [--heads DIR ...]
                                          [--render SEED ...]
 
 Heads: as ``bench.bench_photo_size`` (the sample and ``generated/bench_heads/seed<N>``).
 Variants (``VARIANTS``; all by default), each applied to both photos, written to a
-temporary folder: ``grey`` (black and white), ``small`` (the photo in the middle of one
-four times its size, its corner's colour around it: the face 10 % of the longer side),
-``jpeg50`` (JPEG at quality 50), ``dark`` (half as bright), ``turned10`` (turned by 10
-degrees, the corners filled with its corner's colour), ``cropped`` (its top eighth cut
-off: the skull's top), ``blurred`` (a 2 px Gaussian), ``noisy`` (Gaussian noise of 8
-levels), ``warm`` and ``cool`` (red and blue scaled by 1.15 and 0.8, or 0.85 and 1.15: a
-white balance off). Scores: skin RMS against the true
-head after a similarity (``skin_error_mm``), mm, the mean head's beside them; a variant
-whose photos ``solver detect`` refuses is said and left out of the mean.
+temporary folder: ``hair`` (dark hair painted over the skull above the brows and the back
+of the head; the rendered heads are bald), ``grey`` (black and white), ``small`` (the
+photo in the middle of one four times its size, its corner's colour around it: the face
+10 % of the longer side), ``jpeg50`` (JPEG at quality 50), ``dark`` (half as bright),
+``turned10`` (turned by 10 degrees, the corners filled with its corner's colour),
+``cropped`` (its top eighth cut off: the skull's top), ``blurred`` (a 2 px Gaussian),
+``noisy`` (Gaussian noise of 8 levels), ``warm`` and ``cool`` (red and blue scaled by 1.15
+and 0.8, or 0.85 and 1.15: a white balance off). Scores: skin RMS against the true head
+after a similarity (``skin_error_mm``, the whole head: under hair the skull is not seen),
+mm, the mean head's beside them; a variant whose photos ``solver detect`` refuses is said
+and left out of the mean.
 """
 
 import argparse
@@ -56,27 +58,52 @@ def _corner(image):
     return tuple(int(c) for c in np.asarray(image)[2, 2])
 
 
-#: name -> PIL RGB image -> PIL RGB image
+def hair(image, head, face):
+    """Dark hair painted on the head (``head`` (H, W) bool, the true head's pixels): the
+    skull above the brows and, but on a front photo, the back of the head down to below
+    the ear; on a front photo the sides above the ears. ``face``: the photo's detected
+    face (its keypoints place the brows and ears)."""
+    pixels = np.asarray(image).copy()
+    h, w = head.shape
+    v, u = np.mgrid[0:h, 0:w]
+    k, size = np.asarray(face.keypoints, float), float(face.box[2] - face.box[0])
+    painted = head & (v < k[:2, 1].mean() - 0.15 * size)
+    if face.is_profile:
+        painted |= head & (u < k[4, 0] - 0.1 * size) & (v < k[4, 1] + 0.35 * size)
+    else:
+        sides = (u < k[4:6, 0].min() + 0.05 * size) | (u > k[4:6, 0].max() - 0.05 * size)
+        painted |= head & (v < k[4:6, 1].mean() - 0.05 * size) & sides
+    shade = np.random.default_rng(0).normal(0, 6, (h, w, 1))
+    pixels[painted] = np.clip(np.array([40, 28, 20]) + shade[painted], 0, 255)
+    return Image.fromarray(pixels)
+
+
+#: name -> (PIL RGB image, the true head's pixels (H, W) bool, its detected face) -> PIL
+#: RGB image
 VARIANTS = {
-    "grey": lambda im: im.convert("L").convert("RGB"),
-    "small": lambda im: Image.fromarray(padded(np.asarray(im), {}, 4)[0]),
-    "jpeg50": _jpeg,
-    "dark": lambda im: Image.fromarray((np.asarray(im) * 0.5).astype(np.uint8)),
-    "turned10": lambda im: im.rotate(10, Image.BICUBIC, expand=True, fillcolor=_corner(im)),
-    "cropped": lambda im: im.crop((0, im.height // 8, im.width, im.height)),
-    "blurred": lambda im: im.filter(ImageFilter.GaussianBlur(2)),
-    "noisy": lambda im: _noisy(im),
-    "warm": lambda im: _cast(im, (1.15, 1.0, 0.8)),
-    "cool": lambda im: _cast(im, (0.85, 1.0, 1.15)),
+    "hair": hair,
+    "grey": lambda im, *_: im.convert("L").convert("RGB"),
+    "small": lambda im, *_: Image.fromarray(padded(np.asarray(im), {}, 4)[0]),
+    "jpeg50": lambda im, *_: _jpeg(im),
+    "dark": lambda im, *_: Image.fromarray((np.asarray(im) * 0.5).astype(np.uint8)),
+    "turned10": lambda im, *_: im.rotate(10, Image.BICUBIC, expand=True, fillcolor=_corner(im)),
+    "cropped": lambda im, *_: im.crop((0, im.height // 8, im.width, im.height)),
+    "blurred": lambda im, *_: im.filter(ImageFilter.GaussianBlur(2)),
+    "noisy": lambda im, *_: _noisy(im),
+    "warm": lambda im, *_: _cast(im, (1.15, 1.0, 0.8)),
+    "cool": lambda im, *_: _cast(im, (0.85, 1.0, 1.15)),
 }
 
 
-def changed(folder, variant, into):
+def changed(folder, variant, into, detector):
     """The head's two photos changed by ``VARIANTS[variant]``, written into ``into``."""
     into.mkdir(parents=True, exist_ok=True)
+    truth = np.load(folder / "truth.npz", allow_pickle=True)
     for view in ("front", "side"):
         image = Image.open(folder / f"{view}.png").convert("RGB")
-        VARIANTS[variant](image).save(into / f"{view}.png")
+        face = detector.detect(np.asarray(image))
+        VARIANTS[variant](image, truth[f"head_alpha_{view}"] >= 128, face) \
+            .save(into / f"{view}.png")
     return into
 
 
@@ -98,7 +125,7 @@ def main(argv=None):
             row = [skin_error_mm(model, model.vertices, truth)]
             for variant in [None] + args.variants:
                 photos = folder if variant is None else \
-                    changed(folder, variant, Path(tmp) / f"{folder.name}_{variant}")
+                    changed(folder, variant, Path(tmp) / f"{folder.name}_{variant}", detector)
                 try:
                     case = photos_case(photos, detector)
                 except ValueError as err:

@@ -51,6 +51,10 @@ MIN_LENGTH = 1.0
 #: cut the skin run (the lips' red on a profile: 30-40 px of james' 346-px face; a
 #: highlight) and does not make one.
 MIN_STRETCH = 0.12
+#: Other runs of skin on the person's outline than the face's front's are kept where they
+#: come this many face sizes near the face's centre: its other side, where hair on the
+#: crown parts the two (a front photo).
+NEAR_FACE = 1.0
 #: On a photo without colour (``photo_colour.has_colour``: black and white), where skin
 #: cannot be told from clothes, the outline ends this many eye-to-mouth distances below
 #: the mouth (along the line from the eyes to the mouth): about 2 cm under the chin.
@@ -277,6 +281,12 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
     if run is None:                      # the nose's point itself is not skin: the nearest run
         run = min(_runs(keep), key=lambda r: min(abs(r[0] - front), abs(r[1] - front)))
     idx = np.arange(run[0], run[1]) % n
+    centre = np.asarray(centre, float)
+    for a, b in _runs(keep):             # the face's other side, where hair parts them
+        more = np.arange(a, b) % n
+        if (a, b) != run and len(more) >= shortest and np.min(np.linalg.norm(
+                moved[more] - centre, axis=1)) <= NEAR_FACE * size:
+            idx = np.concatenate([idx, more])
     if len(idx) == n:
         if on_photo.all():
             raise ValueError("the person's outline is all skin: cannot tell where the neck "

@@ -105,6 +105,21 @@ def test_hair_is_left_out_of_the_forehead_and_skull(sample, detector):
     assert v.max() > face.keypoints[3][1]         # still the face and neck below it
 
 
+def test_hair_on_the_crown_leaves_both_sides_of_the_face(sample, detector):
+    from bench.bench_photo_variants import hair
+
+    folder, truth = sample
+    photo = Image.open(folder / "front.png").convert("RGB")
+    face = detector.detect(np.asarray(photo))
+    image = np.asarray(hair(photo, truth["head_alpha_front"] >= 128, face))
+    outline = detector.outline(image, detector.detect(image))
+    # the hair parts the two sides: both kept, each from the temple down the neck
+    middle = (face.box[0] + face.box[2]) / 2
+    left, right = outline.points[:, 0] < middle, outline.points[:, 0] > middle
+    assert left.sum() > 0.35 * len(outline.points) and right.sum() > 0.35 * len(outline.points)
+    assert outline.points[:, 1].min() > face.keypoints[0][1] - 0.15 * (face.box[2] - face.box[0])
+
+
 def test_no_person_is_said(detector, sample):
     folder, _ = sample
     image = _photo(folder)
