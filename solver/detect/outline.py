@@ -53,7 +53,7 @@ MIN_LENGTH = 1.0
 MIN_STRETCH = 0.12
 #: Other runs of skin on the person's outline than the face's front's are kept where they
 #: come this many face sizes near the face's centre: its other side, where hair on the
-#: crown parts the two (a front photo).
+#: crown parts the two (a front photo). The front's run alone must be ``MIN_LENGTH`` long.
 NEAR_FACE = 1.0
 #: On a photo without colour (``photo_colour.has_colour``: black and white), where skin
 #: cannot be told from clothes, the outline ends this many eye-to-mouth distances below
@@ -281,23 +281,24 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
     if run is None:                      # the nose's point itself is not skin: the nearest run
         run = min(_runs(keep), key=lambda r: min(abs(r[0] - front), abs(r[1] - front)))
     idx = np.arange(run[0], run[1]) % n
+    if len(idx) == n:
+        if on_photo.all():
+            raise ValueError("the person's outline is all skin: cannot tell where the neck "
+                             "ends")
+        idx = np.roll(idx, -int(np.flatnonzero(~on_photo)[-1]) - 1)  # from the border on
+    seen = int(on_photo[idx].sum())
+    if seen * spacing_px < MIN_LENGTH * size:
+        raise ValueError(f"the skin on the person's outline near the face is "
+                         f"{seen * spacing_px:.0f} px long, under {MIN_LENGTH:g} x the "
+                         f"face's {size:.0f} px (hair or clothes around it): no outline")
     centre = np.asarray(centre, float)
     for a, b in _runs(keep):             # the face's other side, where hair parts them
         more = np.arange(a, b) % n
         if (a, b) != run and len(more) >= shortest and np.min(np.linalg.norm(
                 moved[more] - centre, axis=1)) <= NEAR_FACE * size:
             idx = np.concatenate([idx, more])
-    if len(idx) == n:
-        if on_photo.all():
-            raise ValueError("the person's outline is all skin: cannot tell where the neck "
-                             "ends")
-        idx = np.roll(idx, -int(np.flatnonzero(~on_photo)[-1]) - 1)  # from the border on
     crossed = not on_photo[idx].all()
     idx = idx[on_photo[idx]]
-    if len(idx) * spacing_px < MIN_LENGTH * size:
-        raise ValueError(f"the skin on the person's outline near the face is "
-                         f"{len(idx) * spacing_px:.0f} px long, under {MIN_LENGTH:g} x the "
-                         f"face's {size:.0f} px (hair or clothes around it): no outline")
     notes = [_end_note(i % n, skin, on_photo, above) for i in (idx[0] - 1, idx[-1] + 1)]
     # drawn from the chin's side: the mouth comes before the nose
     mouth = np.asarray(face.keypoints, float)[3]
