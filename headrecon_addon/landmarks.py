@@ -295,8 +295,9 @@ def contour_object(plane):
     return next((c for c in plane.children if c.headrecon.role == "CONTOUR"), None)
 
 
-def set_contour_local(plane, xy):
-    """Replace the plane's contour with plane-space points (n, 2); n = 0 removes it."""
+def set_contour_local(plane, xy, breaks=()):
+    """Replace the plane's contour with plane-space points (n, 2); n = 0 removes it.
+    ``breaks``: the indices where a new part begins (drawn apart, read back in order)."""
     xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
     obj = contour_object(plane)
     if len(xy) == 0:
@@ -318,21 +319,42 @@ def set_contour_local(plane, xy):
         scene_collections.link_like(obj, plane)
     curve = obj.data
     curve.splines.clear()
-    spline = curve.splines.new("POLY")
-    spline.points.add(len(xy) - 1)
-    co = np.zeros((len(xy), 4), dtype=np.float32)
-    co[:, :2] = xy
-    co[:, 2] = LIFT
-    co[:, 3] = 1.0
-    spline.points.foreach_set("co", co.ravel())
+    for part in np.split(xy, np.asarray(breaks, dtype=np.intp)):
+        if not len(part):
+            continue
+        spline = curve.splines.new("POLY")
+        spline.points.add(len(part) - 1)
+        co = np.zeros((len(part), 4), dtype=np.float32)
+        co[:, :2] = part
+        co[:, 2] = LIFT
+        co[:, 3] = 1.0
+        spline.points.foreach_set("co", co.ravel())
     curve.update_tag()
     return obj
 
 
-def set_contour(plane, pixels):
-    """Replace the plane's contour with pixel points (n, 2)."""
+#: A step between a contour's points longer than this many times its median step (and
+#: ``CONTOUR_JUMP_PX``) starts a new part: a detected outline goes on across hair or the
+#: photo's border without points there, and is drawn as its parts, not with a chord.
+CONTOUR_JUMP = 8.0
+CONTOUR_JUMP_PX = 20.0
+
+
+def contour_parts(pixels):
+    """The indices (k,) where a new part of the contour ``pixels`` (n, 2) begins."""
     px = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
-    return set_contour_local(plane, photos.local_from_pixels(plane, px) if len(px) else px)
+    if len(px) < 3:
+        return np.zeros(0, dtype=np.intp)
+    step = np.linalg.norm(np.diff(px, axis=0), axis=1)
+    return np.flatnonzero(step > max(CONTOUR_JUMP * np.median(step), CONTOUR_JUMP_PX)) + 1
+
+
+def set_contour(plane, pixels):
+    """Replace the plane's contour with pixel points (n, 2), drawn as its parts
+    (:func:`contour_parts`)."""
+    px = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+    return set_contour_local(plane, photos.local_from_pixels(plane, px) if len(px) else px,
+                             contour_parts(px))
 
 
 def contour_local(plane):
@@ -385,14 +407,24 @@ def contour_is_detected(plane):
                        rtol=0, atol=1e-3)
 
 
+def _contour_breaks(plane):
+    """Where each of the plane's contour's parts after the first begins (indices)."""
+    obj = contour_object(plane)
+    if obj is None:
+        return []
+    return list(np.cumsum([len(sp.points) for sp in obj.data.splines])[:-1])
+
+
 def add_contour_point_local(plane, xy):
     pts = contour_local(plane)
-    return set_contour_local(plane, np.vstack([pts, np.reshape(xy, (1, 2))]))
+    return set_contour_local(plane, np.vstack([pts, np.reshape(xy, (1, 2))]),
+                             _contour_breaks(plane))
 
 
 def remove_last_contour_point(plane):
     pts = contour_local(plane)
-    return set_contour_local(plane, pts[:-1])
+    return set_contour_local(plane, pts[:-1], [b for b in _contour_breaks(plane)
+                                               if b < len(pts) - 1])
 
 
 # --------------------------------------------------------------------------------------

@@ -73,5 +73,17 @@ def test_contour(files, scene):
     assert np.allclose(landmarks.contour_pixels(plane)[-1], (30.0, 60.0), atol=1e-3)
     session.undo_point()
     assert np.allclose(landmarks.contour_pixels(plane), pts, atol=1e-3)
+    # a detected outline across hair or the photo's border: drawn as its parts, read back
+    # whole, in order; a point added by hand goes on the last part
+    parted = np.vstack([pts, pts[-1] + [200.0, 0.0] + np.arange(4)[:, None] * [3.0, 4.0]])
+    landmarks.set_contour(plane, parted)
+    obj = landmarks.contour_object(plane)
+    assert [len(sp.points) for sp in obj.data.splines] == [3, 4]
+    assert np.allclose(landmarks.contour_pixels(plane), parted, atol=1e-3)
+    landmarks.add_contour_point_local(plane, xy)
+    assert [len(sp.points) for sp in obj.data.splines] == [3, 5]
+    landmarks.remove_last_contour_point(plane)
+    landmarks.remove_last_contour_point(plane)
+    assert [len(sp.points) for sp in obj.data.splines] == [3, 3]
     landmarks.set_contour(plane, np.zeros((0, 2)))
     assert landmarks.contour_object(plane) is None
