@@ -29,6 +29,12 @@ SKIN_WHITE = 0.97
 #: A photo whose face's skin is less warm than this has no colour to tell skin by (a
 #: black-and-white photo: 0; the rendered faces 0.09-0.12, james 0.19-0.20).
 MIN_COLOUR = 0.02
+#: A photo is stretched to its own white by at most this factor (a photo of the night);
+#: a channel whose white is this near full scale is left as it is; and one channel is
+#: stretched at most ``MAX_CAST`` times more than another.
+MAX_STRETCH = 10.0
+NEAR_WHITE = 0.98
+MAX_CAST = 1.5
 
 
 def sample_photo(image, uv):
@@ -83,6 +89,23 @@ def white_point(image):
     highlights and white things are white in the scene: a photo darkened after it was
     taken has its white below 1 in every channel, one with a colour cast in some."""
     return np.percentile(image[::4, ::4, :3].reshape(-1, 3), 99.9, axis=0)
+
+
+def stretched_to_white(image):
+    """``image`` (H, W, 3) float32 in [0, 1] stretched to its white (:func:`white_point`),
+    as it was shot (docs/DECISIONS.md, "Photos as users give them, measured"). Where some
+    channel reaches full scale (a white thing, a clipped highlight), the others are
+    stretched to it: a colour cast taken out. Where none does (a photo darkened, or one
+    whose brightest things are coloured, such as skin), all by one factor: its colours
+    kept."""
+    white = np.maximum(white_point(image), 1.0 / MAX_STRETCH)
+    if white.max() < NEAR_WHITE:
+        white = np.full(3, white.max())
+    else:
+        white = np.where(white >= NEAR_WHITE, 1.0, np.maximum(white, white.max() / MAX_CAST))
+    if (white >= 1.0).all():
+        return image
+    return np.minimum(image / white.astype(np.float32), 1.0)
 
 
 def skin_like(colours, skin, clipped=True):

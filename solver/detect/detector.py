@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..paths import DETECTOR_DIR
-from ..photo_colour import white_point
+from ..photo_colour import stretched_to_white
 from .crop import Square
 from .face_detection import detect_faces
 from .face_landmarks import face_mesh, square_from_detection, square_from_mesh
@@ -34,13 +34,6 @@ MIN_PRESENCE = 0.5
 #: three-quarter views at 22 and 30 degrees 0.38 and 0.35). The mesh may still report a
 #: face there (0.51 on the mirrored profile) while its points are 45 px off.
 PROFILE_EYES = 0.2
-#: A photo is stretched to its own white by at most this factor (a photo of the night),
-#: and one channel at most this many times more than another (a cast; a white point set by
-#: something coloured would give one).
-MAX_STRETCH = 10.0
-MAX_CAST = 1.5
-#: A channel whose white is this near full scale is left as it is.
-NEAR_WHITE = 0.98
 
 
 @dataclass
@@ -155,20 +148,13 @@ class Detector:
 
 
 def _as_float(image):
-    """(H, W, 3+) uint8 or float -> (H, W, 3) float32 in [0, 1], each channel stretched to
-    the photo's white (``photo_colour.white_point``): a photo darkened or given a colour
-    cast after it was taken is detected as it was shot (docs/DECISIONS.md, "Photos as users
-    give them, measured"). No channel is stretched more than ``MAX_STRETCH`` times, nor
-    more than ``MAX_CAST`` times another, nor at all when its white is within
-    ``NEAR_WHITE`` of full scale."""
+    """(H, W, 3+) uint8 or float -> (H, W, 3) float32 in [0, 1], stretched to the photo's
+    white (``photo_colour.stretched_to_white``): a photo darkened or given a colour cast
+    after it was taken is detected as it was shot."""
     image = np.asarray(image)
     if image.ndim != 3 or image.shape[2] < 3:
         raise ValueError(f"image must be (H, W, 3), got shape {image.shape}")
     image = image[:, :, :3]
     image = image.astype(np.float32) / 255.0 if image.dtype == np.uint8 \
         else image.astype(np.float32)
-    white = np.maximum(white_point(image), 1.0 / MAX_STRETCH)
-    white = np.where(white >= NEAR_WHITE, 1.0, np.maximum(white, white.max() / MAX_CAST))
-    if (white < 1.0).any():
-        image = np.minimum(image / np.minimum(white, 1.0).astype(np.float32), 1.0)
-    return image
+    return stretched_to_white(image)

@@ -10,6 +10,7 @@ from solver.photo_colour import (
     sample_photo,
     skin_colour,
     skin_like,
+    stretched_to_white,
     white_point,
 )
 
@@ -80,3 +81,21 @@ def test_a_photo_s_white_is_its_brightest_per_channel_not_a_few_hot_pixels():
     image[:40, :40] = (0.5, 0.45, 0.4)           # a white highlight under a warm cast, dark
     image[100, 100] = 1.0                         # a hot pixel
     np.testing.assert_allclose(white_point(image), [0.5, 0.45, 0.4])
+
+
+def test_a_photo_is_stretched_to_its_white_its_colours_kept_unless_a_white_is_cast():
+    rng = np.random.default_rng(2)
+    scene = rng.uniform(0.1, 0.7, (200, 200, 3)).astype(np.float32)
+    scene[:30, :30] = 1.0                                  # something white
+    # darkened after the shot: back as it was
+    np.testing.assert_allclose(stretched_to_white(scene * 0.5), scene, rtol=1e-3)
+    # a cool cast on it: the white is white again, the rest with it
+    cool = scene * np.float32([0.85, 1.0, 1.0])
+    np.testing.assert_allclose(stretched_to_white(cool), scene, rtol=1e-3)
+    # no white in it, its brightest things warm (skin): one factor, its colours kept
+    warm = scene[30:] * np.float32([0.8, 0.62, 0.5])
+    out = stretched_to_white(warm)
+    np.testing.assert_allclose(out / out.max(), warm / warm.max(), rtol=1e-3)
+    assert out.max() == pytest.approx(1.0, abs=0.01)
+    # a photo already at full scale is the same array
+    assert stretched_to_white(scene) is scene
