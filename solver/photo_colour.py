@@ -105,7 +105,8 @@ def stretched_to_white(image):
         white = np.where(white >= NEAR_WHITE, 1.0, np.maximum(white, white.max() / MAX_CAST))
     if (white >= 1.0).all():
         return image
-    return np.minimum(image / white.astype(np.float32), 1.0)
+    out = image * (1.0 / white).astype(np.float32)
+    return np.minimum(out, 1.0, out=out)
 
 
 def skin_like(colours, skin, clipped=True):
