@@ -19,6 +19,11 @@ DOWN_REACH = 1.0
 #: An outline whose points lie further apart than this (median, fraction of the face's
 #: size) is too coarse to show the lips: nothing is read off it.
 MAX_SPACING = 0.02
+#: A step between neighbouring outline points longer than this fraction of the face's
+#: size is a gap (a beard, a hand or the photo's border hides the outline there): the
+#: points are read off the unbroken piece that holds the nose tip only, so nothing beyond
+#: a gap (a lip showing through a beard) is taken for the next feature down the face.
+GAP = 0.03
 #: The outline is smoothed over this fraction of the face's size before the extremes
 #: are read (a traced outline's 1-2 px noise makes no dip).
 SMOOTH = 0.012
@@ -108,7 +113,8 @@ def profile_line_points(contour, side, face_size, nose_tip=None):
     ----------
     contour : ndarray (n, 2)
         The head's outline in the photo, px, in order along it (either way), covering the
-        face from above the nasion to below the chin.
+        face from above the nasion to below the chin; where it has gaps (``GAP``), only
+        its piece with the nose tip is read.
     side : {"right", "left"}
         The profile: a right profile's face looks toward +u, a left one's toward -u.
     face_size : float
@@ -129,6 +135,9 @@ def profile_line_points(contour, side, face_size, nose_tip=None):
             or np.median(np.linalg.norm(np.diff(c, axis=0), axis=1)) > MAX_SPACING * face_size:
         return {}, {}
     sign = 1.0 if side == "right" else -1.0
+    c = _piece_with_tip(c, sign, face_size, nose_tip)
+    if len(c) < 8:
+        return {}, {}
     p = _smooth(c, SMOOTH * face_size)
     q = np.stack([sign * p[:, 0], p[:, 1]], axis=1)  # (forward, down) px
     if nose_tip is None:
@@ -161,12 +170,27 @@ def profile_line_points(contour, side, face_size, nose_tip=None):
                     for n in points}
 
 
+def _piece_with_tip(c, sign, face_size, nose_tip):
+    """The unbroken piece of the outline ``c`` (n, 2) (no step longer than ``GAP`` of the
+    face's size) that holds the nose tip: the point nearest ``nose_tip`` if given, else
+    the most forward one (``sign`` +1 a right profile, -1 a left one)."""
+    cut = np.flatnonzero(np.linalg.norm(np.diff(c, axis=0), axis=1) > GAP * face_size) + 1
+    if not len(cut):
+        return c
+    at = int(np.argmin(np.linalg.norm(c - np.asarray(nose_tip, dtype=float), axis=1))) \
+        if nose_tip is not None else int(np.argmax(sign * c[:, 0]))
+    k = int(np.searchsorted(cut, at, side="right"))
+    bounds = np.concatenate([[0], cut, [len(c)]])
+    return c[bounds[k]:bounds[k + 1]]
+
+
 def _stretches(q, s, tip, face_size):
     """Indices of the outline up from the nose tip toward the forehead and down from it
     over the lips and chin (each starting at the tip), each as far as its reach."""
-    ahead = np.searchsorted(s, s[tip] + 0.3 * face_size)
-    behind = np.searchsorted(s, s[tip] - 0.3 * face_size)
-    step = 1 if ahead < len(q) and (behind <= 0 or q[ahead, 1] > q[behind, 1]) else -1
+    # down the face is the way the outline goes lower (where it ends, its last point)
+    ahead = min(int(np.searchsorted(s, s[tip] + 0.3 * face_size)), len(q) - 1)
+    behind = max(int(np.searchsorted(s, s[tip] - 0.3 * face_size)), 0)
+    step = 1 if q[ahead, 1] > q[behind, 1] else -1
 
     def stretch(direction, reach):
         idx = np.arange(tip, len(q)) if direction > 0 else np.arange(tip, -1, -1)

@@ -88,3 +88,24 @@ def test_an_outline_too_coarse_or_without_a_face_gives_nothing(model):
     line = np.stack([np.full(400, 300.0), np.arange(400.0) * 2.0], axis=1)
     points, _ = profile_line_points(line, "right", 300.0)
     assert set(points) <= {"nose_tip"}
+
+
+def test_only_the_outline_s_piece_with_the_nose_is_read(model):
+    # a beard hides the outline from under the nose down; what shows through it (here the
+    # outline from the lower lip over the chin) follows the face's piece after a gap:
+    # nothing is read off it
+    outline, exact, size = _profile(model, 4150)
+    at = {n: int(np.argmin(np.linalg.norm(outline - exact[n], axis=1)))
+          for n in ("subnasale", "lip_lower_middle", "chin_bottom")}
+    down = 1 if at["chin_bottom"] > at["subnasale"] else -1
+    face = outline[:at["subnasale"]] if down > 0 else outline[at["subnasale"] + 1:]
+    a, b = sorted((at["lip_lower_middle"], at["chin_bottom"] + 10 * down))
+    bit = outline[a:b + 1]
+    broken = np.vstack([face, bit]) if down > 0 else np.vstack([bit, face])
+    points, _ = profile_line_points(broken, "right", size, exact["nose_tip"] + 5.0)
+    near_bit = [n for n, p in points.items()
+                if np.min(np.linalg.norm(bit - np.asarray(p), axis=1)) < 0.05 * size]
+    assert not near_bit, points
+    whole, _ = profile_line_points(outline, "right", size, exact["nose_tip"] + 5.0)
+    for n in ("nasion", "nose_tip"):
+        assert np.linalg.norm(np.subtract(points[n], whole[n])) < 0.01 * size, n
