@@ -278,8 +278,13 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
     n = len(moved)
     run = next(((a, b) for a, b in _runs(keep) if a <= front < b or a <= front + n < b),
                None)
-    if run is None:                      # the nose's point itself is not skin: the nearest run
-        run = min(_runs(keep), key=lambda r: min(abs(r[0] - front), abs(r[1] - front)))
+    if run is None:
+        # the nose's point itself is not skin (a highlight; a beard on a front photo's
+        # cheek): the nearest run long enough to be the face's (a strip of skin between
+        # a beard and an ear is not), else the nearest
+        runs = sorted(_runs(keep), key=lambda r: min(abs(r[0] - front), abs(r[1] - front)))
+        run = next((r for r in runs if on_photo[np.arange(r[0], r[1]) % n].sum()
+                    * spacing_px >= MIN_LENGTH * size), runs[0])
     idx = np.arange(run[0], run[1]) % n
     if len(idx) == n:
         if on_photo.all():

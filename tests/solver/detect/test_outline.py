@@ -178,3 +178,28 @@ def test_a_black_and_white_profile_ends_under_the_chin_and_gives_its_edge(sample
     assert np.median(d) < 1.0 and np.percentile(d, 90) < 2.5
     colour = detector.outline(_photo(folder), detector.detect(_photo(folder)))
     assert colour.colour and colour.contour is colour.points
+
+
+def test_a_beard_on_the_cheek_by_the_nose_leaves_the_face_s_outline(sample, detector):
+    from scipy import ndimage
+
+    # dark whiskers over the cheeks' sides from above the nose tip down past the chin and
+    # 6 mm out beyond them: the outline's point nearest the nose lies on them, and the
+    # face's run is the nearest one long enough (the skull's), not a strip of skin
+    # between the whiskers and an ear
+    folder, truth = sample
+    image = _photo(folder, "front").copy()
+    face = detector.detect(image)
+    head = truth["head_alpha_front"] >= 128
+    k, size = face.keypoints, face.box[2] - face.box[0]
+    vv, uu = np.mgrid[0:head.shape[0], 0:head.shape[1]]
+    band = (vv > k[2][1] - 0.1 * size) & (vv < k[3][1] + 0.45 * size)
+    painted = head & band & (np.abs(uu - k[2][0]) > 0.25 * size)
+    dist, (iv, iu) = ndimage.distance_transform_edt(~head, return_indices=True)
+    painted |= ~head & painted[iv, iu] & (dist <= 6.0 * size / 150.0)
+    image[painted] = [30, 22, 16]
+    outline = detector.outline(image, detector.detect(image))
+    assert outline.points[:, 1].min() < k[0][1] - 0.5 * size       # over the skull
+    middle = (face.box[0] + face.box[2]) / 2
+    assert (outline.points[:, 0] < middle).sum() > 0.3 * len(outline.points)
+    assert (outline.points[:, 0] > middle).sum() > 0.3 * len(outline.points)
