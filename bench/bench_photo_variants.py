@@ -1,24 +1,28 @@
 """Photos as users give them: heads fitted from their photos alone (detected, as Auto Fit
-takes them) as rendered and changed as real photos are: with hair, black and white, the
-head small in a larger photo, JPEG-compressed, darker, turned in their plane, cropped,
-blurred, noisy, with a colour cast.
+takes them) as rendered and changed as real photos are: with hair or a beard, black and
+white, the head small in a larger photo, JPEG-compressed, darker, turned in their plane,
+cropped, blurred, noisy, with a colour cast.
 
-    python -m bench.bench_photo_variants [--variants NAME ...] [--heads DIR ...]
-                                         [--render SEED ...]
+    python -m bench.bench_photo_variants [--variants NAME ...] [--face]
+                                         [--heads DIR ...] [--render SEED ...]
 
 Heads: as ``bench.bench_photo_size`` (the sample and ``generated/bench_heads/seed<N>``).
 Variants (``VARIANTS``; all by default), each applied to both photos, written to a
 temporary folder: ``hair`` (dark hair painted over the skull above the brows and the back
-of the head; the rendered heads are bald), ``grey`` (black and white), ``small`` (the
-photo in the middle of one four times its size, its corner's colour around it: the face
-10 % of the longer side), ``jpeg50`` (JPEG at quality 50), ``dark`` (half as bright),
-``turned10`` (turned by 10 degrees, the corners filled with its corner's colour),
-``cropped`` (its top eighth cut off: the skull's top), ``blurred`` (a 2 px Gaussian),
-``noisy`` (Gaussian noise of 8 levels), ``warm`` and ``cool`` (red and blue scaled by 1.15
-and 0.8, or 0.85 and 1.15: a white balance off). Scores: skin RMS against the true head
-after a similarity (``skin_error_mm``, the whole head: under hair the skull is not seen),
-mm, the mean head's beside them; a variant whose photos ``solver detect`` refuses is said
-and left out of the mean.
+of the head, within the head's own outline; the rendered heads are bald), ``thick_hair``
+(the same grown out past the skull up to 12 mm, as hair is), ``beard`` (a dark full beard
+from under the nose to under the chin, the lips bare, up to 8 mm out past the jaw),
+``grey`` (black and white), ``small`` (the photo in the middle of one four times its
+size, its corner's colour around it: the face 10 % of the longer side), ``jpeg50`` (JPEG
+at quality 50), ``dark`` (half as bright), ``turned10`` (turned by 10 degrees, the
+corners filled with its corner's colour), ``cropped`` (its top eighth cut off: the
+skull's top), ``blurred`` (a 2 px Gaussian), ``noisy`` (Gaussian noise of 8 levels),
+``warm`` and ``cool`` (red and blue scaled by 1.15 and 0.8, or 0.85 and 1.15: a white
+balance off). Scores: skin RMS against the true head after a similarity
+(``skin_error_mm``, the whole head: under hair the skull is not seen), or with ``--face``
+over the face region alone (``realistic_cases.model_face_vertices``, aligned on it), mm,
+the mean head's beside them; a variant whose photos ``solver detect`` refuses is said and
+left out of the mean.
 """
 
 import argparse
@@ -28,13 +32,16 @@ from pathlib import Path
 
 import numpy as np
 from PIL import Image, ImageFilter
+from scipy import ndimage
 
 from bench.bench_corrections import add_head_options, head_folders
 from bench.bench_detect import padded
 from bench.bench_photo_size import photos_case
 from bench.common import machine_description
+from bench.realistic_cases import model_face_vertices
 from solver import fit_head, load_model
 from solver.detect import Detector
+from solver.procrustes import similarity_procrustes
 from solver.synthetic import skin_error_mm
 
 
@@ -58,12 +65,11 @@ def _corner(image):
     return tuple(int(c) for c in np.asarray(image)[2, 2])
 
 
-def hair(image, head, face):
-    """Dark hair painted on the head (``head`` (H, W) bool, the true head's pixels): the
-    skull above the brows and, but on a front photo, the back of the head down to below
-    the ear; on a front photo the sides above the ears. ``face``: the photo's detected
-    face (its keypoints place the brows and ears)."""
-    pixels = np.asarray(image).copy()
+def hair_region(head, face):
+    """Where :func:`hair` paints, (H, W) bool: of ``head`` (H, W) bool (the true head's
+    pixels), the skull above the brows and, on a profile, the back of the head down to
+    below the ear; on a front photo the sides above the ears. ``face``: the photo's
+    detected face (its keypoints place the brows and ears)."""
     h, w = head.shape
     v, u = np.mgrid[0:h, 0:w]
     k, size = np.asarray(face.keypoints, float), float(face.box[2] - face.box[0])
@@ -73,15 +79,72 @@ def hair(image, head, face):
     else:
         sides = (u < k[4:6, 0].min() + 0.05 * size) | (u > k[4:6, 0].max() - 0.05 * size)
         painted |= head & (v < k[4:6, 1].mean() - 0.05 * size) & sides
-    shade = np.random.default_rng(0).normal(0, 6, (h, w, 1))
-    pixels[painted] = np.clip(np.array([40, 28, 20]) + shade[painted], 0, 255)
+    return painted
+
+
+def _paint_hair(image, where, seed=0):
+    pixels = np.asarray(image).copy()
+    shade = np.random.default_rng(seed).normal(0, 6, pixels.shape[:2] + (1,))
+    pixels[where] = np.clip(np.array([40, 28, 20]) + shade[where], 0, 255)
     return Image.fromarray(pixels)
+
+
+def hair(image, head, face):
+    """Dark hair painted on the head over :func:`hair_region`, within the head's own
+    outline (a shaved head's hair)."""
+    return _paint_hair(image, hair_region(head, face))
+
+
+def thick_hair(image, head, face, mm=12.0):
+    """:func:`hair` grown out past the skull as real hair is: up to ``mm`` thick on the
+    crown, thinning toward the brows and, on a profile, down the nape, with a gentle wave
+    (the face's box taken as 15 cm); the head's own outline is hidden under it."""
+    painted = hair_region(head, face)
+    k, size = np.asarray(face.keypoints, float), float(face.box[2] - face.box[0])
+    dist, (iv, iu) = ndimage.distance_transform_edt(~head, return_indices=True)
+    # full thickness half a face above the brows, less below
+    rise = np.clip((k[:2, 1].mean() - iv) / (0.5 * size), 0.15, 1.0)
+    wave = 1.0 + 0.25 * np.sin(iu / (0.15 * size) * np.pi)
+    grown = ~head & painted[iv, iu] & (dist <= mm * size / 150.0 * rise * wave)
+    return _paint_hair(image, painted | grown)
+
+
+def beard_region(head, face, mm=8.0):
+    """Where :func:`beard` paints, (H, W) bool: of ``head`` (H, W) bool, the face below
+    the nose down to under the chin, in front of the ears, the lips left bare; and grown
+    out past the head's outline up to ``mm`` below the mouth (the face's box taken as
+    15 cm)."""
+    h, w = head.shape
+    v, u = np.mgrid[0:h, 0:w]
+    k, size = np.asarray(face.keypoints, float), float(face.box[2] - face.box[0])
+    nose, mouth = k[2], k[3]
+    # from under the nose (a moustache; on a profile the nose keypoint may lie above the
+    # tip: not higher than a little over the mouth) to under the chin
+    top = max(nose[1] + 0.06 * size, mouth[1] - 0.1 * size)
+    band = (v > top) & (v < mouth[1] + 0.45 * size)
+    if face.is_profile:   # in front of the ear, toward the nose
+        front = np.sign(nose[0] - k[4, 0]) * (u - k[4, 0]) > 0.15 * size
+    else:
+        front = (u > k[4:6, 0].min() + 0.08 * size) & (u < k[4:6, 0].max() - 0.08 * size)
+    lips = ((u - mouth[0]) / (0.22 * size)) ** 2 + ((v - mouth[1]) / (0.07 * size)) ** 2 < 1
+    painted = head & band & front & ~lips
+    dist, (iv, iu) = ndimage.distance_transform_edt(~head, return_indices=True)
+    grown = ~head & painted[iv, iu] & (iv > mouth[1]) & (dist <= mm * size / 150.0)
+    return painted | grown
+
+
+def beard(image, head, face):
+    """A dark full beard (:func:`beard_region`): the jaw's and chin's outline is the
+    beard's, up to 8 mm out from the skin."""
+    return _paint_hair(image, beard_region(head, face), seed=2)
 
 
 #: name -> (PIL RGB image, the true head's pixels (H, W) bool, its detected face) -> PIL
 #: RGB image
 VARIANTS = {
     "hair": hair,
+    "thick_hair": thick_hair,
+    "beard": beard,
     "grey": lambda im, *_: im.convert("L").convert("RGB"),
     "small": lambda im, *_: Image.fromarray(padded(np.asarray(im), {}, 4)[0]),
     "jpeg50": lambda im, *_: _jpeg(im),
@@ -107,22 +170,35 @@ def changed(folder, variant, into, detector):
     return into
 
 
+def face_error_mm(model, local, truth_local):
+    """RMS vertex distance over the face region (``model_face_vertices``), mm, after a
+    similarity laying ``local`` on ``truth_local`` there (V, 3) m."""
+    face = model_face_vertices(model)
+    a, b = local[face], truth_local[face]
+    sim = similarity_procrustes(a, b)
+    return 1000.0 * float(np.sqrt(((sim.apply(a) - b) ** 2).sum(axis=1).mean()))
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--variants", nargs="*", choices=list(VARIANTS), default=list(VARIANTS))
+    ap.add_argument("--face", action="store_true",
+                    help="score the face region alone, not the whole head")
     add_head_options(ap)
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
     folders = head_folders(args.heads, args.render)
     model, detector = load_model(), Detector()
     columns = ["mean head", "as rendered"] + args.variants
-    print("skin RMS vs the true head, mm, from the photos alone")
+    score = face_error_mm if args.face else skin_error_mm
+    print(f"{'face region' if args.face else 'skin'} RMS vs the true head, mm, from the "
+          "photos alone")
     print(f"  {'head':<10}" + "".join(f"{c:>12}" for c in columns))
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for folder in folders:
             truth = np.load(folder / "truth.npz", allow_pickle=True)["local_vertices"]
-            row = [skin_error_mm(model, model.vertices, truth)]
+            row = [score(model, model.vertices, truth)]
             for variant in [None] + args.variants:
                 photos = folder if variant is None else \
                     changed(folder, variant, Path(tmp) / f"{folder.name}_{variant}", detector)
@@ -132,7 +208,7 @@ def main(argv=None):
                     print(f"  {folder.name} {variant}: {err}")
                     row.append(np.nan)
                     continue
-                row.append(skin_error_mm(model, fit_head(model, case).local_vertices, truth))
+                row.append(score(model, fit_head(model, case).local_vertices, truth))
             rows.append(row)
             print(f"  {folder.name:<10}" + "".join(f"{v:>12.2f}" for v in row), flush=True)
     a = np.array(rows)

@@ -1,0 +1,41 @@
+"""bench/bench_photo_variants.py's painted hair and beard on a drawn head: where each
+lies against the head's own outline."""
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from bench.bench_photo_variants import beard_region, hair_region, thick_hair
+
+
+def _head():
+    """A head (an ellipse, 300 x 400 px, centred at (200, 260) in a 400 x 560 photo) and
+    a front face on it (eyes, nose tip, mouth, ears; a 200 px box)."""
+    v, u = np.mgrid[0:560, 0:400]
+    head = ((u - 200) / 150.0) ** 2 + ((v - 260) / 200.0) ** 2 <= 1
+    face = SimpleNamespace(keypoints=np.array([[160, 240], [240, 240], [200, 290], [200, 340],
+                                               [60, 270], [340, 270]], float),
+                           box=np.array([100, 180, 300, 400], float), is_profile=False)
+    return head, face
+
+
+def test_hair_stays_on_the_head_and_thick_hair_grows_past_it():
+    head, face = _head()
+    painted = hair_region(head, face)
+    assert painted.any() and not (painted & ~head).any()
+    assert not painted[260:].any()                   # nothing below the ears
+    grown = np.asarray(thick_hair(np.zeros(head.shape + (3,), np.uint8), head, face)).any(2)
+    beyond = grown & ~head
+    assert beyond[:240].any() and not beyond[300:].any()
+    # about 12 mm on the crown (the 200 px box taken as 15 cm: 16 px, a wave of 25 %)
+    top = np.flatnonzero(grown[:, 200])[0]
+    assert 60 - 21 <= top <= 60 - 12
+
+
+def test_a_beard_covers_the_jaw_and_chin_past_the_head_but_not_the_lips():
+    head, face = _head()
+    painted = beard_region(head, face)
+    assert not painted[:290].any()                   # nothing above the nose tip
+    assert not painted[340, 200] and painted[390, 200]   # the lips bare, the chin covered
+    assert (painted & ~head)[420:].any()             # out past the chin
+    assert not (painted & ~head)[:340].any()         # but not past the cheeks above the mouth
