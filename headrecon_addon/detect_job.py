@@ -16,7 +16,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 from . import landmarks, photo_faces, photos
 from .job_progress import Progress
-from .solver_link import usable_cores
+from .solver_link import covered_note, usable_cores
 
 
 def _count(n):
@@ -91,6 +91,9 @@ class PhotoTask:
         elif self.face.profile:
             line += (" (a profile without an outline found: only the nose tip, subnasale "
                      "and upper lip are detected; trace its outline for the rest)")
+        covered = None if self.face.found is None else covered_note(self.face.found)
+        if covered:
+            line += f"; {covered}"
         out = [("INFO", line)]
         problem = photo_faces.loaded_as_problem(self.kind, self.perspective, self.face.guess)
         if problem:

@@ -14,6 +14,7 @@ from ..io.exif import photo_lens_mm
 from ..io.landmark_counts import landmarks_needed
 from ..io.landmark_set import load_landmark_set
 from ..io.photo_lens import plausible_lens
+from .covered import covered_note
 from .face_detection import KEYPOINTS
 from .ibug_map import mesh_to_ibug
 from .profile_line import profile_line_points
@@ -29,7 +30,8 @@ _YAW = {"front": 0.0, "right": 90.0, "left": -90.0, "three_quarter_right": 45.0,
 
 def detected_points(face, size):
     """The points of a detected face to keep, under the project's landmark names: those
-    ``point_uncertainty`` keeps (a profile's few) that lie on the photo of ``size`` (w, h).
+    ``point_uncertainty`` keeps (a profile's few) that lie on the photo of ``size`` (w, h)
+    and are not covered (``DetectedFace.covered``: a beard over the jaw).
 
     Returns
     -------
@@ -43,7 +45,8 @@ def detected_points(face, size):
     points, sigma = {}, {}
     kept = point_uncertainty(face)
     for number, (u, v) in enumerate(face.ibug, start=1):
-        if number in names and number in kept and 0 <= u <= w and 0 <= v <= h:
+        if number in names and number in kept and number not in face.covered \
+                and 0 <= u <= w and 0 <= v <= h:
             points[names[number]] = (float(u), float(v))
             if kept[number] is not None:
                 sigma[names[number]] = round(float(kept[number]), 3)
@@ -60,8 +63,9 @@ def detected_depth(face, names):
     """How far each of the landmarks ``names`` (detected points of ``face``, as
     :func:`detected_points` keeps them) lies toward the camera, px relative to the mesh's
     centre, rounded to 1/1000 px: the mesh's own depth (its z grows away from the camera)
-    over ``MESH_DEPTH_SCALE``. Empty for a profile, where the mesh is unreliable."""
-    if face.is_profile:
+    over ``MESH_DEPTH_SCALE``. Empty for a profile, where the mesh is unreliable, and for a
+    face partly covered (``DetectedFace.covered``), whose depths bend to what covers it."""
+    if face.is_profile or face.covered:
         return {}
     numbers = {n: i for i, n in load_landmark_set().ibug.items()}
     z = mesh_to_ibug(face.mesh[:, 2:3])[:, 0]
@@ -253,6 +257,8 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="a
         lens = f", its {lenses[-1]:.0f} mm lens ({source})" if lenses[-1] else ""
         echo(f"{path}: face (score {face.score:.2f}), {guess.describe()}{lens} -> view "
              f"{name!r}")
+        if covered_note(face):
+            echo(f"note: {path}: {covered_note(face)}")
         traced.append(photo_outline(detector, image, face, path, echo)
                       if wants_outline(face, outlines) else None)
     case = detected_case(photos, faces, base_dir=base_dir, guesses=guesses,

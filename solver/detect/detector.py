@@ -16,6 +16,7 @@ import numpy as np
 
 from ..paths import DETECTOR_DIR
 from ..photo_colour import stretched_to_white
+from .covered import covered_points
 from .crop import Square
 from .face_detection import detect_faces
 from .face_landmarks import face_mesh, square_from_detection, square_from_mesh
@@ -55,6 +56,9 @@ class DetectedFace:
         tragions), px.
     box : ndarray (4,) or None
         The detector's box (u_min, v_min, u_max, v_max), px: the face's size in the photo.
+    covered : frozenset of int
+        iBUG numbers of the points whose part of the face is covered (a beard over the
+        jaw: ``covered.covered_points``); a case leaves them and the mesh's depths out.
     """
 
     mesh: np.ndarray
@@ -63,6 +67,7 @@ class DetectedFace:
     presence: float
     keypoints: np.ndarray | None = None
     box: np.ndarray | None = None
+    covered: frozenset = frozenset()
 
     @property
     def face_size(self):
@@ -144,6 +149,8 @@ class Detector:
         elif refine:
             mesh, out.presence = face_mesh(self.mesh_net, image, square_from_mesh(mesh))
         out.mesh, out.ibug = mesh, mesh_to_ibug(mesh[:, :2])
+        if not out.is_profile:
+            out.covered = covered_points(image, out)
         return out
 
 

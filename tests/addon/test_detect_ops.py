@@ -343,3 +343,21 @@ def test_auto_fit_finds_each_face_and_outline_once(sample, monkeypatch):
     # the same outline as a Detect Outline that looks for the face itself
     alone = photo_faces.find_outline(np.array(front.pixels))
     assert np.array_equal(alone.contour, front.points)
+
+
+def test_a_bearded_face_gets_no_jaw_points_and_the_report_says_why(sample, tmp_path):
+    from bench.bench_photo_variants import beard
+    from headrecon_addon import detect_job, landmarks
+    from solver import Detector
+
+    folder, truth = sample
+    photo = Image.open(folder / "front.png").convert("RGB")
+    face = Detector().detect(np.asarray(photo))
+    path = tmp_path / "bearded.png"
+    beard(photo, truth["head_alpha_front"] >= 128, face).save(path)
+    scene = empty_scene()
+    plane = _load(path, "front", "orthographic-front")
+    job = detect_job.run_detection(scene, "front")
+    placed = set(landmarks.landmark_pixels(plane))
+    assert len(placed) == 68 - 17 and not any(n.startswith("jaw") for n in placed)
+    assert any("beard" in line and "17 points" in line for _, line in job.lines())

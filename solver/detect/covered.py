@@ -1,0 +1,62 @@
+"""Detected points whose part of the face is covered: a dark beard over the jaw. The face
+mesh still draws a jaw there, on the beard's edge, up to a centimetre outside the true one,
+and its depths bend to the beard's chin; fitted to them the whole face went wrong
+(docs/DECISIONS.md, "A beard"). A jaw point counts as covered when the face just inside
+it is not the colour of the face's skin; skin-coloured stubble, or a blond or grey beard,
+is not told apart."""
+
+import numpy as np
+
+from ..photo_colour import has_colour, sample_photo, skin_colour, skin_like
+
+#: The jaw's iBUG points looked at (the two at each temple lie above any beard).
+JAW = tuple(range(3, 16))
+#: The mesh's whole jaw line (iBUG 1-17), left out when any of ``JAW`` is covered: the mesh
+#: draws it as one curve, widened as a whole by a beard (its points at the temples kept,
+#: the ten bearded heads' faces fitted to 2.01 mm, all left out 1.80).
+JAW_LINE = tuple(range(1, 18))
+#: Where inside a jaw point the face is sampled: these fractions of the way from it to
+#: under the nose (iBUG 34), 0.5-1.5 cm inside the jaw's line on a face.
+INSIDE = (0.08, 0.14, 0.20)
+#: iBUG point the samples run toward (under the nose).
+TOWARD = 34
+#: The skin the samples are told against: on the lines from each eye to the nose tip and
+#: to its ear (the detector's keypoints), above where a beard grows.
+SKIN_PAIRS = ((0, 2), (1, 2), (0, 4), (1, 5))
+
+
+def covered_points(image, face):
+    """iBUG numbers of the covered points of ``face`` (a front or three-quarter
+    ``DetectedFace`` of ``image`` (H, W, 3) float in [0, 1]): the whole jaw line
+    (``JAW_LINE``) when the face just inside some point of ``JAW`` is not the face's skin
+    (most of its ``INSIDE`` samples fail ``photo_colour.skin_like``), else none. Empty for
+    a photo without colour (nothing to tell a beard by) or a face without keypoints.
+
+    Returns
+    -------
+    frozenset of int
+    """
+    if face.keypoints is None:
+        return frozenset()
+    k = np.asarray(face.keypoints, float)
+    t = np.linspace(0.25, 0.75, 9)[:, None]
+    pts = np.concatenate([k[a] + t * (k[b] - k[a]) for a, b in SKIN_PAIRS])
+    skin = skin_colour(sample_photo(image, pts))
+    if not has_colour(skin):
+        return frozenset()
+    ibug = np.asarray(face.ibug, float)
+    jaw = ibug[np.array(JAW) - 1]                                  # (j, 2)
+    f = np.asarray(INSIDE)[None, :, None]
+    inside = jaw[:, None] + f * (ibug[TOWARD - 1] - jaw)[:, None]  # (j, s, 2)
+    ok = skin_like(sample_photo(image, inside.reshape(-1, 2)), skin).reshape(len(JAW), -1)
+    covered = 2 * ok.sum(axis=1) < ok.shape[1]
+    return frozenset(JAW_LINE) if covered.any() else frozenset()
+
+
+def covered_note(face):
+    """What the report says of a face's covered points (``DetectedFace.covered``), a
+    phrase, or None when none are."""
+    if not face.covered:
+        return None
+    return (f"the jaw looks covered (a dark beard?): its {len(face.covered)} points and the "
+            "face mesh's depths are left out, the jaw left to the model")
