@@ -28,8 +28,8 @@ threshold) and the side landmarks. Then:
   refine the first one's head with approach 1 alone, which won every such fit measured.
   A head those fits leave in a wrong minimum (tilted and bent so that a stretch of a
   traced outline finds no outline row) is fitted once more with the settled noise, from
-  the first fit's other approach's head (else the mean head), and the clearly lower
-  posterior cost wins.
+  the first fit's other approach's head, and where the head kept still misses the
+  outline, from the mean head; the clearly lowest posterior cost wins.
 
 Cameras: no photo is assumed to share scale, tilt or framing with another. Each keeps its
 own camera, solved together with the head in every Gauss-Newton step (its parameters as
@@ -127,10 +127,10 @@ def prepare_fit(model, options=None):
 
 
 #: A fit whose head misses more than this share of a photo's traced outline is run again
-#: from another start (a head bent into the wrong minimum leaves a stretch of the outline
+#: from other starts (a head bent into the wrong minimum leaves a stretch of the outline
 #: unmatched; docs/DECISIONS.md).
 MISSED_OUTLINE = 0.08
-#: ... and that fit's head is kept only if its posterior cost is lower by more than this
+#: ... and such a fit's head is kept only if its posterior cost is lower by more than this
 #: share: between two heads near a tie the cost does not tell the better one.
 SECOND_START_GAIN = 0.1
 
@@ -168,11 +168,11 @@ def fit_head(model, case, options=None, initial=None):
         model, ``outcome.plausibility``), "unused" (the views skipped and the
         landmarks left out per view, ``views.unused_views``), "warnings"
         (messages for the user), "refit_state" (what :func:`refit_landmarks`
-        continues from) and, when the head was fitted again from a second start (it
+        continues from) and, when the head was fitted again from other starts (it
         missed more than ``MISSED_OUTLINE`` of a traced outline), "starts": "costs", the
-        posterior cost each start ended at ("continued", and "other approach" or "mean
-        head"), and "kept", the start whose head was kept (the second one's when lower by
-        more than ``SECOND_START_GAIN``).
+        posterior cost each start ended at ("continued", "other approach" and, where the
+        head kept still missed it, "mean head"), and "kept", the start whose head was
+        kept (another's only when lower by more than ``SECOND_START_GAIN``).
 
     Raises
     ------
@@ -224,19 +224,25 @@ def fit_head(model, case, options=None, initial=None):
         _add_timings(timings, result.info["timings"])
     starts = None
     if initial is None and outline_missed(case, result) > MISSED_OUTLINE:
-        # A second start, with the noise and expressions the rounds settled on (approach 1,
-        # as the rounds): from the head of the first fit's other approach where it ran two
-        # (a round's cost), else from the mean head.
-        other = other_start()
-        again = _fit(model, neutral_case(model, case, result, expressions), later, other,
-                     noise, progress.part(0.91, 0.99), t0, uncertainty=False)
-        key = "mean head" if other is None else "other approach"
-        costs = {"continued": _cost(result), key: _cost(again[0])}
+        # More starts, with the noise and expressions the rounds settled on (approach 1, as
+        # the rounds): from the head of the first fit's other approach where it ran two (a
+        # round's cost), then, while the head kept still misses the outline, from the mean
+        # head (a whole first fit); the clearly lowest posterior cost is kept.
+        costs = {"continued": _cost(result)}
         starts = {"costs": costs, "kept": "continued"}
-        if costs[key] < (1.0 - SECOND_START_GAIN) * costs["continued"]:
-            result, contour, along, effective, measured, roles, finish, _ = again
-            starts["kept"] = key
-        _add_timings(timings, again[0].info["timings"])
+        other = other_start()
+        tries = ([("other approach", other)] if other is not None else []) \
+            + [("mean head", None)]
+        for key, start in tries:
+            if len(costs) > 1 and outline_missed(case, result) <= MISSED_OUTLINE:
+                break
+            again = _fit(model, neutral_case(model, case, result, expressions), later, start,
+                         noise, progress.part(0.91, 0.99), t0, uncertainty=False)
+            costs[key] = _cost(again[0])
+            if costs[key] < (1.0 - SECOND_START_GAIN) * costs[starts["kept"]]:
+                result, contour, along, effective, measured, roles, finish, _ = again
+                starts["kept"] = key
+            _add_timings(timings, again[0].info["timings"])
     result.uncertainty, result.method = finish(), opts.method
     # the choice between the approaches was made in the first fit, the only one running both
     result.info.update({k: first[0].info[k] for k in ("approach", "candidates")})
