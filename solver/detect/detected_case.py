@@ -257,8 +257,9 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="a
         lens = f", its {lenses[-1]:.0f} mm lens ({source})" if lenses[-1] else ""
         echo(f"{path}: face (score {face.score:.2f}), {guess.describe()}{lens} -> view "
              f"{name!r}")
-        if covered_note(face):
-            echo(f"note: {path}: {covered_note(face)}")
+        covered = covered_note(face)
+        if covered:
+            echo(f"note: {path}: {covered}")
         traced.append(photo_outline(detector, image, face, path, echo)
                       if wants_outline(face, outlines) else None)
     case = detected_case(photos, faces, base_dir=base_dir, guesses=guesses,

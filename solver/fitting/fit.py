@@ -233,11 +233,12 @@ def fit_head(model, case, options=None, initial=None):
         other = other_start()
         tries = ([("other approach", other)] if other is not None else []) \
             + [("mean head", None)]
-        for key, start in tries:
-            if len(costs) > 1 and outline_missed(case, result) <= MISSED_OUTLINE:
+        for i, (key, start) in enumerate(tries):
+            if i and outline_missed(case, result) <= MISSED_OUTLINE:
                 break
+            part = progress.part(0.91 + 0.04 * i, 0.95 + 0.04 * i)
             again = _fit(model, neutral_case(model, case, result, expressions), later, start,
-                         noise, progress.part(0.91, 0.99), t0, uncertainty=False)
+                         noise, part, t0, uncertainty=False)
             costs[key] = _cost(again[0])
             if costs[key] < (1.0 - SECOND_START_GAIN) * costs[starts["kept"]]:
                 result, contour, along, effective, measured, roles, finish, _ = again
