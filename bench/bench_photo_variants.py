@@ -1,7 +1,7 @@
 """Photos as users give them: heads fitted from their photos alone (detected, as Auto Fit
-takes them) as rendered and changed as real photos are: with hair or a beard, black and
-white, the head small in a larger photo, JPEG-compressed, darker, turned in their plane,
-cropped, blurred, noisy, with a colour cast.
+takes them) as rendered and changed as real photos are: with hair, a beard or glasses,
+black and white, the head small in a larger photo, JPEG-compressed, darker, turned in
+their plane, cropped, blurred, noisy, with a colour cast.
 
     python -m bench.bench_photo_variants [--variants NAME ...] [--face]
                                          [--heads DIR ...] [--render SEED ...]
@@ -12,13 +12,14 @@ temporary folder: ``hair`` (dark hair painted over the skull above the brows and
 of the head, within the head's own outline; the rendered heads are bald), ``thick_hair``
 (the same grown out past the skull up to 12 mm, as hair is), ``beard`` (a dark full beard
 from under the nose to under the chin, the lips bare, up to 8 mm out past the jaw),
-``grey`` (black and white), ``small`` (the photo in the middle of one four times its
-size, its corner's colour around it: the face 10 % of the longer side), ``jpeg50`` (JPEG
-at quality 50), ``dark`` (half as bright), ``turned10`` (turned by 10 degrees, the
-corners filled with its corner's colour), ``cropped`` (its top eighth cut off: the
-skull's top), ``blurred`` (a 2 px Gaussian), ``noisy`` (Gaussian noise of 8 levels),
-``warm`` and ``cool`` (red and blue scaled by 1.15 and 0.8, or 0.85 and 1.15: a white
-balance off). Scores: skin RMS against the true head after a similarity
+``glasses`` (dark frames: rims round the eyes, arms past the ears; on a profile the rim
+ahead of the eye), ``grey`` (black and white), ``small`` (the photo in the middle of one
+four times its size, its corner's colour around it: the face 10 % of the longer side),
+``jpeg50`` (JPEG at quality 50), ``dark`` (half as bright), ``turned10`` (turned by 10
+degrees, the corners filled with its corner's colour), ``cropped`` (its top eighth cut
+off: the skull's top), ``blurred`` (a 2 px Gaussian), ``noisy`` (Gaussian noise of 8
+levels), ``warm`` and ``cool`` (red and blue scaled by 1.15 and 0.8, or 0.85 and 1.15: a
+white balance off). Scores: skin RMS against the true head after a similarity
 (``skin_error_mm``, the whole head: under hair the skull is not seen), or with ``--face``
 over the face region alone (``realistic_cases.model_face_vertices``, aligned on it), mm,
 the mean head's beside them; a variant whose photos ``solver detect`` refuses is said and
@@ -31,7 +32,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from PIL import Image, ImageFilter
+from PIL import Image, ImageDraw, ImageFilter
 from scipy import ndimage
 
 from bench.bench_corrections import add_head_options, head_folders
@@ -139,12 +140,43 @@ def beard(image, head, face):
     return _paint_hair(image, beard_region(head, face), seed=2)
 
 
+def glasses(image, head, face):
+    """Dark-framed glasses drawn from the detected face's keypoints: on a front photo a
+    rim around each eye, the bridge between them and the arms out past the ears; on a
+    profile the rim in front of the eye and the arm back to the ear (the face's box taken
+    as 15 cm: rims 2 mm thick, 4 cm by 3 cm)."""
+    out = image.copy()
+    draw = ImageDraw.Draw(out)
+    k, size = np.asarray(face.keypoints, float), float(face.box[2] - face.box[0])
+    frame, width = (20, 20, 24), max(int(round(0.013 * size)), 1)
+    rx, ry = 0.13 * size, 0.1 * size
+    if face.is_profile:
+        eye, ear = k[:2].mean(0), k[4]
+        ahead = np.sign(k[2, 0] - ear[0])
+        rim = eye[0] + ahead * 0.09 * size
+        draw.line([(rim, eye[1] - ry), (rim, eye[1] + 0.8 * ry)], fill=frame, width=2 * width)
+        draw.line([(rim, eye[1] - 0.5 * ry), tuple(ear)], fill=frame, width=width)
+        return out
+    for e in k[:2]:
+        draw.ellipse([e[0] - rx, e[1] - ry, e[0] + rx, e[1] + ry], outline=frame, width=width)
+    inner = sorted(k[:2], key=lambda e: e[0])
+    draw.line([(inner[0][0] + rx, inner[0][1] - 0.3 * ry),
+               (inner[1][0] - rx, inner[1][1] - 0.3 * ry)], fill=frame, width=width)
+    for e, ear in ((inner[0], min(k[4:6], key=lambda p: p[0])),
+                   (inner[1], max(k[4:6], key=lambda p: p[0]))):
+        side = np.sign(ear[0] - e[0])
+        draw.line([(e[0] + side * rx, e[1] - 0.3 * ry),
+                   (ear[0] + side * 0.08 * size, e[1] - 0.1 * ry)], fill=frame, width=width)
+    return out
+
+
 #: name -> (PIL RGB image, the true head's pixels (H, W) bool, its detected face) -> PIL
 #: RGB image
 VARIANTS = {
     "hair": hair,
     "thick_hair": thick_hair,
     "beard": beard,
+    "glasses": glasses,
     "grey": lambda im, *_: im.convert("L").convert("RGB"),
     "small": lambda im, *_: Image.fromarray(padded(np.asarray(im), {}, 4)[0]),
     "jpeg50": lambda im, *_: _jpeg(im),

@@ -1,11 +1,12 @@
-"""bench/bench_photo_variants.py's painted hair and beard on a drawn head: where each
-lies against the head's own outline."""
+"""bench/bench_photo_variants.py's painted hair, beard and glasses on a drawn head: where
+each lies against the head's own outline and the face's keypoints."""
 
 from types import SimpleNamespace
 
 import numpy as np
+from PIL import Image
 
-from bench.bench_photo_variants import beard_region, hair_region, thick_hair
+from bench.bench_photo_variants import beard_region, glasses, hair_region, thick_hair
 
 
 def _head():
@@ -39,3 +40,20 @@ def test_a_beard_covers_the_jaw_and_chin_past_the_head_but_not_the_lips():
     assert not painted[340, 200] and painted[390, 200]   # the lips bare, the chin covered
     assert (painted & ~head)[420:].any()             # out past the chin
     assert not (painted & ~head)[:340].any()         # but not past the cheeks above the mouth
+
+
+def test_glasses_are_rims_around_the_eyes_and_arms_past_the_ears():
+    head, face = _head()
+    image = np.asarray(glasses(Image.new("RGB", (400, 560), (200, 200, 200)), head, face))
+    dark = image.sum(axis=2) < 200
+    eye = face.keypoints[0].astype(int)
+    assert not dark[eye[1], eye[0]]                       # the eye itself seen
+    assert dark[eye[1], eye[0] - 26 - 2:eye[0] - 26 + 3].any()   # its rim 0.13 x 200 px out
+    assert dark[:, :45].any() and dark[:, 355:].any()     # the arms out past the ears (60, 340)
+    profile = SimpleNamespace(keypoints=np.array([[250, 240], [255, 240], [330, 290],
+                                                  [300, 340], [150, 270], [150, 270]], float),
+                              box=np.array([150, 180, 350, 400], float), is_profile=True)
+    image = np.asarray(glasses(Image.new("RGB", (400, 560), (200, 200, 200)), head, profile))
+    dark = image.sum(axis=2) < 200
+    assert dark[240, 268:274].any() and not dark[240, 248:258].any()   # the rim ahead of the eye
+    assert dark[260:272, 150:156].any()                                 # the arm at the ear
