@@ -146,7 +146,7 @@ def profile_line_points(contour, side, face_size, nose_tip=None):
         near = np.linalg.norm(p - np.asarray(nose_tip, dtype=float), axis=1) < 0.3 * face_size
         if not near.any():
             return {}, {}
-        tip = int(np.argmax(np.where(near, q[:, 0], -np.inf)))
+        tip = _climbed(q[:, 0], int(np.argmax(np.where(near, q[:, 0], -np.inf))))
     s = _arc(p)
     up, down, step = _stretches(q, s, tip, face_size)
     nasion = _nasion(q, up, face_size)
@@ -182,6 +182,18 @@ def _piece_with_tip(c, sign, face_size, nose_tip):
     k = int(np.searchsorted(cut, at, side="right"))
     bounds = np.concatenate([[0], cut, [len(c)]])
     return c[bounds[k]:bounds[k + 1]]
+
+
+def _climbed(forward, i):
+    """From index ``i`` along the outline the way it goes forward (``forward`` (n,)) as
+    long as it does: a nose tip guessed too far up the nose (the face detector's keypoint
+    on a bearded profile lay at the nasion) leaves the most forward point near it on the
+    dorsum, the edge of what it searched."""
+    n = len(forward)
+    for step in (1, -1):
+        while 0 <= i + step < n and forward[i + step] > forward[i]:
+            i += step
+    return i
 
 
 def _stretches(q, s, tip, face_size):

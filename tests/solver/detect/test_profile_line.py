@@ -109,3 +109,13 @@ def test_only_the_outline_s_piece_with_the_nose_is_read(model):
     whole, _ = profile_line_points(outline, "right", size, exact["nose_tip"] + 5.0)
     for n in ("nasion", "nose_tip"):
         assert np.linalg.norm(np.subtract(points[n], whole[n])) < 0.01 * size, n
+
+
+def test_a_nose_tip_guessed_up_the_nose_is_followed_to_the_tip(model):
+    # the face detector's nose keypoint above the nasion, as on a bearded profile: the most
+    # forward point near it lies on the dorsum; the outline is followed on to the tip
+    outline, exact, size = _profile(model, 4160)
+    guess = exact["nasion"] + np.array([0.03, -0.14]) * size
+    points, _ = profile_line_points(outline, "right", size, guess)
+    whole, _ = profile_line_points(outline, "right", size, exact["nose_tip"] + 5.0)
+    assert np.linalg.norm(np.subtract(points["nose_tip"], whole["nose_tip"])) < 0.01 * size
