@@ -8,6 +8,7 @@ is not told apart."""
 import numpy as np
 
 from ..photo_colour import has_colour, sample_photo, skin_colour, skin_like
+from .outline import between_keypoints
 
 #: The jaw's iBUG points looked at (the two at each temple lie above any beard).
 JAW = tuple(range(3, 16))
@@ -38,10 +39,7 @@ def covered_points(image, face):
     """
     if face.keypoints is None:
         return frozenset()
-    k = np.asarray(face.keypoints, float)
-    t = np.linspace(0.25, 0.75, 9)[:, None]
-    pts = np.concatenate([k[a] + t * (k[b] - k[a]) for a, b in SKIN_PAIRS])
-    skin = skin_colour(sample_photo(image, pts))
+    skin = skin_colour(sample_photo(image, between_keypoints(face, SKIN_PAIRS)))
     if not has_colour(skin):
         return frozenset()
     ibug = np.asarray(face.ibug, float)

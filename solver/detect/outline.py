@@ -167,6 +167,15 @@ def _edge_pass(image, points, normals, reach):
     return moved, ok, inside
 
 
+def between_keypoints(face, pairs):
+    """Points on the middle half of the lines between the detector's keypoints of
+    ``face`` (``pairs`` of indices into ``face_detection.KEYPOINTS``), nine per line,
+    (9 len(pairs), 2) px: where the face's skin is sampled."""
+    k = np.asarray(face.keypoints, float)
+    t = np.linspace(0.25, 0.75, 9)[:, None]
+    return np.concatenate([k[a] + t * (k[b] - k[a]) for a, b in pairs])
+
+
 def face_skin(image, face, mask):
     """The face's skin colour: samples on the lines between the detector's keypoints
     (eye-mouth, nose-mouth, mouth-ear, eye-ear: cheeks and jaw), those inside the person.
@@ -183,10 +192,8 @@ def face_skin(image, face, mask):
     warmth : float
         Median red share less blue share ((r - b) / (r + g + b)).
     """
-    k = np.asarray(face.keypoints, float)
     pairs = [(0, 3), (1, 3), (2, 3), (3, 4), (3, 5), (0, 4), (1, 5), (2, 4), (2, 5)]
-    t = np.linspace(0.25, 0.75, 9)
-    pts = np.concatenate([k[a] + t[:, None] * (k[b] - k[a]) for a, b in pairs])
+    pts = between_keypoints(face, pairs)
     pts = pts[mask.at(pts) >= 0.5]
     if len(pts) < 5:
         raise ValueError("no skin sampled between the face's keypoints")
