@@ -11,7 +11,7 @@ Variants (``VARIANTS``; all by default), each applied to both photos, written to
 temporary folder: ``hair`` (dark hair painted over the skull above the brows and the back
 of the head, within the head's own outline; the rendered heads are bald), ``thick_hair``
 (the same grown out past the skull up to 12 mm, as hair is), ``beard`` (a dark full beard
-from under the nose to under the chin, the lips bare, up to 8 mm out past the jaw),
+from under the nose to under the chin and the lips' edge, up to 8 mm out past the jaw),
 ``glasses`` (dark frames: rims round the eyes, arms past the ears; on a profile the rim
 ahead of the eye), ``grey`` (black and white), ``small`` (the photo in the middle of one
 four times its size, its corner's colour around it: the face 10 % of the longer side),
@@ -110,11 +110,19 @@ def thick_hair(image, head, face, mm=12.0):
     return _paint_hair(image, painted | grown)
 
 
+def _lips(shape, face):
+    """The lips, (H, W) bool: inside the outer lip line the face mesh draws (iBUG 49-60
+    of ``face``, detected on the photo before anything is painted on it)."""
+    mask = Image.new("L", (shape[1], shape[0]), 0)
+    ImageDraw.Draw(mask).polygon([tuple(p) for p in np.asarray(face.ibug)[48:60]], fill=1)
+    return np.asarray(mask, bool)
+
+
 def beard_region(head, face, mm=8.0):
     """Where :func:`beard` paints, (H, W) bool: of ``head`` (H, W) bool, the face below
-    the nose down to under the chin, in front of the ears, the lips left bare; and grown
-    out past the head's outline up to ``mm`` below the mouth (the face's box taken as
-    15 cm)."""
+    the nose down to under the chin, in front of the ears, up to the lips' edge (the lips
+    left bare); and grown out past the head's outline up to ``mm`` below the mouth (the
+    face's box taken as 15 cm)."""
     h, w = head.shape
     v, u = np.mgrid[0:h, 0:w]
     k, size = np.asarray(face.keypoints, float), float(face.box[2] - face.box[0])
@@ -127,8 +135,7 @@ def beard_region(head, face, mm=8.0):
         front = np.sign(nose[0] - k[4, 0]) * (u - k[4, 0]) > 0.15 * size
     else:
         front = (u > k[4:6, 0].min() + 0.08 * size) & (u < k[4:6, 0].max() - 0.08 * size)
-    lips = ((u - mouth[0]) / (0.22 * size)) ** 2 + ((v - mouth[1]) / (0.07 * size)) ** 2 < 1
-    painted = head & band & front & ~lips
+    painted = head & band & front & ~_lips(head.shape, face)
     dist, (iv, iu) = ndimage.distance_transform_edt(~head, return_indices=True)
     grown = ~head & painted[iv, iu] & (iv > mouth[1]) & (dist <= mm * size / 150.0)
     return painted | grown

@@ -14,9 +14,14 @@ def _head():
     a front face on it (eyes, nose tip, mouth, ears; a 200 px box)."""
     v, u = np.mgrid[0:560, 0:400]
     head = ((u - 200) / 150.0) ** 2 + ((v - 260) / 200.0) ** 2 <= 1
+    # the outer lip line (iBUG 49-60) an ellipse 70 x 24 px round the mouth (200, 340)
+    ibug = np.zeros((68, 2))
+    a = np.linspace(np.pi, -np.pi, 12, endpoint=False)
+    ibug[48:60] = np.stack([200 + 35 * np.cos(a), 340 + 12 * np.sin(a)], axis=1)
     face = SimpleNamespace(keypoints=np.array([[160, 240], [240, 240], [200, 290], [200, 340],
                                                [60, 270], [340, 270]], float),
-                           box=np.array([100, 180, 300, 400], float), is_profile=False)
+                           box=np.array([100, 180, 300, 400], float), is_profile=False,
+                           ibug=ibug)
     return head, face
 
 
@@ -37,7 +42,8 @@ def test_a_beard_covers_the_jaw_and_chin_past_the_head_but_not_the_lips():
     head, face = _head()
     painted = beard_region(head, face)
     assert not painted[:290].any()                   # nothing above the nose tip
-    assert not painted[340, 200] and painted[390, 200]   # the lips bare, the chin covered
+    assert not painted[340, 200] and not painted[340, 230]   # the lips bare
+    assert painted[340, 240] and painted[356, 200] and painted[390, 200]   # round them too
     assert (painted & ~head)[420:].any()             # out past the chin
     assert not (painted & ~head)[:340].any()         # but not past the cheeks above the mouth
 

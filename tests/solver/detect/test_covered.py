@@ -53,12 +53,12 @@ def test_a_bare_face_or_a_photo_without_colour_covers_nothing(sample, detector):
     assert covered_points(grey / 255.0, detector.detect(grey)) == frozenset()
 
 
-def test_the_bearded_sample_s_face_fits_nearer_its_true_face_than_the_mean_head(
-        sample, detector, model):
-    # (the jaw under the beard is the model's guess: the face is scored, not the neck)
+def test_the_bearded_sample_fits_nearer_its_true_head_than_the_mean_head(sample, detector,
+                                                                         model):
     from bench.bench_photo_variants import beard, face_error_mm
     from solver import fit_head
     from solver.detect.detected_case import detect_photos
+    from solver.synthetic import skin_error_mm
 
     folder, truth = sample
     photos = {}
@@ -68,5 +68,8 @@ def test_the_bearded_sample_s_face_fits_nearer_its_true_face_than_the_mean_head(
         photos[view] = np.asarray(beard(photo, truth[f"head_alpha_{view}"] >= 128, face))
     case = detect_photos([(None, v) for v in photos], detector, photos.__getitem__)
     head = fit_head(model, case).local_vertices
-    true = truth["local_vertices"]
-    assert face_error_mm(model, head, true) < 0.9 * face_error_mm(model, model.vertices, true)
+    true, mean = truth["local_vertices"], model.vertices
+    # (the jaw under the beard is the model's guess; before the jaw line was left out
+    # and the mean head's start added, 0.91 x the mean head's whole-head error)
+    assert skin_error_mm(model, head, true) < 0.85 * skin_error_mm(model, mean, true)
+    assert face_error_mm(model, head, true) < face_error_mm(model, mean, true)
