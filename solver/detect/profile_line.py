@@ -187,8 +187,8 @@ def _piece_with_tip(c, sign, face_size, nose_tip):
 def _climbed(forward, i):
     """From index ``i`` along the outline the way it goes forward (``forward`` (n,)) as
     long as it does: a nose tip guessed too far up the nose (the face detector's keypoint
-    on a bearded profile lay at the nasion) leaves the most forward point near it on the
-    dorsum, the edge of what it searched."""
+    on a bearded profile lay above the nasion) leaves the most forward point near it on
+    the dorsum, the edge of what it searched."""
     n = len(forward)
     for step in (1, -1):
         while 0 <= i + step < n and forward[i + step] > forward[i]:
