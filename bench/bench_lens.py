@@ -7,12 +7,15 @@ photos without EXIF get), and the fit from every exact landmark (``sample.json``
 cameras self-calibrated with the lens).
 
     python -m bench.bench_lens [--lens MM ...] [--render SEED ...] [--heads DIR ...]
-                               [--direction-sigma DEG ...] [--given-lens MM ...]
+                               [--direction-sigma DEG ...] [--given-lens MM ...] [--yaw DEG]
 
 Heads: ``generated/bench_heads/seed<N>_lens<MM>`` for each ``--render`` seed and
 ``--lens``, rendered there first when missing (``tools.make_sample --lens``, about 45 s a
-head: JPEG photos with the lens in their EXIF), or given folders. Scores: skin RMS against
-the true head after a similarity (``skin_error_mm``), mm, and each fit's wall time.
+head: JPEG photos with the lens in their EXIF), or given folders; with ``--yaw`` the head
+turned by that much more (``..._yaw<DEG>``; -45: two three-quarter photos, -30: a
+three-quarter front photo and a side photo 60 degrees from the front). Scores: skin RMS
+against the true head after a similarity (``skin_error_mm``), mm, and each fit's wall
+time; the mean head's beside them.
 ``--direction-sigma`` adds a column per value: the EXIF-lens fit with that standard
 deviation of the cameras' direction prior instead of ``photo_lens.DIRECTION_SIGMA_DEG``.
 ``--given-lens`` adds a column per value: the photos as if their EXIF were gone (a
@@ -40,14 +43,15 @@ ROOT = Path(__file__).resolve().parent.parent
 COLUMNS = ("EXIF lens", "orthographic", "every exact")
 
 
-def render_head(seed, lens, folder):
-    """Render a model head's perspective photos into ``folder`` unless they are there."""
+def render_head(seed, lens, folder, yaw=0.0):
+    """Render a model head's perspective photos into ``folder`` unless they are there
+    (the head turned ``yaw`` degrees more, ``tools.make_sample --yaw``)."""
     if (folder / "truth.npz").is_file():
         return
     print(f"rendering seed {seed} with a {lens:g} mm lens into {folder} ...", flush=True)
     subprocess.run([sys.executable, "-m", "tools.make_sample", "--seed", str(seed),
-                    "--lens", str(lens), "--out", str(folder)], cwd=ROOT, check=True,
-                   stdout=subprocess.DEVNULL)
+                    "--lens", str(lens), "--yaw", str(yaw), "--out", str(folder)], cwd=ROOT,
+                   check=True, stdout=subprocess.DEVNULL)
 
 
 def head_cases(folder, model, detector, sigmas=(), given=()):
@@ -93,23 +97,28 @@ def main(argv=None):
     ap.add_argument("--given-lens", nargs="*", type=float, default=[],
                     help="also fit the photos without their EXIF, each of these lenses (mm) "
                          "given instead")
+    ap.add_argument("--yaw", type=float, default=0.0,
+                    help="the rendered heads turned by this much more, degrees (negative: "
+                         "toward the side camera; default 0)")
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
     folders = [Path(h) for h in args.heads]
     for lens in args.lens:
         for seed in args.render:
-            folder = ROOT / "generated" / "bench_heads" / f"seed{seed}_lens{lens:g}"
-            render_head(seed, lens, folder)
+            turned = f"_yaw{args.yaw:g}" if args.yaw else ""
+            folder = ROOT / "generated" / "bench_heads" / f"seed{seed}_lens{lens:g}{turned}"
+            render_head(seed, lens, folder, args.yaw)
             folders.append(folder)
     model, detector = load_model(), Detector()
     print("skin RMS vs the true head, mm (fit wall time, s)")
-    columns = [*COLUMNS, *(f"sigma {s:g} deg" for s in args.direction_sigma),
+    columns = ["mean head", *COLUMNS, *(f"sigma {s:g} deg" for s in args.direction_sigma),
                *(f"given {g:g} mm" for g in args.given_lens)]
     print(f"  {'head':<18}" + "".join(f"{c:>20}" for c in columns))
     errors = []
     for folder in folders:
         truth = np.load(folder / "truth.npz", allow_pickle=True)["local_vertices"]
-        row, cells = [], []
+        row = [skin_error_mm(model, model.vertices, truth)]
+        cells = [f"{row[0]:.2f}"]
         for _, case in head_cases(folder, model, detector, args.direction_sigma,
                                   args.given_lens):
             t0 = time.perf_counter()
@@ -123,6 +132,9 @@ def main(argv=None):
         a = np.array(errors)
         print(f"  {'mean':<18}" + "".join(f"{v:>20.2f}" for v in a.mean(axis=0)))
         print(f"  {'worst':<18}" + "".join(f"{v:>20.2f}" for v in a.max(axis=0)))
+        beats = (a[:, 1:] < a[:, :1]).sum(axis=0)
+        print(f"  {'beat mean':<18}" + " " * 20
+              + "".join(f"{f'{b} of {len(a)}':>20}" for b in beats))
 
 
 if __name__ == "__main__":

@@ -2,13 +2,14 @@
 landmarks file and the ground truth.
 
     python -m tools.make_sample [--out generated/sample] [--seed N] [--size WxH]
-                                [--samples N] [--force] [--lens MM]
+                                [--samples N] [--force] [--lens MM] [--yaw DEG]
 
 A head is sampled from the identity model (seeded), turned a few degrees like a person who
 does not sit perfectly straight, and rendered with Cycles (CPU) through orthographic
 cameras from the front and from the subject's right: ``front.png`` and ``side.png``
 (with ``--lens``, pinhole cameras of that lens as close as it frames the head alike:
-``front.jpg`` and ``side.jpg`` with the lens in their EXIF, as a camera writes them).
+``front.jpg`` and ``side.jpg`` with the lens in their EXIF, as a camera writes them;
+with ``--yaw``, the head turned further: three-quarter photos).
 The person wears a plain shirt whose collar hides the model's neck cut, as in a real
 photo. ``sample.json`` is the landmarks file a user would make: every landmark visible in
 a view (``assets/landmarks.json`` "views", minus any the shirt covers) projected by the
@@ -88,8 +89,10 @@ def rotation_from_euler(yaw, pitch, roll):
     return rz @ rx @ ry
 
 
-def sample_head(model, seed):
-    """A seeded identity and pose.
+def sample_head(model, seed, yaw_deg=0.0):
+    """A seeded identity and pose; ``yaw_deg`` turns the head further about the vertical
+    (toward the subject's right camera when negative: the front photo then shows a
+    three-quarter view, the side photo one nearer the front).
 
     Returns
     -------
@@ -104,6 +107,8 @@ def sample_head(model, seed):
     local = model.identity.instance(coeffs)
     yaw, pitch, roll = rng.uniform(-MAX_TILT_DEG, MAX_TILT_DEG, 3)
     rotation = rotation_from_euler(yaw, pitch, roll)
+    if yaw_deg:
+        rotation = rotation_from_euler(float(yaw_deg), 0.0, 0.0) @ rotation
     translation = rng.uniform(-0.01, 0.01, 3)
     return coeffs, local, rotation, translation
 
@@ -679,12 +684,14 @@ def draw_overlay(photo, points, contour=None):
 # --------------------------------------------------------------------------- driver
 
 
-def _params(model, seed, size, samples, lens_mm=None):
+def _params(model, seed, size, samples, lens_mm=None, yaw_deg=0.0):
     params = {"version": SAMPLE_VERSION, "seed": int(seed),
               "size": [int(size[0]), int(size[1])], "samples": int(samples),
               "model": getattr(model, "build_hash", "")}
     if lens_mm is not None:
         params["lens_mm"] = float(lens_mm)
+    if yaw_deg:
+        params["yaw_deg"] = float(yaw_deg)
     return params
 
 
@@ -709,7 +716,7 @@ def is_up_to_date(out, params):
 
 
 def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=DEFAULT_SAMPLES,
-                force=False, model=None, log=print, lens_mm=None):
+                force=False, model=None, log=print, lens_mm=None, yaw_deg=0.0):
     """Make the sample case in ``out`` unless it is up to date.
 
     Parameters
@@ -732,6 +739,8 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
         the long side) instead of orthographic ones, standing where they frame the head
         alike (``perspective_cameras``): JPEG photos with the lens in their EXIF, views
         whose cameras the fit calibrates from it (``{"kind": "pinhole", "lens_mm": ...}``).
+    yaw_deg : float
+        The head turned by this much more (``sample_head``): three-quarter photos.
 
     Returns
     -------
@@ -747,7 +756,9 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
     model = load_model() if model is None else model
     if lens_mm is not None and not 5.0 <= float(lens_mm) <= 1000.0:
         raise ValueError(f"lens_mm: a lens of 5-1000 mm, got {lens_mm}")
-    params = _params(model, seed, size, samples, lens_mm)
+    if not -90.0 < float(yaw_deg) < 90.0:
+        raise ValueError(f"yaw_deg: a turn of under 90 degrees either way, got {yaw_deg}")
+    params = _params(model, seed, size, samples, lens_mm, yaw_deg)
     if not force and is_up_to_date(out, params):
         log(f"sample up to date: {out}")
         return out / "sample.json"
@@ -757,7 +768,7 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir()
     try:
-        _make_into(tmp, model, seed, size, samples, params, log, lens_mm)
+        _make_into(tmp, model, seed, size, samples, params, log, lens_mm, yaw_deg)
         old = out.parent / f".{out.name}.old-{os.getpid()}"
         if out.exists():
             out.rename(old)
@@ -769,10 +780,10 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
     return out / "sample.json"
 
 
-def _make_into(folder, model, seed, size, samples, params, log, lens_mm=None):
+def _make_into(folder, model, seed, size, samples, params, log, lens_mm=None, yaw_deg=0.0):
     from tools import render_util as ru
 
-    coeffs, local, rotation, translation = sample_head(model, seed)
+    coeffs, local, rotation, translation = sample_head(model, seed, yaw_deg)
     world = local @ rotation.T + translation
     torso = torso_mesh(local, model.skin, neck_cut_vertices(model))
     rim = torso[4] @ rotation.T + translation  # the collar's top edge, world
@@ -872,10 +883,13 @@ def main(argv=None):
     parser.add_argument("--lens", type=float, default=None, metavar="MM",
                         help="perspective photos taken with this lens (36 mm equivalent), "
                              "JPEGs with it in their EXIF (default: orthographic)")
+    parser.add_argument("--yaw", type=float, default=0.0, metavar="DEG",
+                        help="the head turned by this much more (negative: toward the side "
+                             "camera), for three-quarter photos (default 0)")
     args = parser.parse_args(argv)
     try:
         make_sample(args.out, args.seed, args.size, args.samples, args.force,
-                    lens_mm=args.lens)
+                    lens_mm=args.lens, yaw_deg=args.yaw)
     except (FileNotFoundError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

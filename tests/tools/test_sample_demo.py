@@ -17,7 +17,7 @@ from scipy import ndimage
 from solver import camera_from_dict, load_landmarks
 from solver.io.obj import read_obj
 from tests import ROOT, SAMPLE_ARGS, SAMPLE_SIZE
-from tools.make_sample import make_sample
+from tools.make_sample import make_sample, sample_head
 
 SIZE, ARGS = SAMPLE_SIZE, SAMPLE_ARGS
 # The fitted head's RMS distance to the true one over the skin (after similarity
@@ -215,4 +215,21 @@ def test_make_sample_rejects_bad_settings(tmp_path, model):
         make_sample(tmp_path / "s", size=(32, 1024), model=model)
     with pytest.raises(ValueError, match="lens_mm"):
         make_sample(tmp_path / "s", lens_mm=2.0, model=model)
+    with pytest.raises(ValueError, match="yaw_deg"):
+        make_sample(tmp_path / "s", yaw_deg=90.0, model=model)
     assert not (tmp_path / "s").exists()
+
+
+def test_sample_head_turned_by_the_yaw_given(model):
+    """``yaw_deg`` turns the seeded head about the vertical on top of its own small turn
+    (negative: the face toward the subject's right, where the side camera stands)."""
+    _, local, rotation, translation = sample_head(model, 5)
+    _, local_t, turned, translation_t = sample_head(model, 5, yaw_deg=-45.0)
+    np.testing.assert_array_equal(local_t, local)
+    np.testing.assert_array_equal(translation_t, translation)
+    forward = rotation @ [0.0, -1.0, 0.0]  # the face looks toward -Y
+    forward_t = turned @ [0.0, -1.0, 0.0]
+    angle = np.degrees(np.arctan2(np.cross(forward[:2], forward_t[:2]),
+                                  forward[:2] @ forward_t[:2]))
+    assert abs(abs(angle) - 45.0) < 1e-6
+    assert forward_t[0] < forward[0]  # toward -X: the subject's right
