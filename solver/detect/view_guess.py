@@ -22,12 +22,12 @@ import numpy as np
 
 from ..cameras import OrthographicCamera
 from ..io.json_file import read_json
-from ..io.photo_lens import lens_hints
+from ..io.photo_lens import DIRECTION_SIGMA_DEG, lens_hints
 from .ibug_map import MAP_PATH
 
 #: Within this yaw (degrees) of the front a photo is written as an orthographic front
 #: photo (the fit turns the head in it); farther, as a three-quarter view whose pinhole
-#: camera the fit calibrates on the head (``{"kind": "pinhole"}``).
+#: camera the fit calibrates on the head (``{"kind": "pinhole"}``, held near the yaw).
 FRONT_MAX_DEG = 15.0
 #: A profile's nose-tip keypoint is at least this far (fraction of the detector box's
 #: width) beyond the eyes' midpoint: 0.24 on the sample's profile; 0.02 on its front photo.
@@ -37,6 +37,10 @@ PROFILE_MIN_NOSE = 0.1
 EYE_PAIRS = ((33, 263), (133, 362))
 #: Per coordinate standard deviation of a 2-D Gaussian error / its median length.
 MEDIAN_TO_SIGMA = 1.0 / np.sqrt(2.0 * np.log(2.0))
+#: A three-quarter view's points are further off than the front table says: their median
+#: error grows by the table's once per this many degrees of yaw past ``FRONT_MAX_DEG``
+#: (measured on rendered heads at 15-56 degrees: docs/DECISIONS.md).
+GROWTH_DEG = 30.0
 
 
 @dataclass(frozen=True)
@@ -70,13 +74,15 @@ class ViewGuess:
         """(camera, hints) for a view of this photo. A photo whose lens is known (its
         EXIF's, 36 mm equivalent): None with ``lens_hints`` (a pinhole camera of that lens
         held near this view's yaw). Without one: a nominal orthographic camera for the
-        front and the profiles, None with ``{"kind": "pinhole"}`` for a three-quarter
-        view."""
+        front and the profiles; for a three-quarter view a pinhole camera the fit
+        calibrates, held near this yaw as one of a known lens is (Blender's Detect holds it
+        so too)."""
         if lens_mm:
             return None, lens_hints(lens_mm, self.yaw_deg)
         if self.name in ("front", "right", "left"):
             return OrthographicCamera.nominal(f"orthographic-{self.name}", size), {}
-        return None, {"kind": "pinhole"}
+        return None, {"kind": "pinhole",
+                      "direction_prior": [float(self.yaw_deg), DIRECTION_SIGMA_DEG]}
 
     def describe(self):
         """A few words for messages."""
@@ -139,8 +145,16 @@ def point_uncertainty(face):
     it is a profile (``DetectedFace.is_profile``), in a profile only those
     ``uncertainty.profile`` lists (measured trustworthy there). Each is the measured median
     error (a fraction of the face's size) times the detector box's width, as a
-    per-coordinate deviation; None for every point of a face without a box."""
+    per-coordinate deviation, times ``yaw_growth`` in a three-quarter view; None for every
+    point of a face without a box."""
     if face.face_size is None:
         return dict.fromkeys(range(1, 69))
     table = uncertainty_table()["profile" if face.is_profile else "front"]
-    return {i: f * face.face_size * MEDIAN_TO_SIGMA for i, f in table.items()}
+    grow = 1.0 if face.is_profile else yaw_growth(mesh_yaw_deg(face.mesh))
+    return {i: f * face.face_size * MEDIAN_TO_SIGMA * grow for i, f in table.items()}
+
+
+def yaw_growth(yaw_deg):
+    """How many times the front table's error a point of a face seen from ``yaw_deg``
+    (degrees) has: 1 within ``FRONT_MAX_DEG``, growing by 1 per ``GROWTH_DEG`` beyond."""
+    return 1.0 + max(abs(float(yaw_deg)) - FRONT_MAX_DEG, 0.0) / GROWTH_DEG

@@ -14,10 +14,13 @@ from solver.detect.view_guess import (
     MEDIAN_TO_SIGMA,
     ViewGuess,
     guess_view,
+    mesh_yaw_deg,
     point_uncertainty,
     uncertainty_table,
+    yaw_growth,
 )
 from solver.io.landmark_set import load_landmark_set
+from solver.io.photo_lens import DIRECTION_SIGMA_DEG
 from solver.paths import DETECTOR_DIR
 from tests import ROOT
 
@@ -119,7 +122,29 @@ def test_james_photos_are_three_quarter_views_at_their_calibrated_yaw(detector):
         side = "right" if true_yaw > 0 else "left"
         assert guess.name == f"three_quarter_{side}", (photo, guess, true_yaw)
         assert abs(guess.yaw_deg - true_yaw) < 4.0, (photo, guess.yaw_deg, true_yaw)
-        assert guess.camera((1200, 1600)) == (None, {"kind": "pinhole"})
+        assert guess.camera((1200, 1600)) == (None, {
+            "kind": "pinhole", "direction_prior": [guess.yaw_deg, DIRECTION_SIGMA_DEG]})
+
+
+def test_a_three_quarter_view_s_points_are_less_certain_the_more_it_is_turned():
+    assert yaw_growth(0.0) == yaw_growth(-15.0) == 1.0
+    assert yaw_growth(45.0) == pytest.approx(2.0) and yaw_growth(-45.0) == yaw_growth(45.0)
+    assert yaw_growth(20.0) < yaw_growth(30.0) < yaw_growth(60.0)
+
+
+def test_james_three_quarter_points_carry_the_table_grown_by_their_yaw(detector):
+    from bench.realistic_cases import james_folder
+
+    folder = james_folder(ROOT)
+    if not (folder / "james.obj").is_file():
+        pytest.skip(f"the scan james is not in {folder} (set HEADRECON_REALDATA)")
+    image = np.asarray(Image.open(folder / "james.jpg").convert("RGB"))
+    face = detector.detect(image[:, :image.shape[1] // 2])  # photo_a, 30 degrees
+    grow = yaw_growth(mesh_yaw_deg(face.mesh))
+    assert 1.3 < grow < 1.7
+    sigma = point_uncertainty(face)
+    assert sigma[9] == pytest.approx(uncertainty_table()["front"][9] * face.face_size
+                                     * MEDIAN_TO_SIGMA * grow)
 
 
 def test_view_guess_words_and_a_bad_table_names_its_file(tmp_path):
@@ -143,8 +168,9 @@ def test_a_photo_s_camera_is_a_pinhole_of_its_known_lens_held_near_its_yaw():
                                             "direction_prior": [guess.yaw_deg,
                                                                 DIRECTION_SIGMA_DEG]}
     # without a lens: the nominal parallel projection of a front or a profile, a
-    # three-quarter view's pinhole with its focal length unknown
+    # three-quarter view's pinhole with its focal length unknown, held near its yaw
     camera, hints = ViewGuess("left", -90.0).camera(size)
     assert isinstance(camera, OrthographicCamera) and camera.view == "orthographic-left"
     assert hints == {}
-    assert ViewGuess("three_quarter_right", 40.0).camera(size) == (None, {"kind": "pinhole"})
+    assert ViewGuess("three_quarter_right", 40.0).camera(size) == (None, {
+        "kind": "pinhole", "direction_prior": [40.0, DIRECTION_SIGMA_DEG]})
