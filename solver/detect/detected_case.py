@@ -22,6 +22,11 @@ from .view_guess import ViewGuess, guess_view, point_uncertainty
 
 #: The view names the detection gives (and ``--view NAME=PHOTO`` may use to say one).
 VIEW_NAMES = ("front", "right", "left", "three_quarter_right", "three_quarter_left")
+#: Said when several photos include no profile: without the face's side outline the depth
+#: comes from turned photos' landmarks alone (measured: README, "Three-quarter photos").
+NO_PROFILE_NOTE = ("none of the photos is a profile: the head's depth comes from the "
+                   "landmarks alone, which fits it several times less accurately than a "
+                   "front and a profile photo do (README: three-quarter photos)")
 #: Which photos get their outline detected (``wants_outline``).
 OUTLINES = ("all", "profile", "none")
 _YAW = {"front": 0.0, "right": 90.0, "left": -90.0, "three_quarter_right": 45.0,
@@ -262,6 +267,8 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="a
             echo(f"note: {path}: {covered}")
         traced.append(photo_outline(detector, image, face, path, echo)
                       if wants_outline(face, outlines) else None)
+    if len(guesses) > 1 and not any(g.profile for g in guesses):
+        echo(f"note: {NO_PROFILE_NOTE}")
     case = detected_case(photos, faces, base_dir=base_dir, guesses=guesses,
                          outlines=traced, lenses=lenses)
     for (name, path, _), lens in zip(photos, lenses, strict=True):

@@ -12,7 +12,7 @@ from PIL import Image
 
 from solver import fit_head, load_landmarks
 from solver.detect import Detector
-from solver.detect.detected_case import detect_photos
+from solver.detect.detected_case import NO_PROFILE_NOTE, detect_photos
 from solver.fitting.depth import mirror_pairs
 from solver.io.landmark_set import load_landmark_set
 from solver.paths import DETECTOR_DIR
@@ -145,6 +145,15 @@ def test_photos_moved_by_a_thousandth_of_a_pixel_fit_the_same_head(sample, detec
     for h in heads[1:]:
         gap = np.sqrt(np.mean(np.sum((h - heads[0])[model.skin] ** 2, axis=1)))
         assert gap < 5e-4, gap  # 0.5 mm
+
+
+def test_photos_without_a_profile_get_a_note_saying_what_it_costs(sample, detector):
+    folder, _ = sample
+    lines = []
+    case = detect_photos([(None, folder / "front.png"), (None, folder / "front.png")],
+                         detector, _load, echo=lines.append, outlines="none")
+    assert list(case.views) == ["front", "front_2"]
+    assert lines.count(f"note: {NO_PROFILE_NOTE}") == 1
 
 
 def test_detected_outlines_become_the_views_contours(sample, detector):
