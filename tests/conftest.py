@@ -35,6 +35,22 @@ def sample(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def turned_sample(tmp_path_factory):
+    """A head turned 45 degrees toward the side camera (``make_sample --seed 201 --yaw
+    -45``): two three-quarter photos at the sample's reduced size: (folder, the arrays of
+    its truth.npz)."""
+    folder = tmp_path_factory.mktemp("turned_sample") / "sample"
+    proc = subprocess.run([sys.executable, "-m", "tools.make_sample", "--out", str(folder),
+                           "--seed", "201", "--yaw", "-45", *SAMPLE_ARGS], cwd=ROOT,
+                          capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, f"make_sample failed:\n{proc.stdout[-3000:]}\n" \
+                                 f"{proc.stderr[-3000:]}"
+    with np.load(folder / "truth.npz", allow_pickle=False) as t:
+        truth = {k: t[k] for k in t.files}
+    return folder, truth
+
+
+@pytest.fixture(scope="session")
 def lens_sample(tmp_path_factory):
     """The sample photographed with a 50 mm lens (``make_sample --lens 50``: pinhole cameras
     about half a metre away, JPEGs with the lens in their EXIF), at the sample's reduced

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..photo_colour import has_colour, sample_photo, skin_colour, skin_like
 from .outline import between_keypoints
+from .view_guess import FRONT_MAX_DEG, mesh_yaw_deg
 
 #: The jaw's iBUG points looked at (the two at each temple lie above any beard).
 JAW = tuple(range(3, 16))
@@ -24,6 +25,8 @@ TOWARD = 34
 #: The skin the samples are told against: on the lines from each eye to the nose tip and
 #: to its ear (the detector's keypoints), above where a beard grows.
 SKIN_PAIRS = ((0, 2), (1, 2), (0, 4), (1, 5))
+#: The jaw's points on the subject's right (iBUG 1-8) and left (10-17) side; 9 is the chin.
+RIGHT_SIDE, LEFT_SIDE = frozenset(range(1, 9)), frozenset(range(10, 18))
 
 
 def covered_points(image, face):
@@ -43,12 +46,25 @@ def covered_points(image, face):
     if not has_colour(skin):
         return frozenset()
     ibug = np.asarray(face.ibug, float)
-    jaw = ibug[np.array(JAW) - 1]                                  # (j, 2)
+    jaw = ibug[np.array(looked_at(mesh_yaw_deg(face.mesh))) - 1]   # (j, 2)
     f = np.asarray(INSIDE)[None, :, None]
     inside = jaw[:, None] + f * (ibug[TOWARD - 1] - jaw)[:, None]  # (j, s, 2)
-    ok = skin_like(sample_photo(image, inside.reshape(-1, 2)), skin).reshape(len(JAW), -1)
+    ok = skin_like(sample_photo(image, inside.reshape(-1, 2)), skin).reshape(len(jaw), -1)
     covered = 2 * ok.sum(axis=1) < ok.shape[1]
     return frozenset(JAW_LINE) if covered.any() else frozenset()
+
+
+def looked_at(yaw_deg):
+    """The ``JAW`` points whose insides tell a beard in a face seen from ``yaw_deg``
+    (degrees, toward the subject's right positive): all of them in a front photo (within
+    ``view_guess.FRONT_MAX_DEG``); in a three-quarter view the side facing the camera (the
+    subject's right for a positive yaw) and the chin, since the far side's points lie on or
+    past the face's outline, where the photo shows the background or the neck (a bald,
+    shaven head at 45 degrees read as bearded)."""
+    if abs(yaw_deg) <= FRONT_MAX_DEG:
+        return JAW
+    far = LEFT_SIDE if yaw_deg > 0 else RIGHT_SIDE
+    return tuple(i for i in JAW if i not in far)
 
 
 def covered_note(face):

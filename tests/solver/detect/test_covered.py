@@ -1,13 +1,13 @@
 """Points a beard covers (solver/detect/covered.py): on the rendered sample's front photo
-with a dark beard painted over the lower face, the whole jaw line; as rendered, and on a
-photo without colour, none."""
+with a dark beard painted over the lower face, the whole jaw line; as rendered, on a
+photo without colour, and on a bald, shaven head's three-quarter photos, none."""
 
 import numpy as np
 import pytest
 from PIL import Image
 
 from solver.detect import Detector
-from solver.detect.covered import JAW_LINE, covered_note, covered_points
+from solver.detect.covered import JAW, JAW_LINE, covered_note, covered_points, looked_at
 from solver.detect.detected_case import detected_depth, detected_points
 from solver.paths import DETECTOR_DIR
 
@@ -73,3 +73,18 @@ def test_the_bearded_sample_fits_nearer_its_true_head_than_the_mean_head(sample,
     # and the mean head's start added, 0.91 x the mean head's whole-head error)
     assert skin_error_mm(model, head, true) < 0.85 * skin_error_mm(model, mean, true)
     assert face_error_mm(model, head, true) < face_error_mm(model, mean, true)
+
+
+def test_a_three_quarter_view_looks_at_the_jaw_s_near_side_only(turned_sample, detector,
+                                                                  monkeypatch):
+    assert looked_at(0.0) == looked_at(-15.0) == JAW
+    assert looked_at(45.0) == tuple(range(3, 10))     # the subject's right side, the chin
+    assert looked_at(-45.0) == tuple(range(9, 16))
+    folder, _ = turned_sample
+    photos = [np.asarray(Image.open(folder / f"{v}.png").convert("RGB")) for v in ("front",
+                                                                                  "side")]
+    assert all(detector.detect(p).covered == frozenset() for p in photos)
+    # the far side's points lie past the face's outline: looked at, this bald, shaven head
+    # turned 45 degrees reads as bearded
+    monkeypatch.setattr("solver.detect.covered.looked_at", lambda yaw: JAW)
+    assert any(detector.detect(p).covered == frozenset(JAW_LINE) for p in photos)
