@@ -103,9 +103,9 @@ def main(argv=None):
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
     folders = [Path(h) for h in args.heads]
+    turned = f"_yaw{args.yaw:g}" if args.yaw else ""
     for lens in args.lens:
         for seed in args.render:
-            turned = f"_yaw{args.yaw:g}" if args.yaw else ""
             folder = ROOT / "generated" / "bench_heads" / f"seed{seed}_lens{lens:g}{turned}"
             render_head(seed, lens, folder, args.yaw)
             folders.append(folder)

@@ -18,14 +18,13 @@ def model():
     return load_model()
 
 
-@pytest.fixture(scope="session")
-def sample(tmp_path_factory):
-    """The sample case rendered once per session at a reduced size (``SAMPLE_ARGS``), in a
-    subprocess so Blender's global state never mixes with other tests: (folder, the
+def _rendered(tmp_path_factory, name, *args):
+    """``tools.make_sample`` with ``args`` at the sample's reduced size (``SAMPLE_ARGS``),
+    in a subprocess so Blender's global state never mixes with other tests: (folder, the
     arrays of its truth.npz)."""
-    folder = tmp_path_factory.mktemp("sample") / "sample"
+    folder = tmp_path_factory.mktemp(name) / "sample"
     proc = subprocess.run([sys.executable, "-m", "tools.make_sample", "--out", str(folder),
-                           *SAMPLE_ARGS], cwd=ROOT, capture_output=True, text=True,
+                           *args, *SAMPLE_ARGS], cwd=ROOT, capture_output=True, text=True,
                           timeout=900)
     assert proc.returncode == 0, f"make_sample failed:\n{proc.stdout[-3000:]}\n" \
                                  f"{proc.stderr[-3000:]}"
@@ -35,35 +34,23 @@ def sample(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def sample(tmp_path_factory):
+    """The sample case rendered once per session: (folder, the arrays of its truth.npz)."""
+    return _rendered(tmp_path_factory, "sample")
+
+
+@pytest.fixture(scope="session")
 def turned_sample(tmp_path_factory):
     """A head turned 45 degrees toward the side camera (``make_sample --seed 201 --yaw
-    -45``): two three-quarter photos at the sample's reduced size: (folder, the arrays of
-    its truth.npz)."""
-    folder = tmp_path_factory.mktemp("turned_sample") / "sample"
-    proc = subprocess.run([sys.executable, "-m", "tools.make_sample", "--out", str(folder),
-                           "--seed", "201", "--yaw", "-45", *SAMPLE_ARGS], cwd=ROOT,
-                          capture_output=True, text=True, timeout=900)
-    assert proc.returncode == 0, f"make_sample failed:\n{proc.stdout[-3000:]}\n" \
-                                 f"{proc.stderr[-3000:]}"
-    with np.load(folder / "truth.npz", allow_pickle=False) as t:
-        truth = {k: t[k] for k in t.files}
-    return folder, truth
+    -45``): two three-quarter photos."""
+    return _rendered(tmp_path_factory, "turned_sample", "--seed", "201", "--yaw", "-45")
 
 
 @pytest.fixture(scope="session")
 def lens_sample(tmp_path_factory):
     """The sample photographed with a 50 mm lens (``make_sample --lens 50``: pinhole cameras
-    about half a metre away, JPEGs with the lens in their EXIF), at the sample's reduced
-    size: (folder, the arrays of its truth.npz)."""
-    folder = tmp_path_factory.mktemp("lens_sample") / "sample"
-    proc = subprocess.run([sys.executable, "-m", "tools.make_sample", "--out", str(folder),
-                           "--lens", "50", *SAMPLE_ARGS], cwd=ROOT, capture_output=True,
-                          text=True, timeout=900)
-    assert proc.returncode == 0, f"make_sample failed:\n{proc.stdout[-3000:]}\n" \
-                                 f"{proc.stderr[-3000:]}"
-    with np.load(folder / "truth.npz", allow_pickle=False) as t:
-        truth = {k: t[k] for k in t.files}
-    return folder, truth
+    about half a metre away, JPEGs with the lens in their EXIF)."""
+    return _rendered(tmp_path_factory, "lens_sample", "--lens", "50")
 
 
 _exit_status = 0
