@@ -55,6 +55,11 @@ ROBUST_STEPS = 5
 #: size: one point cannot tell its group's offset from its own noise.
 MIN_GROUP = 3
 
+#: The ratios of the offsets' size to the size assumed that ``group_offsets`` looks among:
+#: at least 2 %, so a view keeps its groups for the next round to measure again, at most 4
+#: times (``FitOptions.definition_mm`` caps the size).
+RATIO_GRID = np.geomspace(0.02, 4.0, 240)
+
 
 def definition_sigmas(view):
     """Each landmark's group offset standard deviation in a view (``ViewData``), metres:
@@ -62,7 +67,7 @@ def definition_sigmas(view):
     return view.definition_m * np.where(view.outline_point, OUTLINE_DEFINITION, 1.0)
 
 
-def group_offsets(residuals, groups, weights, jac, sigma_m):
+def group_offsets(residuals, groups, weights, jac, sigma_m, detected=False):
     """The offsets the landmark groups of one photo most likely share, given the fit's
     residuals, and what they say about the offsets' size.
 
@@ -76,6 +81,12 @@ def group_offsets(residuals, groups, weights, jac, sigma_m):
         The camera's Jacobians at the points, pixels per metre.
     sigma_m : float or ndarray, shape (n,)
         The offsets' standard deviation the fit assumed, metres (per point: its group's).
+    detected : bool
+        The points came with uncertainties of their own (a detector's): the head takes up
+        much of their groups' offsets before the residuals can show them, so ``ratio`` is
+        one EM step of the variance component (the squared posterior offset plus its
+        posterior variance, over the variance assumed), which falls from the start by
+        15-35 % a round; else the residuals' maximum likelihood (docs/DECISIONS.md).
 
     Returns
     -------
@@ -85,10 +96,10 @@ def group_offsets(residuals, groups, weights, jac, sigma_m):
     taken : float
         The parameters they take up (trace of their hat matrix, about two per group).
     ratio : float or None
-        How many times ``sigma_m`` the residuals say the offsets are: one EM step of the
-        variance component (over the groups of at least ``MIN_GROUP`` points, the squared
-        posterior offset plus its posterior variance, over the variance assumed); None
-        without such a group.
+        How many times ``sigma_m`` the residuals say the offsets are, over the groups of at
+        least ``MIN_GROUP`` points: by type-II maximum likelihood (each group's weighted
+        mean residual ~ N(0, ratio^2 sigma_G^2 + 1 / sum_G w) per axis; on ``RATIO_GRID``),
+        or for ``detected`` points the EM step; None without such a group.
     """
     _, labels = np.unique(np.asarray(groups), return_inverse=True)
     w = np.asarray(weights, dtype=np.float64)
@@ -117,8 +128,14 @@ def group_offsets(residuals, groups, weights, jac, sigma_m):
         wsum = np.bincount(labels, weights=w * robust)[labels[big]]
         s2_px = t[big] / wsum
         ok = s2_px > 0
-        rho = ((e[big] ** 2).sum(axis=1) / 2.0 + s2_px / (1.0 + t[big]))[ok] / s2_px[ok]
-        ratio = float(np.sqrt(rho.mean())) if ok.any() else None
+        if ok.any() and detected:
+            rho = ((e[big] ** 2).sum(axis=1) / 2.0 + s2_px / (1.0 + t[big]))[ok] / s2_px[ok]
+            ratio = float(np.sqrt(rho.mean()))
+        elif ok.any():
+            m2 = (group_means(labels, u, r)[big] ** 2).sum(axis=1)[ok]
+            var = RATIO_GRID[:, None] ** 2 * s2_px[ok] + 1.0 / wsum[ok]  # (grid, groups)
+            loglik = -(np.log(var) + m2 / (2.0 * var)).sum(axis=1)
+            ratio = float(RATIO_GRID[int(np.argmax(loglik))])
     return e, float(2.0 * gain[first].sum()), ratio
 
 

@@ -554,7 +554,8 @@ class Engine:
             apart = set(res.outline) | set(res.unused)
             w = self.landmark_scale(v, front_weight) * np.where(
                 [n in apart for n in v.names], 0.0, v.weights)
-            e, taken, ratio = group_offsets(r, v.groups, w, jac, definition_sigmas(v))
+            e, taken, ratio = group_offsets(r, v.groups, w, jac, definition_sigmas(v),
+                                            v.detected)
             dof += taken
             if ratio is not None:
                 sizes[v.name] = ratio * v.definition_m

@@ -78,6 +78,9 @@ class ViewData:
     depth_sigma : ndarray, shape (n,)
         Its standard deviation, px: ``depth.DEPTH_SHARE`` of the landmark's given
         uncertainty (NaN without one).
+    detected : bool
+        Its landmarks came with uncertainties of their own (``View.uncertainty``: a
+        detector's): their groups' offsets are sized as ``definition.group_offsets`` says.
     lens_mm : float or None
         An orthographic photo's lens as its EXIF gives it (``camera_hints["lens_mm"]``,
         36 mm equivalent): tells how far the camera stood, for the parallel-projection
@@ -108,6 +111,7 @@ class ViewData:
     relative: np.ndarray | None = None
     depth: np.ndarray | None = None
     depth_sigma: np.ndarray | None = None
+    detected: bool = False
     lens_mm: float | None = None
 
     def __post_init__(self):
@@ -372,6 +376,7 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
                         depth=np.array([view.depth.get(k, np.nan) for k in keys]),
                         depth_sigma=DEPTH_SHARE * np.array(
                             [view.uncertainty.get(k, np.nan) for k in keys]),
+                        detected=any(k in view.uncertainty for k in keys),
                         lens_mm=_orthographic_lens(view, cam))
         (views if used or rule["outline"] else skipped).append(data)
     for v in views:
