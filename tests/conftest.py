@@ -47,6 +47,14 @@ def turned_sample(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def turned_side_sample(tmp_path_factory):
+    """A head turned 15 degrees toward the side camera (``make_sample --seed 201 --yaw
+    -15``): a front photo about 16 degrees off, a side photo about 74 degrees from the
+    front, short of a profile."""
+    return _rendered(tmp_path_factory, "turned_side_sample", "--seed", "201", "--yaw", "-15")
+
+
+@pytest.fixture(scope="session")
 def lens_sample(tmp_path_factory):
     """The sample photographed with a 50 mm lens (``make_sample --lens 50``: pinhole cameras
     about half a metre away, JPEGs with the lens in their EXIF)."""

@@ -65,6 +65,17 @@ class OrthographicCamera(Camera):
             offset = (w / 2.0, h / 2.0)
         return cls(ORTHO_VIEWS[view], scale, offset, size, view)
 
+    @classmethod
+    def turned(cls, view, size, yaw_deg):
+        """The nominal camera of ``view`` (``nominal``) looking from ``yaw_deg`` instead
+        (degrees from the face's front, toward the subject's right positive, level: the
+        views' own yaws are ``VIEW_YAW_DEG``): a side photo taken short of a profile."""
+        t = np.radians(float(yaw_deg))
+        rotation = np.array([[np.cos(t), -np.sin(t), 0.0], [0.0, 0.0, -1.0],
+                             [np.sin(t), np.cos(t), 0.0]])
+        cam = cls.nominal(view, size)
+        return cls(rotation, cam.scale, cam.offset, size, view)
+
     min_refit_points = 2
 
     def project(self, points):

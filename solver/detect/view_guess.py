@@ -12,7 +12,8 @@ face (past about 60 degrees: the sample's profile photo, presence 0.03-0.08), or
 detector's eye keypoints nearly coincide (``DetectedFace.is_profile``), the photo is a
 profile, its side from the detector's keypoints: the nose tip lies beyond the eyes on the
 side the face looks to (in a right profile the face points to the image's right,
-``solver.cameras.ORTHO_VIEWS``).
+``solver.cameras.ORTHO_VIEWS``); its yaw 90 degrees unless the face is seen short of a
+profile (``profile_yaw_deg``).
 """
 
 import functools
@@ -35,6 +36,18 @@ PROFILE_MIN_NOSE = 0.1
 #: Mesh vertex pairs (subject's right, left) whose 3-D line gives the yaw: the outer and
 #: the inner eye corners.
 EYE_PAIRS = ((33, 263), (133, 362))
+#: A side photo's yaw from how far apart the detector's eye keypoints are (a fraction of
+#: its box's width, ``DetectedFace.eyes_apart``): ``PROFILE_YAW[0] - PROFILE_YAW[1] *
+#: apart`` degrees; a line through 14 side photos of rendered heads at 57-90 degrees (2.4
+#: degrees RMS, docs/DECISIONS.md: "A side photo short of a profile").
+PROFILE_YAW = (91.4, 152.5)
+#: A side photo is read short of a profile only where both say so: its eyes at least
+#: TURNED_EYES apart (79 degrees by the line) and the mesh seeing a face (presence at least
+#: TURNED_PRESENCE). Either alone also meets exact profiles with hair, a beard or glasses
+#: painted on (eyes 0.005-0.19 apart, presence up to 0.98); side photos 15-33 degrees
+#: short of a profile had both (0.083-0.228, 0.99-1.00).
+TURNED_EYES = 0.08
+TURNED_PRESENCE = 0.9
 #: Per coordinate standard deviation of a 2-D Gaussian error / its median length.
 MEDIAN_TO_SIGMA = 1.0 / np.sqrt(2.0 * np.log(2.0))
 #: A three-quarter view's points are further off than the front table says: their median
@@ -53,7 +66,7 @@ class ViewGuess:
         "front", "right", "left" (profiles), "three_quarter_right", "three_quarter_left".
     yaw_deg : float
         The camera's direction from the face's front, degrees, toward the subject's right
-        positive (a profile: +-90, not measured).
+        positive (a profile's from its eye keypoints, ``profile_yaw_deg``).
     """
 
     name: str
@@ -76,9 +89,14 @@ class ViewGuess:
         held near this view's yaw). Without one: a nominal orthographic camera for the
         front and the profiles; for a three-quarter view a pinhole camera the fit
         calibrates, held near this yaw as one of a known lens is (Blender's Detect holds it
-        so too)."""
+        so too). A profile read short of 90 degrees gets its orthographic camera turned to
+        its yaw (``OrthographicCamera.turned``): the photos' angle apart is then what they
+        show, not a nominal 90 degrees from the front photo's."""
         if lens_mm:
             return None, lens_hints(lens_mm, self.yaw_deg)
+        if self.profile and abs(self.yaw_deg) < 90.0:
+            return OrthographicCamera.turned(f"orthographic-{self.name}", size,
+                                             self.yaw_deg), {}
         if self.name in ("front", "right", "left"):
             return OrthographicCamera.nominal(f"orthographic-{self.name}", size), {}
         return None, {"kind": "pinhole",
@@ -87,8 +105,10 @@ class ViewGuess:
     def describe(self):
         """A few words for messages."""
         if self.profile:
+            short = 90.0 - abs(self.yaw_deg)
+            turned = f", {short:.0f} deg short of a profile" if short > 0.5 else ""
             return (f"a {self.name} profile (the face looks to the image's "
-                    f"{self.name}, the camera at the subject's {self.name})")
+                    f"{self.name}, the camera at the subject's {self.name}{turned})")
         if self.name == "front":
             return f"a front photo (yaw {self.yaw_deg:+.0f} deg)"
         return (f"a three-quarter view from the subject's {self.side} "
@@ -116,7 +136,19 @@ def guess_view(face):
     ahead = (kp[2, 0] - 0.5 * (kp[0, 0] + kp[1, 0])) / face.face_size
     if abs(ahead) < PROFILE_MIN_NOSE:
         return None
-    return ViewGuess("right", 90.0) if ahead > 0 else ViewGuess("left", -90.0)
+    yaw = profile_yaw_deg(face)
+    return ViewGuess("right", yaw) if ahead > 0 else ViewGuess("left", -yaw)
+
+
+def profile_yaw_deg(face):
+    """A profile photo's yaw, degrees (on the camera's side), from its
+    :class:`~.detector.DetectedFace`: 90 unless the face is seen short of a profile
+    (``TURNED_EYES``, ``TURNED_PRESENCE``), then from how far apart its eye keypoints are
+    (``PROFILE_YAW``): the eyes move apart as the face turns toward the camera."""
+    apart = face.eyes_apart
+    if apart is None or apart < TURNED_EYES or face.presence < TURNED_PRESENCE:
+        return 90.0
+    return float(np.clip(PROFILE_YAW[0] - PROFILE_YAW[1] * apart, 0.0, 90.0))
 
 
 @functools.cache

@@ -31,6 +31,7 @@ from .outline import (
     OutlineAlongRows,
     OutlinePointRows,
     outline_candidates,
+    profile_normal_bound,
 )
 from .rows import ImageRows
 from .shape_icp import ShapeProblem
@@ -173,7 +174,8 @@ class Engine:
         """The engine of a fit of ``model`` to ``views`` with ``FitOptions`` ``opts``: the
         model it changes (:func:`fitted_model`), the profile's outline candidates, and the
         options' weights and ``pixel_scale``."""
-        eng = cls(fitted_model(model, opts), views, *outline_candidates(model),
+        eng = cls(fitted_model(model, opts), views,
+                  *outline_candidates(model, max_normal_x=profile_normal_bound(views)),
                   opts.noise_px, opts.lambda1, opts.lambda2, opts.prior, opts.contour_weight,
                   opts.contour_threshold_px)
         eng.pixel_scale = float(opts.pixel_scale or 1.0)

@@ -528,11 +528,34 @@ def shared_edges(faces, n_vertices):
     return np.column_stack([half[two, 0], half[two, 1], owner[two], owner[two + 1]])
 
 
-def outline_candidates(model, max_x=0.05, max_normal_x=0.4):
+#: The profile's outline candidates' normals face across the left-right axis within this
+#: (|n_x| on the mean head: about 24 degrees of margin for a turned head or another
+#: identity).
+PROFILE_NORMAL_X = 0.4
+
+
+def profile_normal_bound(views):
+    """The |n_x| bound of the profile's outline candidates for ``views`` (``ViewData``):
+    ``PROFILE_NORMAL_X``, its margin widened by the most an orthographic side photo's
+    camera looks off the left-right axis (a side photo short of a profile,
+    ``OrthographicCamera.turned``, has the far cheek on its outline)."""
+    off = 0.0
+    for v in views:
+        cam = v.camera
+        if cam is None or cam.perspective or not v.side:
+            continue
+        d = np.asarray(cam.rotation, dtype=np.float64)[2]
+        off = max(off, float(np.arccos(min(1.0, abs(d[0]) / np.linalg.norm(d)))))
+    if off == 0.0:
+        return PROFILE_NORMAL_X
+    return float(np.sin(min(np.arcsin(PROFILE_NORMAL_X) + off, np.pi / 2)))
+
+
+def outline_candidates(model, max_x=0.05, max_normal_x=PROFILE_NORMAL_X):
     """Vertices that can form the head's outline in a profile photo, with their mesh
-    (computed once per model): skin within ``max_x`` metres of the midsagittal plane whose
-    normals (of the mean head) face across the left-right axis (|n_x| < ``max_normal_x``:
-    about 24 degrees of margin for a turned head or another identity).
+    (computed once per model and bound): skin within ``max_x`` metres of the midsagittal
+    plane whose normals (of the mean head) face across the left-right axis (|n_x| <
+    ``max_normal_x``: ``profile_normal_bound``).
 
     Returns
     -------

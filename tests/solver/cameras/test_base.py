@@ -140,3 +140,21 @@ def test_pixels_per_metre_is_the_scale_of_a_parallel_and_f_over_depth_of_a_pinho
     on_axis = np.array([[0.0, 0.0, 0.0], [0.0, -0.3, 0.0]])
     np.testing.assert_allclose(cam.pixels_per_metre(on_axis), [1250.0, 1500.0 / 0.9],
                                rtol=1e-12)
+
+
+def test_a_view_s_camera_turned_to_a_yaw():
+    """``OrthographicCamera.turned``: the nominal camera of a view looking from another
+    yaw about the head's vertical, level; at the views' own yaws their nominal cameras."""
+    size = (768, 1024)
+    for view, yaw in (("orthographic-right", 90.0), ("orthographic-left", -90.0),
+                      ("orthographic-front", 0.0)):
+        np.testing.assert_allclose(OrthographicCamera.turned(view, size, yaw).rotation,
+                                   ORTHO_VIEWS[view], atol=1e-12)
+    cam = OrthographicCamera.turned("orthographic-right", size, 72.0)
+    d = cam.rotation[2]
+    assert np.degrees(np.arctan2(d[0], d[1])) == pytest.approx(72.0) and d[2] == 0.0
+    np.testing.assert_allclose(cam.rotation @ cam.rotation.T, np.eye(3), atol=1e-12)
+    assert np.linalg.det(cam.rotation) == pytest.approx(np.linalg.det(ORTHO_VIEWS[
+        "orthographic-right"]))
+    # the image's v axis stays down the head: a point above the head's centre is above it
+    assert cam.project(np.array([[0.0, 0.0, 0.1]]))[0, 1] < cam.offset[1]

@@ -16,6 +16,7 @@ from solver.detect.view_guess import (
     guess_view,
     mesh_yaw_deg,
     point_uncertainty,
+    profile_yaw_deg,
     uncertainty_table,
     yaw_growth,
 )
@@ -174,3 +175,30 @@ def test_a_photo_s_camera_is_a_pinhole_of_its_known_lens_held_near_its_yaw():
     assert hints == {}
     assert ViewGuess("three_quarter_right", 40.0).camera(size) == (None, {
         "kind": "pinhole", "direction_prior": [40.0, DIRECTION_SIGMA_DEG]})
+
+
+def test_a_side_photo_short_of_a_profile_is_read_at_its_yaw(sample, turned_side_sample,
+                                                             detector):
+    """A side photo 16 degrees short of a profile (the head turned toward the side camera):
+    its eyes apart and the mesh seeing a face say so, the yaw comes from the eyes, and its
+    orthographic camera is turned to it. An exact profile stays at 90 degrees, and so does
+    the turned one where only one of the two says so."""
+    from dataclasses import replace
+
+    folder, truth = turned_side_sample
+    true = truth["rotation"].T @ np.array([1.0, 0.0, 0.0])  # the side camera, head frame
+    true_yaw = np.degrees(np.arctan2(true[0], true[1]))
+    turned = detector.detect(_photo(folder, "side", truth)[0])
+    guess = guess_view(turned)
+    assert guess.name == "right" and abs(guess.yaw_deg - true_yaw) < 6.0, \
+        (guess.yaw_deg, true_yaw)
+    assert "short of a profile" in guess.describe()
+    camera, hints = guess.camera((384, 512))
+    d = camera.rotation[2]
+    assert hints == {} and camera.view == "orthographic-right"
+    assert np.degrees(np.arctan2(d[0], d[1])) == pytest.approx(guess.yaw_deg)
+    assert profile_yaw_deg(replace(turned, presence=0.5)) == 90.0
+    folder, truth = sample
+    square = detector.detect(_photo(folder, "side", truth)[0])
+    assert profile_yaw_deg(square) == 90.0
+    assert profile_yaw_deg(replace(square, presence=1.0)) == 90.0  # its eyes nearly meet
