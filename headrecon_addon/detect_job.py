@@ -67,8 +67,10 @@ class PhotoTask:
     def held_yaw(self):
         """The yaw (degrees) the detector measured of the face, which a camera held near
         its view's direction is held near instead of the nominal one (as ``solver detect``
-        does): a front or three-quarter face on its view's side; None for a profile (its
-        +-90 is nominal, not measured), a face contradicting its view, or none."""
+        does): a front or three-quarter face on its view's side; None for a profile (a
+        profile's plane keeps its nominal +-90 degrees here, where ``solver detect`` turns
+        the camera of one seen short of a profile), a face contradicting its view, or
+        none."""
         guess = self.face.guess if self.face is not None else None
         if guess is None or guess.profile or (self.kind != "front"
                                               and guess.side != self.kind):
