@@ -111,7 +111,8 @@ def group_offsets(residuals, groups, weights, jac, sigma_m, detected=False):
     for step in range(ROBUST_STEPS):
         t, u = group_terms(labels, w * robust, jac, sigma_m)
         gain = t / (1.0 + t)
-        e = gain[:, None] * group_means(labels, u, r)
+        mean = group_means(labels, u, r)  # (n, 2) each point's group's mean residual
+        e = gain[:, None] * mean
         if step == ROBUST_STEPS - 1:
             break  # the offsets, their terms and weights from one and the same step
         sq = ((r - e) ** 2).sum(axis=1)
@@ -132,7 +133,7 @@ def group_offsets(residuals, groups, weights, jac, sigma_m, detected=False):
             rho = ((e[big] ** 2).sum(axis=1) / 2.0 + s2_px / (1.0 + t[big]))[ok] / s2_px[ok]
             ratio = float(np.sqrt(rho.mean()))
         elif ok.any():
-            m2 = (group_means(labels, u, r)[big] ** 2).sum(axis=1)[ok]
+            m2 = (mean[big] ** 2).sum(axis=1)[ok]
             var = RATIO_GRID[:, None] ** 2 * s2_px[ok] + 1.0 / wsum[ok]  # (grid, groups)
             loglik = -(np.log(var) + m2 / (2.0 * var)).sum(axis=1)
             ratio = float(RATIO_GRID[int(np.argmax(loglik))])
