@@ -3,13 +3,15 @@ landmarks file and the ground truth.
 
     python -m tools.make_sample [--out generated/sample] [--seed N] [--size WxH]
                                 [--samples N] [--force] [--lens MM] [--yaw DEG]
+                                [--side-deg DEG]
 
 A head is sampled from the identity model (seeded), turned a few degrees like a person who
 does not sit perfectly straight, and rendered with Cycles (CPU) through orthographic
 cameras from the front and from the subject's right: ``front.png`` and ``side.png``
 (with ``--lens``, pinhole cameras of that lens as close as it frames the head alike:
 ``front.jpg`` and ``side.jpg`` with the lens in their EXIF, as a camera writes them;
-with ``--yaw``, the head turned further: three-quarter photos).
+with ``--yaw``, the head turned further: three-quarter photos; with ``--side-deg``, the
+side photo taken that many degrees from the front camera's direction, short of a profile).
 The person wears a plain shirt whose collar hides the model's neck cut, as in a real
 photo. ``sample.json`` is the landmarks file a user would make: every landmark visible in
 a view (``assets/landmarks.json`` "views", minus any the shirt covers) projected by the
@@ -37,7 +39,6 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from solver import (
-    ORTHO_VIEWS,
     LandmarkCase,
     OrthographicCamera,
     PinholeCamera,
@@ -113,7 +114,7 @@ def sample_head(model, seed, yaw_deg=0.0):
     return coeffs, local, rotation, translation
 
 
-def frame_cameras(world, collar_z, size, seed):
+def frame_cameras(world, collar_z, size, seed, side_deg=90.0):
     """Orthographic cameras that frame the head like a portrait photo: the top of the head
     a little below the top edge, head and collar as large as the narrower side allows,
     the shoulders below. The front and side photos differ slightly in scale and centring
@@ -127,6 +128,9 @@ def frame_cameras(world, collar_z, size, seed):
         Height of the shirt's collar: what lies above it is framed.
     size : (int, int)
     seed : int
+    side_deg : float
+        The side camera's direction, degrees from the front camera's toward the subject's
+        right (90: an exact profile).
 
     Returns
     -------
@@ -137,18 +141,32 @@ def frame_cameras(world, collar_z, size, seed):
     rng = np.random.default_rng(seed + 1)
     head = world[world[:, 2] > collar_z]
     top_z = head[:, 2].max()
-    span_u = max(np.ptp(head @ ORTHO_VIEWS[kind][0]) for kind in VIEWS.values())
+    rotations = {view: view_rotation(view, size, side_deg) for view in VIEWS}
+    span_u = max(np.ptp(head @ r[0]) for r in rotations.values())
     scale = min(0.88 * h / (top_z - collar_z + 0.03), 0.86 * w / span_u)
     cams = {}
     for view, kind in VIEWS.items():
         s = scale * (SIDE_SCALE if view == "side" else 1.0)
-        u = head @ ORTHO_VIEWS[kind][0]
+        u = head @ rotations[view][0]
         du = rng.uniform(-0.02, 0.02) * w
         # v = s * (-z) + offset_v: the top of the head a few per cent below the top edge
         offset = np.array([w / 2.0 + du - s * (u.min() + u.max()) / 2.0,
                            rng.uniform(*TOP_MARGIN) * h + s * top_z])
-        cams[view] = OrthographicCamera(ORTHO_VIEWS[kind], s, offset, size, kind)
+        cams[view] = OrthographicCamera(rotations[view], s, offset, size, kind)
     return cams
+
+
+def view_camera(view, size, side_deg=90.0):
+    """The orthographic camera ``sample.json`` gives a view: its nominal one, the side's
+    turned to ``side_deg`` (degrees from the front camera's direction) when not 90."""
+    if view == "side" and float(side_deg) != 90.0:
+        return OrthographicCamera.turned(VIEWS[view], size, side_deg)
+    return OrthographicCamera.nominal(VIEWS[view], size)
+
+
+def view_rotation(view, size, side_deg=90.0):
+    """The world-to-camera rotation (3, 3) of a view (``view_camera``)."""
+    return view_camera(view, size, side_deg).rotation
 
 
 def perspective_cameras(cameras, world, lens_mm):
@@ -684,7 +702,7 @@ def draw_overlay(photo, points, contour=None):
 # --------------------------------------------------------------------------- driver
 
 
-def _params(model, seed, size, samples, lens_mm=None, yaw_deg=0.0):
+def _params(model, seed, size, samples, lens_mm=None, yaw_deg=0.0, side_deg=90.0):
     params = {"version": SAMPLE_VERSION, "seed": int(seed),
               "size": [int(size[0]), int(size[1])], "samples": int(samples),
               "model": getattr(model, "build_hash", "")}
@@ -692,6 +710,8 @@ def _params(model, seed, size, samples, lens_mm=None, yaw_deg=0.0):
         params["lens_mm"] = float(lens_mm)
     if yaw_deg:
         params["yaw_deg"] = float(yaw_deg)
+    if float(side_deg) != 90.0:
+        params["side_deg"] = float(side_deg)
     return params
 
 
@@ -716,7 +736,7 @@ def is_up_to_date(out, params):
 
 
 def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=DEFAULT_SAMPLES,
-                force=False, model=None, log=print, lens_mm=None, yaw_deg=0.0):
+                force=False, model=None, log=print, lens_mm=None, yaw_deg=0.0, side_deg=90.0):
     """Make the sample case in ``out`` unless it is up to date.
 
     Parameters
@@ -741,6 +761,10 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
         whose cameras the fit calibrates from it (``{"kind": "pinhole", "lens_mm": ...}``).
     yaw_deg : float
         The head turned by this much more (``sample_head``): three-quarter photos.
+    side_deg : float
+        The side camera's direction, degrees from the front camera's (``frame_cameras``):
+        under 90, a side photo short of a profile; its view's camera in ``sample.json``
+        is turned so (``view_camera``).
 
     Returns
     -------
@@ -758,7 +782,9 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
         raise ValueError(f"lens_mm: a lens of 5-1000 mm, got {lens_mm}")
     if not -90.0 < float(yaw_deg) < 90.0:
         raise ValueError(f"yaw_deg: a turn of under 90 degrees either way, got {yaw_deg}")
-    params = _params(model, seed, size, samples, lens_mm, yaw_deg)
+    if not 45.0 <= float(side_deg) <= 90.0:
+        raise ValueError(f"side_deg: a side camera 45-90 degrees from the front, got {side_deg}")
+    params = _params(model, seed, size, samples, lens_mm, yaw_deg, side_deg)
     if not force and is_up_to_date(out, params):
         log(f"sample up to date: {out}")
         return out / "sample.json"
@@ -768,7 +794,7 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir()
     try:
-        _make_into(tmp, model, seed, size, samples, params, log, lens_mm, yaw_deg)
+        _make_into(tmp, model, seed, size, samples, params, log, lens_mm, yaw_deg, side_deg)
         old = out.parent / f".{out.name}.old-{os.getpid()}"
         if out.exists():
             out.rename(old)
@@ -780,14 +806,15 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
     return out / "sample.json"
 
 
-def _make_into(folder, model, seed, size, samples, params, log, lens_mm=None, yaw_deg=0.0):
+def _make_into(folder, model, seed, size, samples, params, log, lens_mm=None, yaw_deg=0.0,
+               side_deg=90.0):
     from tools import render_util as ru
 
     coeffs, local, rotation, translation = sample_head(model, seed, yaw_deg)
     world = local @ rotation.T + translation
     torso = torso_mesh(local, model.skin, neck_cut_vertices(model))
     rim = torso[4] @ rotation.T + translation  # the collar's top edge, world
-    cameras = frame_cameras(world, float(rim[:, 2].mean()), size, seed)
+    cameras = frame_cameras(world, float(rim[:, 2].mean()), size, seed, side_deg)
     if lens_mm is not None:
         cameras = perspective_cameras(cameras, world, lens_mm)
     renders, cam_objs = render_views(model, local, (rotation, translation), torso, cameras,
@@ -820,7 +847,7 @@ def _make_into(folder, model, seed, size, samples, params, log, lens_mm=None, ya
         if view == "side":
             contour = side_contour(r["head_alpha"], cam.project(rim))
         photo = f"{view}.png"
-        camera, hints = OrthographicCamera.nominal(VIEWS[view], size), {}
+        camera, hints = view_camera(view, size, side_deg), {}
         if lens_mm is None:
             ru.save_png(folder / photo, r["photo"])
         else:
@@ -886,10 +913,13 @@ def main(argv=None):
     parser.add_argument("--yaw", type=float, default=0.0, metavar="DEG",
                         help="the head turned by this much more (negative: toward the side "
                              "camera), for three-quarter photos (default 0)")
+    parser.add_argument("--side-deg", type=float, default=90.0, metavar="DEG",
+                        help="the side camera this many degrees from the front camera "
+                             "(default 90: an exact profile)")
     args = parser.parse_args(argv)
     try:
         make_sample(args.out, args.seed, args.size, args.samples, args.force,
-                    lens_mm=args.lens, yaw_deg=args.yaw)
+                    lens_mm=args.lens, yaw_deg=args.yaw, side_deg=args.side_deg)
     except (FileNotFoundError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -217,7 +217,33 @@ def test_make_sample_rejects_bad_settings(tmp_path, model):
         make_sample(tmp_path / "s", lens_mm=2.0, model=model)
     with pytest.raises(ValueError, match="yaw_deg"):
         make_sample(tmp_path / "s", yaw_deg=90.0, model=model)
+    with pytest.raises(ValueError, match="side_deg"):
+        make_sample(tmp_path / "s", side_deg=30.0, model=model)
     assert not (tmp_path / "s").exists()
+
+
+def test_a_side_camera_short_of_a_profile_frames_the_head_from_its_direction(model):
+    """``side_deg`` stands the side camera that many degrees from the front camera (90:
+    the nominal profile), framing the head as the profile's does; ``sample.json`` gives
+    that view the turned camera."""
+    from solver import OrthographicCamera
+    from tools.make_sample import frame_cameras, view_camera
+
+    _, local, rotation, translation = sample_head(model, 5)
+    world = local @ rotation.T + translation
+    size = (300, 400)
+    square = frame_cameras(world, -0.1, size, 5)
+    short = frame_cameras(world, -0.1, size, 5, side_deg=72.0)
+    d = short["side"].rotation[2]
+    assert np.degrees(np.arctan2(d[0], d[1])) == pytest.approx(72.0)
+    np.testing.assert_allclose(short["front"].rotation, square["front"].rotation)
+    np.testing.assert_allclose(square["side"].rotation,
+                               OrthographicCamera.nominal("orthographic-right", size).rotation)
+    u = short["side"].project(world[world[:, 2] > -0.1])[:, 0]
+    assert u.min() > 0 and u.max() < size[0]  # the head across the photo
+    assert view_camera("side", size, 72.0).rotation == pytest.approx(short["side"].rotation)
+    assert view_camera("side", size).to_dict() == \
+        OrthographicCamera.nominal("orthographic-right", size).to_dict()
 
 
 def test_sample_head_turned_by_the_yaw_given(model):
