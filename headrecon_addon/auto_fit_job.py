@@ -53,7 +53,7 @@ class AutoFitJob:
 
     def merged_case(self):
         """The scene's landmarks with the detected ones, as a LandmarkCase (any thread)."""
-        views = self.document["views"]
+        views, front_yaw = self.document["views"], self.detect.front_yaw()
         for task in self.detect.tasks:
             if task.face is None:
                 continue
@@ -76,9 +76,12 @@ class AutoFitJob:
                 if name in task.face.depth:
                     depth[name] = task.face.depth[name]
             view["points"] = points
-            yaw = task.held_yaw()
+            yaw = task.held_yaw(front_yaw)
             if yaw is not None and "camera" in view:  # as apply_detection holds it
                 view["camera"] = photos.held_near(view["camera"], yaw)
+            turned = task.turned_camera(front_yaw)
+            if turned is not None and "camera" in view:  # as apply_detection turns it
+                view["camera"] = photos.turned_view_camera(view["camera"], turned, task.size)
             for key, given in (("uncertainty", sigma), ("depth", depth)):
                 if given:
                     view[key] = given

@@ -16,7 +16,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 from . import landmarks, photo_faces, photos
 from .job_progress import Progress
-from .solver_link import covered_note, usable_cores
+from .solver_link import covered_note, is_nominal, usable_cores
 
 
 def _count(n):
@@ -63,19 +63,39 @@ class PhotoTask:
     detected: set
     face: object = None
     seconds: float = 0.0
+    size: tuple = None  # the photo's (w, h) pixels, for a camera of its view
 
-    def held_yaw(self):
+    def agreeing_guess(self):
+        """The face's ViewGuess where it agrees with the view: a front or three-quarter
+        face on a front photo, a face from the view's side on a profile photo; else None."""
+        guess = self.face.guess if self.face is not None else None
+        if guess is None:
+            return None
+        agrees = not guess.profile if self.kind == "front" else guess.side == self.kind
+        return guess if agrees else None
+
+    def held_yaw(self, front_yaw=0.0):
         """The yaw (degrees) the detector measured of the face, which a camera held near
         its view's direction is held near instead of the nominal one (as ``solver detect``
-        does): a front or three-quarter face on its view's side; None for a profile (a
-        profile's plane keeps its nominal +-90 degrees here, where ``solver detect`` turns
-        the camera of one seen short of a profile), a face contradicting its view, or
-        none."""
-        guess = self.face.guess if self.face is not None else None
-        if guess is None or guess.profile or (self.kind != "front"
-                                              and guess.side != self.kind):
+        does), in the frame of a front photo measured at ``front_yaw`` (``DetectJob.
+        front_yaw``; None: unknown, the yaw as measured); None for a face contradicting its
+        view, or none."""
+        guess = self.agreeing_guess()
+        if guess is None:
             return None
-        return float(guess.yaw_deg)
+        return float(guess.beside(front_yaw or 0.0).yaw_deg)
+
+    def turned_camera(self, front_yaw):
+        """The orthographic camera of a profile photo seen short of a profile, turned to
+        the yaw it was seen from in the frame of a front photo measured at ``front_yaw``
+        (``ViewGuess.beside`` and ``ViewGuess.camera``: the camera ``solver detect`` writes
+        for it), or None: a profile seen from the side, the front's yaw unknown (None), a
+        front or perspective photo, a face contradicting its view."""
+        guess = self.agreeing_guess()
+        if guess is None or not guess.profile or self.perspective or front_yaw is None:
+            return None
+        camera, _ = guess.beside(front_yaw).camera(self.size)
+        return None if is_nominal(camera, self.size) else camera
 
     def lines(self, replace):
         """(level, line) for the report: what was found (or that no face was), and a face
@@ -166,6 +186,17 @@ class DetectJob(PhotosJob):
     def found_any(self):
         return any(t.face is not None for t in self.tasks)
 
+    def front_yaw(self):
+        """The frame the other photos' cameras are turned and held in (``ViewGuess.beside``,
+        as ``solver detect`` writes them), degrees: the measured yaw of a front photo on an
+        orthographic plane (the fit turns the head by it), 0 with a perspective front photo
+        (its camera held near its own yaw), None when no front photo was detected."""
+        fronts = [t for t in self.tasks if t.kind == "front" and t.agreeing_guess() is not None]
+        ortho = [t for t in fronts if not t.perspective]
+        if ortho:
+            return float(ortho[0].agreeing_guess().yaw_deg)
+        return 0.0 if fronts else None
+
     def lines(self):
         """(level, line) for the report, photo by photo, then the photos left out."""
         out = [line for t in self.tasks for line in t.lines(self.replace)]
@@ -233,14 +264,16 @@ def prepare_detection(scene, view="", replace=False, skip_hand_placed=False, rea
         tasks.append(PhotoTask(name, img.name, photos.view_kind(plane),
                                photos.is_perspective(plane),
                                photos.detector_pixels(img, read), hand,
-                               set(landmarks.detected_landmarks(plane))))
+                               set(landmarks.detected_landmarks(plane)),
+                               size=photos.plane_size(plane)[0]))
     return DetectJob(tasks, replace=replace, skipped=skipped)
 
 
 def apply_detection(scene, job):
     """Place what the job found (main thread): each photo's landmarks as
-    ``detection_plan`` says. Returns the landmarks placed."""
-    n = 0
+    ``detection_plan`` says; a camera to compute held near the face's measured yaw, a
+    profile's nominal orthographic camera turned to it. Returns the landmarks placed."""
+    n, front_yaw = 0, job.front_yaw()
     for task in job.tasks:
         plane = photos.find_plane(scene, task.view)
         if task.face is None or plane is None:
@@ -253,9 +286,12 @@ def apply_detection(scene, job):
                                      task.face.uncertainty.get(name),
                                      task.face.depth.get(name))
         photos.remove_objects([detected[name] for name in remove])
-        yaw = task.held_yaw()
+        yaw = task.held_yaw(front_yaw)
         if yaw is not None:
             photos.hold_camera_near(plane, yaw)
+        turned = task.turned_camera(front_yaw)
+        if turned is not None:
+            photos.turn_nominal_camera(plane, turned, photos.head_centre(scene))
         n += len(place)
     return n
 

@@ -405,6 +405,12 @@ def camera_label(plane):
     if kind == "orthographic":
         text = {"orthographic-front": "Front", "orthographic-right": "Right profile",
                 "orthographic-left": "Left profile"}[props.camera_view] + " (orthographic)"
+        if props.camera_json:  # a known camera: turned from its view's (a detection's)?
+            d = np.asarray(json.loads(props.camera_json).get("rotation", ORTHO_VIEWS[
+                props.camera_view]), dtype=np.float64)[2]
+            yaw = float(np.degrees(np.arctan2(d[0], d[1])))
+            if abs(yaw - VIEW_YAW_DEG[props.camera_view]) > 0.5:
+                text += f", seen from {yaw:+.0f} deg"
     else:
         text = "Pinhole" if kind == "pinhole" else kind.upper()
         lens = lens_hint(plane)
@@ -683,6 +689,24 @@ def hold_camera_near(plane, yaw_deg):
     hints = camera_hints(plane)
     if hints.get("direction_prior"):
         set_camera_hints(plane, held_near(hints, yaw_deg))
+
+
+def turn_nominal_camera(plane, camera, centre=(0.0, 0.0, 0.0)):
+    """Make ``camera`` the view's and stand the plane there, where the view's camera is
+    the nominal orthographic one (a profile photo seen short of a profile, turned to where
+    it was seen from); a known camera or one to compute stays."""
+    props = plane.headrecon
+    if props.camera_json or camera_hints(plane):
+        return
+    set_plane_camera(plane, camera)
+    place_plane(plane, centre=centre)
+
+
+def turned_view_camera(value, camera, size):
+    """The landmarks file's camera of a view (``value``) with ``turn_nominal_camera``'s rule:
+    ``camera``'s parameters where ``value`` names the nominal view, else ``value``. No bpy
+    (Auto Fit's merged case uses it in any thread)."""
+    return camera_to_json(camera, size) if isinstance(value, str) else value
 
 
 # --------------------------------------------------------------------------------------

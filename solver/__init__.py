@@ -33,7 +33,7 @@ from .fitting.engine import forget_fit_subsets
 from .fitting.fit import FitOptions, fit_head, prepare_fit, refit_landmarks
 from .fitting.options import FIT_METHODS
 from .fitting.result import FitResult, ViewResidual
-from .io.camera_json import camera_from_json, camera_to_json
+from .io.camera_json import camera_from_json, camera_to_json, is_nominal
 from .io.case import LandmarkCase, View
 from .io.case_check import MIN_PASSPOINTS, check_case
 from .io.exif import Exif, orient, oriented_size, read_photo_exif
@@ -80,7 +80,7 @@ __all__ = [
     "camera_class", "camera_from_dict", "camera_from_json", "camera_to_json", "check_case",
     "check_passpoints", "count_problems", "covered_note", "dlt_to_blender", "face_landmarks",
     "fit_dlt", "fit_head", "forget_fit_subsets",
-    "guess_view", "landmarks_needed", "landmarks_to_dict", "load_landmark_set",
+    "guess_view", "is_nominal", "landmarks_needed", "landmarks_to_dict", "load_landmark_set",
     "load_landmarks", "load_model", "lens_hints", "orient", "oriented_size",
     "orthographic_lenses", "plausible_lens",
     "orthographic_uvs", "prepare_fit",

@@ -102,6 +102,16 @@ class ViewGuess:
         return None, {"kind": "pinhole",
                       "direction_prior": [float(self.yaw_deg), DIRECTION_SIGMA_DEG]}
 
+    def beside(self, front_yaw_deg):
+        """This photo's guess in a case whose front photo has the nominal orthographic
+        camera while its face was measured at ``front_yaw_deg``: the fit turns the head by
+        that yaw, so this camera sits at its own yaw less that one. A front stays, and so
+        does a profile read at 90 degrees (its yaw not measured: ``profile_yaw_deg``); none
+        goes past a profile."""
+        if self.name == "front" or (self.profile and abs(self.yaw_deg) >= 90.0):
+            return self
+        return ViewGuess(self.name, float(np.clip(self.yaw_deg - front_yaw_deg, -90.0, 90.0)))
+
     def describe(self):
         """A few words for messages."""
         if self.profile:
@@ -113,6 +123,16 @@ class ViewGuess:
             return f"a front photo (yaw {self.yaw_deg:+.0f} deg)"
         return (f"a three-quarter view from the subject's {self.side} "
                 f"(yaw {self.yaw_deg:+.0f} deg)")
+
+
+def beside_front(guesses, orthographic):
+    """Each photo's guess (``ViewGuess.beside``) in the frame of the first front photo whose
+    camera is orthographic (``orthographic[i]``: the photo's camera is the nominal one, no
+    lens): the cameras' angles apart are then what the photos show. Without such a front
+    photo, the guesses as they are."""
+    front = next((g.yaw_deg for g, ortho in zip(guesses, orthographic, strict=True)
+                  if ortho and g.name == "front"), None)
+    return list(guesses) if front is None else [g.beside(front) for g in guesses]
 
 
 def mesh_yaw_deg(mesh):

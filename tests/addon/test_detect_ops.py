@@ -197,6 +197,64 @@ def test_auto_fit_fits_photos_with_their_exif_lens_as_perspective_photos(lens_sa
     assert case.views["side"].camera_hints["direction_prior"][0] == 90.0
 
 
+def _yaw(camera):
+    d = camera.rotation[2]
+    return float(np.degrees(np.arctan2(d[0], d[1])))
+
+
+def test_a_side_photo_short_of_a_profile_turns_its_plane(sample, turned_side_sample):
+    # a side photo 16 degrees short of a profile beside a front photo seen from the front
+    # (another head's: the cameras 74 degrees apart): Detect Landmarks turns the side's
+    # nominal orthographic camera, and its plane, to the yaw the face was seen from (the
+    # camera solver detect writes); its landmarks keep their pixels; Auto Fit fits with
+    # that camera. Beside its own front photo, as far off the front (the head turned, the
+    # cameras 90 degrees apart), it stays within a few degrees of a profile; alone, or
+    # loaded as the other side, nothing turns
+    from headrecon_addon import landmarks, photo_faces, photos
+    from headrecon_addon.auto_fit_job import prepare_auto_fit
+
+    folder, _ = turned_side_sample
+    scene = empty_scene()
+    _load(sample[0] / "front.png", "front", "orthographic-front")
+    side = _load(folder / "side.png", "side", "orthographic-right")
+    nominal = np.array(side.matrix_world)
+    assert "seen from" not in photos.camera_label(side)
+    assert bpy.ops.headrecon.detect_landmarks(view="side") == {"FINISHED"}
+    assert not side.headrecon.camera_json  # the front's yaw unknown: as loaded
+    assert bpy.ops.headrecon.detect_landmarks(view="") == {"FINISHED"}
+    face = photo_faces.find_face(photos.detector_pixels(side.headrecon.image))
+    front = photo_faces.find_face(photos.detector_pixels(
+        photos.find_plane(scene, "front").headrecon.image))
+    want, _ = face.guess.beside(front.guess.yaw_deg).camera(photos.plane_size(side)[0])
+    cam = photos.plane_camera(side)
+    yaw = _yaw(cam)
+    assert face.guess.name == "right" and 60.0 < yaw < 85.0, yaw
+    assert np.allclose(cam.rotation, want.rotation) and cam.scale == want.scale
+    assert f"seen from {yaw:+.0f} deg" in photos.camera_label(side)
+    turned = np.array(side.matrix_world)
+    assert np.allclose(turned, np.array(photos.plane_matrix(side)), atol=1e-6)
+    assert not np.allclose(turned, nominal)
+    placed = landmarks.landmark_pixels(side)
+    assert placed and all(np.allclose(placed[n], face.points[n], atol=1e-3) for n in placed)
+    scene = empty_scene()
+    _load(sample[0] / "front.png", "front", "orthographic-front")
+    _load(folder / "side.png", "side", "orthographic-right")
+    job = prepare_auto_fit(scene)
+    job.detect.run()
+    assert np.allclose(job.merged_case().views["side"].camera.rotation, want.rotation)
+    # beside its own front photo
+    scene = empty_scene()
+    _load(folder / "front.png", "front", "orthographic-front")
+    side = _load(folder / "side.png", "side", "orthographic-right")
+    assert bpy.ops.headrecon.detect_landmarks(view="") == {"FINISHED"}
+    assert _yaw(photos.plane_camera(side)) > 85.0
+    empty_scene()
+    _load(sample[0] / "front.png", "front", "orthographic-front")
+    side = _load(folder / "side.png", "side", "orthographic-left")
+    assert bpy.ops.headrecon.detect_landmarks(view="") == {"FINISHED"}
+    assert not side.headrecon.camera_json  # the nominal left profile's, as loaded
+
+
 def test_auto_fit_that_cannot_fit_leaves_the_scene_as_it_was(sample, monkeypatch):
     from headrecon_addon import photo_faces
 

@@ -13,6 +13,7 @@ from PIL import Image
 from solver import fit_head, load_landmarks
 from solver.detect import Detector
 from solver.detect.detected_case import NO_PROFILE_NOTE, detect_photos
+from solver.detect.view_guess import guess_view
 from solver.fitting.depth import mirror_pairs
 from solver.io.landmark_set import load_landmark_set
 from solver.paths import DETECTOR_DIR
@@ -338,3 +339,19 @@ def test_a_side_photo_short_of_a_profile_fits_nearer_with_its_camera_turned(
                                                                side.size)
     err = _errors(model, truth, turned=case, nominal=nominal)
     assert err["turned"] < 0.9 * err["nominal"], err
+
+
+def test_a_side_photo_short_of_a_profile_is_turned_in_the_front_photos_frame(
+        sample, turned_side_sample, detector):
+    """The side photo of a head turned toward the side camera, 16 degrees short of a
+    profile, beside a front photo seen from the front (another head's: the cameras 74
+    degrees apart): its camera is turned to its yaw less the front's, the frame the fit
+    turns the head in on the nominal front camera (``ViewGuess.beside``)."""
+    side_photo = turned_side_sample[0] / "side.png"
+    case = detect_photos([(None, sample[0] / "front.png"), (None, side_photo)],
+                         detector, _load)
+    front_yaw = guess_view(detector.detect(_load(sample[0] / "front.png"))).yaw_deg
+    side_yaw = guess_view(detector.detect(_load(side_photo))).yaw_deg
+    d = case.views["right"].camera.rotation[2]
+    assert side_yaw < 80.0 and abs(front_yaw) < 5.0
+    assert np.degrees(np.arctan2(d[0], d[1])) == pytest.approx(side_yaw - front_yaw)

@@ -13,6 +13,7 @@ from solver.detect import Detector
 from solver.detect.view_guess import (
     MEDIAN_TO_SIGMA,
     ViewGuess,
+    beside_front,
     guess_view,
     mesh_yaw_deg,
     point_uncertainty,
@@ -202,3 +203,22 @@ def test_a_side_photo_short_of_a_profile_is_read_at_its_yaw(sample, turned_side_
     square = detector.detect(_photo(folder, "side", truth)[0])
     assert profile_yaw_deg(square) == 90.0
     assert profile_yaw_deg(replace(square, presence=1.0)) == 90.0  # its eyes nearly meet
+
+
+def test_views_beside_a_front_photo_are_turned_into_its_frame():
+    """A front photo on the nominal orthographic camera whose face was measured at 10
+    degrees: the fit turns the head by 10, so the other cameras sit at their yaws less 10.
+    A profile whose yaw was not measured (90), and the front itself, stay; none passes a
+    profile; a front with a lens (a pinhole held near its own yaw) turns nothing."""
+    right, quarter = ViewGuess("right", 74.0), ViewGuess("three_quarter_left", -30.0)
+    assert right.beside(-16.0) == ViewGuess("right", 90.0)
+    assert right.beside(4.0) == ViewGuess("right", 70.0)
+    assert quarter.beside(10.0) == ViewGuess("three_quarter_left", -40.0)
+    assert ViewGuess("left", -90.0).beside(-12.0) == ViewGuess("left", -90.0)
+    assert ViewGuess("left", -85.0).beside(12.0) == ViewGuess("left", -90.0)
+    front = ViewGuess("front", 10.0)
+    assert front.beside(10.0) == front
+    assert beside_front([right, front, quarter], [True, True, False]) == [
+        ViewGuess("right", 64.0), front, ViewGuess("three_quarter_left", -40.0)]
+    assert beside_front([right, front], [True, False]) == [right, front]
+    assert beside_front([right, quarter], [True, True]) == [right, quarter]
