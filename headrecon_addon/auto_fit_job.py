@@ -53,7 +53,7 @@ class AutoFitJob:
 
     def merged_case(self):
         """The scene's landmarks with the detected ones, as a LandmarkCase (any thread)."""
-        views, front_yaw = self.document["views"], self.detect.front_yaw()
+        views, (guesses, turn) = self.document["views"], self.detect.placed()
         for task in self.detect.tasks:
             if task.face is None:
                 continue
@@ -76,12 +76,13 @@ class AutoFitJob:
                 if name in task.face.depth:
                     depth[name] = task.face.depth[name]
             view["points"] = points
-            yaw = task.held_yaw(front_yaw)
-            if yaw is not None and "camera" in view:  # as apply_detection holds it
-                view["camera"] = photos.held_near(view["camera"], yaw)
-            turned = task.turned_camera(front_yaw)
-            if turned is not None and "camera" in view:  # as apply_detection turns it
-                view["camera"] = photos.turned_view_camera(view["camera"], turned, task.size)
+            guess = guesses.get(task.view)
+            if guess is not None and "camera" in view:  # as apply_detection places it
+                view["camera"] = photos.held_near(view["camera"], guess.yaw_deg)
+                turned = task.turned_camera(guess) if turn else None
+                if turned is not None:
+                    view["camera"] = photos.turned_view_camera(view["camera"], turned,
+                                                               task.size)
             for key, given in (("uncertainty", sigma), ("depth", depth)):
                 if given:
                     view[key] = given

@@ -16,7 +16,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 from . import landmarks, photo_faces, photos
 from .job_progress import Progress
-from .solver_link import covered_note, is_nominal, usable_cores
+from .solver_link import covered_note, is_nominal, placed, usable_cores
 
 
 def _count(n):
@@ -66,40 +66,30 @@ class PhotoTask:
     size: tuple = None  # the photo's (w, h) pixels, for a camera of its view
 
     def agreeing_guess(self):
-        """The face's ViewGuess where it agrees with the view: a front or three-quarter
-        face on a front photo, a face from the view's side on a profile photo; else None."""
+        """The face's ViewGuess where it agrees with the view (a front photo's named
+        "front", as its plane is, whatever its yaw: a front or three-quarter face; on a
+        profile photo a face from the view's side); else None."""
         guess = self.face.guess if self.face is not None else None
         if guess is None:
             return None
-        agrees = not guess.profile if self.kind == "front" else guess.side == self.kind
-        return guess if agrees else None
+        if self.kind == "front":
+            return None if guess.profile else dataclasses.replace(guess, name="front")
+        return guess if guess.side == self.kind else None
 
-    def held_yaw(self, front_yaw=0.0):
-        """The yaw (degrees) the detector measured of the face, which a camera held near
-        its view's direction is held near instead of the nominal one (as ``solver detect``
-        does), in the frame of a front photo measured at ``front_yaw`` (``DetectJob.
-        front_yaw``; None: unknown, the yaw as measured); None for a face contradicting its
-        view, or none."""
-        guess = self.agreeing_guess()
-        if guess is None:
+    def turned_camera(self, guess):
+        """The orthographic camera ``guess`` (the photo's, as ``DetectJob.placed`` places
+        it) turns this photo's to (``ViewGuess.camera``: the camera ``solver detect``
+        writes for it), or None: a camera not turned, a perspective photo."""
+        if self.perspective:
             return None
-        return float(guess.beside(front_yaw or 0.0).yaw_deg)
+        camera, _ = guess.camera(self.size)
+        return None if camera is None or is_nominal(camera, self.size) else camera
 
-    def turned_camera(self, front_yaw):
-        """The orthographic camera of a profile photo seen short of a profile, turned to
-        the yaw it was seen from in the frame of a front photo measured at ``front_yaw``
-        (``ViewGuess.beside`` and ``ViewGuess.camera``: the camera ``solver detect`` writes
-        for it), or None: a profile seen from the side, the front's yaw unknown (None), a
-        front or perspective photo, a face contradicting its view."""
-        guess = self.agreeing_guess()
-        if guess is None or not guess.profile or self.perspective or front_yaw is None:
-            return None
-        camera, _ = guess.beside(front_yaw).camera(self.size)
-        return None if is_nominal(camera, self.size) else camera
-
-    def lines(self, replace):
-        """(level, line) for the report: what was found (or that no face was), and a face
-        that contradicts the view the photo was loaded as."""
+    def lines(self, replace, turned=None):
+        """(level, line) for the report: what was found (or that no face was), the yaw its
+        camera is turned to (``turned``, degrees, where the photos are placed in the face's
+        frame: ``DetectJob.placed``), and a face that contradicts the view the photo was
+        loaded as (a three-quarter face on a front photo does not, once turned to)."""
         where = f"view {self.view!r} ({self.photo})"
         if self.face is None:
             return [("WARNING", f"{where}: no face found")]
@@ -116,9 +106,12 @@ class PhotoTask:
         covered = None if self.face.found is None else covered_note(self.face.found)
         if covered:
             line += f"; {covered}"
+        if turned is not None:
+            line += (f"; its camera turned to {turned:+.0f} deg (beside a side photo short "
+                     "of a profile, the photos placed as the face shows them)")
         out = [("INFO", line)]
         problem = photo_faces.loaded_as_problem(self.kind, self.perspective, self.face.guess)
-        if problem:
+        if problem and turned is None:
             out.append(("WARNING", f"{where}: {problem}"))
         return out
 
@@ -186,20 +179,28 @@ class DetectJob(PhotosJob):
     def found_any(self):
         return any(t.face is not None for t in self.tasks)
 
-    def front_yaw(self):
-        """The frame the other photos' cameras are turned and held in (``ViewGuess.beside``,
-        as ``solver detect`` writes them), degrees: the measured yaw of a front photo on an
-        orthographic plane (the fit turns the head by it), 0 with a perspective front photo
-        (its camera held near its own yaw), None when no front photo was detected."""
-        fronts = [t for t in self.tasks if t.kind == "front" and t.agreeing_guess() is not None]
-        ortho = [t for t in fronts if not t.perspective]
-        if ortho:
-            return float(ortho[0].agreeing_guess().yaw_deg)
-        return 0.0 if fronts else None
+    def placed(self):
+        """({view: ViewGuess}, turn) of the photos whose face agrees with their view, as
+        ``solver detect`` places their cameras (the solver's ``placed``: in the face's
+        frame, or the orthographic front photo's); ``turn``: whether their orthographic
+        cameras may be turned, only with a front photo among them (without one the frame is
+        unknown: the yaws as measured, for the cameras to compute held near them)."""
+        tasks = [t for t in self.tasks if t.agreeing_guess() is not None]
+        guesses = [t.agreeing_guess() for t in tasks]
+        if not any(t.kind == "front" for t in tasks):
+            return dict(zip((t.view for t in tasks), guesses, strict=True)), False
+        guesses = placed(guesses, [not t.perspective for t in tasks])
+        return dict(zip((t.view for t in tasks), guesses, strict=True)), True
 
     def lines(self):
         """(level, line) for the report, photo by photo, then the photos left out."""
-        out = [line for t in self.tasks for line in t.lines(self.replace)]
+        guesses, turn = self.placed()
+        out = []
+        for t in self.tasks:
+            guess = guesses.get(t.view) if turn else None
+            turned = guess.yaw_deg if guess is not None and guess.turned \
+                and t.turned_camera(guess) is not None else None
+            out += t.lines(self.replace, turned)
         return out + [("INFO", line) for line in self.skipped]
 
 
@@ -271,9 +272,10 @@ def prepare_detection(scene, view="", replace=False, skip_hand_placed=False, rea
 
 def apply_detection(scene, job):
     """Place what the job found (main thread): each photo's landmarks as
-    ``detection_plan`` says; a camera to compute held near the face's measured yaw, a
-    profile's nominal orthographic camera turned to it. Returns the landmarks placed."""
-    n, front_yaw = 0, job.front_yaw()
+    ``detection_plan`` says; each camera placed as ``DetectJob.placed`` says (a camera to
+    compute held near its yaw, a nominal orthographic one turned to it where the rule
+    turns it). Returns the landmarks placed."""
+    n, (guesses, turn) = 0, job.placed()
     for task in job.tasks:
         plane = photos.find_plane(scene, task.view)
         if task.face is None or plane is None:
@@ -286,12 +288,12 @@ def apply_detection(scene, job):
                                      task.face.uncertainty.get(name),
                                      task.face.depth.get(name))
         photos.remove_objects([detected[name] for name in remove])
-        yaw = task.held_yaw(front_yaw)
-        if yaw is not None:
-            photos.hold_camera_near(plane, yaw)
-        turned = task.turned_camera(front_yaw)
-        if turned is not None:
-            photos.turn_nominal_camera(plane, turned, photos.head_centre(scene))
+        guess = guesses.get(task.view)
+        if guess is not None:
+            photos.hold_camera_near(plane, guess.yaw_deg)
+            turned = task.turned_camera(guess) if turn else None
+            if turned is not None:
+                photos.turn_nominal_camera(plane, turned, photos.head_centre(scene))
         n += len(place)
     return n
 

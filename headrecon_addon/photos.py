@@ -693,8 +693,8 @@ def hold_camera_near(plane, yaw_deg):
 
 def turn_nominal_camera(plane, camera, centre=(0.0, 0.0, 0.0)):
     """Make ``camera`` the view's and stand the plane there, where the view's camera is
-    the nominal orthographic one (a profile photo seen short of a profile, turned to where
-    it was seen from); a known camera or one to compute stays."""
+    the nominal orthographic one (a photo turned to the yaw its face was seen from, as
+    ``detect_job`` places it); a known camera or one to compute stays."""
     props = plane.headrecon
     if props.camera_json or camera_hints(plane):
         return

@@ -28,7 +28,7 @@ from .cores import usable_cores
 from .detect.covered import covered_note
 from .detect.detected_case import face_landmarks
 from .detect.detector import DetectedFace, Detector
-from .detect.view_guess import ViewGuess, guess_view
+from .detect.view_guess import ViewGuess, guess_view, placed
 from .fitting.engine import forget_fit_subsets
 from .fitting.fit import FitOptions, fit_head, prepare_fit, refit_landmarks
 from .fitting.options import FIT_METHODS
@@ -82,7 +82,7 @@ __all__ = [
     "fit_dlt", "fit_head", "forget_fit_subsets",
     "guess_view", "is_nominal", "landmarks_needed", "landmarks_to_dict", "load_landmark_set",
     "load_landmarks", "load_model", "lens_hints", "orient", "oriented_size",
-    "orthographic_lenses", "plausible_lens",
+    "orthographic_lenses", "placed", "plausible_lens",
     "orthographic_uvs", "prepare_fit",
     "parse_landmarks", "read_photo_exif", "refit_landmarks", "save_landmarks",
     "usable_cores", "uv_raster", "uv_tiles",

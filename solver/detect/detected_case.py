@@ -18,7 +18,7 @@ from .covered import covered_note
 from .face_detection import KEYPOINTS
 from .ibug_map import mesh_to_ibug
 from .profile_line import profile_line_points
-from .view_guess import ViewGuess, beside_front, guess_view, point_uncertainty
+from .view_guess import ViewGuess, guess_view, placed, point_uncertainty
 
 #: The view names the detection gives (and ``--view NAME=PHOTO`` may use to say one).
 VIEW_NAMES = ("front", "right", "left", "three_quarter_right", "three_quarter_left")
@@ -128,7 +128,7 @@ def detected_case(photos, faces, base_dir=None, guesses=None, outlines=None, len
         outlines = [None] * len(faces)
     if lenses is None:
         lenses = [None] * len(faces)
-    guesses = beside_front(guesses, [not lens for lens in lenses])
+    guesses = placed(guesses, [not lens for lens in lenses])
     for (name, path, size), face, guess, outline, lens in zip(photos, faces, guesses,
                                                                outlines, lenses, strict=True):
         w, h = size

@@ -13,11 +13,13 @@ detector's eye keypoints nearly coincide (``DetectedFace.is_profile``), the phot
 profile, its side from the detector's keypoints: the nose tip lies beyond the eyes on the
 side the face looks to (in a right profile the face points to the image's right,
 ``solver.cameras.ORTHO_VIEWS``); its yaw 90 degrees unless the face is seen short of a
-profile (``profile_yaw_deg``).
+profile (``profile_yaw_deg``). How a case's cameras stand to each other is one rule,
+``placed``: in the face's frame where a profile's yaw was measured, else in the frame of
+the orthographic front photo.
 """
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -67,10 +69,14 @@ class ViewGuess:
     yaw_deg : float
         The camera's direction from the face's front, degrees, toward the subject's right
         positive (a profile's from its eye keypoints, ``profile_yaw_deg``).
+    turned : bool
+        Its camera an orthographic one turned to ``yaw_deg`` (``placed``: a case in the
+        face's frame); a profile read short of 90 degrees is turned either way.
     """
 
     name: str
     yaw_deg: float
+    turned: bool = False
 
     @property
     def profile(self):
@@ -91,16 +97,22 @@ class ViewGuess:
         calibrates, held near this yaw as one of a known lens is (Blender's Detect holds it
         so too). A profile read short of 90 degrees gets its orthographic camera turned to
         its yaw (``OrthographicCamera.turned``): the photos' angle apart is then what they
-        show, not a nominal 90 degrees from the front photo's."""
+        show, not a nominal 90 degrees from the front photo's. So is a front photo placed
+        in the face's frame (``turned``)."""
         if lens_mm:
             return None, lens_hints(lens_mm, self.yaw_deg)
-        if self.profile and abs(self.yaw_deg) < 90.0:
-            return OrthographicCamera.turned(f"orthographic-{self.name}", size,
-                                             self.yaw_deg), {}
+        if self.turned or self.measured_profile:
+            view = self.name if self.profile else "front"
+            return OrthographicCamera.turned(f"orthographic-{view}", size, self.yaw_deg), {}
         if self.name in ("front", "right", "left"):
             return OrthographicCamera.nominal(f"orthographic-{self.name}", size), {}
         return None, {"kind": "pinhole",
                       "direction_prior": [float(self.yaw_deg), DIRECTION_SIGMA_DEG]}
+
+    @property
+    def measured_profile(self):
+        """A profile whose yaw was measured: read short of 90 degrees (``profile_yaw_deg``)."""
+        return self.profile and abs(self.yaw_deg) < 90.0
 
     def beside(self, front_yaw_deg):
         """This photo's guess in a case whose front photo has the nominal orthographic
@@ -108,9 +120,9 @@ class ViewGuess:
         that yaw, so this camera sits at its own yaw less that one. A front stays, and so
         does a profile read at 90 degrees (its yaw not measured: ``profile_yaw_deg``); none
         goes past a profile."""
-        if self.name == "front" or (self.profile and abs(self.yaw_deg) >= 90.0):
+        if self.name == "front" or (self.profile and not self.measured_profile):
             return self
-        return ViewGuess(self.name, float(np.clip(self.yaw_deg - front_yaw_deg, -90.0, 90.0)))
+        return replace(self, yaw_deg=float(np.clip(self.yaw_deg - front_yaw_deg, -90.0, 90.0)))
 
     def describe(self):
         """A few words for messages."""
@@ -133,6 +145,24 @@ def beside_front(guesses, orthographic):
     front = next((g.yaw_deg for g, ortho in zip(guesses, orthographic, strict=True)
                   if ortho and g.name == "front"), None)
     return list(guesses) if front is None else [g.beside(front) for g in guesses]
+
+
+def placed(guesses, orthographic):
+    """The one rule a case's cameras are placed by (``solver detect``, Blender's Detect
+    Landmarks and Auto Fit): each photo's guess as its camera is to be placed.
+    ``orthographic[i]``: the photo's camera may be orthographic (no lens).
+
+    A case with a profile read short of a profile (its yaw measured) is placed in the
+    face's frame: each such profile, and each front photo that may be orthographic, an
+    orthographic camera turned to its own yaw (``turned``): the head then starts square to
+    the world and the cameras stand as far apart as the photos show (a three-quarter photo
+    stays a pinhole held near its yaw: docs/DECISIONS.md, "The cameras in the face's
+    frame"). Any other case in the frame of its orthographic front photo
+    (``beside_front``)."""
+    if not any(g.measured_profile for g in guesses):
+        return beside_front(guesses, orthographic)
+    return [replace(g, turned=True) if ortho and g.name == "front" else g
+            for g, ortho in zip(guesses, orthographic, strict=True)]
 
 
 def mesh_yaw_deg(mesh):

@@ -341,17 +341,30 @@ def test_a_side_photo_short_of_a_profile_fits_nearer_with_its_camera_turned(
     assert err["turned"] < 0.9 * err["nominal"], err
 
 
-def test_a_side_photo_short_of_a_profile_is_turned_in_the_front_photos_frame(
+def _yaw(camera):
+    d = camera.rotation[2]
+    return float(np.degrees(np.arctan2(d[0], d[1])))
+
+
+def test_photos_beside_a_side_photo_short_of_a_profile_are_placed_in_the_face_s_frame(
         sample, turned_side_sample, detector):
-    """The side photo of a head turned toward the side camera, 16 degrees short of a
-    profile, beside a front photo seen from the front (another head's: the cameras 74
-    degrees apart): its camera is turned to its yaw less the front's, the frame the fit
-    turns the head in on the nominal front camera (``ViewGuess.beside``)."""
+    """A side photo 16 degrees short of a profile has its yaw measured, so the case is
+    placed in the face's frame (``view_guess.placed``): the side's camera turned to its
+    yaw, a front photo's (another head's, seen from the front) to the small yaw its face
+    shows, so the cameras stand as far apart as the photos say. Beside its own front
+    photo, a three-quarter view 16 degrees off, that one stays a pinhole held near its
+    yaw."""
     side_photo = turned_side_sample[0] / "side.png"
-    case = detect_photos([(None, sample[0] / "front.png"), (None, side_photo)],
-                         detector, _load)
-    front_yaw = guess_view(detector.detect(_load(sample[0] / "front.png"))).yaw_deg
     side_yaw = guess_view(detector.detect(_load(side_photo))).yaw_deg
-    d = case.views["right"].camera.rotation[2]
-    assert side_yaw < 80.0 and abs(front_yaw) < 5.0
-    assert np.degrees(np.arctan2(d[0], d[1])) == pytest.approx(side_yaw - front_yaw)
+    assert side_yaw < 80.0
+    front_photo = sample[0] / "front.png"
+    front_yaw = guess_view(detector.detect(_load(front_photo))).yaw_deg
+    case = detect_photos([(None, front_photo), (None, side_photo)], detector, _load)
+    assert _yaw(case.views["right"].camera) == pytest.approx(side_yaw)
+    assert _yaw(case.views["front"].camera) == pytest.approx(front_yaw) != 0.0
+    case = detect_photos([(None, turned_side_sample[0] / "front.png"), (None, side_photo)],
+                         detector, _load)
+    quarter = case.views["three_quarter_left"]
+    assert quarter.camera is None and quarter.camera_hints["kind"] == "pinhole"
+    assert quarter.camera_hints["direction_prior"][0] < -15.0
+    assert _yaw(case.views["right"].camera) == pytest.approx(side_yaw)

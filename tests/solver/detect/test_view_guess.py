@@ -16,6 +16,7 @@ from solver.detect.view_guess import (
     beside_front,
     guess_view,
     mesh_yaw_deg,
+    placed,
     point_uncertainty,
     profile_yaw_deg,
     uncertainty_table,
@@ -222,3 +223,21 @@ def test_views_beside_a_front_photo_are_turned_into_its_frame():
         ViewGuess("right", 64.0), front, ViewGuess("three_quarter_left", -40.0)]
     assert beside_front([right, front], [True, False]) == [right, front]
     assert beside_front([right, quarter], [True, True]) == [right, quarter]
+
+
+def test_a_case_with_a_measured_profile_is_placed_in_the_face_s_frame():
+    """A profile read short of 90 degrees places the case in the face's frame: each front
+    photo that may be orthographic turned to its own yaw, the rest as they are (a
+    three-quarter view a pinhole held near its yaw); without one, the front photo's frame
+    (``beside_front``)."""
+    right, front = ViewGuess("right", 74.0), ViewGuess("front", -12.0)
+    quarter = ViewGuess("three_quarter_left", -20.0)
+    out = placed([front, right, quarter, front], [True, True, True, False])
+    assert out == [ViewGuess("front", -12.0, turned=True), right, quarter, front]
+    camera, hints = out[0].camera((300, 400))
+    assert hints == {} and camera.view == "orthographic-front"
+    d = camera.rotation[2]
+    assert np.degrees(np.arctan2(d[0], d[1])) == pytest.approx(-12.0)
+    assert out[2].camera((300, 400))[0] is None  # a pinhole to calibrate, as before
+    square = ViewGuess("right", 90.0)
+    assert placed([front, square], [True, True]) == beside_front([front, square], [True, True])
