@@ -185,16 +185,22 @@ def test_auto_fit_fits_photos_with_their_exif_lens_as_perspective_photos(lens_sa
     assert yaw == pytest.approx(measured.yaw_deg) and yaw != 0.0
     assert photos.camera_hints(side)["direction_prior"][0] == 90.0
     # ... and so in the case Auto Fit fits
+    case = _auto_fit_case(folder / "front.jpg", folder / "side.jpg")
+    assert case.views["front"].camera_hints["direction_prior"][0] == pytest.approx(yaw)
+    assert case.views["side"].camera_hints["direction_prior"][0] == 90.0
+
+
+def _auto_fit_case(front, side):
+    """The case Auto Fit would fit of a front and a right profile photo in a new scene,
+    the scene left unchanged."""
     from headrecon_addon.auto_fit_job import prepare_auto_fit
 
     scene = empty_scene()
-    _load(folder / "front.jpg", "front", "orthographic-front")
-    _load(folder / "side.jpg", "side", "orthographic-right")
+    _load(front, "front", "orthographic-front")
+    _load(side, "side", "orthographic-right")
     job = prepare_auto_fit(scene)
     job.detect.run()
-    case = job.merged_case()
-    assert case.views["front"].camera_hints["direction_prior"][0] == pytest.approx(yaw)
-    assert case.views["side"].camera_hints["direction_prior"][0] == 90.0
+    return job.merged_case()
 
 
 def _yaw(camera):
@@ -209,11 +215,10 @@ def test_a_side_photo_short_of_a_profile_turns_the_photo_planes(sample, turned_s
     # the landmarks keep their pixels; Auto Fit fits with those cameras. Detected alone
     # (the front's yaw unknown), or loaded as the other side, nothing turns
     from headrecon_addon import landmarks, photo_faces, photos
-    from headrecon_addon.auto_fit_job import prepare_auto_fit
 
     folder, _ = turned_side_sample
     for front_photo in (sample[0] / "front.png", folder / "front.png"):
-        scene = empty_scene()
+        empty_scene()
         front = _load(front_photo, "front", "orthographic-front")
         side = _load(folder / "side.png", "side", "orthographic-right")
         nominal = np.array(side.matrix_world)
@@ -246,12 +251,7 @@ def test_a_side_photo_short_of_a_profile_turns_the_photo_planes(sample, turned_s
     assert any(line.startswith("front:") and "its camera turned to -1" in line
                for _, line in lines), lines
     want = {p.headrecon.view: photos.plane_camera(p).rotation for p in (front, side)}
-    scene = empty_scene()
-    _load(folder / "front.png", "front", "orthographic-front")
-    _load(folder / "side.png", "side", "orthographic-right")
-    job = prepare_auto_fit(scene)
-    job.detect.run()
-    case = job.merged_case()
+    case = _auto_fit_case(folder / "front.png", folder / "side.png")
     for view, rotation in want.items():
         assert np.allclose(case.views[view].camera.rotation, rotation)
     empty_scene()
