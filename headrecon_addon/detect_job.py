@@ -64,6 +64,8 @@ class PhotoTask:
     face: object = None
     seconds: float = 0.0
     size: tuple = None  # the photo's (w, h) pixels, for a camera of its view
+    nominal: bool = False  # its camera the nominal orthographic one (not known, not to compute)
+    turned_yaw: float = None  # the yaw its known orthographic camera is turned to, if it is
 
     def agreeing_guess(self):
         """The face's ViewGuess where it agrees with the view (a front photo's named
@@ -79,17 +81,18 @@ class PhotoTask:
     def turned_camera(self, guess):
         """The orthographic camera ``guess`` (the photo's, as ``DetectJob.placed`` places
         it) turns this photo's to (``ViewGuess.camera``: the camera ``solver detect``
-        writes for it), or None: a camera not turned, a perspective photo."""
-        if self.perspective:
+        writes for it), or None: a camera not turned, a photo whose camera is not the
+        nominal orthographic one (known, or to compute: it stays)."""
+        if not self.nominal:
             return None
         camera, _ = guess.camera(self.size)
         return None if camera is None or is_nominal(camera, self.size) else camera
 
     def lines(self, replace, turned=None):
         """(level, line) for the report: what was found (or that no face was), the yaw its
-        camera is turned to (``turned``, degrees, where the photos are placed in the face's
-        frame: ``DetectJob.placed``), and a face that contradicts the view the photo was
-        loaded as (a three-quarter face on a front photo does not, once turned to)."""
+        camera is turned to (``turned``, degrees: by this detection, ``DetectJob.placed``,
+        or before), and a face that contradicts the view the photo was loaded as (a
+        three-quarter face on a front photo does not, once its camera is turned)."""
         where = f"view {self.view!r} ({self.photo})"
         if self.face is None:
             return [("WARNING", f"{where}: no face found")]
@@ -107,8 +110,7 @@ class PhotoTask:
         if covered:
             line += f"; {covered}"
         if turned is not None:
-            line += (f"; its camera turned to {turned:+.0f} deg (beside a side photo short "
-                     "of a profile, the photos placed as the face shows them)")
+            line += f"; its camera turned to {turned:+.0f} deg, as the photos show the face"
         out = [("INFO", line)]
         problem = photo_faces.loaded_as_problem(self.kind, self.perspective, self.face.guess)
         if problem and turned is None:
@@ -198,8 +200,8 @@ class DetectJob(PhotosJob):
         out = []
         for t in self.tasks:
             guess = guesses.get(t.view) if turn else None
-            turned = guess.yaw_deg if guess is not None and guess.turned \
-                and t.turned_camera(guess) is not None else None
+            turned = guess.yaw_deg if guess is not None \
+                and t.turned_camera(guess) is not None else t.turned_yaw
             out += t.lines(self.replace, turned)
         return out + [("INFO", line) for line in self.skipped]
 
@@ -266,7 +268,9 @@ def prepare_detection(scene, view="", replace=False, skip_hand_placed=False, rea
                                photos.is_perspective(plane),
                                photos.detector_pixels(img, read), hand,
                                set(landmarks.detected_landmarks(plane)),
-                               size=photos.plane_size(plane)[0]))
+                               size=photos.plane_size(plane)[0],
+                               nominal=photos.has_nominal_camera(plane),
+                               turned_yaw=photos.turned_yaw(plane)))
     return DetectJob(tasks, replace=replace, skipped=skipped)
 
 

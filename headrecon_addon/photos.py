@@ -405,12 +405,9 @@ def camera_label(plane):
     if kind == "orthographic":
         text = {"orthographic-front": "Front", "orthographic-right": "Right profile",
                 "orthographic-left": "Left profile"}[props.camera_view] + " (orthographic)"
-        if props.camera_json:  # a known camera: turned from its view's (a detection's)?
-            d = np.asarray(json.loads(props.camera_json).get("rotation", ORTHO_VIEWS[
-                props.camera_view]), dtype=np.float64)[2]
-            yaw = float(np.degrees(np.arctan2(d[0], d[1])))
-            if abs(yaw - VIEW_YAW_DEG[props.camera_view]) > 0.5:
-                text += f", seen from {yaw:+.0f} deg"
+        yaw = turned_yaw(plane)
+        if yaw is not None:
+            text += f", seen from {yaw:+.0f} deg"
     else:
         text = "Pinhole" if kind == "pinhole" else kind.upper()
         lens = lens_hint(plane)
@@ -423,6 +420,19 @@ def camera_label(plane):
     if extra.get("mirror_of"):
         text += f", mirror of {extra['mirror_of']}"
     return text
+
+
+def turned_yaw(plane):
+    """The yaw (degrees from the face's front, toward the subject's right) a known
+    orthographic camera of the view looks from where it is turned from its view's nominal
+    direction (a detection placed it so: ``turn_nominal_camera``), else None."""
+    props = plane.headrecon
+    if not props.camera_json or camera_kind(plane) != "orthographic":
+        return None
+    d = np.asarray(json.loads(props.camera_json).get("rotation", ORTHO_VIEWS[
+        props.camera_view]), dtype=np.float64)[2]
+    yaw = float(np.degrees(np.arctan2(d[0], d[1])))
+    return yaw if abs(yaw - VIEW_YAW_DEG[props.camera_view]) > 0.5 else None
 
 
 def view_kind(plane):
@@ -691,12 +701,17 @@ def hold_camera_near(plane, yaw_deg):
         set_camera_hints(plane, held_near(hints, yaw_deg))
 
 
+def has_nominal_camera(plane):
+    """Whether the view's camera is the nominal orthographic one of its ``camera_view``
+    (neither known nor to compute)."""
+    return not (plane.headrecon.camera_json or camera_hints(plane))
+
+
 def turn_nominal_camera(plane, camera, centre=(0.0, 0.0, 0.0)):
     """Make ``camera`` the view's and stand the plane there, where the view's camera is
     the nominal orthographic one (a photo turned to the yaw its face was seen from, as
     ``detect_job`` places it); a known camera or one to compute stays."""
-    props = plane.headrecon
-    if props.camera_json or camera_hints(plane):
+    if not has_nominal_camera(plane):
         return
     set_plane_camera(plane, camera)
     place_plane(plane, centre=centre)

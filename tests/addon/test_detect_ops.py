@@ -241,7 +241,9 @@ def test_a_side_photo_short_of_a_profile_turns_the_photo_planes(sample, turned_s
         assert placed and all(np.allclose(placed[n], face.points[n], atol=1e-3)
                               for n in placed)
     assert _yaw(photos.plane_camera(front)) < -15.0  # its own front: a three-quarter face
-    # ... which the report says was turned to, not that it needs another camera
+    want = {p.headrecon.view: photos.plane_camera(p).rotation for p in (front, side)}
+    # ... which the report says was turned to, not that it needs another camera (here
+    # detected again: the planes stand as they were turned)
     from headrecon_addon.detect_job import prepare_detection
 
     job = prepare_detection(bpy.context.scene)
@@ -250,8 +252,19 @@ def test_a_side_photo_short_of_a_profile_turns_the_photo_planes(sample, turned_s
     assert not [line for level, line in lines if level != "INFO"], lines
     assert any(line.startswith("front:") and "its camera turned to -1" in line
                for _, line in lines), lines
-    want = {p.headrecon.view: photos.plane_camera(p).rotation for p in (front, side)}
-    case = _auto_fit_case(folder / "front.png", folder / "side.png")
+    # a known camera (here a fit's, as the fit stores it) stays, and the report says so
+    known = photos.OrthographicCamera.nominal("orthographic-front",
+                                              photos.plane_size(front)[0], scale=3000.0)
+    photos.set_plane_camera(front, known)
+    job = prepare_detection(bpy.context.scene)
+    job.run()
+    lines = job.lines()
+    assert not any(line.startswith("front:") and "its camera turned to" in line
+                   for _, line in lines), lines
+    assert any("Add Photo (Any Camera)" in line for _, line in lines), lines
+    assert bpy.ops.headrecon.detect_landmarks(view="") == {"FINISHED"}
+    assert photos.plane_camera(front).to_dict() == known.to_dict()
+    case = _auto_fit_case(folder / "front.png", folder / "side.png")  # as Detect turned them
     for view, rotation in want.items():
         assert np.allclose(case.views[view].camera.rotation, rotation)
     empty_scene()
