@@ -171,6 +171,9 @@ class DetectJob(PhotosJob):
     """The photos to detect the face on, read from the scene."""
 
     skipped: list = dataclasses.field(default_factory=list)
+    #: A front photo not detected in this run whose camera an earlier detection turned to
+    #: its face's yaw: the scene stands in the face's frame already.
+    face_frame: bool = False
     DOING = "detecting the face on"
     DONE = "placing the landmarks"
 
@@ -185,12 +188,13 @@ class DetectJob(PhotosJob):
         """({view: ViewGuess}, turn) of the photos whose face agrees with their view, as
         ``solver detect`` places their cameras (the solver's ``placed``: in the face's
         frame, or the orthographic front photo's); ``turn``: whether their orthographic
-        cameras may be turned, only with a front photo among them (without one the frame is
-        unknown: the yaws as measured, for the cameras to compute held near them)."""
+        cameras may be turned, only with a front photo among them or the scene in the
+        face's frame already (``face_frame``: each camera then at its own yaw); else the
+        frame is unknown: the yaws as measured, for the cameras to compute held near them."""
         tasks = [t for t in self.tasks if t.agreeing_guess() is not None]
         guesses = [t.agreeing_guess() for t in tasks]
         if not any(t.kind == "front" for t in tasks):
-            return dict(zip((t.view for t in tasks), guesses, strict=True)), False
+            return dict(zip((t.view for t in tasks), guesses, strict=True)), self.face_frame
         guesses = placed(guesses, [not t.perspective for t in tasks])
         return dict(zip((t.view for t in tasks), guesses, strict=True)), True
 
@@ -271,7 +275,10 @@ def prepare_detection(scene, view="", replace=False, skip_hand_placed=False, rea
                                size=photos.plane_size(plane)[0],
                                nominal=photos.has_nominal_camera(plane),
                                turned_yaw=photos.turned_yaw(plane)))
-    return DetectJob(tasks, replace=replace, skipped=skipped)
+    detected = {t.view for t in tasks}
+    face_frame = any(photos.view_kind(p) == "front" and photos.turned_yaw(p) is not None
+                     for p in photos.photo_planes(scene) if p.headrecon.view not in detected)
+    return DetectJob(tasks, replace=replace, skipped=skipped, face_frame=face_frame)
 
 
 def apply_detection(scene, job):

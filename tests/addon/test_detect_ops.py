@@ -213,7 +213,7 @@ def test_a_side_photo_short_of_a_profile_turns_the_photo_planes(sample, turned_s
     # the scene in the face's frame as solver detect does (view_guess.placed): each
     # nominal orthographic camera, and its plane, turned to the yaw its face was seen from;
     # the landmarks keep their pixels; Auto Fit fits with those cameras. Detected alone
-    # (the front's yaw unknown), or loaded as the other side, nothing turns
+    # before the front (its yaw unknown), or loaded as the other side, nothing turns
     from headrecon_addon import landmarks, photo_faces, photos
 
     folder, _ = turned_side_sample
@@ -242,6 +242,13 @@ def test_a_side_photo_short_of_a_profile_turns_the_photo_planes(sample, turned_s
                               for n in placed)
     assert _yaw(photos.plane_camera(front)) < -15.0  # its own front: a three-quarter face
     want = {p.headrecon.view: photos.plane_camera(p).rotation for p in (front, side)}
+    # the front photo's camera turned, the scene stands in the face's frame: a side photo
+    # detected alone (here its camera set back to the nominal one) is turned again
+    photos.set_plane_camera(side, photos.OrthographicCamera.nominal(
+        "orthographic-right", photos.plane_size(side)[0]))
+    assert not side.headrecon.camera_json
+    assert bpy.ops.headrecon.detect_landmarks(view="side") == {"FINISHED"}
+    assert np.allclose(photos.plane_camera(side).rotation, want["side"])
     # ... which the report says was turned to, not that it needs another camera (here
     # detected again: the planes stand as they were turned)
     from headrecon_addon.detect_job import prepare_detection
