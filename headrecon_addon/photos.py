@@ -429,8 +429,7 @@ def turned_yaw(plane):
     props = plane.headrecon
     if not props.camera_json or camera_kind(plane) != "orthographic":
         return None
-    d = np.asarray(json.loads(props.camera_json).get("rotation", ORTHO_VIEWS[
-        props.camera_view]), dtype=np.float64)[2]
+    d = plane_camera(plane).rotation[2]
     yaw = float(np.degrees(np.arctan2(d[0], d[1])))
     return yaw if abs(yaw - VIEW_YAW_DEG[props.camera_view]) > 0.5 else None
 

@@ -141,7 +141,7 @@ def frame_cameras(world, collar_z, size, seed, side_deg=90.0):
     rng = np.random.default_rng(seed + 1)
     head = world[world[:, 2] > collar_z]
     top_z = head[:, 2].max()
-    rotations = {view: view_rotation(view, size, side_deg) for view in VIEWS}
+    rotations = {view: view_camera(view, size, side_deg).rotation for view in VIEWS}
     span_u = max(np.ptp(head @ r[0]) for r in rotations.values())
     scale = min(0.88 * h / (top_z - collar_z + 0.03), 0.86 * w / span_u)
     cams = {}
@@ -162,11 +162,6 @@ def view_camera(view, size, side_deg=90.0):
     if view == "side" and float(side_deg) != 90.0:
         return OrthographicCamera.turned(VIEWS[view], size, side_deg)
     return OrthographicCamera.nominal(VIEWS[view], size)
-
-
-def view_rotation(view, size, side_deg=90.0):
-    """The world-to-camera rotation (3, 3) of a view (``view_camera``)."""
-    return view_camera(view, size, side_deg).rotation
 
 
 def perspective_cameras(cameras, world, lens_mm):
