@@ -88,6 +88,10 @@ class AutoFitJob:
                     view[key] = given
                 else:
                     view.pop(key, None)
+        camera, front = self.detect.front_turned(), self.detect.placed_front
+        if camera is not None and "camera" in views[front.view]:
+            views[front.view]["camera"] = photos.turned_view_camera(
+                views[front.view]["camera"], camera, front.size)
         for task in self.outlines.tasks if self.outlines is not None else ():
             if task.draws(self.outlines.replace):
                 views[task.view]["contour"] = [[float(u), float(v)] for u, v in task.points]

@@ -16,7 +16,16 @@ from concurrent.futures import ThreadPoolExecutor
 
 from . import landmarks, photo_faces, photos
 from .job_progress import Progress
-from .solver_link import covered_note, is_nominal, placed, usable_cores
+from .solver_link import (
+    POINTS_YAW_MIN,
+    ViewGuess,
+    covered_note,
+    is_nominal,
+    load_model,
+    placed,
+    points_yaw_deg,
+    usable_cores,
+)
 
 
 def _count(n):
@@ -48,6 +57,33 @@ def detection_plan(hand, detected, found, replace):
     kept = [n for n in found if n in hand and not replace]
     remove = [n for n in detected if n not in found]
     return place, remove, kept
+
+
+def _turned_camera(guess, size):
+    """The orthographic camera ``guess`` turns a photo of ``size`` on the nominal camera to,
+    or None where it stays nominal."""
+    camera, _ = guess.camera(size)
+    return None if camera is None or is_nominal(camera, size) else camera
+
+
+@dataclasses.dataclass
+class PlacedFront:
+    """A front photo not detected in this run, on the nominal orthographic camera, whose
+    landmarks (placed by hand, or by an earlier detection) show the yaw it was taken from
+    (``points_yaw_deg``). The rule places it beside the photos detected now as it would
+    place a detected front photo."""
+
+    view: str
+    size: tuple  # the photo's (w, h) pixels
+    yaw_deg: float
+
+    @property
+    def guess(self):
+        return ViewGuess("front", self.yaw_deg)
+
+    def turned_camera(self, guess):
+        """As ``PhotoTask.turned_camera`` (its camera is the nominal one)."""
+        return _turned_camera(guess, self.size)
 
 
 @dataclasses.dataclass
@@ -83,10 +119,7 @@ class PhotoTask:
         it) turns this photo's to (``ViewGuess.camera``: the camera ``solver detect``
         writes for it), or None: a camera not turned, a photo whose camera is not the
         nominal orthographic one (known, or to compute: it stays)."""
-        if not self.nominal:
-            return None
-        camera, _ = guess.camera(self.size)
-        return None if camera is None or is_nominal(camera, self.size) else camera
+        return _turned_camera(guess, self.size) if self.nominal else None
 
     def lines(self, replace, turned=None):
         """(level, line) for the report: what was found (or that no face was), the yaw its
@@ -174,6 +207,8 @@ class DetectJob(PhotosJob):
     #: A front photo not detected in this run whose camera an earlier detection turned to
     #: its face's yaw: the scene stands in the face's frame already.
     face_frame: bool = False
+    #: Else a front photo not detected in this run whose landmarks show its yaw.
+    placed_front: PlacedFront = None
     DOING = "detecting the face on"
     DONE = "placing the landmarks"
 
@@ -188,15 +223,30 @@ class DetectJob(PhotosJob):
         """({view: ViewGuess}, turn) of the photos whose face agrees with their view, as
         ``solver detect`` places their cameras (the solver's ``placed``: in the face's
         frame, or the orthographic front photo's); ``turn``: whether their orthographic
-        cameras may be turned, only with a front photo among them or the scene in the
-        face's frame already (``face_frame``: each camera then at its own yaw); else the
-        frame is unknown: the yaws as measured, for the cameras to compute held near them."""
+        cameras may be turned, only with a front photo among them (detected now, or
+        ``placed_front``: its guess is placed with theirs) or the scene in the face's
+        frame already (``face_frame``: each camera then at its own yaw); else the frame is
+        unknown: the yaws as measured, for the cameras to compute held near them."""
         tasks = [t for t in self.tasks if t.agreeing_guess() is not None]
+        views = [t.view for t in tasks]
         guesses = [t.agreeing_guess() for t in tasks]
+        orthographic = [not t.perspective for t in tasks]
         if not any(t.kind == "front" for t in tasks):
-            return dict(zip((t.view for t in tasks), guesses, strict=True)), self.face_frame
-        guesses = placed(guesses, [not t.perspective for t in tasks])
-        return dict(zip((t.view for t in tasks), guesses, strict=True)), True
+            if self.placed_front is None:
+                return dict(zip(views, guesses, strict=True)), self.face_frame
+            views.append(self.placed_front.view)
+            guesses.append(self.placed_front.guess)
+            orthographic.append(True)
+        guesses = placed(guesses, orthographic)
+        return dict(zip(views, guesses, strict=True)), True
+
+    def front_turned(self):
+        """The camera ``placed`` turns the ``placed_front`` photo's to, or None."""
+        guesses, turn = self.placed()
+        front = self.placed_front
+        if not turn or front is None or front.view not in guesses:
+            return None
+        return front.turned_camera(guesses[front.view])
 
     def lines(self):
         """(level, line) for the report, photo by photo, then the photos left out."""
@@ -207,6 +257,11 @@ class DetectJob(PhotosJob):
             turned = guess.yaw_deg if guess is not None \
                 and t.turned_camera(guess) is not None else t.turned_yaw
             out += t.lines(self.replace, turned)
+        camera = self.front_turned()
+        if camera is not None:
+            out.append(("INFO", f"{self.placed_front.view}: its camera turned to "
+                                f"{guesses[self.placed_front.view].yaw_deg:+.0f} deg, as its "
+                                "landmarks show the face"))
         return out + [("INFO", line) for line in self.skipped]
 
 
@@ -276,9 +331,30 @@ def prepare_detection(scene, view="", replace=False, skip_hand_placed=False, rea
                                nominal=photos.has_nominal_camera(plane),
                                turned_yaw=photos.turned_yaw(plane)))
     detected = {t.view for t in tasks}
+    others = [p for p in photos.photo_planes(scene) if p.headrecon.view not in detected]
     face_frame = any(photos.view_kind(p) == "front" and photos.turned_yaw(p) is not None
-                     for p in photos.photo_planes(scene) if p.headrecon.view not in detected)
-    return DetectJob(tasks, replace=replace, skipped=skipped, face_frame=face_frame)
+                     for p in others)
+    front = None
+    if not face_frame and any(t.kind != "front" for t in tasks):
+        front = next(filter(None, map(front_from_landmarks, others)), None)
+    return DetectJob(tasks, replace=replace, skipped=skipped, face_frame=face_frame,
+                     placed_front=front)
+
+
+def front_from_landmarks(plane):
+    """A ``PlacedFront`` of a front photo on the nominal orthographic camera whose landmarks
+    show its yaw, or None (also without the head model: the detection needs none)."""
+    if photos.view_kind(plane) != "front" or not photos.has_nominal_camera(plane):
+        return None
+    points = landmarks.landmark_pixels(plane)
+    if len(points) < POINTS_YAW_MIN:
+        return None
+    try:
+        yaw = points_yaw_deg(load_model(), points)
+    except FileNotFoundError:
+        return None
+    return None if yaw is None else PlacedFront(plane.headrecon.view,
+                                                photos.plane_size(plane)[0], yaw)
 
 
 def apply_detection(scene, job):
@@ -306,6 +382,10 @@ def apply_detection(scene, job):
             if turned is not None:
                 photos.turn_nominal_camera(plane, turned, photos.head_centre(scene))
         n += len(place)
+    camera = job.front_turned()
+    if camera is not None:
+        photos.turn_nominal_camera(photos.find_plane(scene, job.placed_front.view), camera,
+                                   photos.head_centre(scene))
     return n
 
 

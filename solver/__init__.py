@@ -28,7 +28,7 @@ from .cores import usable_cores
 from .detect.covered import covered_note
 from .detect.detected_case import face_landmarks
 from .detect.detector import DetectedFace, Detector
-from .detect.view_guess import ViewGuess, guess_view, placed
+from .detect.view_guess import POINTS_YAW_MIN, ViewGuess, guess_view, placed, points_yaw_deg
 from .fitting.engine import forget_fit_subsets
 from .fitting.fit import FitOptions, fit_head, prepare_fit, refit_landmarks
 from .fitting.options import FIT_METHODS
@@ -72,6 +72,7 @@ from .texture.uvs import orthographic_uvs, uv_raster, uv_tiles
 __all__ = [
     "CLOTHES_MODES", "CURRENT_VERSION", "DIRECTION_SIGMA_DEG", "FIT_METHODS", "FORMAT",
     "MIN_LANDMARKS_PER_VIEW", "MIN_LANDMARKS_TOTAL", "MIN_PASSPOINTS", "ORTHO_VIEWS",
+    "POINTS_YAW_MIN",
     "SHADING_MODES", "VIEW_YAW_DEG",
     "BakeOptions", "Camera", "DLTCamera",
     "DetectedFace", "Detector", "Exif", "FitOptions", "FitResult", "HeadModel",
@@ -82,7 +83,7 @@ __all__ = [
     "fit_dlt", "fit_head", "forget_fit_subsets",
     "guess_view", "is_nominal", "landmarks_needed", "landmarks_to_dict", "load_landmark_set",
     "load_landmarks", "load_model", "lens_hints", "orient", "oriented_size",
-    "orthographic_lenses", "placed", "plausible_lens",
+    "orthographic_lenses", "placed", "plausible_lens", "points_yaw_deg",
     "orthographic_uvs", "prepare_fit",
     "parse_landmarks", "read_photo_exif", "refit_landmarks", "save_landmarks",
     "usable_cores", "uv_raster", "uv_tiles",

@@ -165,6 +165,37 @@ def placed(guesses, orthographic):
             for g, ortho in zip(guesses, orthographic, strict=True)]
 
 
+#: Fewest landmarks (with a model vertex) ``points_yaw_deg`` reads a yaw from: an affine
+#: camera has 8 unknowns.
+POINTS_YAW_MIN = 6
+
+
+def points_yaw_deg(model, points):
+    """The yaw (degrees, as ``ViewGuess.yaw_deg``) that a photo's landmarks show, or None
+    where fewer than ``POINTS_YAW_MIN`` of them name a model vertex or they lie on a line:
+    the viewing direction of the affine camera that best projects the mean head's
+    landmark vertices onto them. It serves a photo whose landmarks were placed by hand, so
+    its face was never detected: 1-3 degrees off on rendered heads (docs/DECISIONS.md).
+
+    Parameters
+    ----------
+    model : HeadModel
+    points : dict of str -> (u, v)
+        Landmark name -> pixel (v down), the names as a landmarks file gives them.
+    """
+    lms = model.landmark_set
+    keys = [k for k in points if lms.canonical(k) is not None]
+    if len(keys) < POINTS_YAW_MIN:
+        return None
+    x = model.vertices[[lms.vertices[lms.canonical(k)] for k in keys]]
+    uv = np.asarray([points[k] for k in keys], dtype=np.float64).reshape(-1, 2)
+    rows, *_ = np.linalg.lstsq(np.column_stack([x, np.ones(len(x))]), uv, rcond=None)
+    forward = np.cross(rows[:3, 0], rows[:3, 1])  # u x v: into the scene (OpenCV rows)
+    if not np.isfinite(forward).all() or np.linalg.norm(forward) <= 1e-12:
+        return None
+    return float(np.degrees(np.arctan2(forward[0], forward[1])))
+
+
 def mesh_yaw_deg(mesh):
     """The yaw (degrees, toward the subject's right positive) of a face mesh (468, 3)."""
     m = np.asarray(mesh, float)

@@ -282,6 +282,54 @@ def test_a_side_photo_short_of_a_profile_turns_the_photo_planes(sample, turned_s
     assert not front.headrecon.camera_json  # no profile seen short of one: the front's
 
 
+def test_a_front_placed_by_hand_is_turned_by_its_landmarks_beside_a_turned_side(
+        turned_side_sample):
+    # the front photo's landmarks placed by hand (never detected), the side photo 16
+    # degrees short of a profile detected alone: the front's yaw is what its landmarks
+    # show (points_yaw_deg), so both cameras are placed by the rule as if both had been
+    # detected, the landmarks keeping their pixels, and Auto Fit (which leaves the front
+    # as placed) fits with those cameras; with too few landmarks nothing turns
+    from headrecon_addon import auto_fit_job, detect_job, landmarks, photo_faces, photos
+
+    folder, _ = turned_side_sample
+    truth = _truth(folder, "front")
+    for few in (False, True):
+        scene = empty_scene()
+        front = _load(folder / "front.png", "front", "orthographic-front")
+        side = _load(folder / "side.png", "side", "orthographic-right")
+        for name, uv in list(truth.items())[:5 if few else None]:
+            landmarks.place_landmark(front, name, uv)
+        by_hand = landmarks.landmark_pixels(front)
+        job = auto_fit_job.prepare_auto_fit(scene)
+        assert [t.view for t in job.detect.tasks] == ["side"]
+        if few:
+            assert job.detect.placed_front is None
+            assert bpy.ops.headrecon.detect_landmarks(view="side") == {"FINISHED"}
+            assert not front.headrecon.camera_json and not side.headrecon.camera_json
+            continue
+        job.detect.run()
+        yaw = detect_job.front_from_landmarks(front).yaw_deg
+        assert -20.0 < yaw < -12.0
+        assert any(line == f"front: its camera turned to {yaw:+.0f} deg, as its landmarks "
+                   "show the face" for _, line in job.detect.lines()), job.detect.lines()
+        case = job.merged_case()
+        before = snapshot()
+        assert bpy.ops.headrecon.detect_landmarks(view="side") == {"FINISHED"}
+        assert snapshot() != before
+        face = photo_faces.find_face(photos.detector_pixels(side.headrecon.image))
+        assert _yaw(photos.plane_camera(front)) == pytest.approx(yaw)
+        assert _yaw(photos.plane_camera(side)) == pytest.approx(face.guess.yaw_deg)
+        assert 60.0 < face.guess.yaw_deg < 85.0
+        kept = landmarks.landmark_pixels(front)
+        assert kept.keys() == by_hand.keys()
+        assert all(np.allclose(kept[n], by_hand[n], atol=1e-3) for n in kept)
+        for plane in (front, side):
+            assert np.allclose(case.views[plane.headrecon.view].camera.rotation,
+                               photos.plane_camera(plane).rotation)
+            assert np.allclose(np.array(plane.matrix_world),
+                               np.array(photos.plane_matrix(plane)), atol=1e-6)
+
+
 def test_auto_fit_that_cannot_fit_leaves_the_scene_as_it_was(sample, monkeypatch):
     from headrecon_addon import photo_faces
 
