@@ -88,7 +88,7 @@ class AutoFitJob:
                     view[key] = given
                 else:
                     view.pop(key, None)
-        camera, front = self.detect.front_turned(), self.detect.placed_front
+        camera, front = self.detect.front_turned(guesses, turn), self.detect.placed_front
         if camera is not None and "camera" in views[front.view]:
             views[front.view]["camera"] = photos.turned_view_camera(
                 views[front.view]["camera"], camera, front.size)

@@ -240,9 +240,9 @@ class DetectJob(PhotosJob):
         guesses = placed(guesses, orthographic)
         return dict(zip(views, guesses, strict=True)), True
 
-    def front_turned(self):
-        """The camera ``placed`` turns the ``placed_front`` photo's to, or None."""
-        guesses, turn = self.placed()
+    def front_turned(self, guesses, turn):
+        """The camera the ``placed_front`` photo's turns to, or None; ``guesses, turn`` as
+        :meth:`placed` gives them."""
         front = self.placed_front
         if not turn or front is None or front.view not in guesses:
             return None
@@ -257,7 +257,7 @@ class DetectJob(PhotosJob):
             turned = guess.yaw_deg if guess is not None \
                 and t.turned_camera(guess) is not None else t.turned_yaw
             out += t.lines(self.replace, turned)
-        camera = self.front_turned()
+        camera = self.front_turned(guesses, turn)
         if camera is not None:
             out.append(("INFO", f"{self.placed_front.view}: its camera turned to "
                                 f"{guesses[self.placed_front.view].yaw_deg:+.0f} deg, as its "
@@ -382,7 +382,7 @@ def apply_detection(scene, job):
             if turned is not None:
                 photos.turn_nominal_camera(plane, turned, photos.head_centre(scene))
         n += len(place)
-    camera = job.front_turned()
+    camera = job.front_turned(guesses, turn)
     if camera is not None:
         photos.turn_nominal_camera(photos.find_plane(scene, job.placed_front.view), camera,
                                    photos.head_centre(scene))
