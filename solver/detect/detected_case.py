@@ -27,6 +27,13 @@ VIEW_NAMES = ("front", "right", "left", "three_quarter_right", "three_quarter_le
 NO_PROFILE_NOTE = ("none of the photos is a profile: the head's depth comes from the "
                    "landmarks alone, which fits it several times less accurately than a "
                    "front and a profile photo do (README: three-quarter photos)")
+#: A three-quarter photo without a lens gets a pinhole camera whose focal length the fit
+#: estimates; two photos' points tell it poorly (docs/DECISIONS.md: `bench_lens --yaw -22
+#: --lens 50 85`, 1.98 mm mean with the EXIF lens, 2.94 without).
+UNKNOWN_LENS_NOTE = ("a three-quarter view whose lens is not known (no EXIF, no --lens): "
+                     "the fit estimates its focal length, which the photos' points tell "
+                     "poorly (rendered heads fitted 1.5 times as far from the truth without "
+                     "their lens); give --lens MM if you know it")
 #: Which photos get their outline detected (``wants_outline``).
 OUTLINES = ("all", "profile", "none")
 _YAW = {"front": 0.0, "right": 90.0, "left": -90.0, "three_quarter_right": 45.0,
@@ -276,4 +283,6 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="a
         if lens and case.views[name].camera is not None:
             echo(f"note: {path}: taken as a parallel projection despite its {lens:.0f} mm "
                  "lens: too few landmarks to calibrate its camera on")
+        elif not lens and case.views[name].camera is None:
+            echo(f"note: {path}: {UNKNOWN_LENS_NOTE}")
     return case

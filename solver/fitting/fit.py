@@ -403,7 +403,7 @@ def _fit(model, case, opts, initial, noise, progress, t0, uncertainty=True):
     # The refit keeps what the full fit found about cameras and mirrors, but says anew
     # which views it skipped: a dragged landmark can make a skipped view usable.
     info["refit_state"]["warnings"] = list(fitted)
-    info["plausibility"], implausible = plausibility(result.identity_coeffs)
+    info["plausibility"], implausible = plausibility(result.identity_coeffs, result.cameras)
     info["unused"] = unused_views(skipped, eng.views)
     info["warnings"] = skip_warnings(skipped) + drop_warnings(eng.views) + fitted \
         + implausible
@@ -534,7 +534,8 @@ def refit_landmarks(model, case, previous, options=None):
             "unused": unused_views(skipped, views),
             "warnings": skip_warnings(skipped) + drop_warnings(views)
             + list(saved.get("warnings", []))}
-    info["plausibility"], implausible = plausibility(state.coeffs[:int(opts.n_identity)])
+    info["plausibility"], implausible = plausibility(state.coeffs[:int(opts.n_identity)],
+                                                     state.cameras)
     info["warnings"] += implausible
     result = make_result(model, eng, state, opts, previous.method, info,
                           uncertainty=np.asarray(previous.uncertainty).copy(),

@@ -288,11 +288,15 @@ def projection_info(model, result, eng, opts):
     return out, warnings
 
 
-def plausibility(coeffs):
+def plausibility(coeffs, cameras=None):
     """How typical a head is under the model: the Mahalanobis norm of its identity
     coefficients (standard deviations) and the percentile of the model's own heads with a
     smaller norm (the squared norm of K standard-normal coefficients is chi-square with K
-    degrees of freedom). Returns (info, warnings): a warning above PLAUSIBLE_PERCENTILE."""
+    degrees of freedom). Returns (info, warnings): a warning above PLAUSIBLE_PERCENTILE,
+    and with it one per camera of ``cameras`` (view name -> Camera) whose focal length the
+    fit estimated with no lens to hold it (``unknown_lens``): two photos' points tell a lens
+    poorly, and a wrong one bends the head (docs/DECISIONS.md, "the lens of a
+    three-quarter photo without EXIF")."""
     c = np.asarray(coeffs, dtype=np.float64).reshape(-1)
     norm = float(np.sqrt(c @ c))
     # the chi-square distribution function with len(c) degrees of freedom
@@ -308,4 +312,17 @@ def plausibility(coeffs):
                         "first, then for misplaced or mislabelled ones, left and right "
                         "exchanged or a profile of the other side; if they are right, raise "
                         "the placement noise (noise_px, --noise-px on the command line)")
+        warnings += [f"view {name!r}: its lens is not known (no EXIF or lens given) and the "
+                     f"fit estimated it at {cam.lens_mm:.0f} mm, which the photos' points "
+                     "tell poorly; if you know the lens, give it (the photo's Focal "
+                     "Length in Blender, lens_mm in the view's camera, --lens with solver "
+                     "detect)"
+                     for name, cam in (cameras or {}).items() if unknown_lens(cam)]
     return info, warnings
+
+
+def unknown_lens(camera):
+    """Whether ``camera`` is a pinhole whose focal length the fit estimates freely (no lens
+    given, so no prior on it)."""
+    return bool(getattr(camera, "perspective", False) and getattr(camera, "free_focal", False)
+                and getattr(camera, "focal_prior", None) is None)

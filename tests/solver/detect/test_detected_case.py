@@ -12,7 +12,7 @@ from PIL import Image
 
 from solver import fit_head, load_landmarks
 from solver.detect import Detector
-from solver.detect.detected_case import NO_PROFILE_NOTE, detect_photos
+from solver.detect.detected_case import NO_PROFILE_NOTE, UNKNOWN_LENS_NOTE, detect_photos
 from solver.detect.view_guess import guess_view
 from solver.fitting.depth import mirror_pairs
 from solver.io.landmark_set import load_landmark_set
@@ -155,6 +155,20 @@ def test_photos_without_a_profile_get_a_note_saying_what_it_costs(sample, detect
                          detector, _load, echo=lines.append, outlines="none")
     assert list(case.views) == ["front", "front_2"]
     assert lines.count(f"note: {NO_PROFILE_NOTE}") == 1
+
+
+def test_three_quarter_photos_of_unknown_lens_get_a_note_saying_what_it_costs(
+        turned_sample, detector):
+    folder, _ = turned_sample
+    photos = [(None, folder / "front.png"), (None, folder / "side.png")]
+    lines = []
+    case = detect_photos(photos, detector, _load, echo=lines.append, outlines="none")
+    assert all(v.camera is None for v in case.views.values())  # pinholes to calibrate
+    assert sorted(ln for ln in lines if ln.endswith(UNKNOWN_LENS_NOTE)) == [
+        f"note: {folder / name}: {UNKNOWN_LENS_NOTE}" for name in ("front.png", "side.png")]
+    lines = []
+    detect_photos(photos, detector, _load, echo=lines.append, outlines="none", lens_mm=50.0)
+    assert not [ln for ln in lines if UNKNOWN_LENS_NOTE in ln]
 
 
 def test_detected_outlines_become_the_views_contours(sample, detector):

@@ -29,6 +29,25 @@ def test_a_head_beyond_the_99th_percentile_is_warned():
     assert len(warnings) == 1 and "implausible" in warnings[0] and "noise_px" in warnings[0]
 
 
+def test_an_implausible_head_names_each_camera_whose_lens_was_estimated_freely():
+    from solver import OrthographicCamera, PinholeCamera
+
+    beyond = np.full(100, np.sqrt(chi2.ppf(0.995, 100) / 100))
+    size = (768, 1024)
+    cameras = {
+        "free": PinholeCamera.look_at([0.5, -1.8, 0.0], [0, 0, 0], size, lens_mm=172.0),
+        "exif": PinholeCamera.look_at([0.0, -1.0, 0.0], [0, 0, 0], size, lens_mm=50.0,
+                                      focal_prior=(50.0, 0.05)),
+        "known": PinholeCamera.look_at([0.0, -1.0, 0.0], [0, 0, 0], size, lens_mm=50.0,
+                                       free_focal=False),
+        "front": OrthographicCamera.nominal("orthographic-front", size),
+    }
+    _, warnings = plausibility(beyond, cameras)
+    assert len(warnings) == 2 and warnings[1].startswith("view 'free': its lens is not known")
+    assert "172 mm" in warnings[1] and "--lens" in warnings[1]
+    assert plausibility(np.zeros(100), cameras)[1] == []  # a plausible head: nothing to say
+
+
 def test_fits_report_plausibility_and_warn_of_implausible_heads(model):
     case, truth = make_case(model, 1003, noise_px=1.0)
     res = fit_head(model, case)
