@@ -53,7 +53,7 @@ class AutoFitJob:
 
     def merged_case(self):
         """The scene's landmarks with the detected ones, as a LandmarkCase (any thread)."""
-        views, (guesses, turn) = self.document["views"], self.detect.placed()
+        views = self.document["views"]
         for task in self.detect.tasks:
             if task.face is None:
                 continue
@@ -76,22 +76,17 @@ class AutoFitJob:
                 if name in task.face.depth:
                     depth[name] = task.face.depth[name]
             view["points"] = points
-            guess = guesses.get(task.view)
-            if guess is not None and "camera" in view:  # as apply_detection places it
-                view["camera"] = photos.held_near(view["camera"], guess.yaw_deg)
-                turned = task.turned_camera(guess) if turn else None
-                if turned is not None:
-                    view["camera"] = photos.turned_view_camera(view["camera"], turned,
-                                                               task.size)
             for key, given in (("uncertainty", sigma), ("depth", depth)):
                 if given:
                     view[key] = given
                 else:
                     view.pop(key, None)
-        camera, front = self.detect.front_turned(guesses, turn), self.detect.placed_front
-        if camera is not None and "camera" in views[front.view]:
-            views[front.view]["camera"] = photos.turned_view_camera(
-                views[front.view]["camera"], camera, front.size)
+        for name, yaw, turned, size in self.detect.camera_changes():
+            view = views[name]
+            if "camera" in view:  # as apply_detection places it
+                view["camera"] = photos.held_near(view["camera"], yaw)
+                if turned is not None:
+                    view["camera"] = photos.turned_view_camera(view["camera"], turned, size)
         for task in self.outlines.tasks if self.outlines is not None else ():
             if task.draws(self.outlines.replace):
                 views[task.view]["contour"] = [[float(u), float(v)] for u, v in task.points]

@@ -240,27 +240,33 @@ class DetectJob(PhotosJob):
         guesses = placed(guesses, orthographic)
         return dict(zip(views, guesses, strict=True)), True
 
-    def front_turned(self, guesses, turn):
-        """The camera the ``placed_front`` photo's turns to, or None; ``guesses, turn`` as
-        :meth:`placed` gives them."""
+    def camera_changes(self):
+        """What the detection does to the cameras, as :meth:`placed` places them: one
+        (view, yaw, turned, size) per photo it places, ``yaw`` the degrees a camera to
+        compute is held near, ``turned`` the orthographic camera a nominal one turns to
+        (or None), ``size`` the photo's pixels. ``apply_detection`` makes them in the
+        scene, Auto Fit's merged case in its landmarks file."""
+        guesses, turn = self.placed()
+        out = [(t.view, guesses[t.view].yaw_deg,
+                t.turned_camera(guesses[t.view]) if turn else None, t.size)
+               for t in self.tasks if t.view in guesses]
         front = self.placed_front
-        if not turn or front is None or front.view not in guesses:
-            return None
-        return front.turned_camera(guesses[front.view])
+        if turn and front is not None and front.view in guesses:
+            out.append((front.view, guesses[front.view].yaw_deg,
+                        front.turned_camera(guesses[front.view]), front.size))
+        return out
 
     def lines(self):
         """(level, line) for the report, photo by photo, then the photos left out."""
-        guesses, turn = self.placed()
+        changes = {view: (yaw, turned) for view, yaw, turned, _ in self.camera_changes()}
         out = []
         for t in self.tasks:
-            guess = guesses.get(t.view) if turn else None
-            turned = guess.yaw_deg if guess is not None \
-                and t.turned_camera(guess) is not None else t.turned_yaw
-            out += t.lines(self.replace, turned)
-        camera = self.front_turned(guesses, turn)
-        if camera is not None:
-            out.append(("INFO", f"{self.placed_front.view}: its camera turned to "
-                                f"{guesses[self.placed_front.view].yaw_deg:+.0f} deg, as its "
+            yaw, turned = changes.get(t.view, (None, None))
+            out += t.lines(self.replace, yaw if turned is not None else t.turned_yaw)
+        front = self.placed_front
+        yaw, turned = changes.get(front.view, (None, None)) if front else (None, None)
+        if turned is not None:
+            out.append(("INFO", f"{front.view}: its camera turned to {yaw:+.0f} deg, as its "
                                 "landmarks show the face"))
         return out + [("INFO", line) for line in self.skipped]
 
@@ -359,10 +365,10 @@ def front_from_landmarks(plane):
 
 def apply_detection(scene, job):
     """Place what the job found (main thread): each photo's landmarks as
-    ``detection_plan`` says; each camera placed as ``DetectJob.placed`` says (a camera to
-    compute held near its yaw, a nominal orthographic one turned to it where the rule
-    turns it). Returns the landmarks placed."""
-    n, (guesses, turn) = 0, job.placed()
+    ``detection_plan`` says; each camera as ``DetectJob.camera_changes`` says (a camera to
+    compute held near its yaw, a nominal orthographic one turned where the rule turns
+    it). Returns the landmarks placed."""
+    n = 0
     for task in job.tasks:
         plane = photos.find_plane(scene, task.view)
         if task.face is None or plane is None:
@@ -375,17 +381,14 @@ def apply_detection(scene, job):
                                      task.face.uncertainty.get(name),
                                      task.face.depth.get(name))
         photos.remove_objects([detected[name] for name in remove])
-        guess = guesses.get(task.view)
-        if guess is not None:
-            photos.hold_camera_near(plane, guess.yaw_deg)
-            turned = task.turned_camera(guess) if turn else None
-            if turned is not None:
-                photos.turn_nominal_camera(plane, turned, photos.head_centre(scene))
         n += len(place)
-    camera = job.front_turned(guesses, turn)
-    if camera is not None:
-        photos.turn_nominal_camera(photos.find_plane(scene, job.placed_front.view), camera,
-                                   photos.head_centre(scene))
+    for view, yaw, turned, _ in job.camera_changes():
+        plane = photos.find_plane(scene, view)
+        if plane is None:
+            continue
+        photos.hold_camera_near(plane, yaw)
+        if turned is not None:
+            photos.turn_nominal_camera(plane, turned, photos.head_centre(scene))
     return n
 
 
