@@ -59,7 +59,8 @@ def head_cases(folder, model, detector, sigmas=(), given=()):
     as orthographic, every exact landmark, the EXIF-lens case with each of ``sigmas``
     (degrees) as its cameras' direction prior, and the photos without their EXIF with
     each of ``given`` (mm) as their lens."""
-    photos = [(None, folder / "front.jpg"), (None, folder / "side.jpg")]
+    photos = [(None, next(p for p in (folder / f"{name}.jpg", folder / f"{name}.png")
+                          if p.is_file())) for name in ("front", "side")]
 
     def load(path):
         return np.asarray(Image.open(path).convert("RGB"))
@@ -90,7 +91,9 @@ def main(argv=None):
                     help="model seeds rendered into generated/bench_heads/seed<N>_lens<MM> "
                          "if missing (default: 7 201 202 203)")
     ap.add_argument("--heads", nargs="*", default=[],
-                    help="more rendered folders with front.jpg and side.jpg")
+                    help="more rendered folders with front and side photos (.jpg or "
+                         ".png: a PNG has no EXIF, as a parallel render by "
+                         "tools.make_sample)")
     ap.add_argument("--direction-sigma", nargs="*", type=float, default=[],
                     help="also fit with these standard deviations (degrees) of the cameras' "
                          f"direction prior (default {photo_lens.DIRECTION_SIGMA_DEG:g})")

@@ -29,7 +29,9 @@ threshold) and the side landmarks. Then:
   A head those fits leave in a wrong minimum (tilted and bent so that a stretch of a
   traced outline finds no outline row) is fitted once more with the settled noise, from
   the first fit's other approach's head, and where the head kept still misses the
-  outline, from the mean head; the clearly lowest posterior cost wins.
+  outline, from the mean head; the clearly lowest posterior cost wins. A head that
+  comes out implausible under the model is fitted again with a stronger prior, and kept
+  where its landmarks fit about as well (``PRIOR_STEPS``).
 
 Cameras: no photo is assumed to share scale, tilt or framing with another. Each keeps its
 own camera, solved together with the head in every Gauss-Newton step (its parameters as
@@ -71,10 +73,13 @@ from .expression import (
 from .noise import MAX_ROUNDS, estimate_noise
 from .options import FitOptions, check_options, in_photo_pixels
 from .outcome import (
+    PLAUSIBLE_PERCENTILE,
     choose,
+    lens_warnings,
     make_result,
     mirror_info,
     plausibility,
+    prior_raised_warning,
     projection_info,
     skin_maps,
     vertex_uncertainty,
@@ -133,6 +138,13 @@ MISSED_OUTLINE = 0.08
 #: ... and such a fit's head is kept only if its posterior cost is lower by more than this
 #: share: between two heads near a tie the cost does not tell the better one.
 SECOND_START_GAIN = 0.1
+#: An implausible head (``outcome.PLAUSIBLE_PERCENTILE``) is fitted again with the prior's
+#: weight raised by these factors in turn, until its head is plausible ...
+PRIOR_STEPS = (1.5, 2.0, 3.0)
+#: ... each kept only while its landmarks' RMS reprojection error stays within this factor
+#: of the first fit's: the landmarks then do not tell the implausible head from a nearer
+#: one, as where a lens or a turn is unknown; a truly unusual head's landmarks do.
+PRIOR_RMS_SLACK = 1.05
 
 
 def fit_head(model, case, options=None, initial=None):
@@ -172,7 +184,11 @@ def fit_head(model, case, options=None, initial=None):
         missed more than ``MISSED_OUTLINE`` of a traced outline), "starts": "costs", the
         posterior cost each start ended at ("continued", "other approach" and, where the
         head kept still missed it, "mean head"), and "kept", the start whose head was
-        kept (another's only when lower by more than ``SECOND_START_GAIN``).
+        kept (another's only when lower by more than ``SECOND_START_GAIN``); and, when
+        the first head was implausible, "prior": "first" (its plausibility and landmark
+        RMS in pixels), "tried" (each fit with the prior's weight raised: "factor",
+        "mahalanobis", "percentile", "rms_px") and "factor", the one kept (1: the first
+        head; see ``PRIOR_STEPS``).
 
     Raises
     ------
@@ -184,17 +200,73 @@ def fit_head(model, case, options=None, initial=None):
     t0 = time.perf_counter()
     opts = _in_photo_pixels(model, case, check_options(options, model))
     progress = Progress(opts.progress)
+    state0 = (getattr(initial, "info", None) or {}).get("refit_state") or {}
+    factor = float(state0.get("prior_factor", 1.0))
+    result, checked = _noise_rounds(model, case, _prior_raised(opts, factor), initial,
+                                    state0, progress, t0)
+    if initial is None:
+        result, factor = _more_plausible(
+            result, lambda f, part: _noise_rounds(model, case, _prior_raised(opts, f), None,
+                                                  {}, progress.part(*part), t0)[0])
+    result.info["refit_state"]["prior_factor"] = factor
+    return _checked(model, checked, _prior_raised(opts, factor), result)
+
+
+def _prior_raised(opts, factor):
+    """``opts`` with the prior's weight ``lambda2`` raised ``factor`` times."""
+    return opts if factor == 1.0 else dataclasses.replace(opts, lambda2=opts.lambda2 * factor)
+
+
+def _more_plausible(result, refit):
+    """``result``, or where its head is implausible (``outcome.plausibility``) the fit again
+    with the prior's weight raised by each of ``PRIOR_STEPS`` in turn (``refit(factor,
+    (lo, hi))``, the part of the progress it reports in), until a head is plausible; a
+    raised fit is kept while its landmarks' RMS reprojection error stays within
+    ``PRIOR_RMS_SLACK`` of the first's (docs/DECISIONS.md, "An implausible head is fitted
+    again with a stronger prior"). Returns (result, the factor kept); ``info["prior"]``
+    says what was tried."""
+    first = result.info["plausibility"]
+    if first["percentile"] <= PLAUSIBLE_PERCENTILE:
+        return result, 1.0
+    rms0, t = result.rms_px(), time.perf_counter()
+    kept, factor, tried = result, 1.0, []
+    for i, f in enumerate(PRIOR_STEPS):
+        lo = 0.9 + 0.1 * i / len(PRIOR_STEPS)
+        again = refit(f, (lo, lo + 0.1 / len(PRIOR_STEPS)))
+        p, r = again.info["plausibility"], again.rms_px()
+        tried.append({"factor": f, "mahalanobis": p["mahalanobis"],
+                      "percentile": p["percentile"], "rms_px": r})
+        if r > PRIOR_RMS_SLACK * rms0:
+            break
+        kept, factor = again, f
+        if p["percentile"] <= PLAUSIBLE_PERCENTILE:
+            break
+    timings = dict(result.info["timings"])
+    timings["stronger_prior"] = time.perf_counter() - t
+    timings["total"] += timings["stronger_prior"]
+    kept.info["timings"] = timings
+    kept.info["prior"] = {"factor": factor, "first": {**first, "rms_px": rms0},
+                          "tried": tried}
+    if factor != 1.0:
+        lens = [w for w in lens_warnings(kept.cameras) if w not in kept.info["warnings"]]
+        kept.info["warnings"][:0] = [prior_raised_warning(first, rms0, kept, factor), *lens]
+    return kept, factor
+
+
+def _noise_rounds(model, case, opts, initial, state0, progress, t0):
+    """The fit of :func:`fit_head` with ``opts`` as they are: the noise rounds (or one fit
+    with fixed noise) and, where the head misses the outline, its other starts. Returns
+    (result, the case its checks read). ``state0``: ``initial``'s ``refit_state`` (or
+    {})."""
     # A given head goes on with the photos' expressions (taken out of the landmarks) and
     # the noise it was fitted with, so its own fit is where it stays (from the landmarks as
     # given and the default noise, its first round would move it first).
-    state0 = (getattr(initial, "info", None) or {}).get("refit_state") or {}
     start_noise, start_shown = state0.get("noise"), state0.get("expressions") or {}
     given = case
     if start_shown and opts.expressions == "fit":
         given = neutral_case(model, case, initial, start_shown)
     if opts.noise == "fixed":
-        result = _fit(model, given, opts, initial, None, progress, t0)[0]
-        return _checked(model, given, opts, result)
+        return _fit(model, given, opts, initial, None, progress, t0)[0], given
     # The noise from the fit's residuals (and each photo's expression, expression.py), the
     # fit again with them, until the estimates settle (noise.py); each fit after the first
     # starts where the last one ended.
@@ -256,7 +328,7 @@ def fit_head(model, case, options=None, initial=None):
         result.info["refit_state"]["expressions"] = expressions
     result.info["timings"] = timings
     progress(1.0, f"done ({result.info['approach']}, {rounds} fits)")
-    return _checked(model, case, opts, result)
+    return result, case
 
 
 def _in_photo_pixels(model, case, opts):
@@ -476,7 +548,8 @@ def refit_landmarks(model, case, previous, options=None):
     if opts.pixel_scale is None and saved.get("pixel_scale") is not None:
         # the fit's own: a moved landmark does not change what a pixel is
         opts = dataclasses.replace(opts, pixel_scale=saved["pixel_scale"])
-    opts = _in_photo_pixels(model, case, opts)
+    opts = _prior_raised(_in_photo_pixels(model, case, opts),
+                         float(saved.get("prior_factor", 1.0)))
     opts = FitOptions(**{**opts.__dict__, "n_identity": int(saved["n_identity"]),
                          "n_regional": int(saved["n_regional"]), "method": previous.method})
     if saved.get("expressions"):

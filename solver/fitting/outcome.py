@@ -312,13 +312,31 @@ def plausibility(coeffs, cameras=None):
                         "first, then for misplaced or mislabelled ones, left and right "
                         "exchanged or a profile of the other side; if they are right, raise "
                         "the placement noise (noise_px, --noise-px on the command line)")
-        warnings += [f"view {name!r}: its lens is not known (no EXIF or lens given) and the "
-                     f"fit estimated it at {cam.lens_mm:.0f} mm, which the photos' points "
-                     "tell poorly; if you know the lens, give it (the photo's Focal "
-                     "Length in Blender, lens_mm in the view's camera, --lens with solver "
-                     "detect)"
-                     for name, cam in (cameras or {}).items() if unknown_lens(cam)]
+        warnings += lens_warnings(cameras)
     return info, warnings
+
+
+def lens_warnings(cameras):
+    """One warning per camera of ``cameras`` (view name -> Camera) whose focal length the
+    fit estimated with no lens to hold it (``unknown_lens``)."""
+    return [f"view {name!r}: its lens is not known (no EXIF or lens given) and the fit "
+            f"estimated it at {cam.lens_mm:.0f} mm, which the photos' points tell poorly; "
+            "if you know the lens, give it (the photo's Focal Length in Blender, lens_mm in "
+            "the view's camera, --lens with solver detect)"
+            for name, cam in (cameras or {}).items() if unknown_lens(cam)]
+
+
+def prior_raised_warning(first, first_rms_px, kept, factor):
+    """The warning for a fit whose first head was implausible (``first``: its
+    :func:`plausibility` info) and which kept ``kept``, fitted with the prior's weight
+    raised ``factor`` times, since it reproduces the landmarks about as well."""
+    now = kept.info["plausibility"]
+    return (f"the head first fitted was implausible (its identity {first['mahalanobis']:.1f} "
+            f"standard deviations from the mean head, beyond {first['percentile']:.2f} % of "
+            f"the model's heads); with the prior's weight raised {factor:g} times a head "
+            f"{now['mahalanobis']:.1f} from the mean head fits the landmarks about as well "
+            f"({kept.rms_px():.1f} against {first_rms_px:.1f} px RMS) and was kept; check the "
+            "flagged landmarks, and give the lens of a photo without EXIF if you know it")
 
 
 def unknown_lens(camera):

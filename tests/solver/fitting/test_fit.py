@@ -401,3 +401,32 @@ def test_a_fit_of_one_approach_starts_again_from_the_mean_head(model):
     case, _ = _profile_read_off_outline(model, 4)
     res = fit_head(model, case, FitOptions(method="approach1"))  # no other approach's head
     assert set(res.info["starts"]["costs"]) == {"continued", "mean head"}
+
+
+def test_an_implausible_head_the_landmarks_do_not_need_is_fitted_with_a_stronger_prior(
+        model, monkeypatch):
+    # landmarks 4 px off fitted as 1-px clicks (fixed noise): the head bends to them
+    case, truth = make_case(model, 1001, noise_px=4.0, image_height=512)
+    opts = FitOptions(noise="fixed")
+    res = fit_head(model, case, opts)
+    prior = res.info["prior"]
+    first, kept = prior["first"], res.info["plausibility"]
+    assert first["percentile"] > fit.PLAUSIBLE_PERCENTILE
+    # the raised weights tried in turn, the last within the landmarks' margin kept
+    assert [t["factor"] for t in prior["tried"]] == list(fit.PRIOR_STEPS)[:len(prior["tried"])]
+    within = [t["factor"] for t in prior["tried"]
+              if t["rms_px"] <= fit.PRIOR_RMS_SLACK * first["rms_px"]]
+    assert prior["factor"] == within[-1]
+    assert kept["percentile"] <= fit.PLAUSIBLE_PERCENTILE
+    assert res.rms_px() <= fit.PRIOR_RMS_SLACK * first["rms_px"]
+    assert res.info["warnings"][0].startswith("the head first fitted was implausible")
+    # a dragged landmark's refit keeps the raised prior (with the prior as given it bends
+    # the head back out)
+    again = refit_landmarks(model, case, res, opts)
+    assert again.info["plausibility"]["mahalanobis"] < 0.6 * first["mahalanobis"]
+    monkeypatch.setattr(fit, "PRIOR_STEPS", ())  # the first head kept
+    once = fit_head(model, case, opts)
+    assert once.info["prior"]["factor"] == 1.0
+    assert once.info["plausibility"]["mahalanobis"] == pytest.approx(first["mahalanobis"])
+    err = skin_error_mm(model, res.local_vertices, truth.local_vertices)
+    assert err < skin_error_mm(model, once.local_vertices, truth.local_vertices) - 1.0

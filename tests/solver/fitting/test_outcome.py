@@ -5,6 +5,7 @@ import pytest
 from scipy.stats import chi2
 
 from solver import fit_head, refit_landmarks
+from solver.fitting.fit import PRIOR_RMS_SLACK
 from solver.fitting.outcome import PLAUSIBLE_PERCENTILE, plausibility
 from solver.synthetic import make_case
 
@@ -61,3 +62,8 @@ def test_fits_report_plausibility_and_warn_of_implausible_heads(model):
     res = fit_head(model, odd)
     assert res.info["plausibility"]["percentile"] > PLAUSIBLE_PERCENTILE
     assert [w for w in res.info["warnings"] if "implausible" in w]
+    # its landmarks tell it from a head nearer the mean: a stronger prior fits them worse,
+    # so the fit keeps the unusual head
+    prior = res.info["prior"]
+    assert prior["factor"] == 1.0
+    assert prior["tried"][0]["rms_px"] > PRIOR_RMS_SLACK * prior["first"]["rms_px"]
