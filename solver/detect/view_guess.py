@@ -15,15 +15,19 @@ side the face looks to (in a right profile the face points to the image's right,
 ``solver.cameras.ORTHO_VIEWS``); its yaw 90 degrees unless the face is seen short of a
 profile (``profile_yaw_deg``). How a case's cameras stand to each other is one rule,
 ``placed``: in the face's frame where a profile's yaw was measured, else in the frame of
-the orthographic front photo.
+the orthographic front photo. Landmarks placed by hand show a photo's yaw too
+(``points_yaw_deg``), and a case whose profile they show short of one is placed by the same
+rule (``placed_by_landmarks``, before every fit).
 """
 
+import copy
 import functools
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..cameras import OrthographicCamera
+from ..cameras.orthographic import VIEW_YAW_DEG
 from ..io.json_file import read_json
 from ..io.photo_lens import DIRECTION_SIGMA_DEG, lens_hints
 from .ibug_map import MAP_PATH
@@ -168,6 +172,9 @@ def placed(guesses, orthographic):
 #: Fewest landmarks (with a model vertex) ``points_yaw_deg`` reads a yaw from: an affine
 #: camera has 8 unknowns.
 POINTS_YAW_MIN = 6
+#: ... and it reads it again without the points this many times the median distance off
+#: the first reading's camera.
+POINTS_YAW_OUTLIER = 4.0
 
 
 def points_yaw_deg(model, points):
@@ -188,12 +195,77 @@ def points_yaw_deg(model, points):
     if len(keys) < POINTS_YAW_MIN:
         return None
     x = model.vertices[[lms.vertices[lms.canonical(k)] for k in keys]]
+    a = np.column_stack([x, np.ones(len(x))])
     uv = np.asarray([points[k] for k in keys], dtype=np.float64).reshape(-1, 2)
-    rows, *_ = np.linalg.lstsq(np.column_stack([x, np.ones(len(x))]), uv, rcond=None)
+    rows, *_ = np.linalg.lstsq(a, uv, rcond=None)
+    # once more without the points far off the others (a misplaced one would turn it)
+    off = np.linalg.norm(a @ rows - uv, axis=1)
+    keep = off <= POINTS_YAW_OUTLIER * max(float(np.median(off)), 1e-9)
+    if POINTS_YAW_MIN <= keep.sum() < len(keep):
+        rows, *_ = np.linalg.lstsq(a[keep], uv[keep], rcond=None)
     forward = np.cross(rows[:3, 0], rows[:3, 1])  # u x v: into the scene (OpenCV rows)
     if not np.isfinite(forward).all() or np.linalg.norm(forward) <= 1e-12:
         return None
     return float(np.degrees(np.arctan2(forward[0], forward[1])))
+
+
+#: A profile placed by hand is read short of a profile only where its landmarks show at
+#: least this many degrees short: on exact profiles of rendered heads they read 84-95.
+POINTS_SHORT_DEG = 8.0
+#: ``points_yaw_deg`` reads a profile only from this many landmarks off the face's middle
+#: (their vertices at least ``OFF_MIDDLE_M`` from it): a profile's middle points alone
+#: (those read off its outline) lie in one plane and give no yaw.
+POINTS_OFF_MIDDLE = 6
+OFF_MIDDLE_M = 0.01
+
+
+def placed_by_landmarks(model, case):
+    """The case with its nominal orthographic cameras placed by the yaws their landmarks
+    show (``points_yaw_deg``), by the rule of ``placed``, where a profile's landmarks show
+    it at least ``POINTS_SHORT_DEG`` short of a profile: a side photo taken short of a
+    profile, its landmarks placed by hand. Cameras given any other way (turned, with a
+    lens, computed) and mirror views stay. Returns (case, notes): the case itself and no
+    note where nothing is turned; else a copy and a note per turned camera."""
+    lms = model.landmark_set
+    nominal, guesses = {}, {}
+    for name, view in case.views.items():
+        cam = view.camera
+        if view.mirror_of is not None or not isinstance(cam, OrthographicCamera) or \
+                cam.view not in VIEW_YAW_DEG:
+            continue
+        if not np.allclose(cam.rotation, OrthographicCamera.nominal(cam.view, cam.size).rotation):
+            continue  # given turned
+        side = cam.view.removeprefix("orthographic-")
+        points = {k: p for k, p in view.points.items() if lms.canonical(k) is not None
+                  and lms.has_meaning_in(lms.canonical(k), side)}
+        yaw = points_yaw_deg(model, points)
+        if yaw is None:
+            continue
+        if side != "front":
+            off = [k for k in points
+                   if abs(model.vertices[lms.vertices[lms.canonical(k)], 0]) >= OFF_MIDDLE_M]
+            sign = 1.0 if side == "right" else -1.0
+            if len(off) < POINTS_OFF_MIDDLE or sign * yaw <= 0.0:  # (mislabelled: checks.py)
+                continue
+            yaw = sign * min(abs(yaw), 90.0)
+        nominal[name] = cam
+        guesses[name] = ViewGuess(side, yaw)
+    if not any(g.profile and abs(g.yaw_deg) <= 90.0 - POINTS_SHORT_DEG
+               for g in guesses.values()):
+        return case, []
+    names = list(guesses)
+    out = copy.deepcopy(case)
+    notes = []
+    for name, g in zip(names, placed([guesses[n] for n in names], [True] * len(names)),
+                       strict=True):
+        if not (g.turned or g.measured_profile):
+            continue
+        out.views[name].camera, _ = g.camera(nominal[name].size)
+        if abs(g.yaw_deg - VIEW_YAW_DEG[nominal[name].view]) < 0.5:
+            continue  # (turned by less than shows)
+        notes.append(f"view {name!r}: its landmarks show {g.describe()}: its camera was "
+                     f"turned to {g.yaw_deg:+.0f} deg from the face's front")
+    return out, notes
 
 
 def mesh_yaw_deg(mesh):

@@ -33,7 +33,9 @@ threshold) and the side landmarks. Then:
   comes out implausible under the model is fitted again with a stronger prior, and kept
   where its landmarks fit about as well (``PRIOR_STEPS``).
 
-Cameras: no photo is assumed to share scale, tilt or framing with another. Each keeps its
+Cameras: no photo is assumed to share scale, tilt or framing with another. Nominal
+orthographic cameras whose landmarks show a side photo short of a profile are first placed
+by the yaws the landmarks show (``view_guess.placed_by_landmarks``). Each keeps its
 own camera, solved together with the head in every Gauss-Newton step (its parameters as
 extra modes of the shape-ICP) and re-calibrated through ``Camera.refit`` (see
 ``joint.py``, and ``engine.py`` for the gauge: head scale 1 and translation 0 when every
@@ -59,6 +61,7 @@ import time
 
 import numpy as np
 
+from ..detect.view_guess import placed_by_landmarks
 from ..errors import rms
 from .approach1 import approach1, profile_fit
 from .approach2 import approach2
@@ -202,6 +205,9 @@ def fit_head(model, case, options=None, initial=None):
     progress = Progress(opts.progress)
     state0 = (getattr(initial, "info", None) or {}).get("refit_state") or {}
     factor = float(state0.get("prior_factor", 1.0))
+    turned = []
+    if initial is None:  # a side photo short of a profile, its landmarks placed by hand
+        case, turned = placed_by_landmarks(model, case)
     result, checked = _noise_rounds(model, case, _prior_raised(opts, factor), initial,
                                     state0, progress, t0)
     if initial is None:
@@ -209,6 +215,7 @@ def fit_head(model, case, options=None, initial=None):
             result, lambda f, part: _noise_rounds(model, case, _prior_raised(opts, f), None,
                                                   {}, progress.part(*part), t0)[0])
     result.info["refit_state"]["prior_factor"] = factor
+    result.info["warnings"][:0] = turned
     return _checked(model, checked, _prior_raised(opts, factor), result)
 
 

@@ -147,3 +147,35 @@ def test_reset_to_defaults_resets_the_advanced_settings_only(scene):
         assert getattr(props, name) == pytest.approx(want), name
         assert dataclasses.asdict(defaults)[name] != changed[name]
     assert props.method == "approach2" and props.texture_size == "256"
+
+
+def test_a_side_photo_short_of_a_profile_placed_by_hand_turns_its_plane(model, tmp_path):
+    # landmarks placed by hand on a front photo and on a side photo taken 72 degrees from
+    # it, both planes loaded with their nominal cameras: the fit turns the side's camera to
+    # the yaw its landmarks show, and the plane stands where the photo was taken
+    from solver import LandmarkCase, OrthographicCamera, View
+    from tests.addon.support import save_case
+
+    rng = np.random.default_rng(3)
+    head = model.identity.instance(rng.normal(size=model.identity.n_coeffs))
+    lms, size = model.landmark_set, (384, 512)
+
+    def view(name, kind, yaw, keep):
+        names = [n for n in lms.vertices if lms.has_meaning_in(n, kind.split("-")[1])
+                 and keep(model.vertices[lms.vertices[n], 0])]
+        cam = OrthographicCamera.turned(kind, size, yaw)
+        px = cam.project(head[[lms.vertices[n] for n in names]])
+        return View(name, None, size, OrthographicCamera.nominal(kind, size),
+                    dict(zip(names, px + rng.normal(0.0, 0.7, px.shape), strict=True)))
+
+    case = LandmarkCase({"front": view("front", "orthographic-front", 0.0, lambda x: True),
+                         "side": view("side", "orthographic-right", 72.0,
+                                      lambda x: x <= 0.005)})
+    path, _ = save_case(case, tmp_path, "turned")
+    scene = imported_scene(path)
+    scene.headrecon.bake_texture = False
+    side = next(o for o in scene.objects if o.name == "HeadRecon Photo side")
+    before = side.matrix_world.to_euler().z
+    assert bpy.ops.headrecon.fit() == {"FINISHED"}
+    turned = np.degrees(side.matrix_world.to_euler().z - before)
+    assert 13.0 < abs(turned) < 23.0, turned  # 18 degrees short of the nominal profile

@@ -17,6 +17,7 @@ from solver.detect.view_guess import (
     guess_view,
     mesh_yaw_deg,
     placed,
+    placed_by_landmarks,
     point_uncertainty,
     points_yaw_deg,
     profile_yaw_deg,
@@ -246,8 +247,8 @@ def test_a_case_with_a_measured_profile_is_placed_in_the_face_s_frame():
 
 def test_landmarks_placed_by_hand_show_the_photo_s_yaw(model):
     """A photo's landmarks (a model head's, through orthographic cameras turned to known
-    yaws, 1.5 px of noise) show its yaw within 3 degrees; too few landmarks, or unknown
-    names, show none."""
+    yaws, 1.5 px of noise) show its yaw within 3 degrees, one of them misplaced too; too
+    few landmarks, or unknown names, show none."""
     from solver import OrthographicCamera
 
     rng = np.random.default_rng(5)
@@ -260,7 +261,57 @@ def test_landmarks_placed_by_hand_show_the_photo_s_yaw(model):
         px = px + rng.normal(0.0, 1.5, px.shape)
         found = points_yaw_deg(model, dict(zip(names, px, strict=True)))
         assert abs(found - yaw) < 3.0, (found, yaw)
+        misplaced = dict(zip(names, px, strict=True)) | {names[0]: (5.0, 5.0)}
+        found = points_yaw_deg(model, misplaced)  # one landmark far off, left out
+        assert abs(found - yaw) < 3.0, (found, yaw)
     few = dict(zip(names[:5], px[:5], strict=True))
     assert points_yaw_deg(model, few) is None
     assert points_yaw_deg(model, {f"no such {n}": p for n, p in zip(names, px, strict=True)}) \
         is None
+
+
+def test_a_side_photo_short_of_a_profile_placed_by_hand_turns_the_cameras(model):
+    """A model head's landmarks through a front camera and a side camera 18 degrees short
+    of a profile (1.5 px of noise), both given as the nominal cameras a hand-placed case
+    has: the side camera is turned to the yaw its landmarks show, with a note; an exact
+    profile, a profile with only its middle points, one labelled the other side or a
+    camera given turned stay as they are."""
+    from solver import LandmarkCase, OrthographicCamera, View
+
+    rng = np.random.default_rng(7)
+    head = model.identity.instance(rng.normal(size=model.identity.n_coeffs))
+    lms = model.landmark_set
+    size = (768, 1024)
+
+    def view(name, kind, yaw, names):
+        px = OrthographicCamera.turned(kind, size, yaw).project(
+            head[[lms.vertices[n] for n in names]]) + rng.normal(0.0, 1.5, (len(names), 2))
+        return View(name, None, size, OrthographicCamera.nominal(kind, size),
+                    dict(zip(names, px, strict=True)))
+
+    front = [n for n in lms.vertices if lms.has_meaning_in(n, "front")]
+    side = [n for n in lms.vertices if lms.has_meaning_in(n, "right")
+            and model.vertices[lms.vertices[n], 0] <= 0.005]  # the subject's right, middle
+
+    def case(yaw, names=side, kind="orthographic-right"):
+        return LandmarkCase({"front": view("front", "orthographic-front", 0.0, front),
+                             "side": view("side", kind, yaw, names)})
+
+    given = case(72.0)
+    out, notes = placed_by_landmarks(model, given)
+    d = out.views["side"].camera.rotation[2]
+    assert abs(np.degrees(np.arctan2(d[0], d[1])) - 72.0) < 5.0
+    assert len(notes) == 1 and notes[0].startswith("view 'side': its landmarks show a right "
+                                                   "profile")
+    assert "short of a profile" in notes[0]
+    assert np.allclose(given.views["side"].camera.rotation,  # the case given is kept
+                       OrthographicCamera.nominal("orthographic-right", size).rotation)
+    exact = case(90.0)
+    assert placed_by_landmarks(model, exact) == (exact, [])
+    middle = case(72.0, [n for n in side if abs(model.vertices[lms.vertices[n], 0]) < 0.01])
+    assert placed_by_landmarks(model, middle) == (middle, [])
+    other = case(-72.0, [n for n in lms.vertices if lms.has_meaning_in(n, "left")])
+    assert placed_by_landmarks(model, other) == (other, [])  # a left profile called right
+    turned = case(72.0)
+    turned.views["side"].camera = OrthographicCamera.turned("orthographic-right", size, 80.0)
+    assert placed_by_landmarks(model, turned) == (turned, [])
