@@ -416,6 +416,39 @@ def make_perspective_case(model, rng=None, *, n_views=2, noise_px=1.0, lens_mm=(
     return LandmarkCase(views, "<synthetic>"), truth
 
 
+def make_hand_placed_case(model, rng=None, *, side_deg=90.0, noise_px=1.5,
+                          size=(768, 1024), middle_m=0.005):
+    """Landmarks of a random model head as an artist places them by hand on a front photo
+    and on a side photo whose camera stood ``side_deg`` degrees from the front camera
+    (90: an exact right profile), both views given the nominal orthographic cameras a
+    hand-placed case has. The front shows every landmark that means something there, the
+    side those of the subject's right and the middle (vertex x at most ``middle_m``).
+
+    Returns
+    -------
+    case : LandmarkCase
+        Views "front" and "side"; no image, no contour.
+    head : ndarray, shape (V, 3)
+        The true head's local vertices.
+    """
+    rng = np.random.default_rng(rng)
+    head = model.identity.instance(rng.normal(size=model.identity.n_coeffs))
+    lms = model.landmark_set
+
+    def view(name, kind, yaw, keep):
+        names = [n for n in lms.vertices if lms.has_meaning_in(n, kind.split("-")[1])
+                 and keep(model.vertices[lms.vertices[n], 0])]
+        px = OrthographicCamera.turned(kind, size, yaw).project(
+            head[[lms.vertices[n] for n in names]])
+        px = px + rng.normal(0.0, noise_px, px.shape)
+        return View(name, None, tuple(size), OrthographicCamera.nominal(kind, size),
+                    dict(zip(names, map(tuple, px), strict=True)))
+
+    return LandmarkCase({
+        "front": view("front", "orthographic-front", 0.0, lambda x: True),
+        "side": view("side", "orthographic-right", side_deg, lambda x: x <= middle_m)}), head
+
+
 def make_mirror_case(model, rng=None, *, noise_px=1.0, distance_m=(0.9, 1.4),
                      mirror_angle_deg=(30.0, 50.0), mirror_gap_m=(0.2, 0.3), yaw_deg=10.0,
                      rotation_deg=5.0, coeffs=None, coeff_scale=1.0, head_px=700.0,

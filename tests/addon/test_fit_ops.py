@@ -153,24 +153,10 @@ def test_a_side_photo_short_of_a_profile_placed_by_hand_turns_its_plane(model, t
     # landmarks placed by hand on a front photo and on a side photo taken 72 degrees from
     # it, both planes loaded with their nominal cameras: the fit turns the side's camera to
     # the yaw its landmarks show, and the plane stands where the photo was taken
-    from solver import LandmarkCase, OrthographicCamera, View
+    from solver.synthetic import make_hand_placed_case
     from tests.addon.support import save_case
 
-    rng = np.random.default_rng(3)
-    head = model.identity.instance(rng.normal(size=model.identity.n_coeffs))
-    lms, size = model.landmark_set, (384, 512)
-
-    def view(name, kind, yaw, keep):
-        names = [n for n in lms.vertices if lms.has_meaning_in(n, kind.split("-")[1])
-                 and keep(model.vertices[lms.vertices[n], 0])]
-        cam = OrthographicCamera.turned(kind, size, yaw)
-        px = cam.project(head[[lms.vertices[n] for n in names]])
-        return View(name, None, size, OrthographicCamera.nominal(kind, size),
-                    dict(zip(names, px + rng.normal(0.0, 0.7, px.shape), strict=True)))
-
-    case = LandmarkCase({"front": view("front", "orthographic-front", 0.0, lambda x: True),
-                         "side": view("side", "orthographic-right", 72.0,
-                                      lambda x: x <= 0.005)})
+    case, _ = make_hand_placed_case(model, 3, side_deg=72.0, noise_px=0.7, size=(384, 512))
     path, _ = save_case(case, tmp_path, "turned")
     scene = imported_scene(path)
     scene.headrecon.bake_texture = False

@@ -6,6 +6,7 @@ import pytest
 from solver import PinholeCamera, landmarks_to_dict, parse_landmarks
 from solver.synthetic import (
     make_case,
+    make_hand_placed_case,
     make_mirror_case,
     make_perspective_case,
     resample_polyline,
@@ -210,3 +211,20 @@ def test_mirror_case_is_one_photo_with_a_mirrored_camera(model):
     assert plane.signed_distance(world[model.skin]).min() > 0
     again = parse_landmarks(landmarks_to_dict(case), "<synthetic>", model)
     assert again.views["mirror"].mirror_of == "front"
+
+
+def test_a_hand_placed_case_has_nominal_cameras_and_the_side_seen_from_its_own_yaw(model):
+    from solver import OrthographicCamera
+
+    case, head = make_hand_placed_case(model, 1, side_deg=75.0, noise_px=0.0)
+    lms = model.landmark_set
+    front, side = case.views["front"], case.views["side"]
+    for view, kind in ((front, "orthographic-front"), (side, "orthographic-right")):
+        assert np.allclose(view.camera.rotation,
+                           OrthographicCamera.nominal(kind, view.size).rotation)
+    seen = OrthographicCamera.turned("orthographic-right", side.size, 75.0)
+    names = list(side.points)
+    assert np.allclose(np.array([side.points[n] for n in names]),
+                       seen.project(head[[lms.vertices[n] for n in names]]))
+    assert all(model.vertices[lms.vertices[n], 0] <= 0.005 for n in names)
+    assert len(front.points) > len(names) >= 20

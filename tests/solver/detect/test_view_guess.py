@@ -272,32 +272,18 @@ def test_landmarks_placed_by_hand_show_the_photo_s_yaw(model):
 
 def test_a_side_photo_short_of_a_profile_placed_by_hand_turns_the_cameras(model):
     """A model head's landmarks through a front camera and a side camera 18 degrees short
-    of a profile (1.5 px of noise), both given as the nominal cameras a hand-placed case
-    has: the side camera is turned to the yaw its landmarks show, with a note; an exact
-    profile, a profile with only its middle points, one labelled the other side or a
-    camera given turned stay as they are."""
-    from solver import LandmarkCase, OrthographicCamera, View
+    of a profile, both given as the nominal cameras a hand-placed case has: the side camera
+    is turned to the yaw its landmarks show, with a note; an exact profile, a profile with
+    only its middle points, one labelled the other side or a camera given turned stay as
+    they are."""
+    import dataclasses
 
-    rng = np.random.default_rng(7)
-    head = model.identity.instance(rng.normal(size=model.identity.n_coeffs))
-    lms = model.landmark_set
-    size = (768, 1024)
+    from solver import OrthographicCamera
+    from solver.fitting.checks import swap_name
+    from solver.synthetic import make_hand_placed_case
 
-    def view(name, kind, yaw, names):
-        px = OrthographicCamera.turned(kind, size, yaw).project(
-            head[[lms.vertices[n] for n in names]]) + rng.normal(0.0, 1.5, (len(names), 2))
-        return View(name, None, size, OrthographicCamera.nominal(kind, size),
-                    dict(zip(names, px, strict=True)))
-
-    front = [n for n in lms.vertices if lms.has_meaning_in(n, "front")]
-    side = [n for n in lms.vertices if lms.has_meaning_in(n, "right")
-            and model.vertices[lms.vertices[n], 0] <= 0.005]  # the subject's right, middle
-
-    def case(yaw, names=side, kind="orthographic-right"):
-        return LandmarkCase({"front": view("front", "orthographic-front", 0.0, front),
-                             "side": view("side", kind, yaw, names)})
-
-    given = case(72.0)
+    lms, size = model.landmark_set, (768, 1024)
+    given, _ = make_hand_placed_case(model, 7, side_deg=72.0, size=size)
     out, notes = placed_by_landmarks(model, given)
     d = out.views["side"].camera.rotation[2]
     assert abs(np.degrees(np.arctan2(d[0], d[1])) - 72.0) < 5.0
@@ -306,12 +292,19 @@ def test_a_side_photo_short_of_a_profile_placed_by_hand_turns_the_cameras(model)
     assert "short of a profile" in notes[0]
     assert np.allclose(given.views["side"].camera.rotation,  # the case given is kept
                        OrthographicCamera.nominal("orthographic-right", size).rotation)
-    exact = case(90.0)
+    exact, _ = make_hand_placed_case(model, 7, side_deg=90.0, size=size)
     assert placed_by_landmarks(model, exact) == (exact, [])
-    middle = case(72.0, [n for n in side if abs(model.vertices[lms.vertices[n], 0]) < 0.01])
+
+    def side(case, **change):
+        return dataclasses.replace(case, views={**case.views, "side": dataclasses.replace(
+            case.views["side"], **change)})
+
+    middle = side(given, points={n: p for n, p in given.views["side"].points.items()
+                                 if abs(model.vertices[lms.vertices[n], 0]) < 0.01})
     assert placed_by_landmarks(model, middle) == (middle, [])
-    other = case(-72.0, [n for n in lms.vertices if lms.has_meaning_in(n, "left")])
-    assert placed_by_landmarks(model, other) == (other, [])  # a left profile called right
-    turned = case(72.0)
-    turned.views["side"].camera = OrthographicCamera.turned("orthographic-right", size, 80.0)
+    w = size[0]  # the photo mirrored: a left profile labelled right
+    other = side(given, points={swap_name(n): (w - u, v)
+                                for n, (u, v) in given.views["side"].points.items()})
+    assert placed_by_landmarks(model, other) == (other, [])
+    turned = side(given, camera=OrthographicCamera.turned("orthographic-right", size, 80.0))
     assert placed_by_landmarks(model, turned) == (turned, [])

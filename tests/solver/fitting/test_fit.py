@@ -11,7 +11,7 @@ from solver import FitOptions, LandmarkCase, OrthographicCamera, View, fit_head,
 from solver.fitting import fit
 from solver.fitting.fit import outline_missed
 from solver.fitting.outcome import flag_residuals
-from solver.synthetic import make_case, skin_error_mm
+from solver.synthetic import make_case, make_hand_placed_case, skin_error_mm
 
 
 @pytest.fixture(scope="module")
@@ -434,23 +434,8 @@ def test_an_implausible_head_the_landmarks_do_not_need_is_fitted_with_a_stronger
 
 def test_a_side_photo_short_of_a_profile_placed_by_hand_is_fitted_from_where_it_was_taken(
         model, monkeypatch):
-    # a model head through a front camera and a side camera 18 degrees short of a profile,
-    # 1.5 px of noise, given with the nominal cameras a hand-placed case has
-    rng = np.random.default_rng(3)
-    head = model.identity.instance(rng.normal(size=model.identity.n_coeffs))
-    lms, size = model.landmark_set, (768, 1024)
-
-    def view(name, kind, yaw, keep):
-        names = [n for n in lms.vertices if lms.has_meaning_in(n, kind.split("-")[1])
-                 and keep(model.vertices[lms.vertices[n], 0])]
-        px = OrthographicCamera.turned(kind, size, yaw).project(
-            head[[lms.vertices[n] for n in names]]) + rng.normal(0.0, 1.5, (len(names), 2))
-        return View(name, None, size, OrthographicCamera.nominal(kind, size),
-                    dict(zip(names, px, strict=True)))
-
-    case = LandmarkCase({"front": view("front", "orthographic-front", 0.0, lambda x: True),
-                         "side": view("side", "orthographic-right", 72.0,
-                                      lambda x: x <= 0.005)})
+    # the side camera 18 degrees short of a profile, the case with nominal cameras
+    case, head = make_hand_placed_case(model, 3, side_deg=72.0)
     res = fit_head(model, case)
     d = res.cameras["side"].rotation[2]
     assert abs(np.degrees(np.arctan2(d[0], d[1])) - 72.0) < 5.0
