@@ -28,6 +28,7 @@ import numpy as np
 
 from ..cameras import OrthographicCamera
 from ..cameras.orthographic import VIEW_YAW_DEG
+from ..io.camera_json import is_nominal
 from ..io.json_file import read_json
 from ..io.photo_lens import DIRECTION_SIGMA_DEG, lens_hints
 from .ibug_map import MAP_PATH
@@ -230,11 +231,9 @@ def placed_by_landmarks(model, case):
     nominal, guesses = {}, {}
     for name, view in case.views.items():
         cam = view.camera
-        if view.mirror_of is not None or not isinstance(cam, OrthographicCamera) or \
-                cam.view not in VIEW_YAW_DEG:
+        if view.mirror_of is not None or not isinstance(cam, OrthographicCamera) \
+                or not is_nominal(cam, view.size) or cam.view not in VIEW_YAW_DEG:
             continue
-        if not np.allclose(cam.rotation, OrthographicCamera.nominal(cam.view, cam.size).rotation):
-            continue  # given turned
         side = cam.view.removeprefix("orthographic-")
         points = {k: p for k, p in view.points.items() if lms.canonical(k) is not None
                   and lms.has_meaning_in(lms.canonical(k), side)}
