@@ -1,7 +1,7 @@
 """Photos as users give them: heads fitted from their photos alone (detected, as Auto Fit
 takes them) as rendered and changed as real photos are: with hair, a beard or glasses,
-black and white, the head small in a larger photo, JPEG-compressed, darker, turned in
-their plane, cropped, blurred, noisy, with a colour cast.
+bare shoulders, black and white, the head small in a larger photo, JPEG-compressed,
+darker, turned in their plane, cropped, blurred, noisy, with a colour cast.
 
     python -m bench.bench_photo_variants [--variants NAME ...] [--face]
                                          [--heads DIR ...] [--render SEED ...]
@@ -13,17 +13,18 @@ of the head, within the head's own outline; the rendered heads are bald), ``thic
 (the same grown out past the skull up to 12 mm, as hair is), ``beard`` (a dark full beard
 from under the nose to under the chin and the lips' edge, up to 8 mm out past the jaw),
 ``glasses`` (dark frames: rims round the eyes, arms past the ears; on a profile the rim
-ahead of the eye), ``grey`` (black and white), ``small`` (the photo in the middle of one
-four times its size, its corner's colour around it: the face 10 % of the longer side),
-``jpeg50`` (JPEG at quality 50), ``dark`` (half as bright), ``turned10`` (turned by 10
-degrees, the corners filled with its corner's colour), ``cropped`` (its top eighth cut
-off: the skull's top), ``blurred`` (a 2 px Gaussian), ``noisy`` (Gaussian noise of 8
-levels), ``warm`` and ``cool`` (red and blue scaled by 1.15 and 0.8, or 0.85 and 1.15: a
-white balance off). Scores: skin RMS against the true head after a similarity
-(``skin_error_mm``, the whole head: under hair the skull is not seen), or with ``--face``
-over the face region alone (``realistic_cases.model_face_vertices``, aligned on it), mm,
-the mean head's beside them; a variant whose photos ``solver detect`` refuses is said and
-left out of the mean.
+ahead of the eye), ``bare`` (the clothes coloured as the face's skin, their shading kept:
+bare shoulders or a skin-coloured top), ``grey`` (black and white), ``small`` (the photo
+in the middle of one four times its size, its corner's colour around it: the face 10 % of
+the longer side), ``jpeg50`` (JPEG at quality 50), ``dark`` (half as bright),
+``turned10`` (turned by 10 degrees, the corners filled with its corner's colour),
+``cropped`` (its top eighth cut off: the skull's top), ``blurred`` (a 2 px Gaussian),
+``noisy`` (Gaussian noise of 8 levels), ``warm`` and ``cool`` (red and blue scaled by
+1.15 and 0.8, or 0.85 and 1.15: a white balance off). Scores: skin RMS against the true
+head after a similarity (``skin_error_mm``, the whole head: under hair the skull is not
+seen), or with ``--face`` over the face region alone
+(``realistic_cases.model_face_vertices``, aligned on it), mm, the mean head's beside
+them; a variant whose photos ``solver detect`` refuses is said and left out of the mean.
 """
 
 import argparse
@@ -90,13 +91,13 @@ def _paint_hair(image, where, seed=0):
     return Image.fromarray(pixels)
 
 
-def hair(image, head, face):
+def hair(image, head, face, *_):
     """Dark hair painted on the head over :func:`hair_region`, within the head's own
     outline (a shaved head's hair)."""
     return _paint_hair(image, hair_region(head, face))
 
 
-def thick_hair(image, head, face, mm=12.0):
+def thick_hair(image, head, face, *_, mm=12.0):
     """:func:`hair` grown out past the skull as real hair is: up to ``mm`` thick on the
     crown, thinning toward the brows and, on a profile, down the nape, with a gentle wave
     (the face's box taken as 15 cm); the head's own outline is hidden under it."""
@@ -141,13 +142,28 @@ def beard_region(head, face, mm=8.0):
     return painted | grown
 
 
-def beard(image, head, face):
+def bare(image, head, face, person):
+    """The clothes coloured as the face's skin, their shading kept: bare shoulders or a
+    skin-coloured top, whose colour does not end the outline. ``person`` (H, W) bool: the
+    person's pixels (the head's and the clothes')."""
+    pixels = np.asarray(image, float).copy()
+    clothes = person & ~head
+    k, size = np.asarray(face.keypoints, float), float(face.box[2] - face.box[0])
+    v, u = np.mgrid[0:head.shape[0], 0:head.shape[1]]
+    cheek = head & (np.hypot(u - k[2, 0], v - k[2, 1]) < 0.3 * size)  # around the nose
+    skin = np.median(pixels[cheek], axis=0)
+    shade = pixels[clothes].mean(axis=1)
+    pixels[clothes] = skin * (shade / np.median(shade))[:, None]
+    return Image.fromarray(np.clip(pixels, 0, 255).astype(np.uint8))
+
+
+def beard(image, head, face, *_):
     """A dark full beard (:func:`beard_region`): the jaw's and chin's outline is the
     beard's, up to 8 mm out from the skin."""
     return _paint_hair(image, beard_region(head, face), seed=2)
 
 
-def glasses(image, head, face):
+def glasses(image, head, face, *_):
     """Dark-framed glasses drawn from the detected face's keypoints: on a front photo a
     rim around each eye, the bridge between them and the arms out past the ears; on a
     profile the rim in front of the eye and the arm back to the ear (the face's box taken
@@ -177,13 +193,14 @@ def glasses(image, head, face):
     return out
 
 
-#: name -> (PIL RGB image, the true head's pixels (H, W) bool, its detected face) -> PIL
-#: RGB image
+#: name -> (PIL RGB image, the true head's pixels (H, W) bool, its detected face, the
+#: person's pixels (H, W) bool) -> PIL RGB image
 VARIANTS = {
     "hair": hair,
     "thick_hair": thick_hair,
     "beard": beard,
     "glasses": glasses,
+    "bare": bare,
     "grey": lambda im, *_: im.convert("L").convert("RGB"),
     "small": lambda im, *_: Image.fromarray(padded(np.asarray(im), {}, 4)[0]),
     "jpeg50": lambda im, *_: _jpeg(im),
@@ -204,8 +221,8 @@ def changed(folder, variant, into, detector):
     for view in ("front", "side"):
         image = Image.open(folder / f"{view}.png").convert("RGB")
         face = detector.detect(np.asarray(image))
-        VARIANTS[variant](image, truth[f"head_alpha_{view}"] >= 128, face) \
-            .save(into / f"{view}.png")
+        VARIANTS[variant](image, truth[f"head_alpha_{view}"] >= 128, face,
+                          truth[f"alpha_{view}"] >= 128).save(into / f"{view}.png")
     return into
 
 

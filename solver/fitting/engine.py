@@ -30,6 +30,7 @@ from .outline import (
     ContourRows,
     OutlineAlongRows,
     OutlinePointRows,
+    body_vertices,
     outline_candidates,
     profile_normal_bound,
 )
@@ -155,6 +156,10 @@ class Engine:
         # the head's profile line (HeadModel.profile_chain): where a photo with only a
         # traced outline starts its camera
         self.profile_chain = np.zeros(0, np.int64)
+        # the vertices below the neck's base (outline.body_vertices): their outline rows
+        # weigh each view's body_scale
+        # weigh each view's body_scale (None: no vertex is)
+        self.body = None
         self.fixed_similarity = self.gauge(views)
         self._slices = memo(lin, "slices", dict)
         # Gamma enters the cost only as Gamma^T Gamma: a factor with one row per
@@ -181,6 +186,7 @@ class Engine:
         eng.pixel_scale = float(opts.pixel_scale or 1.0)
         eng.slide_outline = opts.outline_landmarks == "slide"
         eng.profile_chain = np.asarray(model.profile_chain, dtype=np.int64)
+        eng.body = body_vertices(model)
         return eng
 
     # ------------------------------------------------------------------ views
@@ -606,7 +612,8 @@ class Engine:
                            keep_distance=self.contour_keep if keep_distance is None
                            else keep_distance, spacing_px=SPACING_PX * self.pixel_scale,
                            normal_span_px=NORMAL_SPAN_PX * self.pixel_scale,
-                           name=f"contour {view.name}")
+                           body=None if self.body is None else self.body[cand],
+                           body_scale=view.body_scale, name=f"contour {view.name}")
         return rows, cand
 
     def landmark_targets(self, state):

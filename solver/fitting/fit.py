@@ -87,7 +87,7 @@ from .outcome import (
     skin_maps,
     vertex_uncertainty,
 )
-from .outline import outline_candidates
+from .outline import body_vertices, outline_candidates
 from .pose import init_pose
 from .rows import ImageRows
 from .views import (
@@ -454,7 +454,7 @@ def _fit(model, case, opts, initial, noise, progress, t0, uncertainty=True):
         "errors": {"profile_similarity": info_p.get("similarity_history", []),
                    "profile_shape": info_p.get("shape_history", []),
                    **{n: c[1]["history"] for n, c in candidates.items()}},
-        "contour_rms_px": {n: rms(d) for n, d in contour.items()},
+        "contour_rms_px": {n: rms(d) for n, (d, _) in contour.items()},
         "refit_state": {
             "coeffs": state.coeffs.copy(), "n_identity": int(opts.n_identity),
             "n_regional": int(opts.n_regional), "pixel_scale": opts.pixel_scale,
@@ -596,7 +596,8 @@ def refit_landmarks(model, case, previous, options=None):
         if pairs is not None and len(pairs["vertices"]):
             cv = np.asarray(pairs["vertices"], dtype=np.int64)
             rows.append(ImageRows(np.arange(off, off + len(cv)), pairs["pixels"], v.camera,
-                                  weights=opts.contour_weight * eng.inv_var * v.contour_scale,
+                                  weights=opts.contour_weight * eng.inv_var * v.contour_scale
+                                  * np.where(body_vertices(model)[cv], v.body_scale, 1.0),
                                   name=f"contour {v.name}"))
             verts.append(cv)
             off += len(cv)

@@ -214,7 +214,8 @@ class Joint:
             if x is None:
                 x = self.world(state)
             sel, px = rows.pairs(x[rows.vertices])
-            w = np.full(len(sel), self.eng.contour_weight * v.contour_scale) \
+            w = self.eng.contour_weight * v.contour_scale \
+                * np.where(rows.body_rows, v.body_scale, 1.0) \
                 if kind == "contour" else rows.row_weights / self.eng.inv_var
             out.setdefault(v.name, []).append((self.orig[rows.vertices[sel]], px, w))
         return out
@@ -255,9 +256,10 @@ class Joint:
         self.sync(state)
 
     def contour_residuals(self, state):
-        """view name -> pixel distances across the outline of the contour rows at
-        ``state`` (correspondences refreshed)."""
-        return {v.name: np.abs(rows.residuals(xs))
+        """view name -> (pixel distances across the outline of the contour rows at
+        ``state`` (k,), whether each row meets the silhouette below the neck's base (k,)
+        bool); correspondences refreshed."""
+        return {v.name: (np.abs(rows.residuals(xs)), rows.body_rows)
                 for v, rows, xs in self._current(state, "contour")}
 
     def _current(self, state, kind):
@@ -275,7 +277,7 @@ class Joint:
         """RMS of every landmark and contour-correspondence pixel residual at ``state``
         (a sliding landmark's across the outline)."""
         parts = list(self.eng.reprojection(state).values())
-        parts += list(self.contour_residuals(state).values())
+        parts += [r for r, _ in self.contour_residuals(state).values()]
         parts += [m[1] for m in self.outline_matches(state).values()]
         return rms(np.concatenate(parts))
 

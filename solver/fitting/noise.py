@@ -28,6 +28,9 @@ STUDENT_NU = 5.0
 SETTLED = 0.05
 #: Most fits of one case (the first with the floor, then with the estimates).
 MAX_ROUNDS = 4
+#: Fewest outline rows below the neck's base that have a noise of their own (else they
+#: count with the rest of the outline).
+BODY_MIN_ROWS = 20
 #: A landmark whose weight falls below this is reported as down-weighted (for Gaussian
 #: placement about one in 10^5 landmarks falls this far by chance).
 DOWN_WEIGHTED = 0.2
@@ -51,6 +54,13 @@ class Noise:
         they were placed (from their vertices), pixels.
     contour_px : dict of str -> float
         Per view with a traced outline: standard deviation across the outline, pixels.
+    body_px : dict of str -> float
+        Per view with at least ``BODY_MIN_ROWS`` outline rows below the neck's base
+        (``outline.body_vertices``): their standard deviation across the outline, pixels;
+        at least ``contour_px``, and as many times it as their residuals are larger than
+        the rest of the outline's (the floor, ``noise_px``, bounds the outline's, not this
+        ratio: a photo's outline follows the head to a fraction of a pixel, and the body
+        under clothes or a top coloured as skin is what departs from it).
     weights : dict of str -> dict of str -> float
         Per view and landmark: the Student-t weight (about 1 for a typical residual, up to
         (nu + 2) / nu for none, toward 0 for an outlier).
@@ -70,6 +80,7 @@ class Noise:
 
     landmark_px: dict = field(default_factory=dict)
     contour_px: dict = field(default_factory=dict)
+    body_px: dict = field(default_factory=dict)
     weights: dict = field(default_factory=dict)
     floor_px: float = 1.0
     outline_px: dict = field(default_factory=dict)
@@ -102,6 +113,12 @@ class Noise:
         """Multiplier of a view's outline rows' weight (relative to 1 / floor^2)."""
         return self._factor(self.contour_px.get(view), 1)
 
+    def body_factor(self, view):
+        """Multiplier of the weight of a view's outline rows below the neck's base,
+        relative to its other outline rows' (1 with too few of them for an estimate)."""
+        body = self.body_px.get(view)
+        return 1.0 if body is None else (self.contour_px[view] / body) ** 2
+
     def _factor(self, sigma, dim):
         """(floor / Student-t scale)^2 of a group with Gaussian-equivalent ``sigma``."""
         if sigma is None:
@@ -115,6 +132,7 @@ class Noise:
                              (self.outline_px, other.outline_px),
                              (self.along_px, other.along_px),
                              (self.contour_px, other.contour_px),
+                             (self.body_px, other.body_px),
                              (self.rim_px, other.rim_px),
                              (self.definition_m, other.definition_m)):
             if set(mine) != set(theirs):
@@ -129,7 +147,8 @@ class Noise:
         that lost most of theirs."""
         return {"landmark_px": dict(self.landmark_px), "outline_px": dict(self.outline_px),
                 "along_px": dict(self.along_px),
-                "contour_px": dict(self.contour_px), "rim_px": dict(self.rim_px),
+                "contour_px": dict(self.contour_px), "body_px": dict(self.body_px),
+                "rim_px": dict(self.rim_px),
                 "floor_px": self.floor_px,
                 "definition_mm": {v: 1e3 * m for v, m in self.definition_m.items()},
                 "weights": {v: dict(ws) for v, ws in self.weights.items()},
@@ -147,8 +166,9 @@ def estimate_noise(residuals, contour, effective, floor_px, along=None, definiti
     residuals : dict of str -> ViewResidual
         Per view: the landmarks' residuals (pixel distances; across the head's outline for
         the names in ``outline``; those in ``unused`` are not counted).
-    contour : dict of str -> ndarray (m,)
-        Per view: the outline rows' residuals across the outline, pixels.
+    contour : dict of str -> (ndarray (m,), ndarray (m,) bool)
+        Per view: the outline rows' residuals across the outline, pixels, and which rows
+        meet the silhouette below the neck's base (``Joint.contour_residuals``).
     along : dict of str -> (list of str, ndarray (k,)), optional
         Per view: the sliding landmarks that met the outline and their residuals along
         it, pixels.
@@ -197,18 +217,25 @@ def estimate_noise(residuals, contour, effective, floor_px, along=None, definiti
             if len(keep) >= least:
                 groups.append((view, [res.names[i] for i in keep], r[keep], dim, where))
     along = {v: np.asarray(a[1], dtype=np.float64) for v, a in (along or {}).items()}
-    n_rows = sum(g[3] * len(g[2]) for g in groups) + sum(len(c) for c in contour.values()) \
-        + sum(len(a) for a in along.values())
+    n_rows = sum(g[3] * len(g[2]) for g in groups) \
+        + sum(len(c) for c, _ in contour.values()) + sum(len(a) for a in along.values())
     # each group's variance from its own rows, inflated as all rows share the parameters
     inflate = n_rows / max(n_rows - effective, 0.5 * n_rows) if n_rows else 1.0
     for view, names, r, dim, where in groups:
         sigma, w = _student_t(r ** 2, dim, inflate, floor_px)
         where[view] = sigma
         out.weights.setdefault(view, {}).update(zip(names, w.tolist(), strict=True))
-    for view, c in contour.items():
-        c = np.asarray(c, dtype=np.float64)
-        if len(c) >= 3:
-            out.contour_px[view] = _student_t(c ** 2, 1, inflate, floor_px)[0]
+    for view, (c, body) in contour.items():
+        c, body = np.asarray(c, dtype=np.float64), np.asarray(body, dtype=bool)
+        apart = body.sum() >= BODY_MIN_ROWS and (~body).sum() >= 3
+        head = c[~body] if apart else c
+        if len(head) >= 3:
+            out.contour_px[view] = _student_t(head ** 2, 1, inflate, floor_px)[0]
+        if apart:
+            # the body's departure from the head model, as a ratio of the two unfloored
+            ratio = _student_t(c[body] ** 2, 1, inflate, 1e-6)[0] \
+                / _student_t(head ** 2, 1, inflate, 1e-6)[0]
+            out.body_px[view] = out.contour_px[view] * max(ratio, 1.0)
     for view, a in along.items():
         if len(a) >= 3:
             out.along_px[view] = _student_t(a ** 2, 1, inflate, floor_px)[0]

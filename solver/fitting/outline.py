@@ -19,6 +19,23 @@ SOFT_CUT = 0.25
 #: An outline point's normal comes from the outline this many pixels either side of it.
 NORMAL_SPAN_PX = 10.0
 
+#: The landmarks whose height is the neck's base: below it the head model's neck widens
+#: into shoulders (:func:`body_vertices`).
+NECK_BASE = ("neck_base_left", "neck_base_right")
+
+
+def body_vertices(model):
+    """Which vertices lie below the neck's base, (V,) bool: the neck's foot and the
+    shoulders (the mean head's height under that of the ``NECK_BASE`` landmarks). What a
+    photo's outline shows there is the body under the clothes, or clothes coloured as skin,
+    which the head model predicts less well than the head itself; its rows get a noise of
+    their own (``noise.Noise.body_px``)."""
+    def make():
+        z = np.asarray(model.vertices, dtype=np.float64)[:, 2]
+        return z < float(np.mean([z[model.landmark_vertex(n)] for n in NECK_BASE]))
+
+    return memo(model, "body_vertices", make)
+
 
 def _median(x):
     """``np.median`` of a 1-D float array without NaN, to the bit, for a fraction of its
@@ -78,6 +95,10 @@ class ContourRows(CameraRows):
         Edges shared by two of those triangles: (vertex a, vertex b, face 1, face 2).
     max_distance, reject_factor, keep_distance, spacing_px : float
     normal_span_px : float
+    body : array_like of bool, shape (n,), optional
+        Which candidates lie below the neck's base (:func:`body_vertices`); a row whose
+        silhouette point lies on such an edge weighs ``body_scale`` times as much.
+    body_scale : float
         A point's normal is taken across the outline this far either side of it, pixels.
     name : str
     """
@@ -86,9 +107,12 @@ class ContourRows(CameraRows):
 
     def __init__(self, vertices, pixels, camera, weights=1.0, faces=None, edges=None,
                  max_distance=20.0, reject_factor=3.0, keep_distance=3.0, spacing_px=6.0,
-                 normal_span_px=NORMAL_SPAN_PX, name="contour"):
+                 normal_span_px=NORMAL_SPAN_PX, body=None, body_scale=1.0, name="contour"):
         self.name = name
         self.vertices = np.asarray(vertices, dtype=np.intp)
+        self.body = np.zeros(len(self.vertices), bool) if body is None \
+            else np.asarray(body, dtype=bool).reshape(-1)
+        self.body_scale = float(body_scale)
         self.camera = camera
         self.weight = float(weights)
         if faces is None or edges is None:
@@ -323,7 +347,14 @@ class ContourRows(CameraRows):
     @property
     def row_weights(self):
         """The weights of the current rows, (k,)."""
-        return self.point_weights[self.points] * self.factors
+        w = self.point_weights[self.points] * self.factors
+        return np.where(self.body_rows, self.body_scale * w, w) if self.body_scale != 1.0 \
+            else w
+
+    @property
+    def body_rows(self):
+        """Whether each current row meets the silhouette below the neck's base, (k,)."""
+        return self.body[self.selected]
 
     def pairs(self, world):
         """(candidate indices, pixels) of the current rows for a camera refit consistent
@@ -381,6 +412,7 @@ class OutlinePointRows(ContourRows):
         self.normals = np.zeros((len(self.pixels), 2))
         self.max_distance = float(max_distance)
         self.reject_factor = None
+        self.body, self.body_scale = np.zeros(len(self.vertices), bool), 1.0
         self._reset()
 
     def update(self, world):

@@ -48,6 +48,9 @@ class ViewData:
     contour_scale : float
         Weight of the outline's rows relative to ``contour_weight`` / noise^2 (the
         estimated outline noise, ``noise.Noise.contour_factor``).
+    body_scale : float
+        Weight of the outline's rows below the neck's base relative to its others
+        (``noise.Noise.body_factor``).
     outline_point : ndarray of bool, shape (n,)
         The landmark is a point of the head's outline in a front photo
         (``LandmarkSet.outline_in``).
@@ -113,6 +116,7 @@ class ViewData:
     depth_sigma: np.ndarray | None = None
     detected: bool = False
     lens_mm: float | None = None
+    body_scale: float = 1.0
 
     def __post_init__(self):
         n = len(self.vertices)
@@ -377,7 +381,8 @@ def prepare_views(model, case, opts, cameras=None, noise=None):
                         depth_sigma=DEPTH_SHARE * np.array(
                             [view.uncertainty.get(k, np.nan) for k in keys]),
                         detected=any(k in view.uncertainty for k in keys),
-                        lens_mm=_orthographic_lens(view, cam))
+                        lens_mm=_orthographic_lens(view, cam),
+                        body_scale=1.0 if noise is None else noise.body_factor(name))
         (views if used or rule["outline"] else skipped).append(data)
     for v in views:
         if v.mirror_of is not None and any(u.name == v.mirror_of for u in skipped):

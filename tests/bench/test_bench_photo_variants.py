@@ -1,12 +1,13 @@
 """bench/bench_photo_variants.py's painted hair, beard and glasses on a drawn head: where
-each lies against the head's own outline and the face's keypoints."""
+each lies against the head's own outline and the face's keypoints; clothes coloured as
+skin."""
 
 from types import SimpleNamespace
 
 import numpy as np
 from PIL import Image
 
-from bench.bench_photo_variants import beard_region, glasses, hair_region, thick_hair
+from bench.bench_photo_variants import bare, beard_region, glasses, hair_region, thick_hair
 
 
 def _head():
@@ -63,3 +64,19 @@ def test_glasses_are_rims_around_the_eyes_and_arms_past_the_ears():
     dark = image.sum(axis=2) < 200
     assert dark[240, 268:274].any() and not dark[240, 248:258].any()   # the rim ahead of the eye
     assert dark[260:272, 150:156].any()                                 # the arm at the ear
+
+
+def test_bare_colours_the_clothes_as_the_face_and_keeps_their_shading():
+    head, face = _head()
+    person = head.copy()
+    person[440:] = True                                   # the shoulders under the head
+    pixels = np.full(head.shape + (3,), 128, np.uint8)    # a grey background
+    pixels[head] = (220, 170, 140)                        # skin
+    pixels[person & ~head] = (60, 70, 90)                 # a blue-grey shirt ...
+    pixels[500:, :200][person[500:, :200]] = (30, 35, 45)  # ... half of it in shade
+    image = np.asarray(bare(Image.fromarray(pixels), head, face, person), float)
+    np.testing.assert_array_equal(image[~person], pixels[~person])   # the rest unchanged
+    np.testing.assert_array_equal(image[head], pixels[head])
+    lit, shade = image[470, 300], image[520, 100]
+    np.testing.assert_allclose(lit / lit.sum(), np.array([220, 170, 140]) / 530, atol=0.01)
+    assert shade.sum() < 0.7 * lit.sum()

@@ -326,3 +326,17 @@ def test_the_nearest_rim_not_the_outermost_is_a_landmarks_outline():
     rows.update(verts)
     np.testing.assert_allclose(rows.residuals(verts), [2.0], atol=1e-9)
     assert np.all(rows.ends < n)
+
+
+def test_rows_on_the_body_weigh_its_scale():
+    verts, faces, edges = _tube()
+    body = verts[:, 0] > 0.15  # the tube's right half stands for the body below the neck
+    rows, _ = _rows([0.5, -0.4, 0.3, -0.6, 0.2], [0.7, -0.2], weights=2.0, body=body,
+                    body_scale=0.25)
+    on_body = verts[rows.selected, 0] > 0.15
+    np.testing.assert_array_equal(rows.body_rows, on_body)
+    assert on_body.any() and not on_body.all()
+    plain, _ = _rows([0.5, -0.4, 0.3, -0.6, 0.2], [0.7, -0.2], weights=2.0)
+    np.testing.assert_allclose(rows.row_weights, np.where(on_body, 0.25, 1.0)
+                               * plain.row_weights)
+    assert not plain.body_rows.any()

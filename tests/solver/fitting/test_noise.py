@@ -5,9 +5,11 @@ import copy
 
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 from solver import FitOptions, fit_head, refit_landmarks
-from solver.fitting.noise import Noise, consistency, estimate_noise
+from solver.fitting.noise import BODY_MIN_ROWS, Noise, consistency, estimate_noise
+from solver.fitting.outline import body_vertices
 from solver.fitting.result import ViewResidual
 from solver.synthetic import make_case, skin_error_mm
 
@@ -18,7 +20,8 @@ def test_estimate_recovers_a_known_sigma_and_drops_an_outlier():
     r = np.linalg.norm(rng.normal(scale=4.0, size=(200, 2)), axis=1)
     r[7] = 100.0  # one landmark placed 100 px off
     c = np.abs(rng.normal(scale=2.0, size=150))
-    noise = estimate_noise({"front": ViewResidual(names, r)}, {"front": c}, effective=0.0,
+    noise = estimate_noise({"front": ViewResidual(names, r)}, {"front": (c, np.zeros(150, bool))},
+                           effective=0.0,
                            floor_px=1.0)
     assert noise.landmark_px["front"] == pytest.approx(4.0, rel=0.1)
     assert noise.contour_px["front"] == pytest.approx(2.0, rel=0.15)
@@ -158,3 +161,47 @@ def test_outline_landmarks_on_their_vertices_are_a_group_of_their_own():
                          rim={"front": set(jaw)})
     assert few.rim_px == {} and few.rim_names == {}
     assert "j1" in few.weights["front"]
+
+
+def test_the_outline_below_the_neck_has_a_noise_of_its_own():
+    rng = np.random.default_rng(3)
+    head = np.abs(rng.normal(scale=0.3, size=600))    # the head's outline: well fitted
+    body = np.abs(rng.normal(scale=1.2, size=80))     # the body's: four times as far off
+    flags = np.r_[np.zeros(600, bool), np.ones(80, bool)]
+    noise = estimate_noise({}, {"front": (np.r_[head, body], flags)}, 0.0, floor_px=1.0)
+    assert noise.contour_px["front"] == pytest.approx(1.0)  # the head's, at the floor
+    assert noise.body_px["front"] == pytest.approx(4.0, rel=0.2)
+    assert noise.body_factor("front") == pytest.approx(1 / 16, rel=0.4)
+    assert noise.report()["body_px"] == noise.body_px
+    # as well fitted as the head, or too few rows for an estimate: weighed as the outline
+    same = estimate_noise({}, {"front": (np.abs(rng.normal(scale=0.3, size=680)), flags)},
+                          0.0, floor_px=1.0)
+    assert same.body_factor("front") == pytest.approx(1.0, abs=0.3)
+    few = flags & (np.arange(680) < 600 + BODY_MIN_ROWS - 1)
+    alone = estimate_noise({}, {"front": (np.r_[head, body], few)}, 0.0, floor_px=1.0)
+    assert "front" not in alone.body_px and alone.body_factor("front") == 1.0
+
+
+def test_an_outline_off_the_body_below_the_neck_loses_its_weight(model):
+    # a dense traced profile (as a detector's) whose part below the neck's base lies 6 px
+    # out (clothes the colour of skin): that part gets a noise of its own and the head
+    # stays near the one fitted to the clean outline (1.0 mm without the body's noise)
+    case, truth = make_case(model, 1, noise_px=1.0, contour_points=600, contour_noise_px=0.3)
+    clean = fit_head(model, case)
+    c = np.asarray(case.views["right"].contour, float)
+    skin = np.asarray(model.skin)
+    seen = truth.cameras["right"].project(truth.world_vertices[skin])
+    on_body = body_vertices(model)[skin[cKDTree(seen).query(c)[1]]]
+    t = np.gradient(c, axis=0)
+    out = np.stack([t[:, 1], -t[:, 0]], axis=1) / np.linalg.norm(t, axis=1)[:, None]
+    out *= np.sign(np.einsum("ij,ij->", out, c - c.mean(axis=0)))
+    case.views["right"].contour = np.where(on_body[:, None], c + 6.0 * out, c)
+    res = fit_head(model, case)
+    noise = res.info["noise"]
+    assert 60 <= on_body.sum() <= 120
+    assert noise["body_px"]["right"] > 2.5 * noise["contour_px"]["right"]
+    fitted = clean.info["noise"]
+    assert fitted["body_px"]["right"] < 1.5 * fitted["contour_px"]["right"]
+    error = skin_error_mm(model, res.local_vertices, truth.local_vertices)
+    assert error < skin_error_mm(model, clean.local_vertices, truth.local_vertices) + 0.45
+    assert error < 0.95
