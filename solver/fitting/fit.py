@@ -141,6 +141,11 @@ MISSED_OUTLINE = 0.08
 #: ... and such a fit's head is kept only if its posterior cost is lower by more than this
 #: share: between two heads near a tie the cost does not tell the better one.
 SECOND_START_GAIN = 0.1
+#: Where a view's outline below the neck's base is more than this many times as uncertain
+#: as the rest of it (``noise.Noise.body_ratio``: bare shoulders, a top coloured as skin),
+#: the first noise round starts again from the mean head, not from the first fit's head,
+#: which was bent to the body (docs/DECISIONS.md, "The outline below the neck's base").
+BODY_RESTART = 2.0
 #: An implausible head (``outcome.PLAUSIBLE_PERCENTILE``) is fitted again with the prior's
 #: weight raised by these factors in turn, until its head is plausible ...
 PRIOR_STEPS = (1.5, 2.0, 3.0)
@@ -283,6 +288,7 @@ def _noise_rounds(model, case, opts, initial, state0, progress, t0):
     later = opts if opts.method != "combined" else dataclasses.replace(opts,
                                                                        method="approach1")
     noise, rounds, expressions = start_noise, 1, start_shown
+    restarted = False
     timings = dict(result.info["timings"])
     while rounds < MAX_ROUNDS:
         estimate = estimate_noise(measured[0], contour, effective, opts.noise_px, along,
@@ -296,8 +302,12 @@ def _noise_rounds(model, case, opts, initial, state0, progress, t0):
             break
         noise, expressions = estimate, shown
         part = 0.55 + 0.12 * (rounds - 1)
+        # a first fit that bent the head to a body the model does not follow is no start
+        start = None if rounds == 1 and initial is None \
+            and noise.body_ratio() > BODY_RESTART else result
+        restarted |= start is None
         result, contour, along, effective, measured, roles, finish, _ = _fit(
-            model, neutral_case(model, case, result, expressions), later, result, noise,
+            model, neutral_case(model, case, result, expressions), later, start, noise,
             progress.part(part, part + 0.12), t0, uncertainty=False)
         rounds += 1
         _add_timings(timings, result.info["timings"])
@@ -326,7 +336,7 @@ def _noise_rounds(model, case, opts, initial, state0, progress, t0):
     result.uncertainty, result.method = finish(), opts.method
     # the choice between the approaches was made in the first fit, the only one running both
     result.info.update({k: first[0].info[k] for k in ("approach", "candidates")})
-    result.info["noise"] = {**noise.report(), "fits": rounds}
+    result.info["noise"] = {**noise.report(), "fits": rounds, "restarted": restarted}
     if starts is not None:
         result.info["starts"] = starts
     result.info["refit_state"]["noise"] = noise

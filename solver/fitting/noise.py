@@ -119,6 +119,11 @@ class Noise:
         body = self.body_px.get(view)
         return 1.0 if body is None else (self.contour_px[view] / body) ** 2
 
+    def body_ratio(self):
+        """How many times as uncertain as the rest of its outline a view's outline below
+        the neck's base is, the largest over the views (1 without such an estimate)."""
+        return max((b / self.contour_px[v] for v, b in self.body_px.items()), default=1.0)
+
     def _factor(self, sigma, dim):
         """(floor / Student-t scale)^2 of a group with Gaussian-equivalent ``sigma``."""
         if sigma is None:

@@ -8,6 +8,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from solver import FitOptions, fit_head, refit_landmarks
+from solver.fitting import fit
 from solver.fitting.noise import BODY_MIN_ROWS, Noise, consistency, estimate_noise
 from solver.fitting.outline import body_vertices
 from solver.fitting.result import ViewResidual
@@ -182,26 +183,52 @@ def test_the_outline_below_the_neck_has_a_noise_of_its_own():
     assert "front" not in alone.body_px and alone.body_factor("front") == 1.0
 
 
-def test_an_outline_off_the_body_below_the_neck_loses_its_weight(model):
-    # a dense traced profile (as a detector's) whose part below the neck's base lies 6 px
-    # out (clothes the colour of skin): that part gets a noise of its own and the head
-    # stays near the one fitted to the clean outline (1.0 mm without the body's noise)
-    case, truth = make_case(model, 1, noise_px=1.0, contour_points=600, contour_noise_px=0.3)
-    clean = fit_head(model, case)
+def _outline_off_the_body(model, seed, push_px=6.0):
+    """A case with a dense traced profile (as a detector's) whose part below the neck's
+    base lies ``push_px`` out (clothes the colour of skin): (case, truth, the case with
+    the clean outline)."""
+    case, truth = make_case(model, seed, noise_px=1.0, contour_points=600,
+                            contour_noise_px=0.3)
+    clean = copy.deepcopy(case)
     c = np.asarray(case.views["right"].contour, float)
     skin = np.asarray(model.skin)
     seen = truth.cameras["right"].project(truth.world_vertices[skin])
     on_body = body_vertices(model)[skin[cKDTree(seen).query(c)[1]]]
+    assert 60 <= on_body.sum() <= 120
     t = np.gradient(c, axis=0)
     out = np.stack([t[:, 1], -t[:, 0]], axis=1) / np.linalg.norm(t, axis=1)[:, None]
     out *= np.sign(np.einsum("ij,ij->", out, c - c.mean(axis=0)))
-    case.views["right"].contour = np.where(on_body[:, None], c + 6.0 * out, c)
+    case.views["right"].contour = np.where(on_body[:, None], c + push_px * out, c)
+    return case, truth, clean
+
+
+def test_an_outline_off_the_body_below_the_neck_loses_its_weight(model):
+    # that part gets a noise of its own and the head stays near the one fitted to the
+    # clean outline (1.0 mm without the body's noise)
+    case, truth, clean_case = _outline_off_the_body(model, 1)
+    clean = fit_head(model, clean_case)
     res = fit_head(model, case)
     noise = res.info["noise"]
-    assert 60 <= on_body.sum() <= 120
     assert noise["body_px"]["right"] > 2.5 * noise["contour_px"]["right"]
     fitted = clean.info["noise"]
     assert fitted["body_px"]["right"] < 1.5 * fitted["contour_px"]["right"]
     error = skin_error_mm(model, res.local_vertices, truth.local_vertices)
     assert error < skin_error_mm(model, clean.local_vertices, truth.local_vertices) + 0.45
     assert error < 0.95
+
+
+def test_a_first_fit_bent_to_the_body_is_no_start(model, monkeypatch):
+    # where the first round's outline below the neck departs from the rest by more than
+    # BODY_RESTART times its noise, the next round starts from the mean head: here at 1.2
+    # (this case's first round reads 1.5-2) it lands nearer the truth than going on from
+    # the bent head; a clean outline never starts again
+    case, truth, clean_case = _outline_off_the_body(model, 2)
+    monkeypatch.setattr(fit, "BODY_RESTART", 1.2)
+    res = fit_head(model, case)
+    assert res.info["noise"]["restarted"]
+    assert not fit_head(model, clean_case).info["noise"]["restarted"]
+    monkeypatch.setattr(fit, "BODY_RESTART", np.inf)
+    going_on = fit_head(model, case)
+    assert not going_on.info["noise"]["restarted"]
+    assert skin_error_mm(model, res.local_vertices, truth.local_vertices) \
+        < skin_error_mm(model, going_on.local_vertices, truth.local_vertices) - 0.05
