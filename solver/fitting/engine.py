@@ -157,7 +157,6 @@ class Engine:
         # traced outline starts its camera
         self.profile_chain = np.zeros(0, np.int64)
         # the vertices below the neck's base (outline.body_vertices): their outline rows
-        # weigh each view's body_scale
         # weigh each view's body_scale (None: no vertex is)
         self.body = None
         self.fixed_similarity = self.gauge(views)

@@ -25,7 +25,7 @@ from ..errors import rms
 from ..geometry import rotation_from_vector
 from ..model.linear_model import LinearModel
 from .depth import depth_rows
-from .outline import ContourRows
+from .outline import ContourRows, body_weights
 from .shape_icp import ShapeProblem
 from .views import ViewData
 
@@ -215,7 +215,7 @@ class Joint:
                 x = self.world(state)
             sel, px = rows.pairs(x[rows.vertices])
             w = self.eng.contour_weight * v.contour_scale \
-                * np.where(rows.body_rows, v.body_scale, 1.0) \
+                * body_weights(rows.body_rows, v.body_scale) \
                 if kind == "contour" else rows.row_weights / self.eng.inv_var
             out.setdefault(v.name, []).append((self.orig[rows.vertices[sel]], px, w))
         return out

@@ -37,6 +37,13 @@ def body_vertices(model):
     return memo(model, "body_vertices", make)
 
 
+def body_weights(on_body, scale):
+    """Each outline row's weight factor, (k,): ``scale`` (a view's
+    ``noise.Noise.body_factor``) where the row meets the silhouette below the neck's base
+    (``on_body`` (k,) bool), else 1."""
+    return np.where(on_body, scale, 1.0)
+
+
 def _median(x):
     """``np.median`` of a 1-D float array without NaN, to the bit, for a fraction of its
     call (once per outline update)."""
@@ -95,11 +102,12 @@ class ContourRows(CameraRows):
         Edges shared by two of those triangles: (vertex a, vertex b, face 1, face 2).
     max_distance, reject_factor, keep_distance, spacing_px : float
     normal_span_px : float
+        A point's normal is taken across the outline this far either side of it, pixels.
     body : array_like of bool, shape (n,), optional
         Which candidates lie below the neck's base (:func:`body_vertices`); a row whose
-        silhouette point lies on such an edge weighs ``body_scale`` times as much.
+        silhouette point lies on such an edge weighs ``body_scale`` times as much
+        (:func:`body_weights`).
     body_scale : float
-        A point's normal is taken across the outline this far either side of it, pixels.
     name : str
     """
 
@@ -347,9 +355,8 @@ class ContourRows(CameraRows):
     @property
     def row_weights(self):
         """The weights of the current rows, (k,)."""
-        w = self.point_weights[self.points] * self.factors
-        return np.where(self.body_rows, self.body_scale * w, w) if self.body_scale != 1.0 \
-            else w
+        return self.point_weights[self.points] * self.factors \
+            * body_weights(self.body_rows, self.body_scale)
 
     @property
     def body_rows(self):
