@@ -1,7 +1,7 @@
 """Photos as users give them: heads fitted from their photos alone (detected, as Auto Fit
 takes them) as rendered and changed as real photos are: with hair, a beard or glasses,
-bare shoulders, black and white, the head small in a larger photo, JPEG-compressed,
-darker, turned in their plane, cropped, blurred, noisy, with a colour cast.
+bare shoulders, in a room, black and white, the head small in a larger photo,
+JPEG-compressed, darker, turned in their plane, cropped, blurred, noisy, with a colour cast.
 
     python -m bench.bench_photo_variants [--variants NAME ...] [--face]
                                          [--heads DIR ...] [--render SEED ...]
@@ -14,7 +14,10 @@ of the head, within the head's own outline; the rendered heads are bald), ``thic
 from under the nose to under the chin and the lips' edge, up to 8 mm out past the jaw),
 ``glasses`` (dark frames: rims round the eyes, arms past the ears; on a profile the rim
 ahead of the eye), ``bare`` (the clothes coloured as the face's skin, their shading kept:
-bare shoulders or a skin-coloured top), ``grey`` (black and white), ``small`` (the photo
+bare shoulders or a skin-coloured top), ``room`` (a room behind the person, by the
+render's alpha: a lit wall, a painted door, a bookshelf and a window, out of focus; each
+photo its own), ``wood`` (the same with a wooden door: a thing of the skin's colour behind
+the head), ``grey`` (black and white), ``small`` (the photo
 in the middle of one four times its size, its corner's colour around it: the face 10 % of
 the longer side), ``jpeg50`` (JPEG at quality 50), ``dark`` (half as bright),
 ``turned10`` (turned by 10 degrees, the corners filled with its corner's colour),
@@ -30,6 +33,7 @@ them; a variant whose photos ``solver detect`` refuses is said and left out of t
 import argparse
 import io
 import tempfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -142,7 +146,7 @@ def beard_region(head, face, mm=8.0):
     return painted | grown
 
 
-def bare(image, head, face, person):
+def bare(image, head, face, person, *_):
     """The clothes coloured as the face's skin, their shading kept: bare shoulders or a
     skin-coloured top, whose colour does not end the outline. ``person`` (H, W) bool: the
     person's pixels (the head's and the clothes')."""
@@ -161,6 +165,60 @@ def beard(image, head, face, *_):
     """A dark full beard (:func:`beard_region`): the jaw's and chin's outline is the
     beard's, up to 8 mm out from the skin."""
     return _paint_hair(image, beard_region(head, face), seed=2)
+
+
+#: Paints of a room's wall, RGB 0-255: off-white, grey, beige, blue-grey, sage, taupe.
+WALLS = np.array([[236, 232, 222], [205, 205, 200], [222, 210, 188], [190, 200, 205],
+                  [200, 210, 190], [180, 170, 160]], float)
+#: A door behind the sitter: painted grey-blue, or wood (warm, near the skin's colour).
+DOORS = {"painted": (120, 125, 135), "wood": (150, 100, 60)}
+
+
+def room_behind(shape, rng, door):
+    """A room behind the sitter, (H, W, 3) float RGB 0-255: a wall lit from above, a door
+    (``DOORS[door]``: wood with a grain, paint evenly shaded), a bookshelf of coloured
+    spines and a bright window, out of focus (a Gaussian of 2-5 px) as a portrait's
+    background is."""
+    h, w = shape
+    v, u = np.mgrid[0:h, 0:w]
+    v, u = v / h, u / w
+    light = 0.85 + 0.25 * (1 - v) + 0.1 * np.cos(3 * u + rng.uniform(0, 6))
+    out = WALLS[rng.integers(len(WALLS))] * light[..., None]
+    left = rng.uniform(0.0, 0.15) if rng.random() < 0.5 else rng.uniform(0.55, 0.75)
+    panel = (u > left) & (u < left + rng.uniform(0.2, 0.35)) & (v > rng.uniform(0.0, 0.2))
+    grain = 1 + 0.08 * np.sin(300 * u * w / max(h, w) + 4 * np.sin(20 * v)) \
+        + 0.04 * rng.standard_normal((h, w)) if door == "wood" else 0.95 + 0.1 * v
+    colour = np.asarray(DOORS[door], float) * rng.uniform(0.8, 1.2)
+    out[panel] = colour * grain[panel][:, None]
+    shelf = rng.uniform(0.0, 0.6)
+    width, top = rng.uniform(0.25, 0.4), rng.uniform(0.05, 0.3)
+    for row in range(3):
+        bottom = top + 0.16 * row + 0.13
+        x = shelf
+        while x < shelf + width:
+            spine = rng.uniform(0.01, 0.03)
+            book = (u >= x) & (u < x + spine) & (v >= bottom - rng.uniform(0.09, 0.13)) \
+                & (v < bottom)
+            out[book] = rng.uniform(40, 200, 3) * rng.uniform(0.6, 1.0)
+            x += spine + 0.002
+        board = (u >= shelf - 0.01) & (u < shelf + width + 0.01) & (v >= bottom) \
+            & (v < bottom + 0.012)
+        out[board] = 0.9 * np.asarray(DOORS["wood"], float)
+    wx, wy = rng.uniform(0.0, 0.8), rng.uniform(0.0, 0.3)
+    out[(u >= wx) & (u < wx + 0.2) & (v >= wy) & (v < wy + 0.3)] = \
+        np.array([245, 248, 252]) * rng.uniform(0.97, 1.0)
+    return ndimage.gaussian_filter(np.clip(out, 0, 255), (rng.uniform(2, 5),) * 2 + (0,))
+
+
+def in_a_room(image, alpha, door):
+    """``image`` with a room (:func:`room_behind`) behind the person, by their ``alpha``
+    (H, W) in [0, 1]; the room drawn from the photo's own pixels (each head and view its
+    own)."""
+    pixels = np.asarray(image, float)
+    rng = np.random.default_rng(zlib.crc32(np.ascontiguousarray(pixels[::16, ::16])))
+    a = np.asarray(alpha, float)[..., None]
+    out = pixels * a + room_behind(a.shape[:2], rng, door) * (1 - a)
+    return Image.fromarray(np.clip(out, 0, 255).astype(np.uint8))
 
 
 def glasses(image, head, face, *_):
@@ -201,6 +259,8 @@ VARIANTS = {
     "beard": beard,
     "glasses": glasses,
     "bare": bare,
+    "room": lambda im, head, face, person, alpha: in_a_room(im, alpha, "painted"),
+    "wood": lambda im, head, face, person, alpha: in_a_room(im, alpha, "wood"),
     "grey": lambda im, *_: im.convert("L").convert("RGB"),
     "small": lambda im, *_: Image.fromarray(padded(np.asarray(im), {}, 4)[0]),
     "jpeg50": lambda im, *_: _jpeg(im),
@@ -215,14 +275,17 @@ VARIANTS = {
 
 
 def changed(folder, variant, into, detector):
-    """The head's two photos changed by ``VARIANTS[variant]``, written into ``into``."""
+    """The head's two photos changed by ``VARIANTS[variant]``, written into ``into``. A
+    variant takes (photo, the head's pixels, the detected face, the person's pixels, the
+    person's alpha in [0, 1])."""
     into.mkdir(parents=True, exist_ok=True)
     truth = np.load(folder / "truth.npz", allow_pickle=True)
     for view in ("front", "side"):
         image = Image.open(folder / f"{view}.png").convert("RGB")
         face = detector.detect(np.asarray(image))
-        VARIANTS[variant](image, truth[f"head_alpha_{view}"] >= 128, face,
-                          truth[f"alpha_{view}"] >= 128).save(into / f"{view}.png")
+        alpha = truth[f"alpha_{view}"]
+        VARIANTS[variant](image, truth[f"head_alpha_{view}"] >= 128, face, alpha >= 128,
+                          alpha / 255.0).save(into / f"{view}.png")
     return into
 
 

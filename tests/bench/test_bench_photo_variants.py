@@ -80,3 +80,26 @@ def test_bare_colours_the_clothes_as_the_face_and_keeps_their_shading():
     lit, shade = image[470, 300], image[520, 100]
     np.testing.assert_allclose(lit / lit.sum(), np.array([220, 170, 140]) / 530, atol=0.01)
     assert shade.sum() < 0.7 * lit.sum()
+
+
+def test_a_room_goes_behind_the_person_by_their_alpha_and_each_photo_has_its_own():
+    from bench.bench_photo_variants import DOORS, in_a_room, room_behind
+
+    photo = np.full((120, 90, 3), 200, np.uint8)
+    photo[30:90, 20:70] = [210, 160, 140]
+    alpha = np.zeros((120, 90))
+    alpha[30:90, 20:70] = 1.0
+    out = np.asarray(in_a_room(Image.fromarray(photo), alpha, "wood")).astype(int)
+    assert (out[30:90, 20:70] == [210, 160, 140]).all()         # the person as it was
+    assert (np.abs(out[alpha == 0] - 200).sum(axis=1) > 6).mean() > 0.9   # the room behind
+    again = np.asarray(in_a_room(Image.fromarray(photo), alpha, "wood")).astype(int)
+    assert (again == out).all()
+    photo[0, 0] = 0                                  # another photo: another room
+    other = np.asarray(in_a_room(Image.fromarray(photo), alpha, "wood")).astype(int)
+    assert (other != out).any()
+    # the wooden door is warm (red over blue), the painted one is not
+    for door, warm in (("wood", True), ("painted", False)):
+        room = room_behind((400, 300), np.random.default_rng(1), door)
+        near = np.linalg.norm(room - np.asarray(DOORS[door]), axis=2) < 40
+        red, _, blue = np.median(room[near], axis=0)
+        assert near.mean() > 0.05 and (red > blue + 40 if warm else red < blue)
