@@ -186,8 +186,11 @@ def room_behind(shape, rng, door):
     out = WALLS[rng.integers(len(WALLS))] * light[..., None]
     left = rng.uniform(0.0, 0.15) if rng.random() < 0.5 else rng.uniform(0.55, 0.75)
     panel = (u > left) & (u < left + rng.uniform(0.2, 0.35)) & (v > rng.uniform(0.0, 0.2))
-    grain = 1 + 0.08 * np.sin(300 * u * w / max(h, w) + 4 * np.sin(20 * v)) \
-        + 0.04 * rng.standard_normal((h, w)) if door == "wood" else 0.95 + 0.1 * v
+    if door == "wood":
+        grain = 1 + 0.08 * np.sin(300 * u * w / max(h, w) + 4 * np.sin(20 * v)) \
+            + 0.04 * rng.standard_normal((h, w))
+    else:
+        grain = 0.95 + 0.1 * v
     colour = np.asarray(DOORS[door], float) * rng.uniform(0.8, 1.2)
     out[panel] = colour * grain[panel][:, None]
     shelf = rng.uniform(0.0, 0.6)
@@ -212,8 +215,8 @@ def room_behind(shape, rng, door):
 
 def in_a_room(image, alpha, door):
     """``image`` with a room (:func:`room_behind`) behind the person, by their ``alpha``
-    (H, W) in [0, 1]; the room drawn from the photo's own pixels (each head and view its
-    own)."""
+    (H, W) in [0, 1]; the room's random draw seeded by the photo's pixels, so each head
+    and view has its own and a rerun the same."""
     pixels = np.asarray(image, float)
     rng = np.random.default_rng(zlib.crc32(np.ascontiguousarray(pixels[::16, ::16])))
     a = np.asarray(alpha, float)[..., None]
