@@ -87,7 +87,7 @@ from .outcome import (
     skin_maps,
     vertex_uncertainty,
 )
-from .outline import body_vertices, body_weights, outline_candidates
+from .outline import body_weights, outline_candidates
 from .pose import init_pose
 from .rows import ImageRows
 from .views import (
@@ -607,7 +607,7 @@ def refit_landmarks(model, case, previous, options=None):
             cv = np.asarray(pairs["vertices"], dtype=np.int64)
             rows.append(ImageRows(np.arange(off, off + len(cv)), pairs["pixels"], v.camera,
                                   weights=opts.contour_weight * eng.inv_var * v.contour_scale
-                                  * body_weights(body_vertices(model)[cv], v.body_scale),
+                                  * body_weights(eng.body[cv], v.body_scale),
                                   name=f"contour {v.name}"))
             verts.append(cv)
             off += len(cv)

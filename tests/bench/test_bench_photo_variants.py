@@ -1,13 +1,22 @@
 """bench/bench_photo_variants.py's painted hair, beard and glasses on a drawn head: where
 each lies against the head's own outline and the face's keypoints; clothes coloured as
-skin."""
+skin; a room behind the person."""
 
 from types import SimpleNamespace
 
 import numpy as np
 from PIL import Image
 
-from bench.bench_photo_variants import bare, beard_region, glasses, hair_region, thick_hair
+from bench.bench_photo_variants import (
+    DOORS,
+    bare,
+    beard_region,
+    glasses,
+    hair_region,
+    in_a_room,
+    room_behind,
+    thick_hair,
+)
 
 
 def _head():
@@ -83,8 +92,6 @@ def test_bare_colours_the_clothes_as_the_face_and_keeps_their_shading():
 
 
 def test_a_room_goes_behind_the_person_by_their_alpha_and_each_photo_has_its_own():
-    from bench.bench_photo_variants import DOORS, in_a_room, room_behind
-
     photo = np.full((120, 90, 3), 200, np.uint8)
     photo[30:90, 20:70] = [210, 160, 140]
     alpha = np.zeros((120, 90))
