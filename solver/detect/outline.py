@@ -10,6 +10,10 @@ Steps (numbers in docs/DECISIONS.md, "The head's outline"):
    rendered photos, its map's pixel 3.4-3.8 photo pixels;
 2. each point moved along the outline's normal to where the photo's colour crosses
    halfway between the colours inside and outside (sub-pixel, on the photo itself);
+   where a long stretch of it is straight, the segmentation took in something behind
+   the head (a door, a frame: ``straight_stretches``), and what it took in of that
+   thing's colour is taken out of the mask and the outline found again
+   (``without_leaks``);
 3. the colour just inside each point against the face's skin (sampled between the
    detector's keypoints: eyes, nose, mouth, ears): the outline is the run of skin that
    holds the face's front (the nose tip), so hair (on the forehead, the crown, the nape)
@@ -24,11 +28,13 @@ Steps (numbers in docs/DECISIONS.md, "The head's outline"):
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import ndimage
+from scipy.spatial import cKDTree
 
 from ..photo_colour import has_colour, sample_photo, skin_colour, skin_like
 from .crop import Square
 from .iso_line import iso_lines
-from .segmentation import person_mask
+from .segmentation import PersonMask, person_mask
 
 #: Outline points every this many photo pixels (the fit weighs points by the outline
 #: length they stand for, ``solver.io.contour.SPACING_PX``, so denser is not heavier).
@@ -59,6 +65,23 @@ NEAR_FACE = 1.0
 #: cannot be told from clothes, the outline ends this many eye-to-mouth distances below
 #: the mouth (along the line from the eyes to the mouth): about 2 cm under the chin.
 NECK_CUT = 1.0
+#: A stretch of the outline this many face sizes long that stays within ``STRAIGHT_TOL``
+#: face sizes of a straight line is the edge of something behind the head (a door, a
+#: frame, a shelf) that the segmentation took in: no head's outline is that straight
+#: (docs/DECISIONS.md, "A straight edge beside the head") ...
+STRAIGHT_LONG = 0.6
+STRAIGHT_TOL = 0.0025
+#: ... where it comes this many face sizes near the face's centre (farther off, the body
+#: cut straight by the edge of a photo within the photo: a turned or a framed one).
+STRAIGHT_NEAR = 1.0
+#: What of that thing the segmentation took in is looked for within this many face
+#: sizes of the straight stretch.
+LEAK_REACH = 1.0
+#: ... and is the map's pixels of its colour: within this many times its spread along the
+#: straight stretch (at least ``LEAK_COLOUR``, RGB in [0, 1]) and nearer it than the
+#: face's skin.
+LEAK_SPREADS = 3.0
+LEAK_COLOUR = 0.06
 
 
 @dataclass
@@ -192,12 +215,17 @@ def face_skin(image, face, mask):
     warmth : float
         Median red share less blue share ((r - b) / (r + g + b)).
     """
+    return skin_colour(_skin_samples(image, face, mask))
+
+
+def _skin_samples(image, face, mask):
+    """The photo's colours (m, 3) where :func:`face_skin` samples the face's skin."""
     pairs = [(0, 3), (1, 3), (2, 3), (3, 4), (3, 5), (0, 4), (1, 5), (2, 4), (2, 5)]
     pts = between_keypoints(face, pairs)
     pts = pts[mask.at(pts) >= 0.5]
     if len(pts) < 5:
         raise ValueError("no skin sampled between the face's keypoints")
-    return skin_colour(sample_photo(image, pts))
+    return sample_photo(image, pts)
 
 
 def _runs(flags):
@@ -259,22 +287,20 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
         square = Square(tuple(np.asarray(centre) + shift), REGROW * square.size)
         mask = person_mask(network, image, square)
     nose = np.asarray(face.keypoints, float)[2]
-    loops = [mask.to_photo(line) for line in iso_lines(mask.probability)]
-    loops = [p for p in loops if _contains(p, nose)] or loops[:1]
-    if not loops or len(loops[0]) < 8:
-        raise ValueError("no person found for an outline")
-    loop = _closed_resample(loops[0], spacing_px)
-    h, w = image.shape[:2]
-    reach = SEARCH_MAP_PX * mask.pixel_size
-    moved, refined, inside = refine_edge(image, loop, _normals(loop), reach)
-    # seen: on the photo and inside the segmented square (beyond them nothing is)
-    on_photo = ((moved[:, 0] > 1) & (moved[:, 0] < w - 1) & (moved[:, 1] > 1)
-                & (moved[:, 1] < h - 1)) & mask.inside(loop)
+    size = float(box[2] - box[0])
+    loop, moved, refined, inside = _edge(image, mask, nose, spacing_px)
+    taken_out = 0
+    straight = _straight_by_the_face(image, mask, loop, moved, centre, size)
+    if straight.any():
+        mask, taken_out = without_leaks(image, mask, moved, straight,
+                                        np.median(_skin_samples(image, face, mask), axis=0),
+                                        LEAK_REACH * size)
+        loop, moved, refined, inside = _edge(image, mask, nose, spacing_px)
+    on_photo = _seen(image, mask, loop, moved)
     skin_of_face = face_skin(image, face, mask)
     colour = has_colour(skin_of_face)
     above = np.ones(len(moved), bool) if colour else _above_neck_cut(moved, face)
     skin = skin_like(inside, skin_of_face)
-    size = float(box[2] - box[0])
     shortest = max(int(round(MIN_STRETCH * size / spacing_px)), 1)
     skin = _close_short_gaps(skin, shortest)
     # off the photo nothing is seen: the head's outline goes on across the photo's border
@@ -320,12 +346,109 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
         idx, notes = idx[::-1], notes[::-1]
     notes = [f"starts at {notes[0]}", f"ends at {notes[1]}",
              f"{int(refined[idx].sum())} of {len(idx)} points moved onto a colour edge"]
+    if taken_out:
+        notes.append(f"a straight edge behind the head (a door, a frame, a shelf) was taken "
+                     f"for it: {taken_out * mask.pixel_size ** 2:.0f} px\u00b2 of what lies "
+                     "behind it left out")
     if crossed:
         notes.append("the photo's border cuts the head: its outline goes on beyond it")
     if not colour:
         notes.append("the photo has no colour: the outline ends under the chin and the fit "
                      "gets only its points on an edge")
     return Outline(moved[idx], refined[idx], notes, colour)
+
+
+def _edge(image, mask, nose, spacing_px):
+    """The person's outline around the ``nose`` in ``mask``: (the iso-line resampled
+    every ``spacing_px``, it moved onto the photo's colour edge, which points were, their
+    colours inside; as ``refine_edge``)."""
+    loops = [mask.to_photo(line) for line in iso_lines(mask.probability)]
+    loops = [p for p in loops if _contains(p, nose)] or loops[:1]
+    if not loops or len(loops[0]) < 8:
+        raise ValueError("no person found for an outline")
+    loop = _closed_resample(loops[0], spacing_px)
+    return (loop, *refine_edge(image, loop, _normals(loop),
+                               SEARCH_MAP_PX * mask.pixel_size))
+
+
+def _seen(image, mask, loop, moved):
+    """Which outline points (n,) bool lie on the photo and inside the segmented square
+    (beyond them nothing is seen): ``loop`` the iso-line's, ``moved`` them on the edge."""
+    h, w = image.shape[:2]
+    return ((moved[:, 0] > 1) & (moved[:, 0] < w - 1) & (moved[:, 1] > 1)
+            & (moved[:, 1] < h - 1)) & mask.inside(loop)
+
+
+def _straight_by_the_face(image, mask, loop, moved, centre, size):
+    """Which outline points (n,) bool lie on straight stretches (``straight_stretches``
+    with ``STRAIGHT_LONG`` and ``STRAIGHT_TOL`` of the face's ``size``) that come within
+    ``STRAIGHT_NEAR`` face sizes of its ``centre``."""
+    straight = straight_stretches(moved, STRAIGHT_TOL * size, STRAIGHT_LONG * size,
+                                  _seen(image, mask, loop, moved))
+    for a, b in _runs(straight) if straight.any() else ():
+        run = np.arange(a, b) % len(moved)
+        if np.linalg.norm(moved[run] - np.asarray(centre), axis=1).min() > STRAIGHT_NEAR * size:
+            straight[run] = False
+    return straight
+
+
+def straight_stretches(points, tol, length, seen):
+    """Which points (n,) bool of a closed outline (n, 2), about evenly spaced, lie on a
+    stretch of ``seen`` points at least ``length`` long (px, along it) that stays within
+    ``tol`` px of the line between its ends (where the photo's border or the segmented
+    square cuts the person, the outline runs straight along it: those are not seen)."""
+    n = len(points)
+    step = np.linalg.norm(np.roll(points, -1, axis=0) - points, axis=1)
+    m = int(np.ceil(length / max(float(np.median(step)), 1e-9)))
+    flags = np.zeros(n, bool)
+    if m >= n:
+        return flags
+    idx = (np.arange(n)[:, None] + np.arange(m + 1)[None]) % n      # each window (n, m+1)
+    w = points[idx]
+    chord = w[:, -1] - w[:, 0]
+    normal = np.stack([-chord[:, 1], chord[:, 0]], axis=1) \
+        / np.maximum(np.linalg.norm(chord, axis=1, keepdims=True), 1e-9)
+    off = np.abs(((w - w[:, :1]) * normal[:, None]).sum(axis=2)).max(axis=1)
+    flags[idx[(off <= tol) & seen[idx].all(axis=1)].ravel()] = True
+    return flags
+
+
+def without_leaks(image, mask, points, straight, skin, reach):
+    """``mask`` without what it took in of the things whose straight edges ``straight``
+    (n,) bool marks on its outline ``points`` (n, 2): for each run of them, the person's
+    map pixels within ``reach`` photo px of it that have the thing's own colour (the
+    median of the photo a little inside the run, ``LEAK_SPREADS`` times its spread, nearer
+    it than the face's ``skin`` (3,) RGB), connected to the run. Returns (the mask, how
+    many map pixels were taken out)."""
+    n = mask.probability.shape[0]
+    r, c = np.mgrid[0:n, 0:n]
+    uv = mask.to_photo(np.stack([c.ravel(), r.ravel()], axis=1))
+    colours = sample_photo(image, uv)
+    person = mask.probability >= 0.5
+    leak = np.zeros_like(person)
+    inward = -_normals(points)
+    depth = (SEARCH_MAP_PX + 2.0) * mask.pixel_size   # past the edge's blur and search
+    for a, b in _runs(straight):
+        idx = np.arange(a, b) % len(points)
+        own = sample_photo(image, points[idx] + depth * inward[idx])
+        thing = np.median(own, axis=0)
+        spread = 1.4826 * np.median(np.linalg.norm(own - thing, axis=1))
+        # its own colour: within its spread, and nearer it than the skin
+        tol = min(max(LEAK_SPREADS * spread, LEAK_COLOUR), 0.5 * np.linalg.norm(skin - thing))
+        near = (cKDTree(points[idx]).query(uv, distance_upper_bound=reach)[0]
+                <= reach).reshape(n, n)
+        like = person & near & (np.linalg.norm(colours - thing, axis=1) <= tol).reshape(n, n)
+        labels, _ = ndimage.label(like)
+        x, y = mask.to_map(points[idx] + depth * inward[idx])
+        seeds = labels[np.clip(np.round(y).astype(int), 0, n - 1),
+                       np.clip(np.round(x).astype(int), 0, n - 1)]
+        leak |= np.isin(labels, seeds[seeds > 0])
+    # the map's pixels on the thing's own edge are of mixed colour: a strip a pixel wide
+    # left beside what was taken out goes with it
+    kept = person & ~leak
+    leak |= kept & ~ndimage.binary_opening(kept) & ndimage.binary_dilation(leak, iterations=2)
+    return (PersonMask(mask.square, np.where(leak, 0.0, mask.probability).astype(np.float32)),
+            int(leak.sum()))
 
 
 def _reaching(mask, mouth):
