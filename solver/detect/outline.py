@@ -289,14 +289,15 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
     nose = np.asarray(face.keypoints, float)[2]
     size = float(box[2] - box[0])
     loop, moved, refined, inside = _edge(image, mask, nose, spacing_px)
+    on_photo = _seen(image, mask, loop, moved)
     taken_out = 0
-    straight = _straight_by_the_face(image, mask, loop, moved, centre, size)
+    straight = _straight_by_the_face(moved, on_photo, centre, size)
     if straight.any():
         mask, taken_out = without_leaks(image, mask, moved, straight,
                                         np.median(_skin_samples(image, face, mask), axis=0),
                                         LEAK_REACH * size)
         loop, moved, refined, inside = _edge(image, mask, nose, spacing_px)
-    on_photo = _seen(image, mask, loop, moved)
+        on_photo = _seen(image, mask, loop, moved)
     skin_of_face = face_skin(image, face, mask)
     colour = has_colour(skin_of_face)
     above = np.ones(len(moved), bool) if colour else _above_neck_cut(moved, face)
@@ -379,15 +380,14 @@ def _seen(image, mask, loop, moved):
             & (moved[:, 1] < h - 1)) & mask.inside(loop)
 
 
-def _straight_by_the_face(image, mask, loop, moved, centre, size):
-    """Which outline points (n,) bool lie on straight stretches (``straight_stretches``
-    with ``STRAIGHT_LONG`` and ``STRAIGHT_TOL`` of the face's ``size``) that come within
-    ``STRAIGHT_NEAR`` face sizes of its ``centre``."""
-    straight = straight_stretches(moved, STRAIGHT_TOL * size, STRAIGHT_LONG * size,
-                                  _seen(image, mask, loop, moved))
+def _straight_by_the_face(points, seen, centre, size):
+    """Which outline points (n,) bool lie on straight stretches of ``seen`` ones
+    (``straight_stretches`` with ``STRAIGHT_LONG`` and ``STRAIGHT_TOL`` of the face's
+    ``size``) that come within ``STRAIGHT_NEAR`` face sizes of its ``centre``."""
+    straight = straight_stretches(points, STRAIGHT_TOL * size, STRAIGHT_LONG * size, seen)
     for a, b in _runs(straight) if straight.any() else ():
-        run = np.arange(a, b) % len(moved)
-        if np.linalg.norm(moved[run] - np.asarray(centre), axis=1).min() > STRAIGHT_NEAR * size:
+        run = np.arange(a, b) % len(points)
+        if np.linalg.norm(points[run] - np.asarray(centre), axis=1).min() > STRAIGHT_NEAR * size:
             straight[run] = False
     return straight
 
