@@ -104,6 +104,7 @@ class AutoFitJob:
             task.face = face.found
             if face.outline is not None:
                 task.points, task.notes = face.outline.contour, list(face.outline.notes)
+                task.warnings = list(face.outline.warnings)
 
     def run(self):
         """Detect, merge, fit, bake. Errors are kept in ``error``, never raised."""

@@ -32,6 +32,7 @@ class OutlineTask:
     face: object = None  # the detector's face on the photo, when found already (Auto Fit)
     points: object = None
     notes: list = dataclasses.field(default_factory=list)
+    warnings: list = dataclasses.field(default_factory=list)
     problem: str = None
     seconds: float = 0.0
 
@@ -48,7 +49,8 @@ class OutlineTask:
             return [("INFO", f"{self.view}: outline found ({len(self.points)} points), the "
                              "contour traced by hand kept")]
         return [("INFO", f"{self.view}: outline of {len(self.points)} points "
-                         f"({'; '.join(self.notes[:2])})")]
+                         f"({'; '.join(self.notes[:2])})")] \
+            + [("WARNING", f"{where}: {w}") for w in self.warnings]
 
 
 @dataclasses.dataclass
@@ -64,7 +66,7 @@ class OutlineJob(PhotosJob):
             return  # found already (Auto Fit: by the landmarks' detection on a profile)
         try:
             found = photo_faces.find_outline(task.pixels, task.face)
-            task.points, task.notes = found.contour, found.notes
+            task.points, task.notes, task.warnings = found.contour, found.notes, found.warnings
         except ValueError as e:
             task.problem = str(e)
 

@@ -173,13 +173,16 @@ def wants_outline(face, outlines):
 
 def photo_outline(detector, image, face, path, echo):
     """The :class:`~.outline.Outline` of ``image`` (``Detector.outline``), or None with one
-    line naming the photo given to ``echo`` when none is found; its ends are said too."""
+    line naming the photo given to ``echo`` when none is found; its ends are said too, and
+    its warnings, each a line."""
     try:
         found = detector.outline(image, face)
     except ValueError as err:
         echo(f"warning: {path}: {err}; the view gets no outline")
         return None
     echo(f"{path}: outline of {len(found.contour)} points, {'; '.join(found.notes)}")
+    for warning in found.warnings:
+        echo(f"warning: {path}: {warning}")
     return found
 
 

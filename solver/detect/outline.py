@@ -103,12 +103,16 @@ class Outline:
         border") and other facts for the report.
     colour : bool
         The photo has colour (``photo_colour.has_colour``).
+    warnings : list of str
+        What the user should check on this outline: a thing behind the head that the
+        segmentation took in, left out of it (``without_leaks``).
     """
 
     points: np.ndarray
     refined: np.ndarray
     notes: list = field(default_factory=list)
     colour: bool = True
+    warnings: list = field(default_factory=list)
 
     @property
     def contour(self):
@@ -347,16 +351,16 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
         idx, notes = idx[::-1], notes[::-1]
     notes = [f"starts at {notes[0]}", f"ends at {notes[1]}",
              f"{int(refined[idx].sum())} of {len(idx)} points moved onto a colour edge"]
-    if taken_out:
-        notes.append(f"a straight edge behind the head (a door, a frame, a shelf) was taken "
-                     f"for it: {taken_out * mask.pixel_size ** 2:.0f} px\u00b2 of what lies "
-                     "behind it left out")
+    warnings = [f"the outline ran along a straight edge beside the face (a door, a frame, "
+                f"a shelf behind the head): {taken_out * mask.pixel_size ** 2:.0f} px\u00b2 "
+                "of it taken for the head were left out; check the outline there"] \
+        if taken_out else []
     if crossed:
         notes.append("the photo's border cuts the head: its outline goes on beyond it")
     if not colour:
         notes.append("the photo has no colour: the outline ends under the chin and the fit "
                      "gets only its points on an edge")
-    return Outline(moved[idx], refined[idx], notes, colour)
+    return Outline(moved[idx], refined[idx], notes, colour, warnings)
 
 
 def _edge(image, mask, nose, spacing_px):

@@ -88,6 +88,20 @@ def test_auto_fit_fits_with_the_detected_outlines(sample):
     assert photos.find_plane(scene, "front") is not None
 
 
+def test_an_outline_s_warnings_are_lines_of_the_report_naming_the_photo():
+    from headrecon_addon.outline_job import OutlineTask
+
+    task = OutlineTask("side", "side.png", None, False, False, points=np.zeros((40, 2)),
+                       notes=["starts at the photo's border", "ends at hair"],
+                       warnings=["the outline ran along a straight edge beside the face"])
+    (level, line), (warn, said) = task.lines(replace=False)
+    assert level == "INFO" and "side: outline of 40 points" in line
+    assert warn == "WARNING" and said == ("view 'side' (side.png): the outline ran along a "
+                                          "straight edge beside the face")
+    task.warnings = []
+    assert len(task.lines(replace=False)) == 1
+
+
 def test_the_job_examines_each_photo_and_stops_when_cancelled():
     """The loop Detect Landmarks and Detect Outline share (``detect_job.PhotosJob``): a
     photo without a face is its task's problem, each photo is timed, and a cancelled job
