@@ -300,6 +300,7 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
         mask, taken_out = without_leaks(image, mask, moved, straight,
                                         np.median(_skin_samples(image, face, mask), axis=0),
                                         LEAK_REACH * size)
+    if taken_out:
         loop, moved, refined, inside = _edge(image, mask, nose, spacing_px)
         on_photo = _seen(image, mask, loop, moved)
     skin_of_face = face_skin(image, face, mask)
@@ -389,7 +390,7 @@ def _straight_by_the_face(points, seen, centre, size):
     (``straight_stretches`` with ``STRAIGHT_LONG`` and ``STRAIGHT_TOL`` of the face's
     ``size``) that come within ``STRAIGHT_NEAR`` face sizes of its ``centre``."""
     straight = straight_stretches(points, STRAIGHT_TOL * size, STRAIGHT_LONG * size, seen)
-    for a, b in _runs(straight) if straight.any() else ():
+    for a, b in _runs(straight):
         run = np.arange(a, b) % len(points)
         if np.linalg.norm(points[run] - np.asarray(centre), axis=1).min() > STRAIGHT_NEAR * size:
             straight[run] = False
@@ -434,7 +435,8 @@ def without_leaks(image, mask, points, straight, skin, reach):
     depth = (SEARCH_MAP_PX + 2.0) * mask.pixel_size   # past the edge's blur and search
     for a, b in _runs(straight):
         idx = np.arange(a, b) % len(points)
-        own = sample_photo(image, points[idx] + depth * inward[idx])
+        within = points[idx] + depth * inward[idx]
+        own = sample_photo(image, within)
         thing = np.median(own, axis=0)
         spread = 1.4826 * np.median(np.linalg.norm(own - thing, axis=1))
         # its own colour: within its spread, and nearer it than the skin
@@ -443,7 +445,7 @@ def without_leaks(image, mask, points, straight, skin, reach):
                 <= reach).reshape(n, n)
         like = person & near & (np.linalg.norm(colours - thing, axis=1) <= tol).reshape(n, n)
         labels, _ = ndimage.label(like)
-        x, y = mask.to_map(points[idx] + depth * inward[idx])
+        x, y = mask.to_map(within)
         seeds = labels[np.clip(np.round(y).astype(int), 0, n - 1),
                        np.clip(np.round(x).astype(int), 0, n - 1)]
         leak |= np.isin(labels, seeds[seeds > 0])
