@@ -71,6 +71,12 @@ NECK_CUT = 1.0
 #: (docs/DECISIONS.md, "A straight edge beside the head") ...
 STRAIGHT_LONG = 0.6
 STRAIGHT_TOL = 0.0025
+#: ... or within this many where the thing's colour is not the skin's (its chromaticity
+#: at least ``LEAK_CHROMA`` from the face's): a wooden door's grain moves its edge by about
+#: a pixel, while a skull's shaded back, as straight at this tolerance on some heads, is
+#: the skin's colour.
+STRAIGHT_TOL_COLOURED = 0.005
+LEAK_CHROMA = 0.06
 #: ... where it comes this many face sizes near the face's centre (farther off, the body
 #: cut straight by the edge of a photo within the photo: a turned or a framed one).
 STRAIGHT_NEAR = 1.0
@@ -295,11 +301,11 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
     loop, moved, refined, inside = _edge(image, mask, nose, spacing_px)
     on_photo = _seen(image, mask, loop, moved)
     taken_out = 0
-    straight = _straight_by_the_face(moved, on_photo, centre, size)
+    straight, sure = _straight_by_the_face(moved, on_photo, centre, size)
     if straight.any():
         mask, taken_out = without_leaks(image, mask, moved, straight,
                                         np.median(_skin_samples(image, face, mask), axis=0),
-                                        LEAK_REACH * size)
+                                        LEAK_REACH * size, sure)
     if taken_out:
         loop, moved, refined, inside = _edge(image, mask, nose, spacing_px)
         on_photo = _seen(image, mask, loop, moved)
@@ -387,14 +393,18 @@ def _seen(image, mask, loop, moved):
 
 def _straight_by_the_face(points, seen, centre, size):
     """Which outline points (n,) bool lie on straight stretches of ``seen`` ones
-    (``straight_stretches`` with ``STRAIGHT_LONG`` and ``STRAIGHT_TOL`` of the face's
-    ``size``) that come within ``STRAIGHT_NEAR`` face sizes of its ``centre``."""
-    straight = straight_stretches(points, STRAIGHT_TOL * size, STRAIGHT_LONG * size, seen)
+    (``straight_stretches``, ``STRAIGHT_LONG`` of the face's ``size``) that come within
+    ``STRAIGHT_NEAR`` face sizes of its ``centre``: (within ``STRAIGHT_TOL_COLOURED``,
+    within ``STRAIGHT_TOL``)."""
+    straight = straight_stretches(points, STRAIGHT_TOL_COLOURED * size,
+                                  STRAIGHT_LONG * size, seen)
     for a, b in _runs(straight):
         run = np.arange(a, b) % len(points)
         if np.linalg.norm(points[run] - np.asarray(centre), axis=1).min() > STRAIGHT_NEAR * size:
             straight[run] = False
-    return straight
+    sure = straight & straight_stretches(points, STRAIGHT_TOL * size, STRAIGHT_LONG * size,
+                                         seen)
+    return straight, sure
 
 
 def straight_stretches(points, tol, length, seen):
@@ -418,13 +428,15 @@ def straight_stretches(points, tol, length, seen):
     return flags
 
 
-def without_leaks(image, mask, points, straight, skin, reach):
+def without_leaks(image, mask, points, straight, skin, reach, sure=None):
     """``mask`` without what it took in of the things whose straight edges ``straight``
     (n,) bool marks on its outline ``points`` (n, 2): for each run of them, the person's
     map pixels within ``reach`` photo px of it that have the thing's own colour (the
     median of the photo a little inside the run, ``LEAK_SPREADS`` times its spread, nearer
-    it than the face's ``skin`` (3,) RGB), connected to the run. Returns (the mask, how
-    many map pixels were taken out)."""
+    it than the face's ``skin`` (3,) RGB), connected to the run. A run with no point
+    marked ``sure`` (n,) bool (default: all are) counts only where the thing's
+    chromaticity lies ``LEAK_CHROMA`` or more from the skin's. Returns (the mask, how many
+    map pixels were taken out)."""
     n = mask.probability.shape[0]
     r, c = np.mgrid[0:n, 0:n]
     uv = mask.to_photo(np.stack([c.ravel(), r.ravel()], axis=1))
@@ -438,6 +450,9 @@ def without_leaks(image, mask, points, straight, skin, reach):
         within = points[idx] + depth * inward[idx]
         own = sample_photo(image, within)
         thing = np.median(own, axis=0)
+        if sure is not None and not sure[idx].any() and np.linalg.norm(
+                _chromaticity(thing) - _chromaticity(skin)) < LEAK_CHROMA:
+            continue
         spread = 1.4826 * np.median(np.linalg.norm(own - thing, axis=1))
         # its own colour: within its spread, and nearer it than the skin
         tol = min(max(LEAK_SPREADS * spread, LEAK_COLOUR), 0.5 * np.linalg.norm(skin - thing))
@@ -455,6 +470,12 @@ def without_leaks(image, mask, points, straight, skin, reach):
     leak |= kept & ~ndimage.binary_opening(kept) & ndimage.binary_dilation(leak, iterations=2)
     return (PersonMask(mask.square, np.where(leak, 0.0, mask.probability).astype(np.float32)),
             int(leak.sum()))
+
+
+def _chromaticity(rgb):
+    """An RGB colour's shares of its sum (3,): its hue and saturation, not its light."""
+    rgb = np.asarray(rgb, float)
+    return rgb / max(float(rgb.sum()), 1e-9)
 
 
 def _reaching(mask, mouth):

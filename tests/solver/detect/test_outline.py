@@ -7,7 +7,15 @@ import pytest
 from PIL import Image
 
 from solver.detect import Detector
-from solver.detect.outline import STRAIGHT_LONG, head_outline, refine_edge, straight_stretches
+from solver.detect.crop import Square
+from solver.detect.outline import (
+    STRAIGHT_LONG,
+    head_outline,
+    refine_edge,
+    straight_stretches,
+    without_leaks,
+)
+from solver.detect.segmentation import PersonMask
 from solver.paths import DETECTOR_DIR
 
 
@@ -224,27 +232,37 @@ def test_a_straight_stretch_is_told_from_a_curve_and_from_the_photo_s_border():
     assert not straight_stretches(shape, 1.0, 120.0, seen).any()
 
 
-def test_a_door_the_segmentation_takes_in_is_left_out_of_the_outline(sample, detector):
+WOOD = np.array([0.65, 0.44, 0.26])
+
+
+@pytest.mark.parametrize("wood", [False, True])
+def test_a_door_the_segmentation_takes_in_is_left_out_of_the_outline(sample, detector, wood):
     from solver import load_landmarks
 
-    # a door of the skin's own hue, a quarter darker, from the brows down in front of the
-    # face, and a segmentation that takes all of it in as the person (MediaPipe's took in
-    # doors beside the head in rooms, docs/DECISIONS.md): its edge in front of the lips
-    # would be read as the face's profile
+    # a door in front of the face, and a segmentation that takes all of it in as the
+    # person (MediaPipe's took in doors beside the head in rooms, docs/DECISIONS.md): its
+    # edge in front of the lips would be read as the face's profile. Of the skin's own
+    # hue, a quarter darker, from the brows down, its edge straight; or of a wooden door's
+    # colour, from the nose down, its edge wandering by 0.3 % of the face's size either
+    # way, as a wooden door's grain moves a photo's edge (about a pixel on a 400-px face)
     folder, truth = sample
     image = _photo(folder).astype(float) / 255
     face = detector.detect(image)
     k, size = np.asarray(face.keypoints), face.box[2] - face.box[0]
     alpha = truth["alpha_side"][..., None] / 255.0
     skin = np.median(image[truth["head_alpha_side"] >= 128], axis=0)
+    colour = WOOD if wood else 0.75 * skin
     vv, uu = np.mgrid[0:image.shape[0], 0:image.shape[1]]
-    door = (uu > k[2][0] - 0.1 * size) & (vv > k[0][1] - 0.3 * size)
-    photo = image * alpha + np.where(door[..., None], 0.75 * skin, image[0, 0]) * (1 - alpha)
+    edge = k[2][0] - 0.1 * size + (0.003 * size if wood else 0.0) * np.sin(
+        2 * np.pi * vv / (0.15 * size))
+    top = k[2][1] if wood else k[0][1] - 0.3 * size
+    cover = (np.clip(uu - edge + 0.5, 0.0, 1.0) * (vv > top))[..., None]
+    photo = image * alpha + (cover * colour + (1 - cover) * image[0, 0]) * (1 - alpha)
     detector.outline(photo, face)                               # reads the network
 
     def taking_the_door_in(x):
         (p,) = detector._segmentation_net(x)
-        door_like = np.linalg.norm(x[0] - 0.75 * skin, axis=-1) < 0.03
+        door_like = np.linalg.norm(x[0] - colour, axis=-1) < 0.03
         return (np.maximum(np.asarray(p).reshape(door_like.shape), door_like),)
 
     outline = head_outline(photo, face, taking_the_door_in)
@@ -255,3 +273,37 @@ def test_a_door_the_segmentation_takes_in_is_left_out_of_the_outline(sample, det
     assert (covered < 3).mean() > 0.9
     assert any("straight edge beside the face" in w for w in outline.warnings)
     assert STRAIGHT_LONG * size < 0.6 * image.shape[0]          # the door's edge is longer
+
+
+@pytest.mark.parametrize("thing, sure, taken", [
+    ("wood", False, True), ("shade", False, False), ("shade", True, True)])
+def test_a_leak_is_the_thing_s_colour_and_a_loosely_straight_edge_not_the_skin_s(
+        thing, sure, taken):
+    # a person's map with a straight right edge; inside it, along that edge, a band of a
+    # wooden door's colour or of the skin in shade. Along an edge straight to a pixel
+    # (``sure``) the band is taken out either way; along one only straight within a
+    # wooden door's grain, only a band of another colour than the skin's (a skull's
+    # shaded back is as straight on some heads)
+    skin = np.array([1.0, 0.84, 0.73])
+    image = np.full((256, 256, 3), 0.8)
+    image[40:216, 40:110] = skin
+    image[40:216, 110:160] = WOOD if thing == "wood" else 0.6 * skin
+    person = np.zeros((256, 256), np.float32)
+    person[40:216, 40:160] = 1.0
+    mask = PersonMask(Square((128.0, 128.0), 256.0), person)
+    side = np.arange(0, 120, 3.0)
+    down = np.arange(0, 176, 3.0)
+    loop = np.vstack([np.stack([40 + side, np.full_like(side, 40)], 1),     # clockwise
+                      np.stack([np.full_like(down, 160), 40 + down], 1),
+                      np.stack([160 - side, np.full_like(side, 216)], 1),
+                      np.stack([np.full_like(down, 40), 216 - down], 1)])
+    straight = np.zeros(len(loop), bool)
+    straight[len(side) + 5:len(side) + len(down) - 5] = True
+    out, count = without_leaks(image, mask, loop, straight, skin, 100.0,
+                               straight if sure else np.zeros(len(loop), bool))
+    band = out.probability[60:200, 115:155]
+    if taken:
+        assert count > 0.9 * band.size and (band == 0).all()
+        assert (out.probability[60:200, 50:100] == 1).all()       # the face's skin stays
+    else:
+        assert count == 0 and (out.probability == person).all()
