@@ -191,8 +191,10 @@ def fit_head(model, case, options=None, initial=None):
         continues from) and, when the head was fitted again from other starts (it
         missed more than ``MISSED_OUTLINE`` of a traced outline), "starts": "costs", the
         posterior cost each start ended at ("continued", "other approach" and, where the
-        head kept still missed it, "mean head"), and "kept", the start whose head was
-        kept (another's only when lower by more than ``SECOND_START_GAIN``); and, when
+        head kept still missed it, "mean head", then "stronger prior's head"; the last
+        also where an implausible head's raised fits were not kept), and "kept", the
+        start whose head was kept (another's only when lower by more than
+        ``SECOND_START_GAIN``); and, when
         the first head was implausible, "prior": "first" (its plausibility and landmark
         RMS in pixels), "tried" (each fit with the prior's weight raised: "factor",
         "mahalanobis", "percentile", "rms_px") and "factor", the one kept (1: the first
@@ -213,12 +215,16 @@ def fit_head(model, case, options=None, initial=None):
     turned = []
     if initial is None:  # a side photo short of a profile, its landmarks placed by hand
         case, turned = placed_by_landmarks(model, case)
-    result, checked = _noise_rounds(model, case, _prior_raised(opts, factor), initial,
-                                    state0, progress, t0)
+    result, checked, another = _noise_rounds(model, case, _prior_raised(opts, factor),
+                                             initial, state0, progress, t0)
     if initial is None:
-        result, factor = _more_plausible(
-            result, lambda f, part: _noise_rounds(model, case, _prior_raised(opts, f), None,
-                                                  {}, progress.part(*part), t0)[0])
+        def refit(f, part):
+            return _noise_rounds(model, case, _prior_raised(opts, f), None, {},
+                                 progress.part(*part), t0)[0]
+
+        result, factor, raised = _more_plausible(result, refit)
+        if factor == 1.0 and another is not None:
+            result = _from_stronger_prior(case, result, raised, refit, another)
     result.info["refit_state"]["prior_factor"] = factor
     result.info["warnings"][:0] = turned
     return _checked(model, checked, _prior_raised(opts, factor), result)
@@ -239,12 +245,13 @@ def _more_plausible(result, refit):
     says what was tried."""
     first = result.info["plausibility"]
     if first["percentile"] <= PLAUSIBLE_PERCENTILE:
-        return result, 1.0
+        return result, 1.0, []
     rms0, t = result.rms_px(), time.perf_counter()
-    kept, factor, tried = result, 1.0, []
+    kept, factor, tried, heads = result, 1.0, [], []
     for i, f in enumerate(PRIOR_STEPS):
         lo = 0.9 + 0.1 * i / len(PRIOR_STEPS)
         again = refit(f, (lo, lo + 0.1 / len(PRIOR_STEPS)))
+        heads.append(again)
         p, r = again.info["plausibility"], again.rms_px()
         tried.append({"factor": f, "mahalanobis": p["mahalanobis"],
                       "percentile": p["percentile"], "rms_px": r})
@@ -262,14 +269,39 @@ def _more_plausible(result, refit):
     if factor != 1.0:
         lens = [w for w in lens_warnings(kept.cameras) if w not in kept.info["warnings"]]
         kept.info["warnings"][:0] = [prior_raised_warning(first, rms0, kept, factor), *lens]
-    return kept, factor
+    return kept, factor, heads
+
+
+def _from_stronger_prior(case, result, raised, refit, another):
+    """``result``, or the fit of its own problem from the head a stronger prior gives,
+    where that ends at a posterior cost clearly lower (``another``, as the other starts
+    are kept): a fit with the prior's weight raised has fewer minima, so its head lies in
+    another basin of the problem. The head is ``raised[0]`` (the first raised fit of an
+    implausible head, not kept for its landmarks' error), else, where the head still
+    misses more than ``MISSED_OUTLINE`` of a traced outline, a fit with the weight raised
+    by ``PRIOR_STEPS[0]`` (``refit``) (docs/DECISIONS.md, "A stronger prior's head as a
+    start")."""
+    if not raised and (outline_missed(case, result) <= MISSED_OUTLINE or not PRIOR_STEPS):
+        return result
+    t = time.perf_counter()
+    before = result.info["timings"].get("stronger_prior", 0.0)
+    prior = result.info.get("prior")
+    out = another("stronger prior's head",
+                  raised[0] if raised else refit(PRIOR_STEPS[0], (0.9, 0.99)))
+    if prior is not None:
+        out.info["prior"] = prior
+    out.info["timings"]["stronger_prior"] = before + time.perf_counter() - t
+    return out
 
 
 def _noise_rounds(model, case, opts, initial, state0, progress, t0):
     """The fit of :func:`fit_head` with ``opts`` as they are: the noise rounds (or one fit
     with fixed noise) and, where the head misses the outline, its other starts. Returns
-    (result, the case its checks read). ``state0``: ``initial``'s ``refit_state`` (or
-    {})."""
+    (result, the case its checks read, a function ``(key, head) -> result``: the fit from
+    another ``head`` with the noise and expressions the rounds settled on where its
+    posterior cost is lower by more than ``SECOND_START_GAIN``, else the result, either
+    recording it in ``info["starts"]`` under ``key``; None without noise rounds).
+    ``state0``: ``initial``'s ``refit_state`` (or {})."""
     # A given head goes on with the photos' expressions (taken out of the landmarks) and
     # the noise it was fitted with, so its own fit is where it stays (from the landmarks as
     # given and the default noise, its first round would move it first).
@@ -278,7 +310,7 @@ def _noise_rounds(model, case, opts, initial, state0, progress, t0):
     if start_shown and opts.expressions == "fit":
         given = neutral_case(model, case, initial, start_shown)
     if opts.noise == "fixed":
-        return _fit(model, given, opts, initial, None, progress, t0)[0], given
+        return _fit(model, given, opts, initial, None, progress, t0)[0], given, None
     # The noise from the fit's residuals (and each photo's expression, expression.py), the
     # fit again with them, until the estimates settle (noise.py); each fit after the first
     # starts where the last one ended.
@@ -311,41 +343,67 @@ def _noise_rounds(model, case, opts, initial, state0, progress, t0):
             progress.part(part, part + 0.12), t0, uncertainty=False)
         rounds += 1
         _add_timings(timings, result.info["timings"])
-    starts = None
+
+    def from_head(start, part, kept):
+        """The fit from ``start`` (a FitResult, or None: the mean head) with the noise and
+        expressions settled on (taken out of the photos as ``kept`` sees them): (its
+        ``_fit`` answer, its posterior cost)."""
+        again = _fit(model, neutral_case(model, case, kept, expressions), later, start,
+                     noise, part, t0, uncertainty=False)
+        _add_timings(timings, again[0].info["timings"])
+        return again, _cost(again[0])
+
+    def finished(fitted, starts):
+        """The rounds' result from ``fitted`` (a ``_fit`` answer): its uncertainty, and
+        what the rounds found in its info."""
+        result, finish = fitted[0], fitted[6]
+        result.uncertainty, result.method = finish(), opts.method
+        # the choice between the approaches was made in the first fit, the only one
+        # running both
+        result.info.update({k: first[0].info[k] for k in ("approach", "candidates")})
+        result.info["noise"] = {**noise.report(), "fits": rounds, "restarted": restarted}
+        if starts is not None:
+            result.info["starts"] = starts
+        result.info["refit_state"]["noise"] = noise
+        if opts.expressions == "fit":
+            result.info["expressions"] = expression_report(model, expressions)
+            result.info["refit_state"]["expressions"] = expressions
+        result.info["timings"] = dict(timings)
+        return result
+
+    fitted = (result, contour, along, effective, measured, roles, finish, other_start)
+    costs = {"continued": _cost(result)}
+    starts = {"costs": costs, "kept": "continued"}
     if initial is None and outline_missed(case, result) > MISSED_OUTLINE:
-        # More starts, with the noise and expressions the rounds settled on (approach 1, as
-        # the rounds): from the head of the first fit's other approach where it ran two (a
-        # round's cost), then, while the head kept still misses the outline, from the mean
-        # head (a whole first fit); the clearly lowest posterior cost is kept.
-        costs = {"continued": _cost(result)}
-        starts = {"costs": costs, "kept": "continued"}
+        # More starts (approach 1, as the rounds): from the head of the first fit's other
+        # approach where it ran two (a round's cost), then, while the head kept still
+        # misses the outline, from the mean head (a whole first fit); the clearly lowest
+        # posterior cost is kept.
         other = other_start()
         tries = ([("other approach", other)] if other is not None else []) \
             + [("mean head", None)]
         for i, (key, start) in enumerate(tries):
-            if i and outline_missed(case, result) <= MISSED_OUTLINE:
+            if i and outline_missed(case, fitted[0]) <= MISSED_OUTLINE:
                 break
             part = progress.part(0.91 + 0.04 * i, 0.95 + 0.04 * i)
-            again = _fit(model, neutral_case(model, case, result, expressions), later, start,
-                         noise, part, t0, uncertainty=False)
-            costs[key] = _cost(again[0])
+            again, costs[key] = from_head(start, part, fitted[0])
             if costs[key] < (1.0 - SECOND_START_GAIN) * costs[starts["kept"]]:
-                result, contour, along, effective, measured, roles, finish, _ = again
-                starts["kept"] = key
-            _add_timings(timings, again[0].info["timings"])
-    result.uncertainty, result.method = finish(), opts.method
-    # the choice between the approaches was made in the first fit, the only one running both
-    result.info.update({k: first[0].info[k] for k in ("approach", "candidates")})
-    result.info["noise"] = {**noise.report(), "fits": rounds, "restarted": restarted}
-    if starts is not None:
-        result.info["starts"] = starts
-    result.info["refit_state"]["noise"] = noise
-    if opts.expressions == "fit":
-        result.info["expressions"] = expression_report(model, expressions)
-        result.info["refit_state"]["expressions"] = expressions
-    result.info["timings"] = timings
+                fitted, starts["kept"] = again, key
+    result = finished(fitted, starts if len(costs) > 1 else None)
     progress(1.0, f"done ({result.info['approach']}, {rounds} fits)")
-    return result, case
+
+    def another(key, start):
+        """The rounds' result, or the fit from ``start`` (``from_head``) where its
+        posterior cost is clearly lower; ``info["starts"]`` records it under ``key``."""
+        again, costs[key] = from_head(start, progress.part(0.99, 1.0), result)
+        if costs[key] < (1.0 - SECOND_START_GAIN) * costs[starts["kept"]]:
+            starts["kept"] = key
+            return finished(again, starts)
+        result.info["starts"] = starts
+        result.info["timings"]["total"] = timings["total"]
+        return result
+
+    return result, case, another
 
 
 def _in_photo_pixels(model, case, opts):
