@@ -399,8 +399,7 @@ def _noise_rounds(model, case, opts, initial, state0, progress, t0):
         if costs[key] < (1.0 - SECOND_START_GAIN) * costs[starts["kept"]]:
             starts["kept"] = key
             return finished(again, starts)
-        result.info["starts"] = starts
-        result.info["timings"]["total"] = timings["total"]
+        result.info["starts"], result.info["timings"] = starts, dict(timings)
         return result
 
     return result, case, another
