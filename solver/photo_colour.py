@@ -50,6 +50,12 @@ def sample_photo(image, uv):
             + (image[y0 + 1, x0] * (1 - fx) + image[y0 + 1, x0 + 1] * fx) * fy)
 
 
+def chromaticity(colours):
+    """The red and green shares of each colour's sum (..., 2) of colours (..., 3): its hue
+    and saturation, not its light."""
+    return _chroma_brightness(colours)[0]
+
+
 def _chroma_brightness(colours):
     total = np.maximum(colours.sum(-1), 1e-3)
     return colours[..., :2] / total[..., None], total

@@ -31,7 +31,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from ..photo_colour import has_colour, sample_photo, skin_colour, skin_like
+from ..photo_colour import chromaticity, has_colour, sample_photo, skin_colour, skin_like
 from .crop import Square
 from .iso_line import iso_lines
 from .segmentation import PersonMask, person_mask
@@ -451,7 +451,7 @@ def without_leaks(image, mask, points, straight, skin, reach, sure=None):
         own = sample_photo(image, within)
         thing = np.median(own, axis=0)
         if sure is not None and not sure[idx].any() and np.linalg.norm(
-                _chromaticity(thing) - _chromaticity(skin)) < LEAK_CHROMA:
+                chromaticity(thing) - chromaticity(skin)) < LEAK_CHROMA:
             continue
         spread = 1.4826 * np.median(np.linalg.norm(own - thing, axis=1))
         # its own colour: within its spread, and nearer it than the skin
@@ -470,12 +470,6 @@ def without_leaks(image, mask, points, straight, skin, reach, sure=None):
     leak |= kept & ~ndimage.binary_opening(kept) & ndimage.binary_dilation(leak, iterations=2)
     return (PersonMask(mask.square, np.where(leak, 0.0, mask.probability).astype(np.float32)),
             int(leak.sum()))
-
-
-def _chromaticity(rgb):
-    """An RGB colour's shares of its sum (3,): its hue and saturation, not its light."""
-    rgb = np.asarray(rgb, float)
-    return rgb / max(float(rgb.sum()), 1e-9)
 
 
 def _reaching(mask, mouth):

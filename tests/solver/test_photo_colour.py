@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from solver.photo_colour import (
+    chromaticity,
     has_colour,
     lighter_than_skin,
     sample_photo,
@@ -99,3 +100,11 @@ def test_a_photo_is_stretched_to_its_white_its_colours_kept_unless_a_white_is_ca
     assert out.max() == pytest.approx(1.0, abs=0.01)
     # a photo already at full scale is the same array
     assert stretched_to_white(scene) is scene
+
+
+def test_chromaticity_is_a_colour_s_hue_and_saturation_not_its_light():
+    skin = np.array([1.0, 0.84, 0.73])
+    np.testing.assert_allclose(chromaticity(skin), chromaticity(0.6 * skin))  # in shade
+    np.testing.assert_allclose(chromaticity(np.full((2, 3), 0.5)), np.full((2, 2), 1 / 3))
+    wood = np.array([0.65, 0.44, 0.26])
+    assert np.linalg.norm(chromaticity(wood) - chromaticity(skin)) > 0.06
