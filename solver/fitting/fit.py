@@ -31,7 +31,9 @@ threshold) and the side landmarks. Then:
   the first fit's other approach's head, and where the head kept still misses the
   outline, from the mean head; the clearly lowest posterior cost wins. A head that
   comes out implausible under the model is fitted again with a stronger prior, and kept
-  where its landmarks fit about as well (``PRIOR_STEPS``).
+  where its landmarks fit about as well (``PRIOR_STEPS``); the head a stronger prior gives
+  is also one more start where the head still misses the outline or lies beyond
+  ``UNUSUAL_PERCENTILE`` of the model's heads.
 
 Cameras: no photo is assumed to share scale, tilt or framing with another. Nominal
 orthographic cameras whose landmarks show a side photo short of a profile are first placed
@@ -153,6 +155,11 @@ PRIOR_STEPS = (1.5, 2.0, 3.0)
 #: of the first fit's: the landmarks then do not tell the implausible head from a nearer
 #: one, as where a lens or a turn is unknown; a truly unusual head's landmarks do.
 PRIOR_RMS_SLACK = 1.05
+#: A plausible head beyond this percentile of the model's heads is fitted once more from
+#: the head a stronger prior gives: a fitted head is drawn toward the mean head, so one
+#: this far out is more often a head bent into a wrong minimum than an unusual person
+#: (docs/DECISIONS.md, "A head far out under the model: the stronger prior's start").
+UNUSUAL_PERCENTILE = 90.0
 
 
 def fit_head(model, case, options=None, initial=None):
@@ -192,7 +199,8 @@ def fit_head(model, case, options=None, initial=None):
         missed more than ``MISSED_OUTLINE`` of a traced outline), "starts": "costs", the
         posterior cost each start ended at ("continued", "other approach" and, where the
         head kept still missed it, "mean head", then "stronger prior's head"; the last
-        also where an implausible head's raised fits were not kept), and "kept", the
+        also where an implausible head's raised fits were not kept or the head lies beyond
+        ``UNUSUAL_PERCENTILE``), and "kept", the
         start whose head was kept (another's only when lower by more than
         ``SECOND_START_GAIN``); and, when
         the first head was implausible, "prior": "first" (its plausibility and landmark
@@ -278,10 +286,13 @@ def _from_stronger_prior(case, result, raised, refit, another):
     are kept): a fit with the prior's weight raised has fewer minima, so its head lies in
     another basin of the problem. The head is ``raised[0]`` (the first raised fit of an
     implausible head, not kept for its landmarks' error), else, where the head still
-    misses more than ``MISSED_OUTLINE`` of a traced outline, a fit with the weight raised
-    by ``PRIOR_STEPS[0]`` (``refit``) (docs/DECISIONS.md, "A stronger prior's head as a
+    misses more than ``MISSED_OUTLINE`` of a traced outline or lies beyond
+    ``UNUSUAL_PERCENTILE`` of the model's heads, a fit with the weight raised by
+    ``PRIOR_STEPS[0]`` (``refit``) (docs/DECISIONS.md, "A stronger prior's head as a
     start")."""
-    if not raised and (outline_missed(case, result) <= MISSED_OUTLINE or not PRIOR_STEPS):
+    suspect = result.info["plausibility"]["percentile"] > UNUSUAL_PERCENTILE \
+        or outline_missed(case, result) > MISSED_OUTLINE
+    if not raised and (not suspect or not PRIOR_STEPS):
         return result
     t = time.perf_counter()
     before = result.info["timings"].get("stronger_prior", 0.0)

@@ -429,6 +429,25 @@ def test_a_head_an_outline_s_leak_leaves_in_a_wrong_minimum_starts_from_a_strong
     assert err < skin_error_mm(model, without.local_vertices, truth.local_vertices) - 0.2
 
 
+def test_a_head_far_out_under_the_model_is_fitted_again_from_a_stronger_prior(model,
+                                                                             monkeypatch):
+    # a head drawn wider than the model's own (a fitted head beyond the 90th percentile,
+    # still plausible) whose outline is met: the stronger prior's head is tried as one
+    # more start; it ends in the same minimum, and near a tie the continued head is kept
+    case, _ = make_case(model, 3, noise_px=1.0, coeff_scale=1.25)
+    res = fit_head(model, case)
+    pct = res.info["plausibility"]["percentile"]
+    assert fit.UNUSUAL_PERCENTILE < pct <= fit.PLAUSIBLE_PERCENTILE
+    costs = res.info["starts"]["costs"]
+    assert set(costs) == {"continued", "stronger prior's head"}
+    assert costs["stronger prior's head"] == pytest.approx(costs["continued"], rel=0.05)
+    assert res.info["starts"]["kept"] == "continued"
+    monkeypatch.setattr(fit, "UNUSUAL_PERCENTILE", 100.0)  # never tried
+    once = fit_head(model, case)
+    assert "starts" not in once.info
+    np.testing.assert_array_equal(res.local_vertices, once.local_vertices)
+
+
 def test_a_fit_of_one_approach_starts_again_from_the_mean_head(model):
     case, _ = _profile_read_off_outline(model, 4)
     res = fit_head(model, case, FitOptions(method="approach1"))  # no other approach's head
