@@ -1,7 +1,8 @@
 """Photos as users give them: heads fitted from their photos alone (detected, as Auto Fit
 takes them) as rendered and changed as real photos are: with hair, a beard or glasses,
-bare shoulders, in a room, black and white, the head small in a larger photo,
-JPEG-compressed, darker, turned in their plane, cropped, blurred, noisy, with a colour cast.
+bare shoulders, in a room or before a busy background, black and white, the head small in
+a larger photo, JPEG-compressed, darker, turned in their plane, cropped, blurred, noisy,
+with a colour cast.
 
     python -m bench.bench_photo_variants [--variants NAME ...] [--face]
                                          [--heads DIR ...] [--render SEED ...]
@@ -17,7 +18,8 @@ ahead of the eye), ``bare`` (the clothes coloured as the face's skin, their shad
 bare shoulders or a skin-coloured top), ``room`` (a room behind the person, by the
 render's alpha: a lit wall, a painted door, a bookshelf and a window, out of focus; each
 photo its own), ``wood`` (the same with a wooden door: a thing of the skin's colour behind
-the head), ``grey`` (black and white), ``small`` (the photo
+the head), ``blocks`` and ``confetti`` (a busy background: random colours in squares,
+16 or 64 down the photo), ``grey`` (black and white), ``small`` (the photo
 in the middle of one four times its size, its corner's colour around it: the face 10 % of
 the longer side), ``jpeg50`` (JPEG at quality 50), ``dark`` (half as bright),
 ``turned10`` (turned by 10 degrees, the corners filled with its corner's colour),
@@ -224,6 +226,22 @@ def in_a_room(image, alpha, door):
     return Image.fromarray(np.clip(out, 0, 255).astype(np.uint8))
 
 
+def colour_blocks(image, alpha, rows):
+    """``image`` with a busy background behind the person, by their ``alpha`` (H, W) in
+    [0, 1]: square blocks of random colours, ``rows`` of them down the photo, blurred by 2
+    px (a poster wall at 16 rows; confetti at 64). Seeded by the photo's pixels, as
+    :func:`in_a_room`."""
+    pixels = np.asarray(image, float)
+    rng = np.random.default_rng(zlib.crc32(np.ascontiguousarray(pixels[::16, ::16])))
+    h, w = pixels.shape[:2]
+    b = max(h // rows, 1)
+    colours = rng.uniform(0, 255, (-(-h // b), -(-w // b), 3))
+    behind = ndimage.gaussian_filter(np.repeat(np.repeat(colours, b, 0), b, 1)[:h, :w],
+                                     (2.0, 2.0, 0))
+    a = np.asarray(alpha, float)[..., None]
+    return Image.fromarray(np.clip(pixels * a + behind * (1 - a), 0, 255).astype(np.uint8))
+
+
 def glasses(image, head, face, *_):
     """Dark-framed glasses drawn from the detected face's keypoints: on a front photo a
     rim around each eye, the bridge between them and the arms out past the ears; on a
@@ -264,6 +282,8 @@ VARIANTS = {
     "bare": bare,
     "room": lambda im, head, face, person, alpha: in_a_room(im, alpha, "painted"),
     "wood": lambda im, head, face, person, alpha: in_a_room(im, alpha, "wood"),
+    "blocks": lambda im, head, face, person, alpha: colour_blocks(im, alpha, 16),
+    "confetti": lambda im, head, face, person, alpha: colour_blocks(im, alpha, 64),
     "grey": lambda im, *_: im.convert("L").convert("RGB"),
     "small": lambda im, *_: Image.fromarray(padded(np.asarray(im), {}, 4)[0]),
     "jpeg50": lambda im, *_: _jpeg(im),

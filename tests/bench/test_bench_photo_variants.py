@@ -1,6 +1,6 @@
 """bench/bench_photo_variants.py's painted hair, beard and glasses on a drawn head: where
 each lies against the head's own outline and the face's keypoints; clothes coloured as
-skin; a room behind the person."""
+skin; a room or colour blocks behind the person."""
 
 from types import SimpleNamespace
 
@@ -11,6 +11,7 @@ from bench.bench_photo_variants import (
     DOORS,
     bare,
     beard_region,
+    colour_blocks,
     glasses,
     hair_region,
     in_a_room,
@@ -110,3 +111,19 @@ def test_a_room_goes_behind_the_person_by_their_alpha_and_each_photo_has_its_own
         near = np.linalg.norm(room - np.asarray(DOORS[door]), axis=2) < 40
         red, _, blue = np.median(room[near], axis=0)
         assert near.mean() > 0.05 and (red > blue + 40 if warm else red < blue)
+
+
+def test_colour_blocks_go_behind_the_person_in_squares_of_the_rows_asked():
+    photo = np.full((640, 480, 3), 200, np.uint8)
+    alpha = np.zeros((640, 480))
+    alpha[200:500, 140:340] = 1.0
+    out = np.asarray(colour_blocks(Image.fromarray(photo), alpha, 16)).astype(int)
+    assert (out[alpha == 1] == 200).all()                  # the person as they were
+    # 40 px blocks: a block's middle is one colour, and the blocks' colours differ
+    np.testing.assert_array_equal(out[10:30, 10:30],
+                                  np.broadcast_to(out[20, 20], (20, 20, 3)))
+    centres = out[20::40, 20:140:40].reshape(-1, 3)       # beside the person
+    assert len(np.unique(centres, axis=0)) > 0.9 * len(centres)
+    finer = np.asarray(colour_blocks(Image.fromarray(photo), alpha, 64)).astype(int)
+    small = finer[5:640:10, 5:140:10]                     # 10 px blocks' middles
+    assert (np.abs(np.diff(small, axis=1)).sum(axis=2) > 0).mean() > 0.9
