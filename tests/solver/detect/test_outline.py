@@ -10,6 +10,7 @@ from solver.detect import Detector
 from solver.detect.crop import Square
 from solver.detect.outline import (
     STRAIGHT_LONG,
+    UNSURE_SHARE,
     head_outline,
     refine_edge,
     straight_stretches,
@@ -273,6 +274,23 @@ def test_a_door_the_segmentation_takes_in_is_left_out_of_the_outline(sample, det
     assert (covered < 3).mean() > 0.9
     assert any("straight edge beside the face" in w for w in outline.warnings)
     assert STRAIGHT_LONG * size < 0.6 * image.shape[0]          # the door's edge is longer
+
+
+def test_an_outline_the_segmentation_is_unsure_of_is_said(sample, detector):
+    from bench.bench_photo_variants import colour_blocks
+
+    # before a plain wall the segmentation is sure of the whole outline; before confetti
+    # (squares of random colours, 64 down the photo) it leaks into them: a warning
+    folder, truth = sample
+    image = Image.fromarray(_photo(folder))
+    face = detector.detect(np.asarray(image))
+    plain = detector.outline(np.asarray(image), face)
+    assert plain.unsure < 0.05 and not any("unsure" in w for w in plain.warnings)
+    busy = np.asarray(colour_blocks(image, truth["alpha_side"] / 255.0, 64))
+    outline = detector.outline(busy, detector.detect(busy))
+    assert outline.unsure > UNSURE_SHARE
+    assert any(w.startswith("the person's segmentation is unsure of the edge over")
+               for w in outline.warnings)
 
 
 @pytest.mark.parametrize("thing, sure, taken", [
