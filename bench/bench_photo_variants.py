@@ -215,31 +215,34 @@ def room_behind(shape, rng, door):
     return ndimage.gaussian_filter(np.clip(out, 0, 255), (rng.uniform(2, 5),) * 2 + (0,))
 
 
-def in_a_room(image, alpha, door):
-    """``image`` with a room (:func:`room_behind`) behind the person, by their ``alpha``
-    (H, W) in [0, 1]; the room's random draw seeded by the photo's pixels, so each head
-    and view has its own and a rerun the same."""
+def _behind(image, alpha, background):
+    """``image`` with ``background(shape, rng)`` ((H, W, 3) float RGB 0-255) behind the
+    person, by their ``alpha`` (H, W) in [0, 1]; its random draw seeded by the photo's
+    pixels, so each head and view has its own and a rerun the same."""
     pixels = np.asarray(image, float)
     rng = np.random.default_rng(zlib.crc32(np.ascontiguousarray(pixels[::16, ::16])))
     a = np.asarray(alpha, float)[..., None]
-    out = pixels * a + room_behind(a.shape[:2], rng, door) * (1 - a)
+    out = pixels * a + background(a.shape[:2], rng) * (1 - a)
     return Image.fromarray(np.clip(out, 0, 255).astype(np.uint8))
 
 
+def in_a_room(image, alpha, door):
+    """``image`` with a room (:func:`room_behind`) behind the person (``_behind``)."""
+    return _behind(image, alpha, lambda shape, rng: room_behind(shape, rng, door))
+
+
 def colour_blocks(image, alpha, rows):
-    """``image`` with a busy background behind the person, by their ``alpha`` (H, W) in
-    [0, 1]: square blocks of random colours, ``rows`` of them down the photo, blurred by 2
-    px (a poster wall at 16 rows; confetti at 64). Seeded by the photo's pixels, as
-    :func:`in_a_room`."""
-    pixels = np.asarray(image, float)
-    rng = np.random.default_rng(zlib.crc32(np.ascontiguousarray(pixels[::16, ::16])))
-    h, w = pixels.shape[:2]
-    b = max(h // rows, 1)
-    colours = rng.uniform(0, 255, (-(-h // b), -(-w // b), 3))
-    behind = ndimage.gaussian_filter(np.repeat(np.repeat(colours, b, 0), b, 1)[:h, :w],
-                                     (2.0, 2.0, 0))
-    a = np.asarray(alpha, float)[..., None]
-    return Image.fromarray(np.clip(pixels * a + behind * (1 - a), 0, 255).astype(np.uint8))
+    """``image`` with a busy background behind the person (``_behind``): square blocks of
+    random colours, ``rows`` of them down the photo, blurred by 2 px (a poster wall at 16
+    rows; confetti at 64)."""
+    def blocks(shape, rng):
+        h, w = shape
+        b = max(h // rows, 1)
+        colours = rng.uniform(0, 255, (-(-h // b), -(-w // b), 3))
+        return ndimage.gaussian_filter(np.repeat(np.repeat(colours, b, 0), b, 1)[:h, :w],
+                                       (2.0, 2.0, 0))
+
+    return _behind(image, alpha, blocks)
 
 
 def glasses(image, head, face, *_):
