@@ -36,6 +36,18 @@ NASION_MIN_RISE = 0.12
 #: The chin is looked for at least this far below the nose tip (fraction of the face's
 #: size; the mean head's lower lip lies 0.34, its pogonion 0.46 below).
 CHIN_MIN_DROP = 0.4
+#: Lips that stand in front of that line (a receding chin, full lips) are touched first:
+#: a point touched is a lip, not the chin, where the outline below it dips behind (the
+#: sulcus under the lower lip) and comes forward again to a chin within this many face
+#: sizes lower and at most ``CHIN_BEHIND`` further back (the throat, below the chin, lies
+#: a quarter of the face's size and more behind it).
+LIP_TO_CHIN = 0.3
+CHIN_BEHIND = 0.15
+#: ... the dip at least this many face sizes deep under the line from the lip to the chin
+#: (about 3 mm: deeper than the bumps a busy background leaves under a chin), and that
+#: line steeper than 45 degrees (the chin's underside, below its corner, runs back more
+#: than down).
+SULCUS = 0.02
 #: The angle of the mean head's line from its nasion to its pogonion (their landmark
 #: vertices) in profile, degrees forward of straight down: the face's frame is the one
 #: where the nasion-to-chin line leans so.
@@ -55,6 +67,10 @@ HEIGHT = {"lip_upper_middle": (0.568, 0.022), "mouth_middle": (0.640, 0.020),
 #: further out than the model's heads: james' stomion and lower lip 2.4 and 2.9
 #: standard deviations off).
 HEIGHT_TOLERANCE = 0.09
+#: The nose tip's height on the same scale (0.321 +- 0.020 over the model's heads): where
+#: the nasion is not seen (hair over the forehead, the frame of glasses), the lips are
+#: placed by the nose tip and the menton.
+TIP_HEIGHT = 0.321
 #: The cost of leaving a lip out, in squared standard deviations of its height.
 MISSING_COST = 16.0
 #: Each point's median error, a fraction of the face's size: measured on 40 profiles of
@@ -248,14 +264,61 @@ def _nasion(q, up, face_size):
 
 def _chin_tangent(q, down, face_size):
     """The chin's point touched by the line from the nose tip (Ricketts' E-line): among
-    the points well below the lips, the one most forward per height below the tip; None
-    when the outline does not turn back behind that line below it (no chin)."""
+    the points well below the lips, the one most forward per height below the tip, or
+    where that is a lip standing out in front of the chin, the chin below it
+    (:func:`_chin_below_lip`); None when the outline does not turn back behind that line
+    below it (no chin)."""
     k = _touched_from_tip(q, down, 1, CHIN_MIN_DROP * face_size)
     if k is None or not 0 < k < len(down) - 1:
         return None
     # a chin: the outline turns back under it, behind the line
     _, depth = _deepest_under(q, down[k + 1:], down[0], down[k])
-    return down[k] if depth >= PROMINENCE * face_size else None
+    if depth < PROMINENCE * face_size:
+        return None
+    while (lower := _chin_below_lip(q, down, k, face_size)) is not None:
+        k = lower
+    return down[k]
+
+
+def _chin_below_lip(q, down, k, face_size):
+    """The position in ``down`` of a chin below the point ``down[k]`` that the line from
+    the nose tip touched, when that point is a lip (``LIP_TO_CHIN``, ``CHIN_BEHIND``): the
+    lower end of the first edge of the outline's front hull below it that spans a dip of
+    the outline (the sulcus), the outline turning back behind that edge under its end;
+    else None."""
+    drop = q[down, 1] - q[down[k], 1]
+    back = q[down[k], 0] - q[down, 0]
+    idx = np.flatnonzero((np.arange(len(down)) >= k) & (drop <= LIP_TO_CHIN * face_size)
+                         & (back <= CHIN_BEHIND * face_size))
+    hull = _front_hull(q[down[idx]], idx)
+    for a, b in zip(hull[:-1], hull[1:], strict=True):
+        d = q[down[b]] - q[down[a]]
+        if b <= a + 1 or b >= len(down) - 1 or -d[0] > d[1]:
+            continue
+        _, sulcus = _deepest_under(q, down[a + 1:b], down[a], down[b])
+        if sulcus >= SULCUS * face_size:
+            _, under = _deepest_under(q, down[b + 1:], down[a], down[b])
+            return int(b) if under >= PROMINENCE * face_size else None
+    return None
+
+
+def _front_hull(points, idx):
+    """The vertices (their ``idx``, in order down the face) of the hull of ``points``
+    (m, 2) (forward, down) on the face's front: the chain from the highest point to the
+    lowest that no point lies in front of."""
+    order = np.argsort(points[:, 1], kind="stable")
+    chain = []
+    for i in order:
+        while len(chain) >= 2:
+            (f0, d0), (f1, d1) = points[chain[-2]], points[chain[-1]]
+            f2, d2 = points[i]
+            # the middle point lies behind the line from the first to the new one: drop it
+            if (f1 - f0) * (d2 - d0) - (d1 - d0) * (f2 - f0) <= 0:
+                chain.pop()
+            else:
+                break
+        chain.append(int(i))
+    return [int(idx[i]) for i in chain]
 
 
 def _tip(q, tip, up, down, face_size):
@@ -279,10 +342,15 @@ def _lower_face(q, down, nasion, face_size):
     found = {"pogonion": chin}
     fwd = q[down, 0]
     corners = [i for i in _extremes(fwd + q[down, 1], prom, "max") if i > k]
-    if not corners or nasion is None:
+    if not corners:
         return found
     found["chin_bottom"] = down[corners[0]]
-    top, height = q[nasion, 1], q[down[corners[0]], 1] - q[nasion, 1]
+    bottom = q[down[corners[0]], 1]
+    # the heights from the nasion (0) to the menton (1); without the nasion, from where
+    # the nose tip's height puts it
+    top = q[nasion, 1] if nasion is not None else \
+        q[down[0], 1] - TIP_HEIGHT / (1 - TIP_HEIGHT) * (bottom - q[down[0], 1])
+    height = bottom - top
     if height <= 0:
         return found
     t = (q[down, 1] - top) / height

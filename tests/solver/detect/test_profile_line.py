@@ -119,3 +119,37 @@ def test_a_nose_tip_guessed_up_the_nose_is_followed_to_the_tip(model):
     points, _ = profile_line_points(outline, "right", size, guess)
     whole, _ = profile_line_points(outline, "right", size, exact["nose_tip"] + 5.0)
     assert np.linalg.norm(np.subtract(points["nose_tip"], whole["nose_tip"])) < 0.01 * size
+
+
+def test_a_lower_lip_in_front_of_a_receding_chin_is_not_taken_for_the_chin(model):
+    # the chin moved back (the outline below the lower lip, blended in over the sulcus)
+    # until the line from the nose tip touches the lower lip first: the chin is read
+    # below it, not on the lip
+    outline, exact, size = _profile(model, 4179)
+    back = 0.06 * size
+    top, bottom = exact["lip_lower_middle"][1], exact["pogonion"][1]
+    w = np.clip((outline[:, 1] - top) / (bottom - top), 0.0, 1.0)
+    face = outline[:, 0] > exact["chin_bottom"][0] - 0.2 * size  # not the nape
+    receding = outline - np.stack([np.where(face, w * back, 0.0), np.zeros(len(w))], 1)
+    moved = dict(exact, pogonion=exact["pogonion"] - [back, 0.0])
+    points, _ = profile_line_points(receding, "right", size, exact["nose_tip"] + 5.0)
+    err = _errors(points, moved, size)
+    assert err["pogonion"] < 0.04 and err["lip_lower_middle"] < 0.02, err
+
+
+def test_lips_and_chin_are_read_where_the_forehead_is_hidden(model):
+    # hair over the forehead (or a frame of glasses at the nasion) ends the outline
+    # between the nasion and the nose tip: no nasion, the rest still read
+    outline, exact, size = _profile(model, 4102)
+    whole, _ = profile_line_points(outline, "right", size, exact["nose_tip"] + 5.0)
+    cut = (exact["nasion"][1] + exact["nose_tip"][1]) / 2
+    start = int(np.argmin(np.linalg.norm(outline - exact["nose_tip"], axis=1)))
+    below = outline[:, 1] > cut
+    piece = np.flatnonzero(below)
+    runs = np.split(piece, np.flatnonzero(np.diff(piece) > 1) + 1)
+    kept = outline[next(r for r in runs if start in r)]
+    points, _ = profile_line_points(kept, "right", size, exact["nose_tip"] + 5.0)
+    assert "nasion" not in points and "nasion" in whole
+    assert set(whole) - {"nasion"} <= set(points), (sorted(whole), sorted(points))
+    err, before = _errors(points, exact, size), _errors(whole, exact, size)
+    assert all(e < 0.03 and e < before[n] + 0.01 for n, e in err.items()), (err, before)
