@@ -292,9 +292,10 @@ def _chin_below_lip(q, down, k, face_size):
                          & (back <= CHIN_BEHIND * face_size))
     hull = _front_hull(q[down[idx]], idx)
     for a, b in zip(hull[:-1], hull[1:], strict=True):
-        d = q[down[b]] - q[down[a]]
-        if b <= a + 1 or b >= len(down) - 1 or -d[0] > d[1]:
-            continue
+        edge_back = q[down[a], 0] - q[down[b], 0]
+        edge_drop = q[down[b], 1] - q[down[a], 1]
+        if b <= a + 1 or b >= len(down) - 1 or edge_back > edge_drop:
+            continue                # no points between, or the chin's underside
         _, sulcus = _deepest_under(q, down[a + 1:b], down[a], down[b])
         if sulcus >= SULCUS * face_size:
             _, under = _deepest_under(q, down[b + 1:], down[a], down[b])
