@@ -254,9 +254,11 @@ def _arc_at(outline, arc, point):
     return arc[int(np.argmin(np.linalg.norm(outline - np.asarray(point), axis=1)))]
 
 
-def profile_line_photo(name, detector, image, truth):
-    """Print the px error of each profile line point read off a profile photo's detected
-    outline against ``truth`` ({landmark name: (u, v)}, those it has)."""
+def read_profile_line(detector, image, truth):
+    """The profile line's points of a profile photo (H, W, 3) as the detection reads them
+    off its detected outline: (px error by name against ``truth`` ({landmark name: (u,
+    v)}, those it has), the points read, the face's size px, whether they were read off
+    the outline)."""
     from solver.detect.detected_case import face_landmarks
     from solver.detect.view_guess import guess_view as guess
 
@@ -268,6 +270,13 @@ def profile_line_photo(name, detector, image, truth):
     err = {n: float(np.linalg.norm(np.subtract(p, truth[n]))) for n, p in points.items()
            if n in truth}
     size = face.face_size if face is not None else float("nan")
+    return err, points, size, off
+
+
+def profile_line_photo(name, detector, image, truth):
+    """Print the px error of each profile line point read off a profile photo's detected
+    outline against ``truth`` ({landmark name: (u, v)}, those it has)."""
+    err, points, size, off = read_profile_line(detector, image, truth)
     print(f"{name}: profile line off its detected outline ({off and 'read' or 'not read'}; "
           f"face {size:.0f} px): " + ", ".join(f"{n} {e:.1f}" for n, e in err.items())
           + f" px; not found: {', '.join(n for n in PROFILE_LINE if n not in points) or '-'}")

@@ -30,6 +30,11 @@ head after a similarity (``skin_error_mm``, the whole head: under hair the skull
 seen), or with ``--face`` over the face region alone
 (``realistic_cases.model_face_vertices``, aligned on it), mm, the mean head's beside
 them; a variant whose photos ``solver detect`` refuses is said and left out of the mean.
+
+With ``--profile-line`` nothing is fitted: the profile line's points read off each
+profile photo's detected outline (as ``solver detect`` reads them) are scored against the
+head's own profile landmarks (its ``sample.json``), per point the median, 90th percentile
+and largest error in % of the face's size and how many of the heads' profiles gave it.
 """
 
 import argparse
@@ -43,11 +48,11 @@ from PIL import Image, ImageDraw, ImageFilter
 from scipy import ndimage
 
 from bench.bench_corrections import add_head_options, head_folders
-from bench.bench_detect import padded
+from bench.bench_detect import PROFILE_LINE, padded, read_profile_line
 from bench.bench_photo_size import photos_case
 from bench.common import machine_description
 from bench.realistic_cases import model_face_vertices
-from solver import fit_head, load_model
+from solver import fit_head, load_landmarks, load_model
 from solver.detect import Detector
 from solver.procrustes import similarity_procrustes
 from solver.synthetic import skin_error_mm
@@ -324,16 +329,50 @@ def face_error_mm(model, local, truth_local):
     return 1000.0 * float(np.sqrt(((sim.apply(a) - b) ** 2).sum(axis=1).mean()))
 
 
+def profile_line_table(folders, variants, detector):
+    """Print, per variant (None: as rendered), how far the profile line's points read off
+    the heads' detected profile outlines lie from their own profile landmarks; returns
+    them: {variant or "as rendered": {point: [error, % of the face's size, per profile
+    that gave it]}}."""
+    table = {}
+    print("profile line read off the detected profile outline vs the head's own landmarks, "
+          "% of the face's size: median / p90 / max (profiles that gave it)")
+    print(f"  {'variant':<12}" + "".join(f"{n:>18}" for n in PROFILE_LINE))
+    with tempfile.TemporaryDirectory() as tmp:
+        for variant in [None] + variants:
+            errors = {n: [] for n in PROFILE_LINE}
+            for folder in folders:
+                photos = folder if variant is None else \
+                    changed(folder, variant, Path(tmp) / f"{folder.name}_{variant}", detector)
+                truth = load_landmarks(folder / "sample.json").views["side"].points
+                image = np.asarray(Image.open(photos / "side.png").convert("RGB"))
+                err, _, size, _ = read_profile_line(detector, image, truth)
+                for n, e in err.items():
+                    errors[n].append(100.0 * e / size)
+            print(f"  {variant or 'as rendered':<12}" + "".join(
+                f"{np.median(e):5.1f}/{np.percentile(e, 90):4.1f}/{max(e):4.1f} {len(e):>2}"
+                if e else f"{'-':>18}" for e in errors.values()), flush=True)
+            table[variant or "as rendered"] = errors
+    return table
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--variants", nargs="*", choices=list(VARIANTS), default=list(VARIANTS))
     ap.add_argument("--face", action="store_true",
                     help="score the face region alone, not the whole head")
+    ap.add_argument("--profile-line", action="store_true",
+                    help="no fits: score the profile line's points read off each profile "
+                         "photo's detected outline against the head's own landmarks")
     add_head_options(ap)
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
     folders = head_folders(args.heads, args.render)
-    model, detector = load_model(), Detector()
+    detector = Detector()
+    if args.profile_line:
+        profile_line_table(folders, args.variants, detector)
+        return
+    model = load_model()
     columns = ["mean head", "as rendered"] + args.variants
     score = face_error_mm if args.face else skin_error_mm
     print(f"{'face region' if args.face else 'skin'} RMS vs the true head, mm, from the "

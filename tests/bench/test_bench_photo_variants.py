@@ -1,10 +1,12 @@
 """bench/bench_photo_variants.py's painted hair, beard and glasses on a drawn head: where
 each lies against the head's own outline and the face's keypoints; clothes coloured as
-skin; a room or colour blocks behind the person."""
+skin; a room or colour blocks behind the person; the profile line's table on the rendered
+sample."""
 
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 from PIL import Image
 
 from bench.bench_photo_variants import (
@@ -15,9 +17,12 @@ from bench.bench_photo_variants import (
     glasses,
     hair_region,
     in_a_room,
+    profile_line_table,
     room_behind,
     thick_hair,
 )
+from solver.detect import Detector
+from solver.paths import DETECTOR_DIR
 
 
 def _head():
@@ -127,3 +132,16 @@ def test_colour_blocks_go_behind_the_person_in_squares_of_the_rows_asked():
     finer = np.asarray(colour_blocks(Image.fromarray(photo), alpha, 64)).astype(int)
     small = finer[5:640:10, 5:140:10]                     # 10 px blocks' middles
     assert (np.abs(np.diff(small, axis=1)).sum(axis=2) > 0).mean() > 0.9
+
+
+def test_the_profile_line_table_scores_the_points_read_on_the_sample_s_profile(sample):
+    if not (DETECTOR_DIR / "face_landmark.tflite").is_file():
+        pytest.skip(f"models missing in {DETECTOR_DIR}: run ./run detector")
+    folder, _ = sample
+    table = profile_line_table([folder], ["hair"], Detector())
+    assert set(table) == {"as rendered", "hair"}
+    for variant, errors in table.items():
+        # hair hides the forehead, not the nose, lips and chin: those are read on the
+        # sample's profile within 5 % of the face's size either way
+        for name in ("nose_tip", "subnasale", "pogonion", "chin_bottom"):
+            assert len(errors[name]) == 1 and errors[name][0] < 5.0, (variant, errors)
