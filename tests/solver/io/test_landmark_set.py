@@ -89,3 +89,13 @@ def test_outline_points_and_where_a_landmark_has_a_meaning(lms):
     # a set from bare names knows nothing of views: every name means something everywhere
     bare = LandmarkSet.from_names(["a"])
     assert bare.has_meaning_in("a", "right") and not bare.outline_in("a", "front")
+
+
+def test_every_description_reads_as_sentences(lms):
+    # the add-on shows these to the artist: each starts with a capital, and no sentence
+    # runs on into the next without its full stop
+    for entry in lms.info:
+        text = entry["description"]
+        assert text[:1].isupper(), entry["name"]
+        assert not re.search(r"[a-z,;:] [A-Z][a-z]+ (outline|point|photo)\b", text), \
+            (entry["name"], text)
