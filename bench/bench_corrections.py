@@ -5,6 +5,7 @@ moved landmark forgets the detector's uncertainty and depth, as in Blender).
 A correction should never make the head much worse; a fit left in a wrong minimum does.
 
     python -m bench.bench_corrections [--heads DIR ...] [--render SEED ...] [--always]
+                                      [--variant VARIANT]
 
 Heads: rendered sample folders (``python -m tools.make_sample --seed N --out DIR``: the
 front and profile photos, ``sample.json`` with the exact landmarks, ``truth.npz`` with the
@@ -20,18 +21,21 @@ marks a fit whose second start was kept.
 The last lines give the mean and the worst of each column, and how many fits end more
 than 1.5 x the photos-only error of their head. ``--always`` runs the second start on
 every fit ("fit" column; ``fit.MISSED_OUTLINE`` below 0): what the rule leaves untried.
+``--variant`` detects each head's photos as one of ``bench_photo_variants``' variants show
+them (``hair``: as most people come), the exact landmarks placed as before.
 """
 
 import argparse
 import copy
-import subprocess
-import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
+from bench.bench_photo_variants import VARIANTS, changed
 from bench.common import machine_description
+from bench.rendered_heads import add_head_options, head_folders
 from solver import fit_head, load_landmarks, load_model
 from solver.detect import Detector
 from solver.detect.detected_case import detect_photos
@@ -39,58 +43,22 @@ from solver.fitting import fit
 from solver.io.landmark_set import load_landmark_set
 from solver.synthetic import skin_error_mm
 
-ROOT = Path(__file__).resolve().parent.parent
 GROUPS = {"jaw": range(1, 18), "brows": range(18, 28), "nose": range(28, 37),
           "eyes": range(37, 49), "mouth": range(49, 69), "all 68": range(1, 69)}
 #: A fit this many times its head's photos-only error counts as made worse by a correction.
 WORSE = 1.5
 
 
-def render_head(seed, folder):
-    """Render a model head's sample photos into ``folder`` unless they are there."""
-    if (folder / "truth.npz").is_file():
-        return
-    print(f"rendering seed {seed} into {folder} ...", flush=True)
-    subprocess.run([sys.executable, "-m", "tools.make_sample", "--seed", str(seed),
-                    "--out", str(folder)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
-
-
-#: The model heads the photos-only benchmarks render and fit besides the sample.
-TEN_HEADS = [101, 201, 202, 203, 204, 205, 206, 207, 208]
-
-
-def add_head_options(parser, render=None):
-    """``--heads`` (rendered sample folders; default the sample) and ``--render`` (model
-    seeds; default ``render``, else ``TEN_HEADS``), as :func:`head_folders` takes them."""
-    parser.add_argument("--heads", nargs="*", default=None,
-                        help="rendered sample folders (default: the sample and the --render "
-                             "ones)")
-    parser.add_argument("--render", nargs="*", type=int,
-                        default=TEN_HEADS if render is None else render,
-                        help="model seeds rendered into generated/bench_heads/seed<N> if "
-                             "missing")
-
-
-def head_folders(heads, seeds):
-    """The rendered head folders a benchmark runs on: ``heads`` (paths) if given, else the
-    sample; then ``generated/bench_heads/seed<N>`` for each of ``seeds``, rendered first
-    when missing."""
-    folders = [Path(h) for h in heads] if heads is not None \
-        else [ROOT / "generated" / "sample"]
-    for seed in seeds:
-        folder = ROOT / "generated" / "bench_heads" / f"seed{seed}"
-        render_head(seed, folder)
-        folders.append(folder)
-    return folders
-
-
-def corrected_cases(folder, model, detector):
+def corrected_cases(folder, model, detector, photos=None):
     """(label, case) of one head: the photos-only case and its corrections, and the case of
-    every exact landmark; None when the photos were not detected as front and profile."""
+    every exact landmark; None when the photos were not detected as front and profile.
+    ``photos``: the folder whose front.png and side.png are detected (default ``folder``;
+    the exact landmarks are always ``folder``'s)."""
+    photos = folder if photos is None else photos
     exact = load_landmarks(folder / "sample.json", known_names=model)
-    auto = detect_photos([(None, folder / "front.png"), (None, folder / "side.png")],
+    auto = detect_photos([(None, photos / "front.png"), (None, photos / "side.png")],
                          detector, lambda p: np.asarray(Image.open(p).convert("RGB")),
-                         base_dir=folder)
+                         base_dir=photos)
     if set(auto.views) != {"front", "right"}:
         return None
     names = load_landmark_set().ibug
@@ -138,34 +106,40 @@ def main(argv=None):
     ap.add_argument("--always", action="store_true",
                     help="run the second start on every fit, not only on heads that miss "
                          "their outline")
+    ap.add_argument("--variant", choices=list(VARIANTS), default=None,
+                    help="detect the photos changed as bench_photo_variants changes them")
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
     folders = head_folders(args.heads, args.render)
     model, detector = load_model(), Detector()
     columns = ["photos", *GROUPS, "profile ears", "every exact"]
     print("skin RMS vs the true head, mm: fit / once (no second start); * second start kept"
-          + (" (run on every fit)" if args.always else ""))
+          + (" (run on every fit)" if args.always else "")
+          + (f"; photos: {args.variant}" if args.variant else ""))
     print(f"  {'head':<12}" + "".join(f"{c:>16}" for c in columns))
     table = {"fit": [], "once": []}
-    for folder in folders:
-        if not (folder / "truth.npz").is_file():
-            print(f"  {folder}: no truth.npz; skipped")
-            continue
-        cases = corrected_cases(folder, model, detector)
-        if cases is None:
-            print(f"  {folder}: the photos were not detected as front and right; skipped")
-            continue
-        truth = np.load(folder / "truth.npz", allow_pickle=True)["local_vertices"]
-        row = {k: [] for k in table}
-        cells = []
-        for _, case in cases:
-            e, kept, once = fit_errors(model, case, truth, args.always)
-            row["fit"].append(e)
-            row["once"].append(once)
-            cells.append(f"{e:.2f}{'*' if kept else ' '}/{once:.2f}")
-        for k in table:
-            table[k].append(row[k])
-        print(f"  {folder.name:<12}" + "".join(f"{c:>16}" for c in cells), flush=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        for folder in folders:
+            if not (folder / "truth.npz").is_file():
+                print(f"  {folder}: no truth.npz; skipped")
+                continue
+            photos = None if args.variant is None else changed(
+                folder, args.variant, Path(tmp) / folder.name, detector)
+            cases = corrected_cases(folder, model, detector, photos)
+            if cases is None:
+                print(f"  {folder}: the photos were not detected as front and right; skipped")
+                continue
+            truth = np.load(folder / "truth.npz", allow_pickle=True)["local_vertices"]
+            row = {k: [] for k in table}
+            cells = []
+            for _, case in cases:
+                e, kept, once = fit_errors(model, case, truth, args.always)
+                row["fit"].append(e)
+                row["once"].append(once)
+                cells.append(f"{e:.2f}{'*' if kept else ' '}/{once:.2f}")
+            for k in table:
+                table[k].append(row[k])
+            print(f"  {folder.name:<12}" + "".join(f"{c:>16}" for c in cells), flush=True)
     if not table["fit"]:
         return
     for k, rows in table.items():

@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from bench.bench_corrections import add_head_options, head_folders
 from bench.common import machine_description
+from bench.rendered_heads import add_head_options, head_folders
 from solver import FitOptions, fit_head, load_model
 from solver.detect import Detector
 from solver.detect.detected_case import detect_photos

@@ -47,11 +47,11 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFilter
 from scipy import ndimage
 
-from bench.bench_corrections import add_head_options, head_folders
 from bench.bench_detect import PROFILE_LINE, padded, read_profile_line
 from bench.bench_photo_size import photos_case
 from bench.common import machine_description
 from bench.realistic_cases import model_face_vertices
+from bench.rendered_heads import add_head_options, head_folders
 from solver import fit_head, load_landmarks, load_model
 from solver.detect import Detector
 from solver.procrustes import similarity_procrustes

@@ -1,18 +1,38 @@
-"""bench/bench_corrections.py's options for the rendered heads a photos-only benchmark fits
-(also bench_photo_size's and bench_photo_variants')."""
+"""bench/bench_corrections.py's cases: the photos-only case detected from the photos asked
+(a variant's, with hair), its corrections from the head's own exact landmarks."""
 
-import argparse
+import numpy as np
+import pytest
 
-from bench.bench_corrections import TEN_HEADS, add_head_options
+from bench.bench_corrections import GROUPS, corrected_cases
+from bench.bench_photo_variants import changed
+from solver import load_landmarks
+from solver.detect import Detector
+from solver.io.landmark_set import load_landmark_set
+from solver.paths import DETECTOR_DIR
 
 
-def test_the_head_options_default_to_the_sample_and_the_ten_heads():
-    parser = argparse.ArgumentParser()
-    add_head_options(parser)
-    args = parser.parse_args([])
-    assert args.heads is None and args.render == TEN_HEADS == [101, *range(201, 209)]
-    args = parser.parse_args(["--heads", "a", "b", "--render"])
-    assert args.heads == ["a", "b"] and args.render == []
-    parser = argparse.ArgumentParser()
-    add_head_options(parser, render=[])
-    assert parser.parse_args([]).render == []
+def test_corrections_of_a_variant_s_photos_place_the_head_s_own_exact_points(
+        sample, model, tmp_path):
+    if not (DETECTOR_DIR / "face_landmark.tflite").is_file():
+        pytest.skip(f"models missing in {DETECTOR_DIR}: run ./run detector")
+    folder, _ = sample
+    detector = Detector()
+    photos = changed(folder, "hair", tmp_path / "hair", detector)
+    plain = dict(corrected_cases(folder, model, detector))
+    haired = dict(corrected_cases(folder, model, detector, photos))
+    assert list(haired) == ["photos", *GROUPS, "profile ears", "every exact"]
+    # the photos detected are the variant's: hair moves the front's detected points
+    a, b = plain["photos"].views["front"].points, haired["photos"].views["front"].points
+    assert set(a) == set(b)
+    assert max(np.hypot(*np.subtract(a[n], b[n])) for n in a) > 0.5
+    # the corrections are the head's own exact points, whichever photos were detected
+    exact = load_landmarks(folder / "sample.json", known_names=model)
+    names = [load_landmark_set().ibug[i] for i in GROUPS["jaw"]]
+    jaw, placed = haired["jaw"].views["front"], exact.views["front"].points
+    assert [jaw.points[n] for n in names] == [placed[n] for n in names]
+    assert not set(names) & set(jaw.uncertainty)
+    ears = {n: p for n, p in exact.views["side"].points.items() if n.startswith("ear_")}
+    assert ears and all(haired["profile ears"].views["right"].points[n] == p
+                        for n, p in ears.items())
+    assert haired["every exact"].views.keys() == exact.views.keys()
