@@ -29,6 +29,7 @@ from .solver_link import (
     bake_fit_texture,
     fit_head,
     forget_fit_subsets,
+    iris_colour,
     load_landmarks,
     orthographic_lenses,
     solver_module,
@@ -108,7 +109,7 @@ def write_head(task, model):
     forget_fit_subsets(model)  # this head's subsets: another head seldom asks for them
     for message in result.info.get("warnings", ()):
         print(f"{name}: warning: {message}", file=sys.stderr, flush=True)
-    tiles = None
+    tiles = iris = None
     if settings["bake"]:
         arrays = {v: photos.image_to_array(img) for v, img in imgs.items()
                   if not img.get(photos.PLACEHOLDER)}
@@ -118,6 +119,7 @@ def write_head(task, model):
                 options=BakeOptions(shading=settings.get("texture_shading") or "keep",
                                     clothes=settings.get("texture_clothes") or "leave-out",
                                     threads=1))
+            iris = iris_colour(model, result, arrays, case)
         del arrays  # the photos as float arrays (25 MB a head): not held through the export
         heap.release_free_memory()  # the bake's temporaries, before Blender takes more
     if "texture" in kinds and tiles is None:
@@ -128,7 +130,7 @@ def write_head(task, model):
     staging.mkdir()
     try:
         staged = _write_staged(staging, base.name, name, kinds, model, case, result, imgs,
-                               tiles, settings, targets, t0)
+                               (tiles, iris), settings, targets, t0)
         for kind, tmp in staged.items():
             if tmp.is_dir():  # the .fbx's textures folder
                 shutil.rmtree(targets[kind], ignore_errors=True)
@@ -142,15 +144,17 @@ def write_head(task, model):
     return row
 
 
-def _write_staged(staging, stem, name, kinds, model, case, result, imgs, tiles, settings,
+def _write_staged(staging, stem, name, kinds, model, case, result, imgs, baked, settings,
                   targets, t0):
     """Write a head's outputs into ``staging`` under their final names; returns kind ->
-    staged path. ``imgs``: the photos as bpy images, ``tiles``: the baked texture."""
+    staged path. ``imgs``: the photos as bpy images, ``baked``: the baked texture and the
+    irises' colour (``(None, None)`` unbaked)."""
+    tiles, iris = baked
     staged = {}
     needs_scene = {"blend", "glb", "fbx"} & set(kinds)
     if needs_scene:
         head = head_scene.build_scene_from_fit(model, case, result, imgs, bake=False,
-                                               textures=tiles, name=name)
+                                               textures=tiles, name=name, iris=iris)
         if settings["bake_identity"]:
             apply_identity.apply_identity(head, model.expression_names)
         if "blend" in kinds:

@@ -19,6 +19,7 @@ from .solver_link import (
     bake_fit_texture,
     check_case,
     fit_head,
+    iris_colour,
     load_model,
 )
 
@@ -39,6 +40,7 @@ class FitJob(Progress):
     calibration: dict = dataclasses.field(default_factory=dict)
     calibration_notes: list = dataclasses.field(default_factory=list)
     textures: dict = None
+    iris: object = None  # the irises' colour read off the photos (3,) sRGB, or None
     error: BaseException = None
     cancelled: bool = False
     fraction: float = 0.0
@@ -69,6 +71,7 @@ class FitJob(Progress):
             options = BakeOptions(shading=self.texture_shading, clothes=self.texture_clothes)
             self.textures = bake_fit_texture(self.model, self.result, self.photos,
                                              size=self.texture_size, options=options)
+            self.iris = iris_colour(self.model, self.result, self.photos, self.case)
             self.timings["bake"] = time.perf_counter() - t
         except BaseException as e:  # noqa: B036
             self.error = e
@@ -135,7 +138,8 @@ def apply_job(scene, job, textures=True):
                   for view, shown in job.result.info.get("expressions", {}).items() if shown]
     head = result_to_scene.apply_result(scene, job.model, job.result,
                                         job.textures if textures else None,
-                                        calibration=job.calibration, notes=job.notes)
+                                        calibration=job.calibration, notes=job.notes,
+                                        iris=job.iris if textures else None)
     job.timings["write"] = time.perf_counter() - t
     LIVE.remember(scene, head, job.model, job.result, job.options, job.calibration)
     _status(scene, head, job)
@@ -190,7 +194,7 @@ def run_fit(scene):
         baker.join()
     if job.error is None and job.textures:
         t = time.perf_counter()
-        result_to_scene.write_textures(head, job.model, job.textures)
+        result_to_scene.write_textures(head, job.model, job.textures, job.iris)
         job.timings["write"] += time.perf_counter() - t
     job.timings["total"] = time.perf_counter() - t0
     _status(scene, head, job)

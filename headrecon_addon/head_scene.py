@@ -14,7 +14,7 @@ import numpy as np
 
 from . import case_to_scene, photos, result_to_scene, scene_collections
 from .data import Transaction
-from .solver_link import BakeOptions, bake_fit_texture
+from .solver_link import BakeOptions, bake_fit_texture, iris_colour
 
 
 def ensure_registered():
@@ -58,7 +58,7 @@ def _only(case, view):
 
 def build_scene_from_fit(model, case, result, images=None, scene=None, texture_size=1024,
                          bake=True, name=None, textures=None, texture_shading="keep",
-                         texture_clothes="leave-out"):
+                         texture_clothes="leave-out", iris=None):
     """Build the artist's scene for a finished fit: photo planes with landmarks (and
     contour, passpoints), a Blender camera per perspective photo set to its fitted camera,
     and the head with shape keys, transform, uncertainty and baked texture; the residual
@@ -83,6 +83,9 @@ def build_scene_from_fit(model, case, result, images=None, scene=None, texture_s
     textures : dict of int -> ndarray (S, S, 3|4), optional
         A bake the caller already has (``bake_fit_texture(model, result, ...)``, UDIM tile
         -> texture, row 0 at the top): used as it is, nothing is baked again.
+    iris : ndarray (3,), optional
+        The irises' colour the caller read with its bake (``iris_colour``); read off the
+        photos here when the texture is baked here.
     texture_shading : str
         ``BakeOptions.shading`` of the bake: "keep" or "remove" the photos' light.
     texture_clothes : str
@@ -109,9 +112,10 @@ def build_scene_from_fit(model, case, result, images=None, scene=None, texture_s
                 textures = bake_fit_texture(model, result, arrays, size=int(texture_size),
                                             options=BakeOptions(shading=texture_shading,
                                                                 clothes=texture_clothes))
+                iris = iris_colour(model, result, arrays, case)
         calibration, _ = result_to_scene.calibration_checks(case)
         head = result_to_scene.apply_result(scene, model, result, textures, name=name,
-                                            calibration=calibration)
+                                            calibration=calibration, iris=iris)
     return head
 
 

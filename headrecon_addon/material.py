@@ -16,6 +16,8 @@ identifier, which did not change).
 import bpy
 import numpy as np
 
+from .solver_link import solver_module
+
 # Part groups of the ICT mesh: (material suffix, keywords in the ICT part name, colour RGBA).
 # First match wins.
 PART_GROUPS = (
@@ -39,14 +41,12 @@ TEXTURE_NODE = "HeadRecon Texture"
 GROUP_KEY = "headrecon_group"  # custom property naming a head material's part group
 PHOTO_NODE = "HeadRecon Photo"
 
-# ICT README, "Eyeball details" (vertex ranges, inclusive; the model keeps ICT's vertex
-# order). The sclera is the outer shell with the cornea bulge; the iris part is an inner
-# sphere the opaque sclera hides, so the eye material paints iris and pupil onto the
-# sclera's front.
-SCLERA_RANGES = ((21451, 22220), (23021, 23790))
-IRIS_RANGES = ((22221, 23020), (23791, 24590))
-IRIS_RADIUS = 0.0058  # metres from the eye's axis
-PUPIL_RADIUS = 0.0021
+# The eyes' geometry (sclera and iris vertices, the iris's and pupil's radii) is the
+# model's: ``solver.model.eyes``.
+_EYES = solver_module("model.eyes")
+SCLERA_RANGES, IRIS_RANGES = _EYES.SCLERA_RANGES, _EYES.IRIS_RANGES
+IRIS_RADIUS, PUPIL_RADIUS = _EYES.IRIS_RADIUS, _EYES.PUPIL_RADIUS
+_SHADING = solver_module("texture.shading")  # the sRGB curves
 # Per-vertex float the eye material reads: 1 on the eye's axis, falling linearly to 0 at
 # EYE_RANGE_MM from it, on the front of the sclera; 0 everywhere else. Zero where it is
 # missing, so a mesh without it shows plain sclera, not a black pupil.
@@ -242,28 +242,30 @@ def eye_attribute(vertices):
         1 - r / EYE_RANGE_MM on the front half of each sclera, r being the distance from
         the eye's axis (the line through the iris sphere's centre along -Y); 0 elsewhere.
     """
-    v = np.asarray(vertices, dtype=np.float64)
-    need = IRIS_RANGES[-1][1] + 1
-    if v.ndim != 2 or v.shape[1] != 3 or len(v) < need:
-        raise ValueError(f"vertices: expected the ICT head's (V, 3) vertices with V >= {need}"
-                         f", got shape {v.shape}")
-    out = np.zeros(len(v), dtype=np.float32)
-    for (s0, s1), (i0, i1) in zip(SCLERA_RANGES, IRIS_RANGES, strict=True):
-        d = v[s0:s1 + 1] - v[i0:i1 + 1].mean(axis=0)
-        r_mm = np.hypot(d[:, 0], d[:, 2]) * 1000.0
-        out[s0:s1 + 1] = np.where(d[:, 1] < 0, np.clip(1.0 - r_mm / EYE_RANGE_MM, 0, 1), 0)
+    out = np.zeros(len(vertices), dtype=np.float32)
+    for idx, r, front in _EYES.sclera_axis_distance(vertices):
+        out[idx] = np.where(front, np.clip(1.0 - r * 1000.0 / EYE_RANGE_MM, 0, 1), 0)
     return out
+
+
+IRIS_NODE = "HeadRecon Iris"
+#: The iris's two colours (linear RGB) when no photo gave one: a blue-grey.
+DEFAULT_IRIS = ((0.10, 0.16, 0.22), (0.22, 0.32, 0.36))
+#: The iris's darker and lighter streaks around the colour read off the photos (linear).
+IRIS_SPREAD = (0.7, 1.3)
 
 
 def eye_shader(mat):
     """Make ``mat`` an eye: sclera, an iris with radial streaks and a dark limbal ring, a
     pupil, under a clear wet coat; drawn by the distance from the eye's axis
-    (``EYE_ATTRIBUTE``, 8 mm = 1 below)."""
+    (``EYE_ATTRIBUTE``, 8 mm = 1 below). The iris is ``DEFAULT_IRIS`` until
+    :func:`set_iris_colour` gives it the person's."""
     b = NodeBuilder(mat)
     r = b.math("MULTIPLY", b.math("SUBTRACT", 1.0, b.attribute(EYE_ATTRIBUTE)),
                EYE_RANGE_MM / 8.0)
     iris = b.ramp(b.noise(b.coordinates("Object"), 900.0),
-                  [(0.35, (0.10, 0.16, 0.22)), (0.65, (0.22, 0.32, 0.36))])
+                  [(0.35, DEFAULT_IRIS[0]), (0.65, DEFAULT_IRIS[1])])
+    iris.node.name = iris.node.label = IRIS_NODE
     p, q = PUPIL_RADIUS * 1000 / 8.0, IRIS_RADIUS * 1000 / 8.0
     ring = b.ramp(r, [(p - 0.01, (0.0, 0.0, 0.0)), (p + 0.01, (1.0, 1.0, 1.0)),
                       (q - 0.08, (1.0, 1.0, 1.0)), (q - 0.01, (0.35, 0.35, 0.35)),
@@ -276,6 +278,20 @@ def eye_shader(mat):
     b.bsdf.inputs["Coat Roughness"].default_value = 0.03
     b.arrange()
     return mat
+
+
+def set_iris_colour(mat, srgb):
+    """Give an eye material (:func:`eye_shader`) the iris colour read off the photos:
+    ``srgb`` (3,) in [0, 1] in the photos' encoding, made linear as the skin texture's
+    colours are, its streaks ``IRIS_SPREAD`` darker and lighter. Returns False when
+    ``mat`` has no iris (an eye material made elsewhere), leaving it as it is."""
+    node = mat.node_tree.nodes.get(IRIS_NODE) if mat.node_tree is not None else None
+    if node is None:
+        return False
+    linear = _SHADING.srgb_to_linear(srgb)
+    for element, k in zip(node.color_ramp.elements, IRIS_SPREAD, strict=True):
+        element.color = tuple(np.clip(linear * k, 0.0, 1.0)) + (1.0,)
+    return True
 
 
 # ICT's eyelash UVs (tile u in [6, 7]): per eye six strips stacked in v, each 1/6 high,
@@ -338,11 +354,6 @@ def eyelash_alpha(size=LASH_TEXTURE_SIZE):
     return (alpha * (0.55 + 0.45 * upper)).astype(np.float32)
 
 
-def _srgb(linear):
-    c = np.asarray(linear, dtype=np.float64)
-    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
-
-
 _LASH_ALPHA = {}  # texture size -> eyelash_alpha(size)
 
 
@@ -363,7 +374,7 @@ def eyelash_image():
         return img
     n = LASH_TEXTURE_SIZE
     rgba = np.empty((n, n, 4), dtype=np.float32)
-    rgba[..., :3] = _srgb(LASH_COLOUR)
+    rgba[..., :3] = _SHADING.linear_to_srgb(LASH_COLOUR)
     rgba[..., 3] = cached_eyelash_alpha(n)
     img = bpy.data.images.new(LASH_IMAGE, n, n, alpha=True)
     img.pixels.foreach_set(rgba[::-1].ravel())  # Blender's rows run bottom-up

@@ -76,9 +76,14 @@ def skin_group_tiles(model):
     return out
 
 
-def write_textures(head, model, textures):
+def write_textures(head, model, textures, iris=None):
     """Put baked tiles (dict tile -> (S, S, 3)) into the head's skin materials (packed
-    into the .blend when it is saved, so the file carries its texture)."""
+    into the .blend when it is saved, so the file carries its texture), and ``iris`` (3,)
+    sRGB, the irises' colour read off the photos (``iris_colour``), into its eyes."""
+    if iris is not None:
+        eyes = reference_head.part_material(head, "Eyes")
+        if eyes is not None:
+            material.set_iris_colour(eyes, iris)
     images = []
     for group, tile in skin_group_tiles(model).items():
         if tile not in textures:
@@ -175,7 +180,7 @@ def update_residuals(scene, result, calibration=None):
 
 
 def apply_result(scene, model, result, textures=None, head=None, name=None, calibration=None,
-                 notes=None):
+                 notes=None, iris=None):
     """Write a FitResult into the scene: shape keys, transform, texture, uncertainty,
     residuals, landmark colours; photo planes lined up with the fitted cameras (a
     perspective photo's Blender camera set to its fitted camera, whose parameters become
@@ -188,6 +193,8 @@ def apply_result(scene, model, result, textures=None, head=None, name=None, cali
     result : FitResult
     textures : dict of int -> ndarray (S, S, 3), optional
         Baked tiles (``bake_fit_texture``).
+    iris : ndarray (3,), optional
+        The irises' colour read off the photos (``iris_colour``), sRGB in [0, 1].
     head : bpy.types.Object, optional
         Default: the scene's head; one is made (and linked) if there is none.
     name : str, optional
@@ -215,8 +222,8 @@ def apply_result(scene, model, result, textures=None, head=None, name=None, cali
             if not created:
                 shape_keys.remove_fit_keys(head)
             raise
-        if textures:
-            write_textures(head, model, textures)
+        if textures or iris is not None:
+            write_textures(head, model, textures or {}, iris)
         head.headrecon.uncertainty_max_mm = write_uncertainty(head.data, result.uncertainty)
         if created:
             scene_collections.link(scene, head)

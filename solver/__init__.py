@@ -67,6 +67,7 @@ from .texture.bake import (
     bake_fit_texture,
     bake_texture,
 )
+from .texture.iris import iris_colour
 from .texture.uvs import orthographic_uvs, uv_raster, uv_tiles
 
 __all__ = [
@@ -81,7 +82,8 @@ __all__ = [
     "camera_class", "camera_from_dict", "camera_from_json", "camera_to_json", "check_case",
     "check_passpoints", "count_problems", "covered_note", "dlt_to_blender", "face_landmarks",
     "fit_dlt", "fit_head", "forget_fit_subsets",
-    "guess_view", "is_nominal", "landmarks_needed", "landmarks_to_dict", "load_landmark_set",
+    "guess_view", "iris_colour", "is_nominal", "landmarks_needed", "landmarks_to_dict",
+    "load_landmark_set",
     "load_landmarks", "load_model", "lens_hints", "orient", "oriented_size",
     "orthographic_lenses", "placed", "plausible_lens", "points_yaw_deg",
     "orthographic_uvs", "prepare_fit",

@@ -101,3 +101,15 @@ def check_orthonormal(rot, name):
         return r.copy()
     u, _, vt = np.linalg.svd(r)
     return u @ vt
+
+
+def inside_polygon(points, polygon):
+    """Which ``points`` (P, 2) lie inside the closed ``polygon`` (n, 2) (even-odd rule),
+    (P,) bool."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)[:, None, :]
+    a = np.asarray(polygon, dtype=np.float64)
+    b = np.roll(a, -1, axis=0)
+    crosses = (a[:, 1] > p[..., 1]) != (b[:, 1] > p[..., 1])
+    dy = np.where(b[:, 1] != a[:, 1], b[:, 1] - a[:, 1], 1.0)
+    xs = a[:, 0] + (p[..., 1] - a[:, 1]) * (b[:, 0] - a[:, 0]) / dy
+    return (np.sum(crosses & (xs > p[..., 0]), axis=1) % 2).astype(bool)

@@ -31,6 +31,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
+from ..geometry import inside_polygon
 from ..photo_colour import chromaticity, has_colour, sample_photo, skin_colour, skin_like
 from .crop import Square
 from .iso_line import iso_lines
@@ -530,8 +531,4 @@ def _end_note(i, skin, on_photo, above):
 
 def _contains(polygon, point):
     """Whether ``point`` (2,) lies inside ``polygon`` (n, 2) (even-odd rule)."""
-    x, y = polygon[:, 0], polygon[:, 1]
-    x2, y2 = np.roll(x, -1), np.roll(y, -1)
-    crosses = (y > point[1]) != (y2 > point[1])
-    xs = x + (point[1] - y) * (x2 - x) / np.where(y2 != y, y2 - y, 1.0)
-    return bool(np.sum(crosses & (xs > point[0])) % 2)
+    return bool(inside_polygon(point, polygon)[0])

@@ -20,7 +20,13 @@ def test_given_textures_are_used_without_a_second_bake(model, tmp_path, monkeypa
 
     monkeypatch.setattr(head_scene, "bake_fit_texture", no_bake)
     head_scene.reset_scene()
-    head = head_scene.build_scene_from_fit(model, case, result, textures=given)
+    head = head_scene.build_scene_from_fit(model, case, result, textures=given,
+                                           iris=np.array([0.5, 0.3, 0.2]))
+    # the irises' colour given with the bake is the eyes' (linear, its darker streak first)
+    ramp = reference_head.part_material(head, "Eyes").node_tree.nodes[
+        material.IRIS_NODE].color_ramp.elements
+    red, _, blue = ramp[0].color[:3]
+    assert red > 2 * blue
     for group, tile in (("Face", 1001), ("Head", 1002)):
         img = material.skin_texture(reference_head.part_material(head, group))
         assert img is not None and tuple(img.size) == (64, 48)

@@ -2,6 +2,7 @@
 (bpy module, background)."""
 
 import numpy as np
+import pytest
 
 
 def _render_eyes(scene, head, model, lash_alpha=None):
@@ -71,6 +72,32 @@ def test_eyes_and_lashes(model, scene):
     cover = (without - lashes)[footprint] / (without - slabs)[footprint]  # 0 clear, 1 opaque
     assert 0.05 < cover.mean() < 0.6, cover.mean()
     assert np.percentile(cover, 90) > 0.25 and np.median(cover) < 0.4  # dense at the lid
+
+
+def test_the_iris_takes_the_colour_read_off_the_photos(model, scene):
+    from headrecon_addon import material, reference_head
+    from solver.texture.shading import srgb_to_linear
+
+    head = reference_head.new_head_object(model)
+    scene.collection.objects.link(head)
+    eyes = reference_head.part_material(head, "Eyes")
+    ramp = eyes.node_tree.nodes[material.IRIS_NODE].color_ramp.elements
+    np.testing.assert_allclose([tuple(e.color)[:3] for e in ramp], material.DEFAULT_IRIS,
+                               atol=1e-6)
+    brown = (0.45, 0.28, 0.15)
+    assert material.set_iris_colour(eyes, brown)
+    for e, k in zip(ramp, material.IRIS_SPREAD, strict=True):
+        assert tuple(e.color)[:3] == pytest.approx(tuple(k * srgb_to_linear(brown)), abs=1e-5)
+    # rendered: the iris is now brown, not blue-grey
+    rgba, cam = _render_eyes(scene, head, model)
+    attr = material.eye_attribute(model.vertices)
+    u, v = np.round(cam.project(model.vertices[[23021 + int(np.argmax(
+        attr[23021:23791]))]])[0]).astype(int)
+    r_px = int(round(0.5 * (material.IRIS_RADIUS + material.PUPIL_RADIUS) * cam.scale))
+    iris = rgba[v - 1:v + 2, u + r_px - 1:u + r_px + 2, :3].mean(axis=(0, 1))
+    assert iris[0] > iris[2] + 0.05, iris
+    # a material without the iris node (not the add-on's eye) is left as it is
+    assert not material.set_iris_colour(reference_head.part_material(head, "Teeth"), brown)
 
 
 def test_eyelash_texture():

@@ -73,6 +73,13 @@ def test_texture_and_uncertainty(model, fitted, tmp_path):
     from headrecon_addon import material, reference_head, result_to_scene
 
     scene, head, result = fitted
+    # the Fit read the irises' colour off the photos with its bake: the eyes have it
+    ramp = reference_head.part_material(head, "Eyes").node_tree.nodes[
+        material.IRIS_NODE].color_ramp.elements
+    dark, light = (np.array(e.color[:3]) for e in ramp)
+    assert not np.allclose(dark, material.DEFAULT_IRIS[0])
+    k = material.IRIS_SPREAD
+    np.testing.assert_allclose(np.minimum(dark / k[0] * k[1], 1.0), light, atol=1e-5)
     images = []
     for group in ("Face", "Head"):
         img = material.skin_texture(reference_head.part_material(head, group))
