@@ -42,8 +42,8 @@ GROUP_KEY = "headrecon_group"  # custom property naming a head material's part g
 PHOTO_NODE = "HeadRecon Photo"
 
 # The eyes' geometry (sclera and iris vertices, the iris's and pupil's radii) is the
-# model's: ``solver.model.eyes``.
-_EYES = solver_module("model.eyes")
+# model's: ``solver.eyes``.
+_EYES = solver_module("eyes")
 SCLERA_RANGES, IRIS_RANGES = _EYES.SCLERA_RANGES, _EYES.IRIS_RANGES
 IRIS_RADIUS, PUPIL_RADIUS = _EYES.IRIS_RADIUS, _EYES.PUPIL_RADIUS
 _SHADING = solver_module("texture.shading")  # the sRGB curves

@@ -3,7 +3,7 @@ photo that looks into the eyes, sampled where the lids leave them open, so the h
 get the person's colour instead of one colour for everybody.
 
 The iris is the ring of each sclera's front between the pupil and the iris's rim
-(``model.eyes``), kept ``RIM_MARGIN`` inside both; a point counts where no skin lies in
+(``solver.eyes``), kept ``RIM_MARGIN`` inside both; a point counts where no skin lies in
 front of it in that photo (the lids: a depth buffer of the skin around the eye) and,
 where the photo's eye landmarks are placed or detected, inside the opening they draw (a
 fitted lid is a model's, the landmarks are the photo's own), and only in photos whose
@@ -16,8 +16,8 @@ out before the median.
 import numpy as np
 import scipy.ndimage as ndi
 
+from ..eyes import IRIS_RADIUS, IRIS_RANGES, PUPIL_RADIUS, sclera_axis_distance
 from ..geometry import inside_polygon
-from ..model.eyes import IRIS_RADIUS, IRIS_RANGES, PUPIL_RADIUS, sclera_axis_distance
 from ..photo_colour import sample_photo
 from .raster import depth_buffer
 

@@ -9,7 +9,7 @@ import pytest
 from PIL import Image
 
 from solver.cameras import OrthographicCamera
-from solver.model.eyes import IRIS_RADIUS, IRIS_RANGES, PUPIL_RADIUS
+from solver.eyes import IRIS_RADIUS, IRIS_RANGES, PUPIL_RADIUS
 from solver.texture.iris import MIN_SAMPLES, iris_colour, iris_samples
 
 BROWN = np.array([0.42, 0.26, 0.14])

@@ -1,10 +1,10 @@
-"""The bundled head's eyes (solver/model/eyes.py): each sclera's vertices, their distance
+"""The bundled head's eyes (solver/eyes.py): each sclera's vertices, their distance
 from the eye's axis and which half faces forward."""
 
 import numpy as np
 import pytest
 
-from solver.model.eyes import IRIS_RADIUS, SCLERA_RANGES, sclera_axis_distance
+from solver.eyes import IRIS_RADIUS, SCLERA_RANGES, sclera_axis_distance
 
 
 def test_each_sclera_is_measured_from_its_own_axis(model):
