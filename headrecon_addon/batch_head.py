@@ -197,7 +197,7 @@ def _write_staged(staging, stem, name, kinds, model, case, result, imgs, baked, 
                  if k in targets}
         final["report"] = targets["report"]
         text = rep.report_text(rep.fit_report(case, model, result, settings, final,
-                                              {"total": time.perf_counter() - t0}))
+                                              {"total": time.perf_counter() - t0}, iris))
         files[staging / f"{stem}.report.json"] = text
         staged["report"] = staging / f"{stem}.report.json"
     if files:

@@ -273,15 +273,17 @@ def _cmd_fit(args):
     for message in result.info.get("warnings", ()):
         print(f"warning: {message}", file=sys.stderr)
 
-    tiles = None
+    tiles = iris = None
     if args.texture:
         from .texture.bake import BakeOptions, bake_fit_texture
+        from .texture.iris import iris_colour
 
         progress(1.0, f"baking the texture from {len(photos)} photo(s)")
         t = time.perf_counter()
         tiles = bake_fit_texture(model, result, photos, size=args.texture_size,
                                  options=BakeOptions(shading=args.texture_shading,
                                                      clothes=args.texture_clothes))
+        iris = iris_colour(model, result, photos, case)
         timings["texture"] = time.perf_counter() - t
 
     progress(1.0, f"writing {args.out}")
@@ -296,7 +298,7 @@ def _cmd_fit(args):
         timings["total"] = time.perf_counter() - t_start
         options = {k: v for k, v in vars(args).items() if k not in ("func", "debug")}
         files[outputs["--report"]] = report_text(fit_report(case, model, result, options,
-                                                            written, timings))
+                                                            written, timings, iris))
     for path in files:
         path.parent.mkdir(parents=True, exist_ok=True)
     write_files_atomic(files)  # all or nothing: a failure leaves every old file

@@ -31,7 +31,7 @@ def jsonable(x):
     return repr(x)
 
 
-def fit_report(case, model, result, options, outputs, timings):
+def fit_report(case, model, result, options, outputs, timings, iris=None):
     """The report of one fit as plain JSON values.
 
     Parameters
@@ -46,6 +46,9 @@ def fit_report(case, model, result, options, outputs, timings):
         Files written ("obj", "mtl", "texture", "report").
     timings : dict of str -> float
         Seconds per step.
+    iris : ndarray (3,), optional
+        The irises' colour read off the photos with the texture (``iris_colour``), sRGB
+        in [0, 1]: "iris_srgb" (null when no photo showed the irises or none was baked).
 
     Returns
     -------
@@ -97,6 +100,7 @@ def fit_report(case, model, result, options, outputs, timings):
             "max": float(unc_skin.max()) if unc_skin.size else None,
             "landmarks": landmark_unc,
         },
+        "iris_srgb": None if iris is None else np.asarray(iris, float),
         "timings_s": timings,
         "outputs": {k: str(Path(v).resolve()) for k, v in outputs.items()},
         "info": info,

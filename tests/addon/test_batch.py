@@ -169,6 +169,8 @@ def test_output_choices(heads, tmp_path):
     report = json.loads((out / "h3.report.json").read_text())
     assert report["outputs"]["texture"] == str(out / "h3_texture.png")
     assert report["options"]["outputs"] == ["obj", "texture", "report"]
+    # the irises' colour read off the photos with the bake (the front looks into the eyes)
+    assert len(report["iris_srgb"]) == 3 and all(0 <= c <= 1 for c in report["iris_srgb"])
     assert "h3_texture.png" in (out / "h3.mtl").read_text()
     with pytest.raises(SystemExit) as bad:
         headless.main([str(heads / "h3.json"), "--out", str(out), "--outputs", "blend,png"])

@@ -230,6 +230,8 @@ def test_fit_a_synthetic_case_writes_obj_texture_and_report(tmp_path, model):
     assert report["uncertainty_mm"]["median"] > 0
     assert report["timings_s"]["fit"] > 0
     assert set(report["outputs"]) == {"obj", "mtl", "texture", "report"}
+    # the irises' colour read off the front photo: its ramp's blue is 127 everywhere
+    assert report["iris_srgb"][2] == pytest.approx(127 / 255, abs=0.005)
     # the estimated placement noise and the head's plausibility are in the report; the
     # noise floor (1 px at the settings' size) in these 512-px photos' pixels
     from solver.fitting.views import photo_scale

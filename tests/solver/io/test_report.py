@@ -41,6 +41,9 @@ def test_fit_report(tmp_path, model, fitted):
     assert len(report["coefficients"]["identity"]) == 10
     assert "refit_state" not in report["info"]
     assert 0 < report["uncertainty_mm"]["median"] <= report["uncertainty_mm"]["max"]
+    assert report["iris_srgb"] is None
+    brown = fit_report(case, model, result, {}, {}, {}, iris=np.array([0.4, 0.25, 0.1]))
+    assert brown["iris_srgb"] == [0.4, 0.25, 0.1]
     path = tmp_path / "report.json"
     write_fit_report(path, report)
     assert json.loads(path.read_text(encoding="utf-8")) == report
