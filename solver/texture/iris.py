@@ -63,10 +63,9 @@ def iris_samples(model, local_vertices, world_vertices, camera, image, openings=
     ``openings`` (k, n, 2): the eye openings in the camera's pixels (``eye_openings``),
     each iris sampled only inside the one nearest it (None: by the lids alone)."""
     image = np.asarray(image)
-    rgb = image[..., :3].astype(np.float64)
-    if np.issubdtype(image.dtype, np.integer):
-        rgb /= np.iinfo(image.dtype).max
-    h, w = rgb.shape[:2]
+    # a few hundred points are sampled: the photo is not converted as a whole
+    unit = np.iinfo(image.dtype).max if np.issubdtype(image.dtype, np.integer) else 1.0
+    h, w = image.shape[:2]
     size = getattr(camera, "size", None)
     scale = np.ones(2) if size is None else np.array([w / size[0], h / size[1]])
     world = np.asarray(world_vertices, dtype=np.float64)
@@ -98,9 +97,9 @@ def iris_samples(model, local_vertices, world_vertices, camera, image, openings=
         open_ = depth < skin[px[:, 1], px[:, 0]]
         if openings is not None and len(openings):
             at = np.asarray(openings, float) * scale
-            near = at[np.argmin(np.linalg.norm(at.mean(axis=1) - uv.mean(axis=0), axis=1))]
-            open_ &= inside_polygon(uv, near)
-        out.append(sample_photo(rgb, uv[open_]))
+            own = at[np.argmin(np.linalg.norm(at.mean(axis=1) - uv.mean(axis=0), axis=1))]
+            open_ &= inside_polygon(uv, own)
+        out.append(sample_photo(image[..., :3], uv[open_]) / unit)
     return np.concatenate(out) if out else np.zeros((0, 3))
 
 
