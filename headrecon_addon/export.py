@@ -3,7 +3,8 @@
 What an engine gets: the fitted face as the base mesh (identity applied on a temporary
 copy of the head, so the scene is not changed), the expression keys as morph targets /
 blend shapes by Apple's ARKit names (plus the model's extras), all at weight 0, the baked
-texture embedded, and no morph normals unless asked for (they double the file and
+texture embedded, the eyes painted as an image (the eye shader's nodes do not export), and
+no morph normals unless asked for (they double the file and
 engines recompute normals). The fitted similarity stays the node's transform.
 
 The glTF exporter embeds images from their pixels; the FBX exporter only embeds image
@@ -18,7 +19,7 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from . import apply_identity
+from . import apply_identity, material
 
 FORMATS = ("GLB", "FBX")
 SUFFIX = {"GLB": ".glb", "FBX": ".fbx"}
@@ -59,6 +60,53 @@ def _game_copy(head, model_expression_names, scene):
         bpy.data.objects.remove(copy)
         bpy.data.meshes.remove(mesh)
         head.name = name
+
+
+@contextmanager
+def _painted_eyes(obj):
+    """``obj``'s (a game copy's own mesh) eye material replaced, for the export, by one per
+    eye whose base colour is that eye painted as an image (``material.eye_image_pixels``,
+    the iris's colour as the head's eye material has it): exporters cannot follow the eye
+    shader's nodes and would write a white eyeball. Removed afterwards."""
+    mesh = obj.data
+    slot = next((i for i, m in enumerate(mesh.materials)
+                 if m is not None and m.get(material.GROUP_KEY) == "Eyes"), None)
+    if slot is None or mesh.uv_layers.active is None:
+        yield
+        return
+    eyes = mesh.materials[slot]
+    index = np.empty(len(mesh.polygons), np.int64)
+    mesh.polygons.foreach_get("material_index", index)
+    painted, images, added = [], [], 0
+    try:
+        for k, faces in enumerate(material.eye_faces(mesh, slot)):
+            img = bpy.data.images.new(f"{eyes.name} {k + 1}", material.EYE_IMAGE_SIZE,
+                                      material.EYE_IMAGE_SIZE)
+            images.append(img)
+            img.pixels.foreach_set(material.eye_image_pixels(
+                mesh, faces, material.iris_colours(eyes)).ravel())
+            flat = bpy.data.materials.new(f"{eyes.name} {k + 1}")
+            painted.append(flat)
+            tex = material.set_skin_texture(flat, img)  # the image as its base colour
+            tex.outputs["Color"].links[0].to_node.inputs["Roughness"].default_value = 0.1
+            if k == 0:
+                mesh.materials[slot] = flat
+            else:
+                mesh.materials.append(flat)
+                added += 1
+                moved = index.copy()
+                moved[faces] = len(mesh.materials) - 1
+                mesh.polygons.foreach_set("material_index", moved)
+        yield
+    finally:
+        mesh.polygons.foreach_set("material_index", index)
+        for _ in range(added):
+            mesh.materials.pop()
+        mesh.materials[slot] = eyes
+        for m in painted:
+            bpy.data.materials.remove(m)
+        for img in images:
+            bpy.data.images.remove(img)
 
 
 def _on_disk(img):
@@ -152,7 +200,7 @@ def export_head(path, head, model_expression_names, fmt="GLB", morph_normals=Fal
     selected = [o for o in bpy.context.view_layer.objects if o.select_get()]
     active = bpy.context.view_layer.objects.active
     try:
-        with _game_copy(head, model_expression_names, scene) as copy:
+        with _game_copy(head, model_expression_names, scene) as copy, _painted_eyes(copy):
             _select_only(copy)
             if fmt == "GLB":
                 bpy.ops.export_scene.gltf(

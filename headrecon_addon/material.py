@@ -47,6 +47,8 @@ _EYES = solver_module("eyes")
 SCLERA_RANGES, IRIS_RANGES = _EYES.SCLERA_RANGES, _EYES.IRIS_RANGES
 IRIS_RADIUS, PUPIL_RADIUS = _EYES.IRIS_RADIUS, _EYES.PUPIL_RADIUS
 _SHADING = solver_module("texture.shading")  # the sRGB curves
+_RASTER = solver_module("texture.raster")
+_FANS = solver_module("model.head_model")  # fan_triangles
 # Per-vertex float the eye material reads: 1 on the eye's axis, falling linearly to 0 at
 # EYE_RANGE_MM from it, on the front of the sclera; 0 everywhere else. Zero where it is
 # missing, so a mesh without it shows plain sclera, not a black pupil.
@@ -253,6 +255,14 @@ IRIS_NODE = "HeadRecon Iris"
 DEFAULT_IRIS = ((0.10, 0.16, 0.22), (0.22, 0.32, 0.36))
 #: The iris's darker and lighter streaks around the colour read off the photos (linear).
 IRIS_SPREAD = (0.7, 1.3)
+# The eye shader's rings, in its units (8 mm from the eye's axis = 1): the pupil's and the
+# iris's rims, the iris's light between them and its dark limbal ring (positions, values);
+# the iris ends at ``_IRIS_EDGE``; the sclera's colours (linear) from the iris's rim out.
+_PUPIL, _IRIS = PUPIL_RADIUS * 1000 / 8.0, IRIS_RADIUS * 1000 / 8.0
+_RING = ((_PUPIL - 0.01, _PUPIL + 0.01, _IRIS - 0.08, _IRIS - 0.01, _IRIS + 0.01),
+         (0.0, 1.0, 1.0, 0.35, 0.0))
+_IRIS_EDGE = _IRIS + 0.005
+SCLERA = ((_IRIS, (0.45, 0.42, 0.40)), (1.5, (0.62, 0.55, 0.52)))
 
 
 def eye_shader(mat):
@@ -266,12 +276,9 @@ def eye_shader(mat):
     iris = b.ramp(b.noise(b.coordinates("Object"), 900.0),
                   [(0.35, DEFAULT_IRIS[0]), (0.65, DEFAULT_IRIS[1])])
     iris.node.name = iris.node.label = IRIS_NODE
-    p, q = PUPIL_RADIUS * 1000 / 8.0, IRIS_RADIUS * 1000 / 8.0
-    ring = b.ramp(r, [(p - 0.01, (0.0, 0.0, 0.0)), (p + 0.01, (1.0, 1.0, 1.0)),
-                      (q - 0.08, (1.0, 1.0, 1.0)), (q - 0.01, (0.35, 0.35, 0.35)),
-                      (q + 0.01, (0.0, 0.0, 0.0))])
-    sclera = b.ramp(r, [(q, (0.45, 0.42, 0.40)), (1.5, (0.62, 0.55, 0.52))])
-    inside = b.math("LESS_THAN", r, q + 0.005)
+    ring = b.ramp(r, [(x, (y,) * 3) for x, y in zip(*_RING, strict=True)])
+    sclera = b.ramp(r, list(SCLERA))
+    inside = b.math("LESS_THAN", r, _IRIS_EDGE)
     b.set(b.bsdf.inputs["Base Color"], b.mix(inside, sclera, b.mix(ring, (0.005,) * 3, iris)))
     b.bsdf.inputs["Roughness"].default_value = 0.25
     b.bsdf.inputs["Coat Weight"].default_value = 1.0
@@ -292,6 +299,73 @@ def set_iris_colour(mat, srgb):
     for element, k in zip(node.color_ramp.elements, IRIS_SPREAD, strict=True):
         element.color = tuple(np.clip(linear * k, 0.0, 1.0)) + (1.0,)
     return True
+
+
+#: Texels a side of the eye's image for exporters (:func:`eye_image_pixels`).
+EYE_IMAGE_SIZE = 256
+
+
+def iris_colours(mat):
+    """The two colours (2, 3) linear of an eye material's iris ramp (``IRIS_NODE``: the
+    colour read off the photos, or the default, or what the artist set); the default when
+    ``mat`` has none."""
+    node = mat.node_tree.nodes.get(IRIS_NODE) if mat.node_tree is not None else None
+    if node is None:
+        return np.array(DEFAULT_IRIS)
+    return np.array([tuple(e.color)[:3] for e in node.color_ramp.elements[:2]])
+
+
+def eye_faces(mesh, slot):
+    """Which of ``mesh``'s polygons (P,) bool of material ``slot`` belong to each eye, one
+    mask per eye (``SCLERA_RANGES`` / ``IRIS_RANGES``: the head keeps ICT's vertex order).
+    The two eyeballs share one UV layout, but not to the pixel: each gets its own image."""
+    n_poly = len(mesh.polygons)
+    mats = np.empty(n_poly, np.int64)
+    mesh.polygons.foreach_get("material_index", mats)
+    loop_vertex = np.empty(len(mesh.loops), np.int64)
+    mesh.loops.foreach_get("vertex_index", loop_vertex)
+    starts = np.empty(n_poly, np.int64)
+    mesh.polygons.foreach_get("loop_start", starts)
+    first = loop_vertex[starts]  # one corner is enough: an eyeball's faces are its own
+    return [(mats == slot) & (((first >= s0) & (first <= s1)) | ((first >= i0) & (first <= i1)))
+            for (s0, s1), (i0, i1) in zip(SCLERA_RANGES, IRIS_RANGES, strict=True)]
+
+
+def eye_image_pixels(mesh, faces, iris, size=EYE_IMAGE_SIZE):
+    """One eye as an image in its UV layout, for exporters that cannot follow the eye
+    shader's nodes: ``mesh``'s polygons ``faces`` (P,) bool (:func:`eye_faces`) painted
+    from their ``EYE_ATTRIBUTE`` as the shader paints them (pupil, ``iris`` (2, 3) linear
+    averaged, the limbal ring, the sclera), without its noise. Returns (size, size, 4)
+    float32 sRGB-encoded RGBA, row 0 at the bottom (Blender's); texels no face covers are
+    the sclera's."""
+    n_poly = len(mesh.polygons)
+    starts, totals = np.empty(n_poly, np.int64), np.empty(n_poly, np.int64)
+    mesh.polygons.foreach_get("loop_start", starts)
+    mesh.polygons.foreach_get("loop_total", totals)
+    uv = np.empty(len(mesh.loops) * 2, np.float32)
+    mesh.uv_layers.active.data.foreach_get("uv", uv)
+    loop_vertex = np.empty(len(mesh.loops), np.int64)
+    mesh.loops.foreach_get("vertex_index", loop_vertex)
+    attr = np.zeros(len(mesh.vertices), np.float32)
+    if EYE_ATTRIBUTE in mesh.attributes:
+        mesh.attributes[EYE_ATTRIBUTE].data.foreach_get("value", attr)
+    tri_loop, _ = _FANS.fan_triangles(starts[faces], totals[faces])
+    xy = np.mod(uv.reshape(-1, 2)[tri_loop], 1.0) * size
+    pixel, tri, bary = _RASTER.rasterize(xy, size, size)
+    value = np.einsum("nk,nk->n", bary, attr[loop_vertex[tri_loop]][tri])
+    r = (1.0 - value) * EYE_RANGE_MM / 8.0          # the shader's units
+    ring = np.interp(r, *_RING)
+    iris_rgb = np.asarray(iris, float).mean(axis=0)
+    (a, ca), (b, cb) = SCLERA
+    sclera = np.stack([np.interp(r, [a, b], [ca[i], cb[i]]) for i in range(3)], axis=1)
+    eye = 0.005 + ring[:, None] * (iris_rgb - 0.005)
+    colour = np.where((r < _IRIS_EDGE)[:, None], eye, sclera)
+    out = np.empty((size * size, 4), np.float32)
+    out[:, :3] = SCLERA[0][1]
+    out[pixel, :3] = colour
+    out[:, :3] = _SHADING.linear_to_srgb(out[:, :3])
+    out[:, 3] = 1.0
+    return out.reshape(size, size, 4)
 
 
 # ICT's eyelash UVs (tile u in [6, 7]): per eye six strips stacked in v, each 1/6 high,

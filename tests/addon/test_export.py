@@ -154,6 +154,37 @@ def test_reimported_it_shows_the_fitted_face_with_no_key_set(model, fit, head, t
     assert cKDTree(want).query(opened)[0].max() < 2e-5
 
 
+@pytest.mark.parametrize("fmt", ["GLB", "FBX"])
+def test_the_eyes_arrive_painted_in_the_iris_colour_each_eye_its_own(model, head, tmp_path,
+                                                                     fmt):
+    from headrecon_addon import export, material, reference_head
+    from solver.texture.shading import linear_to_srgb, srgb_to_linear
+
+    if not export.exporter_available(fmt):
+        pytest.skip(f"no {fmt} exporter in this Blender")
+    brown = np.array([0.45, 0.28, 0.15])
+    material.set_iris_colour(reference_head.part_material(head, "Eyes"), brown)
+    before = snapshot()
+    path = export.export_head(tmp_path / "erin", head, model.expression_names, fmt)
+    assert snapshot() == before  # the painted eyes' materials and images are gone again
+    obj = _reimport(path)
+    # the eyeballs' faces use two materials now, each with an image of its eye
+    eyes = [m for m in obj.data.materials if m is not None and m.name.startswith(
+        "HeadRecon Eyes")]
+    assert len(eyes) == 2, [m.name for m in obj.data.materials]
+    # the iris painted as the eye shader's ramp has it on average: the colour set
+    iris = linear_to_srgb(srgb_to_linear(brown) * np.mean(material.IRIS_SPREAD))
+    for mat in eyes:
+        img = next(n.image for n in mat.node_tree.nodes if n.type == "TEX_IMAGE")
+        w, h = img.size
+        px = np.empty(w * h * 4, np.float32)
+        img.pixels.foreach_get(px)
+        rgb = px.reshape(-1, 4)[:, :3]
+        n_iris = np.count_nonzero(np.abs(rgb - iris).max(axis=1) < 0.02)
+        assert 0.01 < n_iris / len(rgb) < 0.05, n_iris / len(rgb)  # an iris, not the ball
+        assert (rgb.max(axis=1) < 0.1).mean() > 0.002  # its pupil
+
+
 def test_the_operator_writes_the_file(model, head, tmp_path):
     target = tmp_path / "op.glb"
     assert bpy.ops.headrecon.export_head(filepath=str(target), export_format="GLB") == \
