@@ -315,17 +315,25 @@ def iris_colours(mat):
     return np.array([tuple(e.color)[:3] for e in node.color_ramp.elements[:2]])
 
 
+def _corners(mesh):
+    """``mesh``'s polygons' first corners and corner counts (P,), and each corner's vertex
+    (L,)."""
+    starts, totals = np.empty(len(mesh.polygons), np.int64), np.empty(len(mesh.polygons),
+                                                                      np.int64)
+    mesh.polygons.foreach_get("loop_start", starts)
+    mesh.polygons.foreach_get("loop_total", totals)
+    loop_vertex = np.empty(len(mesh.loops), np.int64)
+    mesh.loops.foreach_get("vertex_index", loop_vertex)
+    return starts, totals, loop_vertex
+
+
 def eye_faces(mesh, slot):
     """Which of ``mesh``'s polygons (P,) bool of material ``slot`` belong to each eye, one
     mask per eye (``SCLERA_RANGES`` / ``IRIS_RANGES``: the head keeps ICT's vertex order).
     The two eyeballs share one UV layout, but not to the pixel: each gets its own image."""
-    n_poly = len(mesh.polygons)
-    mats = np.empty(n_poly, np.int64)
+    mats = np.empty(len(mesh.polygons), np.int64)
     mesh.polygons.foreach_get("material_index", mats)
-    loop_vertex = np.empty(len(mesh.loops), np.int64)
-    mesh.loops.foreach_get("vertex_index", loop_vertex)
-    starts = np.empty(n_poly, np.int64)
-    mesh.polygons.foreach_get("loop_start", starts)
+    starts, _, loop_vertex = _corners(mesh)
     first = loop_vertex[starts]  # one corner is enough: an eyeball's faces are its own
     return [(mats == slot) & (((first >= s0) & (first <= s1)) | ((first >= i0) & (first <= i1)))
             for (s0, s1), (i0, i1) in zip(SCLERA_RANGES, IRIS_RANGES, strict=True)]
@@ -338,14 +346,9 @@ def eye_image_pixels(mesh, faces, iris, size=EYE_IMAGE_SIZE):
     averaged, the limbal ring, the sclera), without its noise. Returns (size, size, 4)
     float32 sRGB-encoded RGBA, row 0 at the bottom (Blender's); texels no face covers are
     the sclera's."""
-    n_poly = len(mesh.polygons)
-    starts, totals = np.empty(n_poly, np.int64), np.empty(n_poly, np.int64)
-    mesh.polygons.foreach_get("loop_start", starts)
-    mesh.polygons.foreach_get("loop_total", totals)
+    starts, totals, loop_vertex = _corners(mesh)
     uv = np.empty(len(mesh.loops) * 2, np.float32)
     mesh.uv_layers.active.data.foreach_get("uv", uv)
-    loop_vertex = np.empty(len(mesh.loops), np.int64)
-    mesh.loops.foreach_get("vertex_index", loop_vertex)
     attr = np.zeros(len(mesh.vertices), np.float32)
     if EYE_ATTRIBUTE in mesh.attributes:
         mesh.attributes[EYE_ATTRIBUTE].data.foreach_get("value", attr)
