@@ -64,10 +64,13 @@ def _game_copy(head, model_expression_names, scene):
 
 @contextmanager
 def _painted_eyes(obj):
-    """``obj``'s (a game copy's own mesh) eye material replaced, for the export, by one per
-    eye whose base colour is that eye painted as an image (``material.eye_image_pixels``,
-    the iris's colour as the head's eye material has it): exporters cannot follow the eye
-    shader's nodes and would write a white eyeball. Removed afterwards."""
+    """``obj``'s (a game copy's own mesh) eye material replaced, for the export, by one
+    whose base colour is the eyes painted as an image (``material.eye_image_pixels``, the
+    iris's colour as the head's eye material has it): exporters cannot follow the eye
+    shader's nodes and would write a white eyeball. The two eyeballs share one UV layout
+    but not to the pixel, so each eye's UVs are squeezed into its own half of the image
+    (one material, one image: no extra mesh part for the exporter to split off). Undone
+    afterwards."""
     mesh = obj.data
     slot = next((i for i, m in enumerate(mesh.materials)
                  if m is not None and m.get(material.GROUP_KEY) == "Eyes"), None)
@@ -75,38 +78,33 @@ def _painted_eyes(obj):
         yield
         return
     eyes = mesh.materials[slot]
-    index = np.empty(len(mesh.polygons), np.int64)
-    mesh.polygons.foreach_get("material_index", index)
-    painted, images, added = [], [], 0
+    layer = mesh.uv_layers.active.data
+    uv = np.empty(len(layer) * 2, np.float32)
+    layer.foreach_get("uv", uv)
+    starts, totals, _ = material.mesh_corners(mesh)
+    size = material.EYE_IMAGE_SIZE
+    halves, squeezed = [], uv.reshape(-1, 2).copy()
+    for k, faces in enumerate(material.eye_faces(mesh, slot)):
+        halves.append(material.eye_image_pixels(mesh, faces, material.iris_colours(eyes)))
+        first, count = starts[faces], totals[faces]
+        loops = np.repeat(first - np.cumsum(count) + count, count) + np.arange(count.sum())
+        squeezed[loops, 0] = 0.5 * (k + np.mod(squeezed[loops, 0], 1.0))
+    img = bpy.data.images.new(f"{eyes.name} Image", 2 * size, size)
+    flat = None
     try:
-        for k, faces in enumerate(material.eye_faces(mesh, slot)):
-            img = bpy.data.images.new(f"{eyes.name} {k + 1}", material.EYE_IMAGE_SIZE,
-                                      material.EYE_IMAGE_SIZE)
-            images.append(img)
-            img.pixels.foreach_set(material.eye_image_pixels(
-                mesh, faces, material.iris_colours(eyes)).ravel())
-            flat = bpy.data.materials.new(f"{eyes.name} {k + 1}")
-            painted.append(flat)
-            tex = material.set_skin_texture(flat, img)  # the image as its base colour
-            tex.outputs["Color"].links[0].to_node.inputs["Roughness"].default_value = 0.1
-            if k == 0:
-                mesh.materials[slot] = flat
-            else:
-                mesh.materials.append(flat)
-                added += 1
-                moved = index.copy()
-                moved[faces] = len(mesh.materials) - 1
-                mesh.polygons.foreach_set("material_index", moved)
+        img.pixels.foreach_set(np.concatenate(halves, axis=1).ravel())
+        flat = bpy.data.materials.new(eyes.name)
+        tex = material.set_skin_texture(flat, img)  # the image as its base colour
+        tex.outputs["Color"].links[0].to_node.inputs["Roughness"].default_value = 0.1
+        layer.foreach_set("uv", squeezed.ravel())
+        mesh.materials[slot] = flat
         yield
     finally:
-        mesh.polygons.foreach_set("material_index", index)
-        for _ in range(added):
-            mesh.materials.pop()
+        layer.foreach_set("uv", uv)
         mesh.materials[slot] = eyes
-        for m in painted:
-            bpy.data.materials.remove(m)
-        for img in images:
-            bpy.data.images.remove(img)
+        if flat is not None:
+            bpy.data.materials.remove(flat)
+        bpy.data.images.remove(img)
 
 
 def _on_disk(img):

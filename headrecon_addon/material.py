@@ -315,7 +315,7 @@ def iris_colours(mat):
     return np.array([tuple(e.color)[:3] for e in node.color_ramp.elements[:2]])
 
 
-def _corners(mesh):
+def mesh_corners(mesh):
     """``mesh``'s polygons' first corners and corner counts (P,), and each corner's vertex
     (L,)."""
     starts, totals = np.empty(len(mesh.polygons), np.int64), np.empty(len(mesh.polygons),
@@ -330,10 +330,10 @@ def _corners(mesh):
 def eye_faces(mesh, slot):
     """Which of ``mesh``'s polygons (P,) bool of material ``slot`` belong to each eye, one
     mask per eye (``SCLERA_RANGES`` / ``IRIS_RANGES``: the head keeps ICT's vertex order).
-    The two eyeballs share one UV layout, but not to the pixel: each gets its own image."""
+    The two eyeballs share one UV layout, but not to the pixel: each is painted apart."""
     mats = np.empty(len(mesh.polygons), np.int64)
     mesh.polygons.foreach_get("material_index", mats)
-    starts, _, loop_vertex = _corners(mesh)
+    starts, _, loop_vertex = mesh_corners(mesh)
     first = loop_vertex[starts]  # one corner is enough: an eyeball's faces are its own
     return [(mats == slot) & (((first >= s0) & (first <= s1)) | ((first >= i0) & (first <= i1)))
             for (s0, s1), (i0, i1) in zip(SCLERA_RANGES, IRIS_RANGES, strict=True)]
@@ -346,7 +346,7 @@ def eye_image_pixels(mesh, faces, iris, size=EYE_IMAGE_SIZE):
     averaged, the limbal ring, the sclera), without its noise. Returns (size, size, 4)
     float32 sRGB-encoded RGBA, row 0 at the bottom (Blender's); texels no face covers are
     the sclera's."""
-    starts, totals, loop_vertex = _corners(mesh)
+    starts, totals, loop_vertex = mesh_corners(mesh)
     uv = np.empty(len(mesh.loops) * 2, np.float32)
     mesh.uv_layers.active.data.foreach_get("uv", uv)
     attr = np.zeros(len(mesh.vertices), np.float32)

@@ -168,21 +168,32 @@ def test_the_eyes_arrive_painted_in_the_iris_colour_each_eye_its_own(model, head
     path = export.export_head(tmp_path / "erin", head, model.expression_names, fmt)
     assert snapshot() == before  # the painted eyes' materials and images are gone again
     obj = _reimport(path)
-    # the eyeballs' faces use two materials now, each with an image of its eye
-    eyes = [m for m in obj.data.materials if m is not None and m.name.startswith(
-        "HeadRecon Eyes")]
-    assert len(eyes) == 2, [m.name for m in obj.data.materials]
+    # the eyeballs' material has an image: each eye in its own half
+    mat = next(m for m in obj.data.materials if m is not None and m.name.startswith(
+        "HeadRecon Eyes"))
+    img = next(n.image for n in mat.node_tree.nodes if n.type == "TEX_IMAGE")
+    w, h = img.size
+    assert (w, h) == (2 * material.EYE_IMAGE_SIZE, material.EYE_IMAGE_SIZE)
+    px = np.empty(w * h * 4, np.float32)
+    img.pixels.foreach_get(px)
     # the iris painted as the eye shader's ramp has it on average: the colour set
     iris = linear_to_srgb(srgb_to_linear(brown) * np.mean(material.IRIS_SPREAD))
-    for mat in eyes:
-        img = next(n.image for n in mat.node_tree.nodes if n.type == "TEX_IMAGE")
-        w, h = img.size
-        px = np.empty(w * h * 4, np.float32)
-        img.pixels.foreach_get(px)
-        rgb = px.reshape(-1, 4)[:, :3]
+    for half in np.split(px.reshape(h, w, 4)[..., :3], 2, axis=1):
+        rgb = half.reshape(-1, 3)
         n_iris = np.count_nonzero(np.abs(rgb - iris).max(axis=1) < 0.02)
         assert 0.01 < n_iris / len(rgb) < 0.05, n_iris / len(rgb)  # an iris, not the ball
         assert (rgb.max(axis=1) < 0.1).mean() > 0.002  # its pupil
+    # each eye's faces look at their own half: every eyeball corner's u within its half
+    uv = np.empty(len(obj.data.loops) * 2, np.float32)
+    obj.data.uv_layers.active.data.foreach_get("uv", uv)
+    index = np.empty(len(obj.data.polygons), np.int64)
+    obj.data.polygons.foreach_get("material_index", index)
+    slot = list(obj.data.materials).index(mat)
+    starts, totals, loop_vertex = material.mesh_corners(obj.data)
+    us = [uv[0::2][s:s + n] for s, n in zip(starts[index == slot], totals[index == slot],
+                                              strict=True)]
+    halves = {int(np.floor(2 * u.mean())) for u in us}
+    assert halves == {0, 1} and all(np.ptp(np.floor(2 * u)) == 0 for u in us)
 
 
 def test_the_operator_writes_the_file(model, head, tmp_path):
