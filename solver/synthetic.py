@@ -147,7 +147,7 @@ def make_case(model, rng=None, *, noise_px=1.0, rotation_deg=5.0, image_height=1
 
     h = int(image_height)
     w = int(round(aspect * h))
-    skin_tris = _skin_triangles(model)
+    skin_tris = model.skin_triangles()
     case_views, cams, clean, outlines = {}, {}, {}, {}
     for view in views:
         cam_name = _view_camera_name(view)
@@ -218,7 +218,7 @@ def _pinhole_scene(model, rng, coeffs, coeff_scale, rotation_deg):
     skin = world[model.skin]
     centre = 0.5 * (skin.min(axis=0) + skin.max(axis=0))
     return ((c, local, scale, rot, trans), world, vertex_normals(model, world),
-            _skin_triangles(model), skin, centre)
+            model.skin_triangles(), skin, centre)
 
 
 def vertex_normals(model, world):
@@ -261,7 +261,7 @@ def visible_landmarks(model, world, camera, normals=None, min_cos=0.0, grid=1024
     w, h = camera.size
     px = camera.project(x)
     inside = (px >= 0).all(axis=1) & (px[:, 0] <= w) & (px[:, 1] <= h)
-    tris = _skin_triangles(model) if triangles is None else triangles
+    tris = model.skin_triangles() if triangles is None else triangles
     f = grid / max(w, h)
     gw, gh = int(np.ceil(w * f)), int(np.ceil(h * f))
     corner = world[tris].reshape(-1, 3)
@@ -537,14 +537,6 @@ def _random_camera(rng, cam_name, size, skin_world, fill, in_plane_deg):
     return OrthographicCamera(rot, scale, offset, size, cam_name)
 
 
-def _skin_triangles(model):
-    """Triangles (T, 3) of the skin parts (face, head and neck)."""
-    tri_vertex, _, tri_face = model.triangles()
-    skin = np.zeros(model.n_vertices, bool)
-    skin[model.skin] = True
-    return tri_vertex[skin[tri_vertex].all(axis=1)]
-
-
 def _neck_cut_vertices(model, triangles):
     """Vertices of the skin's open boundary loop at the bottom of the neck."""
     e = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
@@ -580,7 +572,7 @@ def trace_silhouette(model, world, camera, triangles=None):
         point per boundary pixel, moved half a pixel outward so it sits on the edge of the
         silhouette rather than on the centres of its outermost pixels.
     """
-    tris = _skin_triangles(model) if triangles is None else triangles
+    tris = model.skin_triangles() if triangles is None else triangles
     neck, border = _neck_cut_vertices(model, tris)
     is_neck = np.zeros(model.n_vertices, bool)
     is_neck[neck] = True

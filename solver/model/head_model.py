@@ -16,6 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..io.landmark_set import LandmarkSet
+from ..memo import memo
 from ..paths import model_path
 from .linear_model import LinearModel
 
@@ -207,6 +208,20 @@ class HeadModel:
         """
         tri_loop, tri_face = fan_triangles(self.face_loop_start, self.face_loop_total)
         return self.loop_vertex[tri_loop], tri_loop, tri_face
+
+    def skin_triangles(self):
+        """Vertex indices (T, 3) of the triangles whose corners are all skin (face, head
+        and neck): the surface a photo sees, which hides the eyeballs. Kept with the
+        model."""
+        def make():
+            tri_vertex = self.triangles()[0]
+            skin = np.zeros(self.n_vertices, bool)
+            skin[self.skin] = True
+            out = tri_vertex[skin[tri_vertex].all(axis=1)]
+            out.setflags(write=False)  # shared by every caller
+            return out
+
+        return memo(self, "skin_triangles", make)
 
     def edges(self):
         """Unique undirected mesh edges, shape (E, 2)."""

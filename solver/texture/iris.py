@@ -69,7 +69,8 @@ def iris_samples(model, local_vertices, world_vertices, camera, image, openings=
     size = getattr(camera, "size", None)
     scale = np.ones(2) if size is None else np.array([w / size[0], h / size[1]])
     world = np.asarray(world_vertices, dtype=np.float64)
-    skin_tris = _skin_triangles(model)
+    skin_tris = model.skin_triangles()
+    skin_centres = world[skin_tris].mean(axis=1)
     out = []
     for (idx, r, front), (i0, i1) in zip(sclera_axis_distance(local_vertices), IRIS_RANGES,
                                          strict=True):
@@ -82,8 +83,7 @@ def iris_samples(model, local_vertices, world_vertices, camera, image, openings=
             continue
         uv = camera.project(world[ring]) * scale
         depth = camera.to_camera(world[ring])[:, 2]
-        near = skin_tris[np.linalg.norm(world[skin_tris].mean(axis=1) - centre, axis=1)
-                         < OCCLUDER_REACH]
+        near = skin_tris[np.linalg.norm(skin_centres - centre, axis=1) < OCCLUDER_REACH]
         x0, y0 = np.floor(uv.min(axis=0)).astype(int) - 2
         x1, y1 = np.ceil(uv.max(axis=0)).astype(int) + 3
         if x0 < 0 or y0 < 0 or x1 > w or y1 > h:
@@ -122,12 +122,4 @@ def iris_colour(model, result, images, case=None):
     light = colours.mean(axis=1)
     lo, hi = np.quantile(light, [TRIM[0], 1.0 - TRIM[1]])
     return np.median(colours[(light >= lo) & (light <= hi)], axis=0)
-
-
-def _skin_triangles(model):
-    """The skin's triangles (T, 3) vertex indices: what hides an eyeball in a photo."""
-    skin = np.zeros(model.n_vertices, bool)
-    skin[model.skin] = True
-    tris = model.triangles()[0]
-    return tris[skin[tris].all(axis=1)]
 

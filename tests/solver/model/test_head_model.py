@@ -544,3 +544,14 @@ def test_git_tracks_nothing_under_generated():
     assert res.stdout.strip() == ""
     assert json.loads((REPO / "assets" / "landmarks.json").read_text())["format"] == \
         "headrecon-landmark-set"
+
+
+def test_the_skin_triangles_are_the_skin_s_and_kept_with_the_model(model):
+    tris = model.skin_triangles()
+    skin = np.zeros(model.n_vertices, bool)
+    skin[model.skin] = True
+    assert skin[tris].all() and len(tris) > 10_000
+    # every triangle with only skin corners is there, none other
+    all_tris = model.triangles()[0]
+    assert len(tris) == int(skin[all_tris].all(axis=1).sum())
+    assert model.skin_triangles() is tris and not tris.flags.writeable
