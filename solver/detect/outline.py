@@ -398,7 +398,7 @@ def _edge(image, mask, nose, spacing_px):
     every ``spacing_px``, it moved onto the photo's colour edge, which points were, their
     colours inside; as ``refine_edge``)."""
     loops = [mask.to_photo(line) for line in iso_lines(mask.probability)]
-    loops = [p for p in loops if _contains(p, nose)] or loops[:1]
+    loops = [p for p in loops if inside_polygon(nose, p)[0]] or loops[:1]
     if not loops or len(loops[0]) < 8:
         raise ValueError("no person found for an outline")
     loop = _closed_resample(loops[0], spacing_px)
@@ -527,8 +527,3 @@ def _end_note(i, skin, on_photo, above):
     if not skin[i]:
         return "hair, clothes or background (not the face's skin)"
     return "the neck (no colour to tell skin from clothes by)" if not above[i] else "?"
-
-
-def _contains(polygon, point):
-    """Whether ``point`` (2,) lies inside ``polygon`` (n, 2) (even-odd rule)."""
-    return bool(inside_polygon(point, polygon)[0])
