@@ -65,12 +65,11 @@ def _game_copy(head, model_expression_names, scene):
 @contextmanager
 def _painted_eyes(obj):
     """``obj``'s (a game copy's own mesh) eye material replaced, for the export, by one
-    whose base colour is the eyes painted as an image (``material.eye_image_pixels``, the
-    iris's colour as the head's eye material has it): exporters cannot follow the eye
-    shader's nodes and would write a white eyeball. The two eyeballs share one UV layout
-    but not to the pixel, so each eye's UVs are squeezed into its own half of the image
-    (one material, one image: no extra mesh part for the exporter to split off). Undone
-    afterwards."""
+    whose base colour is the eyes painted as an image (``material.eye_image``, each eye in
+    its own half with its UVs squeezed into it, the iris's colour as the head's eye
+    material has it): exporters cannot follow the eye shader's nodes and would write a
+    white eyeball. One material and one image: no extra mesh part for the exporter to
+    split off. Undone afterwards."""
     mesh = obj.data
     slot = next((i for i, m in enumerate(mesh.materials)
                  if m is not None and m.get(material.GROUP_KEY) == "Eyes"), None)
@@ -79,20 +78,11 @@ def _painted_eyes(obj):
         return
     eyes = mesh.materials[slot]
     layer = mesh.uv_layers.active.data
-    uv = np.empty(len(layer) * 2, np.float32)
-    layer.foreach_get("uv", uv)
-    starts, totals, _ = material.mesh_corners(mesh)
-    size = material.EYE_IMAGE_SIZE
-    halves, squeezed = [], uv.reshape(-1, 2).copy()
-    for k, faces in enumerate(material.eye_faces(mesh, slot)):
-        halves.append(material.eye_image_pixels(mesh, faces, material.iris_colours(eyes)))
-        first, count = starts[faces], totals[faces]
-        loops = np.repeat(first - np.cumsum(count) + count, count) + np.arange(count.sum())
-        squeezed[loops, 0] = 0.5 * (k + np.mod(squeezed[loops, 0], 1.0))
-    img = bpy.data.images.new(f"{eyes.name} Image", 2 * size, size)
+    pixels, uv, squeezed = material.eye_image(mesh, slot, material.iris_colours(eyes))
+    img = bpy.data.images.new(f"{eyes.name} Image", pixels.shape[1], pixels.shape[0])
     flat = None
     try:
-        img.pixels.foreach_set(np.concatenate(halves, axis=1).ravel())
+        img.pixels.foreach_set(pixels.ravel())
         flat = bpy.data.materials.new(eyes.name)
         tex = material.set_skin_texture(flat, img)  # the image as its base colour
         tex.outputs["Color"].links[0].to_node.inputs["Roughness"].default_value = 0.1
@@ -100,7 +90,7 @@ def _painted_eyes(obj):
         mesh.materials[slot] = flat
         yield
     finally:
-        layer.foreach_set("uv", uv)
+        layer.foreach_set("uv", uv.ravel())
         mesh.materials[slot] = eyes
         if flat is not None:
             bpy.data.materials.remove(flat)

@@ -301,7 +301,7 @@ def set_iris_colour(mat, srgb):
     return True
 
 
-#: Texels a side of the eye's image for exporters (:func:`eye_image_pixels`).
+#: Texels a side of each eye's image for exporters (:func:`eye_image`).
 EYE_IMAGE_SIZE = 256
 
 
@@ -327,38 +327,54 @@ def mesh_corners(mesh):
     return starts, totals, loop_vertex
 
 
-def eye_faces(mesh, slot):
-    """Which of ``mesh``'s polygons (P,) bool of material ``slot`` belong to each eye, one
-    mask per eye (``SCLERA_RANGES`` / ``IRIS_RANGES``: the head keeps ICT's vertex order).
-    The two eyeballs share one UV layout, but not to the pixel: each is painted apart."""
+def eye_image(mesh, slot, iris, size=EYE_IMAGE_SIZE):
+    """The eyes as an image, for exporters that cannot follow the eye shader's nodes.
+
+    The faces of material ``slot`` of ``mesh`` are painted from their ``EYE_ATTRIBUTE`` as
+    the shader paints them (pupil, ``iris`` (2, 3) linear averaged, the limbal ring, the
+    sclera), without its noise. The two eyeballs share one UV layout but not to the pixel
+    (their axes lie 1.6 mm apart in it), so each eye (``SCLERA_RANGES`` / ``IRIS_RANGES``:
+    the head keeps ICT's vertex order) is painted into its own half of the image, and its
+    corners' UVs are squeezed into that half.
+
+    Returns
+    -------
+    pixels : ndarray (size, 2 size, 4) float32
+        sRGB-encoded RGBA, row 0 at the bottom (Blender's); texels no face covers are the
+        sclera's.
+    uv, squeezed : ndarray (L, 2) float32
+        The mesh's corner UVs as they are, and with each eye's squeezed into its half.
+    """
+    starts, totals, loop_vertex = mesh_corners(mesh)
     mats = np.empty(len(mesh.polygons), np.int64)
     mesh.polygons.foreach_get("material_index", mats)
-    starts, _, loop_vertex = mesh_corners(mesh)
-    first = loop_vertex[starts]  # one corner is enough: an eyeball's faces are its own
-    return [(mats == slot) & (((first >= s0) & (first <= s1)) | ((first >= i0) & (first <= i1)))
-            for (s0, s1), (i0, i1) in zip(SCLERA_RANGES, IRIS_RANGES, strict=True)]
-
-
-def eye_image_pixels(mesh, faces, iris, size=EYE_IMAGE_SIZE):
-    """One eye as an image in its UV layout, for exporters that cannot follow the eye
-    shader's nodes: ``mesh``'s polygons ``faces`` (P,) bool (:func:`eye_faces`) painted
-    from their ``EYE_ATTRIBUTE`` as the shader paints them (pupil, ``iris`` (2, 3) linear
-    averaged, the limbal ring, the sclera), without its noise. Returns (size, size, 4)
-    float32 sRGB-encoded RGBA, row 0 at the bottom (Blender's); texels no face covers are
-    the sclera's."""
-    starts, totals, loop_vertex = mesh_corners(mesh)
-    uv = np.empty(len(mesh.loops) * 2, np.float32)
-    mesh.uv_layers.active.data.foreach_get("uv", uv)
+    uv = np.empty((len(mesh.loops), 2), np.float32)
+    mesh.uv_layers.active.data.foreach_get("uv", uv.ravel())
     attr = np.zeros(len(mesh.vertices), np.float32)
     if EYE_ATTRIBUTE in mesh.attributes:
         mesh.attributes[EYE_ATTRIBUTE].data.foreach_get("value", attr)
-    tri_loop, _ = _FANS.fan_triangles(starts[faces], totals[faces])
-    xy = np.mod(uv.reshape(-1, 2)[tri_loop], 1.0) * size
-    pixel, tri, bary = _RASTER.rasterize(xy, size, size)
-    value = np.einsum("nk,nk->n", bary, attr[loop_vertex[tri_loop]][tri])
-    r = (1.0 - value) * EYE_RANGE_MM / 8.0          # the shader's units
-    ring = np.interp(r, *_RING)
+    first = loop_vertex[starts]  # one corner is enough: an eyeball's faces are its own
     iris_rgb = np.asarray(iris, float).mean(axis=0)
+    halves, squeezed = [], uv.copy()
+    for k, ((s0, s1), (i0, i1)) in enumerate(zip(SCLERA_RANGES, IRIS_RANGES, strict=True)):
+        faces = (mats == slot) & (((first >= s0) & (first <= s1))
+                                  | ((first >= i0) & (first <= i1)))
+        tri_loop, _ = _FANS.fan_triangles(starts[faces], totals[faces])
+        halves.append(_painted_eye(np.mod(uv[tri_loop], 1.0) * size,
+                                   attr[loop_vertex[tri_loop]], iris_rgb, size))
+        count = totals[faces]
+        loops = np.repeat(starts[faces] - np.cumsum(count) + count, count) \
+            + np.arange(count.sum())
+        squeezed[loops, 0] = 0.5 * (k + np.mod(squeezed[loops, 0], 1.0))
+    return np.concatenate(halves, axis=1), uv, squeezed
+
+
+def _painted_eye(tri_xy, tri_value, iris_rgb, size):
+    """One eye's image (size, size, 4) from its triangles' corners (T, 3, 2) in texels and
+    their ``EYE_ATTRIBUTE`` (T, 3): the eye shader's colours as :func:`eye_image` says."""
+    pixel, tri, bary = _RASTER.rasterize(tri_xy, size, size)
+    r = (1.0 - np.einsum("nk,nk->n", bary, tri_value[tri])) * EYE_RANGE_MM / 8.0
+    ring = np.interp(r, *_RING)
     (a, ca), (b, cb) = SCLERA
     sclera = np.stack([np.interp(r, [a, b], [ca[i], cb[i]]) for i in range(3)], axis=1)
     eye = 0.005 + ring[:, None] * (iris_rgb - 0.005)
