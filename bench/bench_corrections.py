@@ -5,7 +5,7 @@ moved landmark forgets the detector's uncertainty and depth, as in Blender).
 A correction should never make the head much worse; a fit left in a wrong minimum does.
 
     python -m bench.bench_corrections [--heads DIR ...] [--render SEED ...] [--always]
-                                      [--variant VARIANT]
+                                      [--variant VARIANT] [--from-photos]
 
 Heads: rendered sample folders (``python -m tools.make_sample --seed N --out DIR``: the
 front and profile photos, ``sample.json`` with the exact landmarks, ``truth.npz`` with the
@@ -23,6 +23,10 @@ than 1.5 x the photos-only error of their head. ``--always`` runs the second sta
 every fit ("fit" column; ``fit.MISSED_OUTLINE`` below 0): what the rule leaves untried.
 ``--variant`` detects each head's photos as one of ``bench_photo_variants``' variants show
 them (``hair``: as most people come), the exact landmarks placed as before.
+``--from-photos`` scores each correction also from the photos-only fit, as Blender gives
+it to the artist: "live" the live refit while the points are moved
+(``refit_landmarks``: that fit's cameras and outline kept), "continued" a fit from that
+fit's head (``fit_head(initial=...)``); the usual fits start from the mean head.
 """
 
 import argparse
@@ -40,6 +44,7 @@ from solver import fit_head, load_landmarks, load_model
 from solver.detect import Detector
 from solver.detect.detected_case import detect_photos
 from solver.fitting import fit
+from solver.fitting.fit import refit_landmarks
 from solver.io.landmark_set import load_landmark_set
 from solver.synthetic import skin_error_mm
 
@@ -100,6 +105,18 @@ def fit_errors(model, case, truth, always=False):
                                                              truth)
 
 
+def from_photos_errors(model, case, photos_fit, truth):
+    """(skin RMS mm of the live refit of ``case`` from ``photos_fit``, of the fit continued
+    from it): the two heads Blender gives an artist who corrects the photos-only fit. NaN
+    for a case of other views (``sample.json``'s every exact landmark)."""
+    if set(case.views) != set(photos_fit.cameras):
+        return float("nan"), float("nan")
+    live = refit_landmarks(model, case, photos_fit)
+    continued = fit_head(model, case, initial=photos_fit)
+    return (skin_error_mm(model, live.local_vertices, truth),
+            skin_error_mm(model, continued.local_vertices, truth))
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     add_head_options(ap, render=[])
@@ -108,6 +125,9 @@ def main(argv=None):
                          "their outline")
     ap.add_argument("--variant", choices=list(VARIANTS), default=None,
                     help="detect the photos changed as bench_photo_variants changes them")
+    ap.add_argument("--from-photos", action="store_true",
+                    help="also score each correction from the photos-only fit: its live "
+                         "refit and a fit continued from its head")
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
     folders = head_folders(args.heads, args.render)
@@ -116,8 +136,10 @@ def main(argv=None):
     print("skin RMS vs the true head, mm: fit / once (no second start); * second start kept"
           + (" (run on every fit)" if args.always else "")
           + (f"; photos: {args.variant}" if args.variant else ""))
-    print(f"  {'head':<12}" + "".join(f"{c:>16}" for c in columns))
+    print(f"  {'head':<16}" + "".join(f"{c:>16}" for c in columns))
     table = {"fit": [], "once": []}
+    if args.from_photos:
+        table.update({"live": [], "continued": []})
     with tempfile.TemporaryDirectory() as tmp:
         for folder in folders:
             if not (folder / "truth.npz").is_file():
@@ -132,23 +154,37 @@ def main(argv=None):
             truth = np.load(folder / "truth.npz", allow_pickle=True)["local_vertices"]
             row = {k: [] for k in table}
             cells = []
+            photos_fit = fit_head(model, cases[0][1]) if args.from_photos else None
             for _, case in cases:
                 e, kept, once = fit_errors(model, case, truth, args.always)
                 row["fit"].append(e)
                 row["once"].append(once)
                 cells.append(f"{e:.2f}{'*' if kept else ' '}/{once:.2f}")
+                if photos_fit is not None:
+                    live, continued = from_photos_errors(model, case, photos_fit, truth)
+                    row["live"].append(live)
+                    row["continued"].append(continued)
             for k in table:
                 table[k].append(row[k])
-            print(f"  {folder.name:<12}" + "".join(f"{c:>16}" for c in cells), flush=True)
+            print(f"  {folder.name:<16}" + "".join(f"{c:>16}" for c in cells), flush=True)
+            if photos_fit is not None:
+                print(f"  {'  live/cont.':<16}" + "".join(
+                    f"{_mm(a):>11}/{_mm(b):<4}" for a, b in zip(row["live"], row["continued"],
+                                                             strict=True)), flush=True)
     if not table["fit"]:
         return
     for k, rows in table.items():
         a = np.array(rows)
         worse = int((a[:, 1:-1] > WORSE * a[:, :1]).sum())
-        print(f"  {'mean ' + k:<12}" + "".join(f"{v:>16.2f}" for v in a.mean(axis=0)))
-        print(f"  {'worst ' + k:<12}" + "".join(f"{v:>16.2f}" for v in a.max(axis=0)))
+        print(f"  {'mean ' + k:<16}" + "".join(f"{_mm(v):>16}" for v in a.mean(axis=0)))
+        print(f"  {'worst ' + k:<16}" + "".join(f"{_mm(v):>16}" for v in a.max(axis=0)))
         print(f"  {k}: {worse} of {a[:, 1:-1].size} corrected fits worse than {WORSE} x "
               "their head's photos-only error")
+
+
+def _mm(value):
+    """A table cell: millimetres to two decimals, "-" for none (NaN)."""
+    return "-" if np.isnan(value) else f"{value:.2f}"
 
 
 if __name__ == "__main__":

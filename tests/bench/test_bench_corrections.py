@@ -4,12 +4,13 @@
 import numpy as np
 import pytest
 
-from bench.bench_corrections import GROUPS, corrected_cases
+from bench.bench_corrections import GROUPS, corrected_cases, from_photos_errors
 from bench.bench_photo_variants import changed
-from solver import load_landmarks
+from solver import fit_head, load_landmarks
 from solver.detect import Detector
 from solver.io.landmark_set import load_landmark_set
 from solver.paths import DETECTOR_DIR
+from solver.synthetic import skin_error_mm
 
 
 def test_corrections_of_a_variant_s_photos_place_the_head_s_own_exact_points(
@@ -36,3 +37,23 @@ def test_corrections_of_a_variant_s_photos_place_the_head_s_own_exact_points(
     assert ears and all(haired["profile ears"].views["right"].points[n] == p
                         for n, p in ears.items())
     assert haired["every exact"].views.keys() == exact.views.keys()
+
+
+def test_corrections_from_the_photos_fit_are_its_live_refit_and_a_fit_from_its_head(
+        sample, model):
+    if not (DETECTOR_DIR / "face_landmark.tflite").is_file():
+        pytest.skip(f"models missing in {DETECTOR_DIR}: run ./run detector")
+    folder, truth = sample
+    cases = dict(corrected_cases(folder, model, Detector()))
+    photos_fit = fit_head(model, cases["photos"])
+    photos = skin_error_mm(model, photos_fit.local_vertices, truth["local_vertices"])
+    live, continued = from_photos_errors(model, cases["all 68"], photos_fit,
+                                         truth["local_vertices"])
+    # both heads follow the corrected points, each its own way: the live refit keeps the
+    # photos fit's cameras and outline, the continued fit moves them
+    assert np.isfinite([live, continued]).all()
+    assert abs(live - photos) > 1e-3 and abs(continued - photos) > 1e-3
+    assert abs(live - continued) > 1e-3
+    # the case of every exact landmark has other views: no head from the photos fit
+    assert np.isnan(from_photos_errors(model, cases["every exact"], photos_fit,
+                                       truth["local_vertices"])).all()
