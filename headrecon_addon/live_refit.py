@@ -80,7 +80,11 @@ class LiveRefit:
         return self.base is not None and bpy.data.objects.get(self.head) is not None
 
     def stats(self):
-        return {"ms": self.ms, "error": self.error, "ready": self.ready()}
+        """The panel's state: "ms" of the last refit, "error", "ready" (a full fit in
+        memory) and "moved" (the head shown is a live refit's, not the full fit's: a
+        Fit takes the moved points in fully, cameras and outline too)."""
+        return {"ms": self.ms, "error": self.error, "ready": self.ready(),
+                "moved": self.ready() and self.result is not self.base}
 
     def step(self, scene, force=False, drag=True):
         """Refit if a landmark moved since the last step (or ``force``).

@@ -20,6 +20,7 @@ def test_live_refit_follows_a_moved_landmark(model, files):
     assert bpy.ops.headrecon.fit() == {"FINISHED"}
     head = scene.headrecon.head
     base = LIVE.result
+    assert LIVE.stats()["ready"] and not LIVE.stats()["moved"]
     scene.headrecon.live_refit = True
     bpy.context.view_layer.update()  # records the positions; nothing moved yet
     plane = photos.find_plane(scene, "front")
@@ -28,6 +29,7 @@ def test_live_refit_follows_a_moved_landmark(model, files):
     bpy.context.view_layer.update()  # depsgraph handler -> refit_landmarks
     live = LIVE.stats()
     assert live["error"] == "" and live["ms"] > 0
+    assert live["moved"]  # the panel asks for a Fit to take the move in fully
     result = LIVE.result
     assert result is not base
     assert not np.allclose(result.identity_coeffs, base.identity_coeffs)
@@ -49,7 +51,7 @@ def test_live_refit_follows_a_moved_landmark(model, files):
     # Quick Refit writes the settled form directly
     obj.location.x -= 0.004
     assert bpy.ops.headrecon.refit_landmarks() == {"FINISHED"}
-    assert not shape_keys.in_live_shape(head)
+    assert not shape_keys.in_live_shape(head) and LIVE.stats()["moved"]
     local = shape_keys.evaluated_vertices(head, bpy.context.evaluated_depsgraph_get())
     assert np.abs(local - LIVE.result.local_vertices).max() < 1e-5
     scene.headrecon.live_refit = False

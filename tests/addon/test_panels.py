@@ -106,6 +106,15 @@ def test_panels_draw_through_the_flow(files):
     assert any(k == "label" and t.startswith("RMS residual: ") for k, t in log)
     for op in ("apply_identity", "import_arkit_animation", "export_head"):
         assert ("operator", f"headrecon.{op}") in log
+    fit_again = ("label", "Fit again to take the moved points in")
+    assert fit_again not in log
+    # a point moved and refitted live: the panel asks for a Fit to take it in fully
+    from headrecon_addon import landmarks, photos
+
+    plane = photos.find_plane(scene, next(iter(case.views)))
+    next(iter(landmarks.landmark_objects(plane).values())).location.x += 0.002
+    assert bpy.ops.headrecon.refit_landmarks() == {"FINISHED"}
+    assert fit_again in _draw_all()
     scene.headrecon.live_refit = False
 
 
