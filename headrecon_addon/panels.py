@@ -193,10 +193,10 @@ class HEADRECON_PT_fit(_Panel, bpy.types.Panel):
                 layout.label(text=stats["error"], icon="ERROR")
             elif stats["ms"]:
                 layout.label(text=f"Last refit: {stats['ms']:.0f} ms", icon="TIME")
-            if stats["moved"] and not stats["error"]:
-                # the live refit keeps the cameras and the outline: it moves the head
-                # little (docs/DECISIONS.md, "six ways at hair")
-                layout.label(text="Fit again to take the moved points in", icon="INFO")
+        if stats["moved"] and not stats["error"]:
+            # a live or quick refit keeps the cameras and the outline: it moves the head
+            # little (docs/DECISIONS.md, "six ways at hair")
+            layout.label(text="Fit again to take the moved points in", icon="INFO")
         if props.status:
             layout.label(text=props.status, icon="CHECKMARK")
 

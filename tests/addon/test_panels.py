@@ -113,9 +113,9 @@ def test_panels_draw_through_the_flow(files):
 
     plane = photos.find_plane(scene, next(iter(case.views)))
     next(iter(landmarks.landmark_objects(plane).values())).location.x += 0.002
+    scene.headrecon.live_refit = False  # a Quick Refit by hand asks the same
     assert bpy.ops.headrecon.refit_landmarks() == {"FINISHED"}
     assert fit_again in _draw_all()
-    scene.headrecon.live_refit = False
 
 
 def test_panels_draw_perspective_photos(model, tmp_path):
