@@ -23,8 +23,8 @@ than 1.5 x the photos-only error of their head. ``--always`` runs the second sta
 every fit ("fit" column; ``fit.MISSED_OUTLINE`` below 0): what the rule leaves untried.
 ``--variant`` detects each head's photos as one of ``bench_photo_variants``' variants show
 them (``hair``: as most people come), the exact landmarks placed as before.
-``--from-photos`` scores each correction also from the photos-only fit, as Blender gives
-it to the artist: "live" the live refit while the points are moved
+``--from-photos`` scores each correction also from the photos-only fit (as scored), as
+Blender gives it to the artist: "live" the live refit while the points are moved
 (``refit_landmarks``: that fit's cameras and outline kept), "continued" a fit from that
 fit's head (``fit_head(initial=...)``); the usual fits start from the mean head.
 """
@@ -88,7 +88,8 @@ def corrected_cases(folder, model, detector, photos=None):
 
 def fit_errors(model, case, truth, always=False):
     """(skin RMS mm as the fit is, whether its second start's head was kept, skin RMS mm
-    with no second start). Without a second start the two fits are one."""
+    with no second start, the fit as it is). Without a second start the two fits are
+    one."""
     missed = fit.MISSED_OUTLINE
     fit.MISSED_OUTLINE = -1.0 if always else missed
     try:
@@ -96,13 +97,13 @@ def fit_errors(model, case, truth, always=False):
         starts = res.info.get("starts")
         err = skin_error_mm(model, res.local_vertices, truth)
         if starts is None:
-            return err, False, err
+            return err, False, err, res
         fit.MISSED_OUTLINE = float("inf")
         once = fit_head(model, case)
     finally:
         fit.MISSED_OUTLINE = missed
     return err, starts["kept"] != "continued", skin_error_mm(model, once.local_vertices,
-                                                             truth)
+                                                             truth), res
 
 
 def from_photos_errors(model, case, photos_fit, truth):
@@ -154,20 +155,21 @@ def main(argv=None):
             truth = np.load(folder / "truth.npz", allow_pickle=True)["local_vertices"]
             row = {k: [] for k in table}
             cells = []
-            photos_fit = fit_head(model, cases[0][1]) if args.from_photos else None
+            photos_fit = None  # the first case's fit (the photos alone) as scored
             for _, case in cases:
-                e, kept, once = fit_errors(model, case, truth, args.always)
+                e, kept, once, res = fit_errors(model, case, truth, args.always)
                 row["fit"].append(e)
                 row["once"].append(once)
                 cells.append(f"{e:.2f}{'*' if kept else ' '}/{once:.2f}")
-                if photos_fit is not None:
+                if args.from_photos:
+                    photos_fit = photos_fit or res
                     live, continued = from_photos_errors(model, case, photos_fit, truth)
                     row["live"].append(live)
                     row["continued"].append(continued)
             for k in table:
                 table[k].append(row[k])
             print(f"  {folder.name:<16}" + "".join(f"{c:>16}" for c in cells), flush=True)
-            if photos_fit is not None:
+            if args.from_photos:
                 print(f"  {'  live/cont.':<16}" + "".join(
                     f"{_mm(a):>11}/{_mm(b):<4}" for a, b in zip(row["live"], row["continued"],
                                                              strict=True)), flush=True)
