@@ -30,7 +30,7 @@ MAX_ANGLE_DEG = 50.0
 #: Skin within this distance of an iris's centre occludes it (the lids, the brow, the
 #: nose), metres.
 OCCLUDER_REACH = 0.03
-#: Share of the samples left out at the bright and the dark end.
+#: Share of the samples left out at the dark and the bright end.
 TRIM = (0.1, 0.3)
 #: Fewest samples (over both eyes and all photos) a colour is read from.
 MIN_SAMPLES = 20
@@ -43,12 +43,15 @@ OPENING_SHRINK = 0.15
 
 def eye_openings(model, view):
     """The eye openings (k, 6, 2) px that ``view``'s landmarks draw (each eye's six iBUG
-    points, an eye missing any of them left out), shrunk by ``OPENING_SHRINK``."""
+    points, under any name the landmark set knows them by; an eye missing any of them left
+    out), shrunk by ``OPENING_SHRINK``."""
+    lms = model.landmark_set
+    given = {lms.canonical(k): p for k, p in view.points.items()}
     out = []
     for numbers in EYE_OPENINGS:
-        names = [model.landmark_set.canonical(f"ibug{n:02d}") for n in numbers]
-        if all(n in view.points for n in names):
-            p = np.array([view.points[n] for n in names], dtype=np.float64)
+        names = [lms.canonical(f"ibug{n:02d}") for n in numbers]
+        if all(n in given for n in names):
+            p = np.array([given[n] for n in names], dtype=np.float64)
             centre = p.mean(axis=0)
             out.append(centre + (1.0 - OPENING_SHRINK) * (p - centre))
     return np.array(out).reshape(-1, 6, 2)

@@ -10,7 +10,7 @@ from PIL import Image
 
 from solver.cameras import OrthographicCamera
 from solver.eyes import IRIS_RADIUS, IRIS_RANGES, PUPIL_RADIUS
-from solver.texture.iris import MIN_SAMPLES, iris_colour, iris_samples
+from solver.texture.iris import MIN_SAMPLES, eye_openings, iris_colour, iris_samples
 
 BROWN = np.array([0.42, 0.26, 0.14])
 SKIN = np.array([0.80, 0.62, 0.52])
@@ -77,3 +77,16 @@ def test_the_rendered_sample_s_eyes_read_blue_grey(sample, model):
         pytest.fail("no iris colour read off the rendered sample")
     # the sample's eye material: a blue-grey iris, lighter than the pupil, not the skin's
     assert colour[2] > colour[0] + 0.04 and 0.2 < colour.mean() < 0.85, colour
+
+
+def test_eye_openings_are_found_under_either_name_of_the_eye_landmarks(model):
+    lms = model.landmark_set
+    names = {n: lms.canonical(f"ibug{n:02d}") for n in range(37, 49)}
+    px = {n: (100.0 + 10 * (n % 6), 200.0 + 7 * (n // 43)) for n in names}
+    canonical = SimpleNamespace(points={names[n]: p for n, p in px.items()})
+    aliased = SimpleNamespace(points={f"ibug{n:02d}": p for n, p in px.items()})
+    a, b = eye_openings(model, canonical), eye_openings(model, aliased)
+    assert a.shape == (2, 6, 2)
+    np.testing.assert_array_equal(a, b)
+    one_eye = SimpleNamespace(points={f"ibug{n:02d}": p for n, p in px.items() if n < 43})
+    assert eye_openings(model, one_eye).shape == (1, 6, 2)
