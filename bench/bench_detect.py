@@ -385,15 +385,8 @@ def james_fit_errors(folder, detector, samples=4000):
     the case ``solver detect`` writes for its two photos (three-quarter views, pinholes).
     Returns those errors by label ("mean head", "68 projected exactly", "solver detect's
     case")."""
-    from bench.bench_realistic import Truth
-    from bench.realistic_cases import (
-        face_mask,
-        landmark_start,
-        part_triangles,
-        sample_surface,
-        scan_cases,
-        triangles_within,
-    )
+    from bench.bench_realistic import SCAN_SEED, scan_truth
+    from bench.realistic_cases import scan_cases
     from solver import fit_head, load_model
     from solver.detect.detected_case import detect_photos
 
@@ -403,11 +396,7 @@ def james_fit_errors(folder, detector, samples=4000):
     auto = detect_photos([(None, p) for p in halves], detector, halves.__getitem__)
     cams = {p: calibrate(scan, p).camera for p in scan.photos}
     exact = scan_cases(scan, cams)[0]["pinhole, projected"]
-    rng = np.random.default_rng(7000)
-    region = triangles_within(scan.triangles, face_mask(scan.vertices, scan.ibug))
-    target = part_triangles(model, ("Face", "Head and Neck", "Eyeball left", "Eyeball right"))
-    truth = Truth({"face": sample_surface(scan.vertices, region, samples, rng)}, target,
-                  lambda v, name: landmark_start(model, v, scan.ibug))
+    truth = scan_truth(model, scan, samples, np.random.default_rng(SCAN_SEED))
     out = {"mean head": truth.score(model.vertices)["face"]}
     print(f"james fit, face RMS vs the scan: mean head {out['mean head']:.2f} mm; views "
           f"detected: {', '.join(sorted(auto.views))}")

@@ -4,7 +4,7 @@ bare shoulders, in a room or before a busy background, black and white, the head
 a larger photo, JPEG-compressed, darker, turned in their plane, cropped, blurred, noisy,
 with a colour cast.
 
-    python -m bench.bench_photo_variants [--variants NAME ...] [--face]
+    python -m bench.bench_photo_variants [--variants NAME ...] [--face] [--james DIR]
                                          [--heads DIR ...] [--render SEED ...]
 
 Heads: as ``bench.bench_photo_size`` (the sample and ``generated/bench_heads/seed<N>``).
@@ -19,7 +19,8 @@ bare shoulders or a skin-coloured top), ``room`` (a room behind the person, by t
 render's alpha: a lit wall, a painted door, a bookshelf and a window, out of focus; each
 photo its own), ``wood`` (the same with a wooden door: a thing of the skin's colour behind
 the head), ``blocks`` and ``confetti`` (a busy background: random colours in squares,
-16 or 64 down the photo), ``grey`` (black and white), ``small`` (the photo
+16 or 64 down the photo), ``grey`` (black and white), ``grey_hair`` (``hair``, then
+black and white), ``small`` (the photo
 in the middle of one four times its size, its corner's colour around it: the face 10 % of
 the longer side), ``jpeg50`` (JPEG at quality 50), ``dark`` (half as bright),
 ``turned10`` (turned by 10 degrees, the corners filled with its corner's colour),
@@ -30,6 +31,10 @@ head after a similarity (``skin_error_mm``, the whole head: under hair the skull
 seen), or with ``--face`` over the face region alone
 (``realistic_cases.model_face_vertices``, aligned on it), mm, the mean head's beside
 them; a variant whose photos ``solver detect`` refuses is said and left out of the mean.
+``--james DIR`` adds the scan james' own two photos (real three-quarter photos), as
+photographed and through the variants that change a photo alone (``PHOTO_ONLY``), fitted
+as ``solver detect`` makes their case and scored against the scan's face as
+``bench_realistic`` scores it.
 
 With ``--profile-line`` nothing is fitted: the profile line's points read off each
 profile photo's detected outline (as ``solver detect`` reads them) are scored against the
@@ -293,6 +298,7 @@ VARIANTS = {
     "blocks": lambda im, head, face, person, alpha: colour_blocks(im, alpha, 16),
     "confetti": lambda im, head, face, person, alpha: colour_blocks(im, alpha, 64),
     "grey": lambda im, *_: im.convert("L").convert("RGB"),
+    "grey_hair": lambda im, head, face, *_: hair(im, head, face).convert("L").convert("RGB"),
     "small": lambda im, *_: Image.fromarray(padded(np.asarray(im), {}, 4)[0]),
     "jpeg50": lambda im, *_: _jpeg(im),
     "dark": lambda im, *_: Image.fromarray((np.asarray(im) * 0.5).astype(np.uint8)),
@@ -303,6 +309,12 @@ VARIANTS = {
     "warm": lambda im, *_: _cast(im, (1.15, 1.0, 0.8)),
     "cool": lambda im, *_: _cast(im, (0.85, 1.0, 1.15)),
 }
+
+
+#: The variants a real photo can be given: they change the photo alone, not the render's
+#: head or person (``--james``).
+PHOTO_ONLY = ("grey", "small", "jpeg50", "dark", "turned10", "cropped", "blurred", "noisy",
+              "warm", "cool")
 
 
 def changed(folder, variant, into, detector):
@@ -318,6 +330,35 @@ def changed(folder, variant, into, detector):
         VARIANTS[variant](image, truth[f"head_alpha_{view}"] >= 128, face, alpha >= 128,
                           alpha / 255.0).save(into / f"{view}.png")
     return into
+
+
+def james_errors(folder, variants, detector, model, samples=4000):
+    """Face RMS (mm) against the scan james (``bench_realistic``'s scoring) of the fit from
+    its own two photos (its texture's halves: real three-quarter photos) through ``solver
+    detect``: {"mean head": ..., "as photographed": ..., variant: ...} for each of
+    ``variants`` in ``PHOTO_ONLY`` (the others need a render's masks), NaN where the photos
+    are refused."""
+    from bench.bench_realistic import SCAN_SEED, scan_truth
+    from bench.realistic_cases import load_scan, scan_photo_halves
+    from solver.detect.detected_case import detect_photos
+
+    truth = scan_truth(model, load_scan(folder), samples, np.random.default_rng(SCAN_SEED))
+    halves = {name: Image.fromarray(photo) for name, photo in scan_photo_halves(folder).items()}
+    out = {"mean head": truth.score(model.vertices)["face"]}
+    for variant in [None] + [v for v in variants if v in PHOTO_ONLY]:
+        photos = {name: np.asarray(photo if variant is None else
+                                   VARIANTS[variant](photo, None, None, None, None))
+                  for name, photo in halves.items()}
+        try:
+            case = detect_photos([(None, name) for name in photos], detector,
+                                 photos.__getitem__)
+        except ValueError as err:
+            print(f"  james {variant or 'as photographed'}: {err}")
+            out[variant or "as photographed"] = float("nan")
+            continue
+        out[variant or "as photographed"] = truth.score(
+            fit_head(model, case).local_vertices)["face"]
+    return out
 
 
 def face_error_mm(model, local, truth_local):
@@ -364,6 +405,10 @@ def main(argv=None):
     ap.add_argument("--profile-line", action="store_true",
                     help="no fits: score the profile line's points read off each profile "
                          "photo's detected outline against the head's own landmarks")
+    ap.add_argument("--james", default=None, metavar="DIR",
+                    help="also the scan james' own two photos (the folder of james.obj) "
+                         "through the variants a real photo can be given, scored against "
+                         "the scan's face")
     add_head_options(ap)
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
@@ -401,6 +446,12 @@ def main(argv=None):
     beats = (a[:, 1:] < a[:, :1]).sum(axis=0)
     print(f"  {'beat mean':<10}" + " " * 12 + "".join(f"{f'{b} of {len(a)}':>12}"
                                                      for b in beats))
+    if args.james:
+        errors = james_errors(Path(args.james), args.variants, detector, model)
+        print("james' own photos (real, three-quarter views) through solver detect, face "
+              "RMS vs the scan, mm:")
+        print("  " + "".join(f"{k:>16}" for k in errors))
+        print("  " + "".join(f"{v:>16.2f}" for v in errors.values()))
 
 
 if __name__ == "__main__":

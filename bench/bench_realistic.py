@@ -174,6 +174,21 @@ class Truth:
                 for name, pts in self.regions.items()}
 
 
+#: The seed of the points a scan's face is scored on (``scan_truth``).
+SCAN_SEED = 7000
+
+
+def scan_truth(model, scan, samples, rng):
+    """A scan's face as a :class:`Truth` (the "face" region only: a scan covers no whole
+    head): ``samples`` points drawn by ``rng`` on its face (``face_mask`` of its own
+    landmarks), each head laid on it from the similarity of its iBUG points to the scan's.
+    ``scan``: a ``realistic_cases.Scan`` in any frame (the score aligns the head)."""
+    region = triangles_within(scan.triangles, face_mask(scan.vertices, scan.ibug))
+    target = part_triangles(model, ("Face", "Head and Neck", "Eyeball left", "Eyeball right"))
+    return Truth({"face": sample_surface(scan.vertices, region, samples, rng)}, target,
+                 lambda v, name: landmark_start(model, v, scan.ibug))
+
+
 def synthetic_truth(model, truth, samples, seed):
     rng = np.random.default_rng(seed)
     skin = part_triangles(model)
@@ -321,11 +336,8 @@ def run_james(model, folder, samples, grid):
           "the profile's outline traced from the scan's silhouette")
     # Everything is scored on the scan moved into the model's axes (the score aligns each
     # head by ICP, so the frame does not matter; the oracle is found once).
-    rng = np.random.default_rng(SEEDS["with expression"] + 1000)
-    region = triangles_within(moved.triangles, face_mask(moved.vertices, moved.ibug))
-    target = part_triangles(model, ("Face", "Head and Neck", "Eyeball left", "Eyeball right"))
-    t = Truth({"face": sample_surface(moved.vertices, region, samples, rng)}, target,
-              lambda v, name: landmark_start(model, v, moved.ibug))
+    rng = np.random.default_rng(SCAN_SEED)
+    t = scan_truth(model, moved, samples, rng)
     cloud = sample_surface(moved.vertices, moved.triangles, 5 * samples, rng)
     oracle = oracle_local(model, cloud, landmark_start(model, model.vertices, moved.ibug),
                           face_only=True)[0]

@@ -21,8 +21,9 @@ Steps (numbers in docs/DECISIONS.md, "The head's outline"):
    square's do not (nothing is seen beyond them): the outline goes on past them, the
    points there left out;
 4. on a photo without colour (black and white), where skin cannot be told from clothes,
-   the outline ends under the chin (``NECK_CUT``), and the fit gets only the points moved
-   onto the photo's edge (``Outline.contour``).
+   the outline ends under the chin (``NECK_CUT``), is the face's run alone, and the fit
+   gets only the points moved onto the photo's edge (``Outline.contour``);
+5. an outline the segmentation is unsure of over most of it (``UNSURE_REFUSE``) is none.
 """
 
 from dataclasses import dataclass, field
@@ -61,6 +62,8 @@ MIN_STRETCH = 0.12
 #: Other runs of skin on the person's outline than the face's front's are kept where they
 #: come this many face sizes near the face's centre: its other side, where hair on the
 #: crown parts the two (a front photo). The front's run alone must be ``MIN_LENGTH`` long.
+#: On a photo without colour no other run is kept: nothing tells it is skin (a white
+#: collar, the neck behind a three-quarter face's ear).
 NEAR_FACE = 1.0
 #: On a photo without colour (``photo_colour.has_colour``: black and white), where skin
 #: cannot be told from clothes, the outline ends this many eye-to-mouth distances below
@@ -100,6 +103,11 @@ SURE_P = 0.9
 #: with hair, a beard or glasses, 23 % with a wooden door, 65 % on confetti
 #: (docs/DECISIONS.md, "A busy background").
 UNSURE_SHARE = 0.15
+#: Where the segmentation is unsure of more than this share, the outline is none: on a black
+#: and white photo with hair it ran across the face and the profile's points were read off
+#: it (a head fitted 9.5 mm from the truth; docs/DECISIONS.md, "An outline the segmentation
+#: is unsure of, a nose's zig-zag, a grey photo's other runs").
+UNSURE_REFUSE = 0.5
 
 
 @dataclass
@@ -301,8 +309,9 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
     Raises
     ------
     ValueError
-        No person around the face, or no skin on the person's edge (the message names
-        what is missing; the caller names the photo).
+        No person around the face, no skin on the person's edge, or an edge the
+        segmentation is unsure of over ``UNSURE_REFUSE`` of it (the message names what is
+        missing; the caller names the photo).
     """
     box = np.asarray(face.box, float)
     centre = ((box[0] + box[2]) / 2, (box[1] + box[3]) / 2)
@@ -359,7 +368,8 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
                          f"{seen * spacing_px:.0f} px long, under {MIN_LENGTH:g} x the "
                          f"face's {size:.0f} px (hair or clothes around it): no outline")
     centre = np.asarray(centre, float)
-    for a, b in _runs(keep):             # the face's other side, where hair parts them
+    # the face's other side, where hair parts them (only colour tells that a run is skin)
+    for a, b in _runs(keep) if colour else []:
         more = np.arange(a, b) % n
         if (a, b) != run and len(more) >= shortest and np.min(np.linalg.norm(
                 moved[more] - centre, axis=1)) <= NEAR_FACE * size:
@@ -385,6 +395,10 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
         notes.append("the photo has no colour: the outline ends under the chin and the fit "
                      "gets only its points on an edge")
     unsure = float(np.mean(~edge_sure(mask, loop)[idx]))
+    if unsure > UNSURE_REFUSE:
+        raise ValueError(f"the person's segmentation is unsure of the edge over "
+                         f"{100 * unsure:.0f} % of the outline (over {100 * UNSURE_REFUSE:.0f}"
+                         " %: a busy background, a black and white photo): no outline")
     if unsure > UNSURE_SHARE:
         warnings.append(f"the person's segmentation is unsure of the edge over "
                         f"{100 * unsure:.0f} % of the outline (a busy background, or "

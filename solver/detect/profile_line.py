@@ -24,6 +24,12 @@ MAX_SPACING = 0.02
 #: points are read off the unbroken piece that holds the nose tip only, so nothing beyond
 #: a gap (a lip showing through a beard) is taken for the next feature down the face.
 GAP = 0.03
+#: The nose tip is the most forward point of the outline within this fraction of the
+#: face's size of the face detector's nose keypoint (then followed on forward), and the
+#: piece read is the one holding it: the keypoint is rough (on a black and white profile 39
+#: px under the tip, by the subnasale, where the points under the nose zig-zag by a gap's
+#: length onto the nostril's shadow), the tip is not.
+TIP_REACH = 0.3
 #: The outline is smoothed over this fraction of the face's size before the extremes
 #: are read (a traced outline's 1-2 px noise makes no dip).
 SMOOTH = 0.012
@@ -159,7 +165,8 @@ def profile_line_points(contour, side, face_size, nose_tip=None):
     if nose_tip is None:
         tip = int(np.argmax(q[:, 0]))
     else:
-        near = np.linalg.norm(p - np.asarray(nose_tip, dtype=float), axis=1) < 0.3 * face_size
+        near = np.linalg.norm(p - np.asarray(nose_tip, dtype=float), axis=1) \
+            < TIP_REACH * face_size
         if not near.any():
             return {}, {}
         tip = _climbed(q[:, 0], int(np.argmax(np.where(near, q[:, 0], -np.inf))))
@@ -188,13 +195,20 @@ def profile_line_points(contour, side, face_size, nose_tip=None):
 
 def _piece_with_tip(c, sign, face_size, nose_tip):
     """The unbroken piece of the outline ``c`` (n, 2) (no step longer than ``GAP`` of the
-    face's size) that holds the nose tip: the point nearest ``nose_tip`` if given, else
-    the most forward one (``sign`` +1 a right profile, -1 a left one)."""
+    face's size) that holds the nose tip: the most forward point (``sign`` +1 a right
+    profile, -1 a left one) within ``TIP_REACH`` of ``nose_tip`` if given (else the point
+    nearest it), else the most forward one."""
     cut = np.flatnonzero(np.linalg.norm(np.diff(c, axis=0), axis=1) > GAP * face_size) + 1
     if not len(cut):
         return c
-    at = int(np.argmin(np.linalg.norm(c - np.asarray(nose_tip, dtype=float), axis=1))) \
-        if nose_tip is not None else int(np.argmax(sign * c[:, 0]))
+    forward = sign * c[:, 0]
+    if nose_tip is not None:
+        d = np.linalg.norm(c - np.asarray(nose_tip, dtype=float), axis=1)
+        near = d < TIP_REACH * face_size
+        at = int(np.argmax(np.where(near, forward, -np.inf))) if near.any() \
+            else int(np.argmin(d))
+    else:
+        at = int(np.argmax(forward))
     k = int(np.searchsorted(cut, at, side="right"))
     bounds = np.concatenate([[0], cut, [len(c)]])
     return c[bounds[k]:bounds[k + 1]]

@@ -1,7 +1,8 @@
 """bench/bench_photo_variants.py's painted hair, beard and glasses on a drawn head: where
 each lies against the head's own outline and the face's keypoints; clothes coloured as
 skin; a room or colour blocks behind the person; the profile line's table on the rendered
-sample."""
+sample; the variants a real photo can be given, and the scan james' own photos through
+them."""
 
 from types import SimpleNamespace
 
@@ -11,18 +12,25 @@ from PIL import Image
 
 from bench.bench_photo_variants import (
     DOORS,
+    PHOTO_ONLY,
+    VARIANTS,
     bare,
     beard_region,
     colour_blocks,
     glasses,
+    hair,
     hair_region,
     in_a_room,
+    james_errors,
     profile_line_table,
     room_behind,
     thick_hair,
 )
+from bench.realistic_cases import james_folder
+from solver import load_model
 from solver.detect import Detector
 from solver.paths import DETECTOR_DIR
+from tests import ROOT
 
 
 def _head():
@@ -145,3 +153,35 @@ def test_the_profile_line_table_scores_the_points_read_on_the_sample_s_profile(s
         # sample's profile within 5 % of the face's size either way
         for name in ("nose_tip", "subnasale", "pogonion", "chin_bottom"):
             assert len(errors[name]) == 1 and errors[name][0] < 5.0, (variant, errors)
+
+
+def test_the_variants_of_a_real_photo_change_the_photo_alone():
+    # no render's head, person or alpha: each gives an RGB photo of a plain one
+    photo = Image.fromarray(np.full((80, 60, 3), [180, 140, 120], np.uint8))
+    for name in PHOTO_ONLY:
+        out = VARIANTS[name](photo, None, None, None, None)
+        assert out.mode == "RGB" and min(out.size) >= 50, name
+    grey = np.asarray(VARIANTS["grey"](photo, None, None, None, None))
+    assert (grey == grey[..., :1]).all()
+
+
+def test_grey_hair_is_the_hair_in_black_and_white():
+    head, face = _head()
+    photo = Image.fromarray(np.full(head.shape + (3,), [200, 160, 140], np.uint8))
+    out = np.asarray(VARIANTS["grey_hair"](photo, head, face, None, None)).astype(int)
+    want = np.asarray(hair(photo, head, face).convert("L")).astype(int)
+    assert (out == want[..., None]).all()
+
+
+def test_james_own_photos_in_black_and_white_beat_the_mean_head():
+    # a black and white photo cannot tell a white collar or the neck behind the ear from
+    # skin: its outline kept them and the head came out worse than the mean head
+    folder = james_folder(ROOT)
+    if not (folder / "james.obj").is_file():
+        pytest.skip(f"the scan james is not in {folder} (set HEADRECON_REALDATA)")
+    if not (DETECTOR_DIR / "selfie_segmentation.tflite").is_file():
+        pytest.skip(f"models missing in {DETECTOR_DIR}: run ./run detector")
+    errors = james_errors(folder, ["grey", "hair"], Detector(), load_model(), samples=2000)
+    assert set(errors) == {"mean head", "as photographed", "grey"}
+    assert errors["as photographed"] < errors["mean head"]
+    assert errors["grey"] < errors["mean head"], errors

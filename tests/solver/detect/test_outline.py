@@ -10,6 +10,7 @@ from solver.detect import Detector
 from solver.detect.crop import Square
 from solver.detect.outline import (
     STRAIGHT_LONG,
+    UNSURE_REFUSE,
     UNSURE_SHARE,
     head_outline,
     refine_edge,
@@ -291,6 +292,46 @@ def test_an_outline_the_segmentation_is_unsure_of_is_said(sample, detector):
     assert outline.unsure > UNSURE_SHARE
     assert any(w.startswith("the person's segmentation is unsure of the edge over")
                for w in outline.warnings)
+
+
+def test_an_outline_the_segmentation_is_unsure_of_over_half_is_none(sample, detector):
+    # the segmentation's map pulled toward one half: its 0.5 iso-line where it was, but
+    # nowhere sure of the person's edge (as on a black and white photo with hair, where
+    # the iso-line ran across the face): no outline, said as such
+    folder, _ = sample
+    image = _photo(folder).astype(float) / 255
+    face = detector.detect(image)
+    detector.outline(image, face)                               # reads the network
+
+    def unsure(x):
+        (p,) = detector._segmentation_net(x)
+        return (0.5 + 0.3 * (np.asarray(p) - 0.5),)
+
+    with pytest.raises(ValueError, match=r"unsure of the edge over 100 % of the outline "
+                                         r"\(over 50 %.*: no outline"):
+        head_outline(image, face, unsure)
+    assert UNSURE_SHARE < UNSURE_REFUSE < 1.0
+
+
+def test_a_black_and_white_photo_keeps_the_face_s_own_run_alone(sample, detector):
+    # hair on the crown parts the person's edge into the face's two sides: with colour
+    # both are skin and both are kept; without colour nothing tells another run from a
+    # white collar or the neck behind a turned face's ear, and the face's own run is kept
+    folder, truth = sample
+    photo = _photo(folder, "front").copy()
+    face = detector.detect(photo)
+    size = face.box[2] - face.box[0]
+    vv, _ = np.mgrid[0:photo.shape[0], 0:photo.shape[1]]
+    photo[(truth["head_alpha_front"] >= 128) & (vv < face.keypoints[0][1] - 0.5 * size)] = \
+        [26, 18, 12]
+    grey = np.asarray(Image.fromarray(photo).convert("L").convert("RGB"))
+    middle = (face.box[0] + face.box[2]) / 2
+    sides = {}
+    for name, image in (("colour", photo), ("grey", grey)):
+        u = detector.outline(image, detector.detect(image)).points[:, 0]
+        sides[name] = ((u < middle).sum(), (u > middle).sum())
+    assert min(sides["colour"]) > 0.35 * sum(sides["colour"]), sides
+    assert min(sides["grey"]) == 0 and max(sides["grey"]) > 0.3 * sum(sides["colour"]), sides
 
 
 @pytest.mark.parametrize("thing, sure, taken", [

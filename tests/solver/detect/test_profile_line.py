@@ -111,6 +111,26 @@ def test_only_the_outline_s_piece_with_the_nose_is_read(model):
         assert np.linalg.norm(np.subtract(points[n], whole[n])) < 0.01 * size, n
 
 
+def test_the_piece_read_holds_the_nose_tip_not_the_rough_keypoint(model):
+    # on a black and white profile the points under the nose zig-zag onto the nostril's
+    # shadow by more than a gap's step, and the face detector's nose keypoint lies low, by
+    # the subnasale: the piece read is the one holding the most forward point near the
+    # keypoint (the tip), not the one nearest it, whose first bump would be taken for the
+    # nose tip and every point below shifted by a feature
+    outline, exact, size = _profile(model, 4155)
+    under = int(np.argmin(np.linalg.norm(outline - exact["subnasale"], axis=1)))
+    tip = int(np.argmin(np.linalg.norm(outline - exact["nose_tip"], axis=1)))
+    k = (under + tip) // 2
+    zigzag = outline.copy()
+    zigzag[k] += [0.0, -0.04 * size]           # a point 4 % of the face's size up
+    hint = exact["subnasale"] + np.array([0.1, 0.05]) * size
+    points, _ = profile_line_points(zigzag, "right", size, hint)
+    whole, _ = profile_line_points(outline, "right", size, exact["nose_tip"] + 5.0)
+    assert {"nasion", "nose_tip"} <= set(points), points
+    for n, p in points.items():
+        assert np.linalg.norm(np.subtract(p, whole[n])) < 0.01 * size, (n, points)
+
+
 def test_a_nose_tip_guessed_up_the_nose_is_followed_to_the_tip(model):
     # the face detector's nose keypoint above the nasion, as on a bearded profile: the most
     # forward point near it lies on the dorsum; the outline is followed on to the tip
