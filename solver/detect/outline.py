@@ -106,7 +106,7 @@ UNSURE_SHARE = 0.15
 #: Where the segmentation is unsure of more than this share, the outline is none: on a black
 #: and white photo with hair it ran across the face and the profile's points were read off
 #: it (a head fitted 9.5 mm from the truth; docs/DECISIONS.md, "An outline the segmentation
-#: is unsure of, a nose's zig-zag, a grey photo's other runs").
+#: is unsure of, a profile's rough nose keypoint, a grey photo's other runs").
 UNSURE_REFUSE = 0.5
 
 

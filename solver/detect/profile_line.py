@@ -165,11 +165,10 @@ def profile_line_points(contour, side, face_size, nose_tip=None):
     if nose_tip is None:
         tip = int(np.argmax(q[:, 0]))
     else:
-        near = np.linalg.norm(p - np.asarray(nose_tip, dtype=float), axis=1) \
-            < TIP_REACH * face_size
-        if not near.any():
+        near = _most_forward_near(p, q[:, 0], nose_tip, face_size)
+        if near is None:
             return {}, {}
-        tip = _climbed(q[:, 0], int(np.argmax(np.where(near, q[:, 0], -np.inf))))
+        tip = _climbed(q[:, 0], near)
     s = _arc(p)
     up, down, step = _stretches(q, s, tip, face_size)
     nasion = _nasion(q, up, face_size)
@@ -202,16 +201,23 @@ def _piece_with_tip(c, sign, face_size, nose_tip):
     if not len(cut):
         return c
     forward = sign * c[:, 0]
-    if nose_tip is not None:
-        d = np.linalg.norm(c - np.asarray(nose_tip, dtype=float), axis=1)
-        near = d < TIP_REACH * face_size
-        at = int(np.argmax(np.where(near, forward, -np.inf))) if near.any() \
-            else int(np.argmin(d))
-    else:
+    if nose_tip is None:
         at = int(np.argmax(forward))
+    else:
+        at = _most_forward_near(c, forward, nose_tip, face_size)
+        if at is None:
+            at = int(np.argmin(np.linalg.norm(c - np.asarray(nose_tip, dtype=float), axis=1)))
     k = int(np.searchsorted(cut, at, side="right"))
     bounds = np.concatenate([[0], cut, [len(c)]])
     return c[bounds[k]:bounds[k + 1]]
+
+
+def _most_forward_near(points, forward, nose_tip, face_size):
+    """The index of the most forward of ``points`` (n, 2) px (``forward`` (n,)) within
+    ``TIP_REACH`` of the face's size of ``nose_tip``, or None where none is."""
+    near = np.linalg.norm(points - np.asarray(nose_tip, dtype=float), axis=1) \
+        < TIP_REACH * face_size
+    return int(np.argmax(np.where(near, forward, -np.inf))) if near.any() else None
 
 
 def _climbed(forward, i):
