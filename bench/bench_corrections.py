@@ -131,7 +131,7 @@ def main(argv=None):
                          "refit and a fit continued from its head")
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
-    folders = head_folders(args.heads, args.render)
+    folders = head_folders(args.heads, args.render, args.skin)
     model, detector = load_model(), Detector()
     columns = ["photos", *GROUPS, "profile ears", "every exact"]
     print("skin RMS vs the true head, mm: fit / once (no second start); * second start kept"

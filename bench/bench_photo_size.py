@@ -58,7 +58,7 @@ def main(argv=None):
     add_head_options(ap)
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
-    folders = head_folders(args.heads, args.render)
+    folders = head_folders(args.heads, args.render, args.skin)
     model, detector = load_model(), Detector()
     columns = ["as rendered"] + [f"x{k:g} {label}" for k in args.scale
                                  for label in ("scaled", "as given")]

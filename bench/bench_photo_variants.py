@@ -412,7 +412,7 @@ def main(argv=None):
     add_head_options(ap)
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
-    folders = head_folders(args.heads, args.render)
+    folders = head_folders(args.heads, args.render, args.skin)
     detector = Detector()
     if args.profile_line:
         profile_line_table(folders, args.variants, detector)

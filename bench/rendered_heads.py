@@ -1,22 +1,28 @@
 """The rendered model heads the photos-only benchmarks fit (``bench_corrections``,
 ``bench_photo_size``, ``bench_photo_variants``): the sample and ``TEN_HEADS`` more, each
 folder holding its front and profile photos, ``sample.json`` (the exact landmarks) and
-``truth.npz`` (the true head), rendered by ``tools.make_sample`` when missing."""
+``truth.npz`` (the true head), rendered by ``tools.make_sample`` when missing; with
+``--skin`` of another complexion (``tools.make_sample.SKIN_TONES``), the sample's seed
+and the others rendered so."""
 
 import subprocess
 import sys
 from pathlib import Path
 
+from tools.make_sample import DEFAULT_SEED, SKIN_TONES
+
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def render_head(seed, folder):
-    """Render a model head's sample photos into ``folder`` unless they are there."""
+def render_head(seed, folder, skin_tone="light"):
+    """Render a model head's sample photos (its skin ``skin_tone``) into ``folder`` unless
+    they are there."""
     if (folder / "truth.npz").is_file():
         return
     print(f"rendering seed {seed} into {folder} ...", flush=True)
     subprocess.run([sys.executable, "-m", "tools.make_sample", "--seed", str(seed),
-                    "--out", str(folder)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+                    "--out", str(folder), "--skin", skin_tone], cwd=ROOT, check=True,
+                   stdout=subprocess.DEVNULL)
 
 
 #: The model heads the photos-only benchmarks render and fit besides the sample.
@@ -33,16 +39,26 @@ def add_head_options(parser, render=None):
                         default=TEN_HEADS if render is None else render,
                         help="model seeds rendered into generated/bench_heads/seed<N> if "
                              "missing")
+    parser.add_argument("--skin", default="light", choices=list(SKIN_TONES),
+                        help="the heads' skin tone (default light: the sample and its "
+                             "seeds; else the sample's seed too, rendered into "
+                             "generated/bench_heads/seed<N>_<tone>)")
 
 
-def head_folders(heads, seeds):
+def head_folders(heads, seeds, skin_tone="light"):
     """The rendered head folders a benchmark runs on: ``heads`` (paths) if given, else the
     sample; then ``generated/bench_heads/seed<N>`` for each of ``seeds``, rendered first
-    when missing."""
-    folders = [Path(h) for h in heads] if heads is not None \
-        else [ROOT / "generated" / "sample"]
+    when missing. Of another ``skin_tone`` (``--skin``) the sample's seed comes first
+    instead of the sample, and each folder is ``seed<N>_<skin_tone>``."""
+    if skin_tone != "light" and heads is None:
+        seeds = [DEFAULT_SEED, *seeds]
+    if heads is not None:
+        folders = [Path(h) for h in heads]
+    else:
+        folders = [ROOT / "generated" / "sample"] if skin_tone == "light" else []
+    suffix = "" if skin_tone == "light" else f"_{skin_tone}"
     for seed in seeds:
-        folder = ROOT / "generated" / "bench_heads" / f"seed{seed}"
-        render_head(seed, folder)
+        folder = ROOT / "generated" / "bench_heads" / f"seed{seed}{suffix}"
+        render_head(seed, folder, skin_tone)
         folders.append(folder)
     return folders

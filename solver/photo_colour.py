@@ -17,10 +17,11 @@ SKIN_CHROMA = 0.075
 SKIN_BRIGHTNESS = 3.0
 #: Skin is warm: its red share exceeds its blue share by at least this fraction of the
 #: face's own excess (the sample's face 0.09-0.10, its shade under the ear 0.12, skin
-#: washed out by the light 0.02; its grey-blue shirt -0.04 to -0.06 and a white collar
-#: -0.01, both within ``SKIN_CHROMA`` of the face), unless a channel is clipped (a
-#: highlight on the skull is plain white: no colour is left to tell).
-SKIN_WARMTH = 0.2
+#: washed out by the light 0.02, on darker skin 0.15-0.19 of the face's; its grey-blue
+#: shirt -0.04 to -0.06 and a white collar -0.01, both within ``SKIN_CHROMA`` of the
+#: face), unless a channel is clipped (a highlight on the skull is plain white: no colour
+#: is left to tell; docs/DECISIONS.md, "Darker skin").
+SKIN_WARMTH = 0.1
 SKIN_CLIPPED = 0.99
 #: A colour this near white in every channel is a highlight too (a clipped one a little
 #: blurred: 0.988 on the sample's skull under a 2 px blur; a white collar in the light
@@ -125,5 +126,25 @@ def skin_like(colours, skin, clipped=True):
     near = np.linalg.norm(chroma - centre, axis=1) <= max(SKIN_SPREADS * spread, SKIN_CHROMA)
     warm = _warmth(colours) >= SKIN_WARMTH * warmth
     if clipped:
-        warm |= (colours.max(-1) >= SKIN_CLIPPED) | (colours.min(-1) >= SKIN_WHITE)
+        warm |= _clipped(colours)
     return near & warm & (b >= bright / SKIN_BRIGHTNESS) & (b <= bright * SKIN_BRIGHTNESS)
+
+
+def highlight_like(colours, skin):
+    """Whether each colour (n, 3) may be a highlight on the face's skin (:func:`skin_colour`):
+    clipped (a channel at ``SKIN_CLIPPED`` or all at ``SKIN_WHITE``) with a chromaticity
+    between the skin's and white (within the tolerance of :func:`skin_like`), at any
+    brightness: the skin's colour plus the light's. On darker skin a highlight is further
+    from the skin's colour than ``SKIN_CHROMA``, so :func:`skin_like` cannot take it in; a
+    clipped white thing (a collar) is such a colour too, so only where skin lies on
+    either side of it is it skin (``detect.outline``)."""
+    centre, spread = skin[0], skin[1]
+    chroma, _ = _chroma_brightness(colours)
+    towards = np.full(2, 1.0 / 3.0) - centre
+    t = np.clip((chroma - centre) @ towards / max(float(towards @ towards), 1e-12), 0.0, 1.0)
+    off = np.linalg.norm(chroma - centre - t[:, None] * towards, axis=1)
+    return _clipped(colours) & (off <= max(SKIN_SPREADS * spread, SKIN_CHROMA))
+
+
+def _clipped(colours):
+    return (colours.max(-1) >= SKIN_CLIPPED) | (colours.min(-1) >= SKIN_WHITE)

@@ -320,9 +320,17 @@ def appearance_attributes(model):
 # --------------------------------------------------------------------------- materials
 
 
-def _materials():
+#: Skin tones (``--skin``): each scales the skin's albedo (its tone, blush and lips) per
+#: linear RGB channel. "light" is the sample's own; "medium" a tan brown, "dark" a deep
+#: brown (linear albedo about 0.13, 0.07, 0.04), so the outline's and the detector's
+#: colour rules are measured on more than one complexion.
+SKIN_TONES = {"light": (1.0, 1.0, 1.0), "medium": (0.55, 0.48, 0.42),
+              "dark": (0.22, 0.18, 0.15)}
+
+
+def _materials(skin_tone="light"):
     """Skin, eye, mouth, teeth, eye socket and shirt materials (procedural; the eye is the
-    add-on's)."""
+    add-on's); the skin of ``SKIN_TONES[skin_tone]``."""
     import bpy
 
     from headrecon_addon import material
@@ -332,11 +340,17 @@ def _materials():
     skin = bpy.data.materials.new("Skin")
     b = material.NodeBuilder(skin)
     obj_co = b.coordinates("Object")
+    k = SKIN_TONES[skin_tone]
+
+    def toned(rgb):
+        return tuple(c * f for c, f in zip(rgb, k, strict=True))
+
     tone = b.ramp(b.noise(obj_co, 90.0, 4.0),
-                  [(0.3, (0.56, 0.35, 0.26)), (0.7, (0.66, 0.43, 0.33))])
-    col = b.mix(b.math("MULTIPLY", b.attribute("blush"), 0.55), tone, (0.66, 0.30, 0.24))
+                  [(0.3, toned((0.56, 0.35, 0.26))), (0.7, toned((0.66, 0.43, 0.33)))])
+    col = b.mix(b.math("MULTIPLY", b.attribute("blush"), 0.55), tone,
+                toned((0.66, 0.30, 0.24)))
     lip_col = b.ramp(b.noise(obj_co, 600.0),
-                     [(0.3, (0.38, 0.13, 0.12)), (0.7, (0.46, 0.18, 0.16))])
+                     [(0.3, toned((0.38, 0.13, 0.12))), (0.7, toned((0.46, 0.18, 0.16)))])
     col = b.mix(b.attribute("lips"), col, lip_col)
     # brow hairs: streaks from noise stretched across the brow
     stretch = b.new("ShaderNodeMapping", Vector=obj_co, Scale=(0.25, 1.0, 1.0))
@@ -610,7 +624,8 @@ def torso_mesh(local, skin, cut, n_around=72):
 # --------------------------------------------------------------------------- render
 
 
-def render_views(model, local, pose, torso, cameras, size, samples, seed, log):
+def render_views(model, local, pose, torso, cameras, size, samples, seed, log,
+                 skin_tone="light"):
     """Render each view with Cycles.
 
     Parameters
@@ -628,6 +643,8 @@ def render_views(model, local, pose, torso, cameras, size, samples, seed, log):
     seed : int
         Backdrop noise.
     log : callable
+    skin_tone : str
+        A key of ``SKIN_TONES``.
 
     Returns
     -------
@@ -641,7 +658,7 @@ def render_views(model, local, pose, torso, cameras, size, samples, seed, log):
     t0 = time.perf_counter()
     rotation, translation = pose
     ru.new_scene(size, samples)
-    mats = _materials()
+    mats = _materials(skin_tone)
     slot = _face_materials(model)
     drawn = slot >= 0
     loops, new_start, totals = face_subset(model, drawn)
@@ -697,7 +714,8 @@ def draw_overlay(photo, points, contour=None):
 # --------------------------------------------------------------------------- driver
 
 
-def _params(model, seed, size, samples, lens_mm=None, yaw_deg=0.0, side_deg=90.0):
+def _params(model, seed, size, samples, lens_mm=None, yaw_deg=0.0, side_deg=90.0,
+            skin_tone="light"):
     params = {"version": SAMPLE_VERSION, "seed": int(seed),
               "size": [int(size[0]), int(size[1])], "samples": int(samples),
               "model": getattr(model, "build_hash", "")}
@@ -707,6 +725,8 @@ def _params(model, seed, size, samples, lens_mm=None, yaw_deg=0.0, side_deg=90.0
         params["yaw_deg"] = float(yaw_deg)
     if float(side_deg) != 90.0:
         params["side_deg"] = float(side_deg)
+    if skin_tone != "light":
+        params["skin_tone"] = skin_tone
     return params
 
 
@@ -731,7 +751,8 @@ def is_up_to_date(out, params):
 
 
 def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=DEFAULT_SAMPLES,
-                force=False, model=None, log=print, lens_mm=None, yaw_deg=0.0, side_deg=90.0):
+                force=False, model=None, log=print, lens_mm=None, yaw_deg=0.0, side_deg=90.0,
+                skin_tone="light"):
     """Make the sample case in ``out`` unless it is up to date.
 
     Parameters
@@ -760,6 +781,8 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
         The side camera's direction, degrees from the front camera's (``frame_cameras``):
         under 90, a side photo short of a profile; its view's camera in ``sample.json``
         is turned so (``view_camera``).
+    skin_tone : str
+        The head's complexion, a key of ``SKIN_TONES``.
 
     Returns
     -------
@@ -779,7 +802,9 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
         raise ValueError(f"yaw_deg: a turn of under 90 degrees either way, got {yaw_deg}")
     if not 45.0 <= float(side_deg) <= 90.0:
         raise ValueError(f"side_deg: a side camera 45-90 degrees from the front, got {side_deg}")
-    params = _params(model, seed, size, samples, lens_mm, yaw_deg, side_deg)
+    if skin_tone not in SKIN_TONES:
+        raise ValueError(f"skin_tone: one of {', '.join(SKIN_TONES)}, got {skin_tone!r}")
+    params = _params(model, seed, size, samples, lens_mm, yaw_deg, side_deg, skin_tone)
     if not force and is_up_to_date(out, params):
         log(f"sample up to date: {out}")
         return out / "sample.json"
@@ -789,7 +814,8 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir()
     try:
-        _make_into(tmp, model, seed, size, samples, params, log, lens_mm, yaw_deg, side_deg)
+        _make_into(tmp, model, seed, size, samples, params, log, lens_mm, yaw_deg, side_deg,
+                   skin_tone)
         old = out.parent / f".{out.name}.old-{os.getpid()}"
         if out.exists():
             out.rename(old)
@@ -802,7 +828,7 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
 
 
 def _make_into(folder, model, seed, size, samples, params, log, lens_mm=None, yaw_deg=0.0,
-               side_deg=90.0):
+               side_deg=90.0, skin_tone="light"):
     from tools import render_util as ru
 
     coeffs, local, rotation, translation = sample_head(model, seed, yaw_deg)
@@ -813,7 +839,7 @@ def _make_into(folder, model, seed, size, samples, params, log, lens_mm=None, ya
     if lens_mm is not None:
         cameras = perspective_cameras(cameras, world, lens_mm)
     renders, cam_objs = render_views(model, local, (rotation, translation), torso, cameras,
-                                     size, samples, seed, log)
+                                     size, samples, seed, log, skin_tone)
 
     rng = np.random.default_rng(seed + 2)
     noise_px = NOISE_PX * size[1] / 1024.0
@@ -911,10 +937,13 @@ def main(argv=None):
     parser.add_argument("--side-deg", type=float, default=90.0, metavar="DEG",
                         help="the side camera this many degrees from the front camera "
                              "(default 90: an exact profile)")
+    parser.add_argument("--skin", choices=list(SKIN_TONES), default="light",
+                        help="the head's skin tone (default light)")
     args = parser.parse_args(argv)
     try:
         make_sample(args.out, args.seed, args.size, args.samples, args.force,
-                    lens_mm=args.lens, yaw_deg=args.yaw, side_deg=args.side_deg)
+                    lens_mm=args.lens, yaw_deg=args.yaw, side_deg=args.side_deg,
+                    skin_tone=args.skin)
     except (FileNotFoundError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

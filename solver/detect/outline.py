@@ -9,14 +9,16 @@ Steps (numbers in docs/DECISIONS.md, "The head's outline"):
    (``iso_line``) around the face: 1.2-1.7 px (median) from the true silhouette on the
    rendered photos, its map's pixel 3.4-3.8 photo pixels;
 2. each point moved along the outline's normal to where the photo's colour crosses
-   halfway between the colours inside and outside (sub-pixel, on the photo itself);
+   halfway between the colours inside and outside (sub-pixel, on the photo itself; a
+   rim of light along darker skin's edge is inside the edge, not the edge);
    where a long stretch of it is straight, the segmentation took in something behind
    the head (a door, a frame: ``straight_stretches``), and what it took in of that
    thing's colour is taken out of the mask and the outline found again
    (``without_leaks``);
 3. the colour just inside each point against the face's skin (sampled between the
    detector's keypoints: eyes, nose, mouth, ears): the outline is the run of skin that
-   holds the face's front (the nose tip), so hair (on the forehead, the crown, the nape)
+   holds the face's front (the nose tip; a clipped highlight counts where skin lies on
+   either side of it), so hair (on the forehead, the crown, the nape)
    and the collar or clothes below the neck end it; the photo's border and the segmented
    square's do not (nothing is seen beyond them): the outline goes on past them, the
    points there left out;
@@ -33,7 +35,14 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from ..geometry import inside_polygon
-from ..photo_colour import chromaticity, has_colour, sample_photo, skin_colour, skin_like
+from ..photo_colour import (
+    chromaticity,
+    has_colour,
+    highlight_like,
+    sample_photo,
+    skin_colour,
+    skin_like,
+)
 from .crop import Square
 from .iso_line import iso_lines
 from .segmentation import PersonMask, person_mask
@@ -51,6 +60,14 @@ REGROW_SHIFT = 0.2
 #: How far along the normal the photo's colour edge is looked for: this many map pixels
 #: (the mask's own error, 1-2 px median, up to about 3 px, is under one map pixel of 3-4 px).
 SEARCH_MAP_PX = 1.5
+#: A rim of light along the edge (darker skin lit from the side, brighter than the
+#: background): the outermost step along the normal (a colour change over ``STEP_PX``
+#: photo pixels, a local peak at least ``STEP_SHARE`` of the largest) that falls from a
+#: colour brighter than both the background and the skin further in. The rim rises from
+#: the skin more steeply than it falls to the background (docs/DECISIONS.md, "Darker
+#: skin").
+STEP_PX = 1.0
+STEP_SHARE = 0.5
 #: The outline found must be at least this many times the face's size (the detector's
 #: box) long: on james' front photo the only skin on the person's edge is a strip of neck
 #: between hair and collar.
@@ -173,9 +190,13 @@ def _normals(points, reach=2):
 
 def refine_edge(image, points, normals, reach, passes=2):
     """Each point moved along its outward normal to where the photo's colour crosses
-    halfway from the colour inside (the inner third of the search) to the colour
-    outside, the crossing nearest the point; then once more from there (``passes``),
-    so an edge far from the point does not tint the colour taken as the other side's.
+    halfway from the colour inside (the inner third of the search) to the colour outside
+    (the outer third), the crossing nearest the point; then once more from there
+    (``passes``), so an edge far from the point does not tint the colour taken as the
+    other side's. Where a rim of light runs along the edge (``STEP_PX``, ``STEP_SHARE``:
+    darker skin lit from the side, brighter than the background), the colour inside is
+    the rim's and the crossing the one nearest its outer step: the skin's further in
+    would hold the crossing inside the rim.
 
     Parameters
     ----------
@@ -192,7 +213,8 @@ def refine_edge(image, points, normals, reach, passes=2):
         less than 0.05 (in [0, 1] RGB).
     refined : ndarray (n,) bool
     inside : ndarray (n, 3)
-        The colour inside (the mean of the inner third).
+        The colour inside the outline (the mean of the search's inner third): what the
+        skin test reads.
     """
     moved, ok, inside = _edge_pass(image, points, normals, reach)
     for _ in range(passes - 1):
@@ -203,26 +225,40 @@ def refine_edge(image, points, normals, reach, passes=2):
 
 
 def _edge_pass(image, points, normals, reach):
-    steps = np.linspace(-reach, reach, int(np.ceil(4 * reach)) + 1)
+    per_px = 4                                                 # samples per photo pixel
+    steps = np.linspace(-reach, reach, int(np.ceil(per_px * reach)) + 1)
     uv = points[:, None, :] + steps[None, :, None] * normals[:, None, :]
     col = sample_photo(image, uv)                              # (n, k, 3)
-    third = max(len(steps) // 3, 1)
-    inside, outside = col[:, :third].mean(1), col[:, -third:].mean(1)
-    diff = inside - outside
+    k, rows = len(steps), np.arange(len(points))
+    third = max(k // 3, 1)
+    inner, outside = col[:, :third].mean(1), col[:, -third:].mean(1)
+    # a rim of light along the edge (STEP_PX, STEP_SHARE): the outermost strong step
+    # falls from something brighter than both the background and the colour further in
+    w = max(int(round(STEP_PX * per_px)), 1)
+    change = np.linalg.norm(col[:, w:] - col[:, :-w], axis=2)   # (n, k - w)
+    padded = np.pad(change, ((0, 0), (1, 1)), constant_values=-1.0)
+    peak = (change >= padded[:, :-2]) & (change >= padded[:, 2:]) \
+        & (change >= STEP_SHARE * change.max(axis=1, keepdims=True))
+    outer = change.shape[1] - 1 - np.argmax(peak[:, ::-1], axis=1)
+    lit = col[rows, outer].sum(1)
+    rim = (lit > outside.sum(1)) & (lit > inner.sum(1))
+    # the colour inside: the rim's own there, else the inner third's
+    diff = np.where(rim[:, None], col[rows, outer], inner) - outside
     contrast = np.linalg.norm(diff, axis=1)
     s = ((col - outside[:, None]) * diff[:, None]).sum(2) / np.maximum(contrast, 1e-9)[:, None] ** 2
     above = s >= 0.5
     cross = above[:, :-1] != above[:, 1:]                      # (n, k - 1)
     mid = (steps[:-1] + steps[1:]) / 2
-    dist = np.where(cross, np.abs(mid)[None], np.inf)
+    # the crossing nearest the rim's step, else nearest the point
+    near = np.where(rim, (steps[outer] + steps[outer + w]) / 2, 0.0)
+    dist = np.where(cross, np.abs(mid[None] - near[:, None]), np.inf)
     j = np.argmin(dist, axis=1)
-    rows = np.arange(len(points))
-    ok = np.isfinite(dist[rows, j]) & (contrast >= 0.05)
+    ok = np.isfinite(dist[rows, j]) & (np.linalg.norm(inner - outside, axis=1) >= 0.05)
     s0, s1 = s[rows, j], s[rows, j + 1]
     frac = np.clip((0.5 - s0) / np.where(s1 != s0, s1 - s0, 1.0), 0, 1)
     t = steps[j] + frac * (steps[j + 1] - steps[j])
     moved = np.where(ok[:, None], points + t[:, None] * normals, points)
-    return moved, ok, inside
+    return moved, ok, inner
 
 
 def between_keypoints(face, pairs):
@@ -275,6 +311,20 @@ def _runs(flags):
     return [(int(a) + shift, int(b) + shift)
             for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1),
                             strict=True)]
+
+
+def between_skin(flags, skin):
+    """Which of ``flags`` (n,) bool of a closed outline lie in a run of them with ``skin``
+    (n,) bool at the points on either side: a highlight on the skull between its lit
+    sides is skin, a clipped white collar below the neck is not."""
+    out = np.zeros_like(flags)
+    n = len(flags)
+    if flags.all():
+        return out
+    for a, b in _runs(flags):
+        if skin[(a - 1) % n] and skin[b % n]:
+            out[np.arange(a, b) % n] = True
+    return out
 
 
 def _close_short_gaps(flags, shortest):
@@ -339,6 +389,7 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
     colour = has_colour(skin_of_face)
     above = np.ones(len(moved), bool) if colour else _above_neck_cut(moved, face)
     skin = skin_like(inside, skin_of_face)
+    skin |= between_skin(highlight_like(inside, skin_of_face) & ~skin, skin)
     shortest = max(int(round(MIN_STRETCH * size / spacing_px)), 1)
     skin = _close_short_gaps(skin, shortest)
     # off the photo nothing is seen: the head's outline goes on across the photo's border

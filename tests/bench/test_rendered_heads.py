@@ -3,7 +3,7 @@ fit (bench_corrections', bench_photo_size's and bench_photo_variants')."""
 
 import argparse
 
-from bench.rendered_heads import TEN_HEADS, add_head_options
+from bench.rendered_heads import ROOT, TEN_HEADS, add_head_options, head_folders
 
 
 def test_the_head_options_default_to_the_sample_and_the_ten_heads():
@@ -11,8 +11,23 @@ def test_the_head_options_default_to_the_sample_and_the_ten_heads():
     add_head_options(parser)
     args = parser.parse_args([])
     assert args.heads is None and args.render == TEN_HEADS == [101, *range(201, 209)]
+    assert args.skin == "light"
     args = parser.parse_args(["--heads", "a", "b", "--render"])
     assert args.heads == ["a", "b"] and args.render == []
     parser = argparse.ArgumentParser()
     add_head_options(parser, render=[])
     assert parser.parse_args([]).render == []
+
+
+def test_heads_of_another_skin_tone_are_the_sample_s_seed_and_the_others_in_their_folders(
+        monkeypatch):
+    import bench.rendered_heads as rendered
+
+    made = []
+    monkeypatch.setattr(rendered, "render_head", lambda *a: made.append(a))
+    heads = ROOT / "generated" / "bench_heads"
+    assert head_folders(None, [101]) == [ROOT / "generated" / "sample", heads / "seed101"]
+    assert head_folders(None, [101], "dark") == [heads / "seed7_dark", heads / "seed101_dark"]
+    assert made[-2:] == [(7, heads / "seed7_dark", "dark"), (101, heads / "seed101_dark", "dark")]
+    # folders given are taken as they are, before the seeds'
+    assert head_folders(["x"], [], "dark") == [rendered.Path("x")]

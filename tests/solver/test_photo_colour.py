@@ -7,6 +7,7 @@ import pytest
 from solver.photo_colour import (
     chromaticity,
     has_colour,
+    highlight_like,
     lighter_than_skin,
     sample_photo,
     skin_colour,
@@ -41,6 +42,29 @@ def test_skin_lit_or_shaded_is_skin_and_clothes_hair_collar_are_not():
     blurred = np.array([[0.988, 0.988, 0.988], [0.88, 0.96, 0.91]])
     assert skin_like(blurred, SKIN).tolist() == [True, False]
     assert skin_like(white, SKIN, clipped=False).tolist() == [False]
+
+
+# a darker face (``tools.make_sample --skin dark``, as face_skin gives it): its chromaticity
+# further from white than SKIN_CHROMA
+SKIN_DARK = (np.array([0.4128, 0.3176]), 0.0153, 1.285, 0.142)
+
+
+def test_a_highlight_on_darker_skin_may_be_one_a_clipped_colour_off_its_way_to_white_not():
+    colours = np.array([
+        [1.0, 1.0, 1.0],        # the skull's highlight: clipped white
+        [1.0, 0.80, 0.66],      # its rim: the skin's colour and the light's, clipped red
+        [0.42, 0.29, 0.22],     # the face itself (not clipped: no highlight)
+        [0.3, 0.6, 1.0],        # something clipped and blue
+        [1.0, 0.95, 0.3],       # something clipped and yellow
+    ])
+    assert highlight_like(colours, SKIN_DARK).tolist() == [True, True, False, False, False]
+    # white is too far from this skin's colour to be skin by itself (a white collar is
+    # white too: the outline takes a highlight in only between skin)
+    assert skin_like(colours, SKIN_DARK).tolist() == [False, True, True, False, False]
+    # the light along its silhouette washes it out to a seventh of its warmth, not clipped;
+    # a white collar (no warmth) and a grey-blue shirt stay out
+    edge = np.array([[0.90, 0.85, 0.85], [0.88, 0.96, 0.91], [0.42, 0.44, 0.47]])
+    assert skin_like(edge, SKIN_DARK).tolist() == [True, False, False]
 
 
 def test_a_white_collar_is_lighter_than_the_skin_a_shade_or_hair_is_not():

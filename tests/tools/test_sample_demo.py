@@ -219,6 +219,8 @@ def test_make_sample_rejects_bad_settings(tmp_path, model):
         make_sample(tmp_path / "s", yaw_deg=90.0, model=model)
     with pytest.raises(ValueError, match="side_deg"):
         make_sample(tmp_path / "s", side_deg=30.0, model=model)
+    with pytest.raises(ValueError, match="skin_tone: one of light, medium, dark"):
+        make_sample(tmp_path / "s", skin_tone="olive", model=model)
     assert not (tmp_path / "s").exists()
 
 
