@@ -9,8 +9,7 @@ Steps (numbers in docs/DECISIONS.md, "The head's outline"):
    (``iso_line``) around the face: 1.2-1.7 px (median) from the true silhouette on the
    rendered photos, its map's pixel 3.4-3.8 photo pixels;
 2. each point moved along the outline's normal to where the photo's colour crosses
-   halfway between the colours inside and outside (sub-pixel, on the photo itself; a
-   rim of light along darker skin's edge is inside the edge, not the edge);
+   halfway between the colours inside and outside (sub-pixel, on the photo itself);
    where a long stretch of it is straight, the segmentation took in something behind
    the head (a door, a frame: ``straight_stretches``), and what it took in of that
    thing's colour is taken out of the mask and the outline found again
@@ -60,14 +59,6 @@ REGROW_SHIFT = 0.2
 #: How far along the normal the photo's colour edge is looked for: this many map pixels
 #: (the mask's own error, 1-2 px median, up to about 3 px, is under one map pixel of 3-4 px).
 SEARCH_MAP_PX = 1.5
-#: A rim of light along the edge (darker skin lit from the side, brighter than the
-#: background): the outermost step along the normal (a colour change over ``STEP_PX``
-#: photo pixels, a local peak at least ``STEP_SHARE`` of the largest) that falls from a
-#: colour brighter than both the background and the skin further in. The rim rises from
-#: the skin more steeply than it falls to the background (docs/DECISIONS.md, "Darker
-#: skin").
-STEP_PX = 1.0
-STEP_SHARE = 0.5
 #: The outline found must be at least this many times the face's size (the detector's
 #: box) long: on james' front photo the only skin on the person's edge is a strip of neck
 #: between hair and collar.
@@ -190,13 +181,9 @@ def _normals(points, reach=2):
 
 def refine_edge(image, points, normals, reach, passes=2):
     """Each point moved along its outward normal to where the photo's colour crosses
-    halfway from the colour inside (the inner third of the search) to the colour outside
-    (the outer third), the crossing nearest the point; then once more from there
-    (``passes``), so an edge far from the point does not tint the colour taken as the
-    other side's. Where a rim of light runs along the edge (``STEP_PX``, ``STEP_SHARE``:
-    darker skin lit from the side, brighter than the background), the colour inside is
-    the rim's and the crossing the one nearest its outer step: the skin's further in
-    would hold the crossing inside the rim.
+    halfway from the colour inside (the inner third of the search) to the colour
+    outside, the crossing nearest the point; then once more from there (``passes``),
+    so an edge far from the point does not tint the colour taken as the other side's.
 
     Parameters
     ----------
@@ -213,8 +200,7 @@ def refine_edge(image, points, normals, reach, passes=2):
         less than 0.05 (in [0, 1] RGB).
     refined : ndarray (n,) bool
     inside : ndarray (n, 3)
-        The colour inside the outline (the mean of the search's inner third): what the
-        skin test reads.
+        The colour inside (the mean of the inner third).
     """
     moved, ok, inside = _edge_pass(image, points, normals, reach)
     for _ in range(passes - 1):
@@ -225,40 +211,26 @@ def refine_edge(image, points, normals, reach, passes=2):
 
 
 def _edge_pass(image, points, normals, reach):
-    per_px = 4                                                 # samples per photo pixel
-    steps = np.linspace(-reach, reach, int(np.ceil(per_px * reach)) + 1)
+    steps = np.linspace(-reach, reach, int(np.ceil(4 * reach)) + 1)
     uv = points[:, None, :] + steps[None, :, None] * normals[:, None, :]
     col = sample_photo(image, uv)                              # (n, k, 3)
-    k, rows = len(steps), np.arange(len(points))
-    third = max(k // 3, 1)
-    inner, outside = col[:, :third].mean(1), col[:, -third:].mean(1)
-    # a rim of light along the edge (STEP_PX, STEP_SHARE): the outermost strong step
-    # falls from something brighter than both the background and the colour further in
-    w = max(int(round(STEP_PX * per_px)), 1)
-    change = np.linalg.norm(col[:, w:] - col[:, :-w], axis=2)   # (n, k - w)
-    padded = np.pad(change, ((0, 0), (1, 1)), constant_values=-1.0)
-    peak = (change >= padded[:, :-2]) & (change >= padded[:, 2:]) \
-        & (change >= STEP_SHARE * change.max(axis=1, keepdims=True))
-    outer = change.shape[1] - 1 - np.argmax(peak[:, ::-1], axis=1)
-    lit = col[rows, outer].sum(1)
-    rim = (lit > outside.sum(1)) & (lit > inner.sum(1))
-    # the colour inside: the rim's own there, else the inner third's
-    diff = np.where(rim[:, None], col[rows, outer], inner) - outside
+    third = max(len(steps) // 3, 1)
+    inside, outside = col[:, :third].mean(1), col[:, -third:].mean(1)
+    diff = inside - outside
     contrast = np.linalg.norm(diff, axis=1)
     s = ((col - outside[:, None]) * diff[:, None]).sum(2) / np.maximum(contrast, 1e-9)[:, None] ** 2
     above = s >= 0.5
     cross = above[:, :-1] != above[:, 1:]                      # (n, k - 1)
     mid = (steps[:-1] + steps[1:]) / 2
-    # the crossing nearest the rim's step, else nearest the point
-    near = np.where(rim, (steps[outer] + steps[outer + w]) / 2, 0.0)
-    dist = np.where(cross, np.abs(mid[None] - near[:, None]), np.inf)
+    dist = np.where(cross, np.abs(mid)[None], np.inf)
     j = np.argmin(dist, axis=1)
-    ok = np.isfinite(dist[rows, j]) & (np.linalg.norm(inner - outside, axis=1) >= 0.05)
+    rows = np.arange(len(points))
+    ok = np.isfinite(dist[rows, j]) & (contrast >= 0.05)
     s0, s1 = s[rows, j], s[rows, j + 1]
     frac = np.clip((0.5 - s0) / np.where(s1 != s0, s1 - s0, 1.0), 0, 1)
     t = steps[j] + frac * (steps[j + 1] - steps[j])
     moved = np.where(ok[:, None], points + t[:, None] * normals, points)
-    return moved, ok, inner
+    return moved, ok, inside
 
 
 def between_keypoints(face, pairs):

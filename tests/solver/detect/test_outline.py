@@ -51,22 +51,6 @@ def test_an_edge_between_pixels_is_found_to_a_tenth_of_a_pixel():
     assert not refined.any() and (moved == points).all()
 
 
-def test_a_rim_of_light_on_the_edge_is_inside_it():
-    """Darker skin lit from the side: a rim brighter than the background along the edge
-    that rises from the skin more steeply than it falls to the background (the colours
-    across the nose tip of ``tools.make_sample --skin dark``, seed 206's profile)."""
-    edge = 40.3                                    # skin, its rim, then grey from 40.3
-    skin = np.array([[164, 127, 111]] * 36 + [[178, 146, 132], [190, 160, 149],
-                                             [205, 181, 175], [240, 217, 214]]) / 255
-    grey = np.array([183, 184, 182]) / 255
-    row = np.vstack([skin, 0.3 * skin[-1] + 0.7 * grey, np.tile(grey, (39, 1))])
-    image = np.repeat(row[None], 60, axis=0)
-    points = np.array([[41.5, 20.0], [37.5, 30.0], [40.3, 45.0]])
-    moved, refined, _ = refine_edge(image, points, np.array([[1.0, 0.0]] * 3), reach=6.0)
-    assert refined.all()
-    np.testing.assert_allclose(moved[:, 0], edge, atol=0.15)
-
-
 def test_a_highlight_is_skin_between_skin_a_white_collar_past_it_is_not():
     skin = np.array([1, 1, 0, 0, 0, 1, 1, 0, 0, 0, 0, 1], bool)
     lit = np.array([0, 0, 1, 1, 1, 0, 0, 1, 1, 0, 0, 0], bool)
