@@ -50,12 +50,12 @@ def head_folders(heads, seeds, skin_tone="light"):
     sample; then ``generated/bench_heads/seed<N>`` for each of ``seeds``, rendered first
     when missing. Of another ``skin_tone`` (``--skin``) the sample's seed comes first
     instead of the sample, and each folder is ``seed<N>_<skin_tone>``."""
-    if skin_tone != "light" and heads is None:
-        seeds = [DEFAULT_SEED, *seeds]
     if heads is not None:
         folders = [Path(h) for h in heads]
+    elif skin_tone == "light":
+        folders = [ROOT / "generated" / "sample"]
     else:
-        folders = [ROOT / "generated" / "sample"] if skin_tone == "light" else []
+        folders, seeds = [], [DEFAULT_SEED, *seeds]
     suffix = "" if skin_tone == "light" else f"_{skin_tone}"
     for seed in seeds:
         folder = ROOT / "generated" / "bench_heads" / f"seed{seed}{suffix}"

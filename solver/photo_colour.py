@@ -123,7 +123,7 @@ def skin_like(colours, skin, clipped=True):
     ``SKIN_CLIPPED`` or all at ``SKIN_WHITE``: a highlight has no colour left to tell)."""
     centre, spread, bright, warmth = skin
     chroma, b = _chroma_brightness(colours)
-    near = np.linalg.norm(chroma - centre, axis=1) <= max(SKIN_SPREADS * spread, SKIN_CHROMA)
+    near = np.linalg.norm(chroma - centre, axis=1) <= _chroma_tolerance(spread)
     warm = _warmth(colours) >= SKIN_WARMTH * warmth
     if clipped:
         warm |= _clipped(colours)
@@ -143,7 +143,13 @@ def highlight_like(colours, skin):
     towards = np.full(2, 1.0 / 3.0) - centre
     t = np.clip((chroma - centre) @ towards / max(float(towards @ towards), 1e-12), 0.0, 1.0)
     off = np.linalg.norm(chroma - centre - t[:, None] * towards, axis=1)
-    return _clipped(colours) & (off <= max(SKIN_SPREADS * spread, SKIN_CHROMA))
+    return _clipped(colours) & (off <= _chroma_tolerance(spread))
+
+
+def _chroma_tolerance(spread):
+    """How far from the face's chromaticity a colour may lie (``SKIN_SPREADS`` of its
+    ``spread``, at least ``SKIN_CHROMA``)."""
+    return max(SKIN_SPREADS * spread, SKIN_CHROMA)
 
 
 def _clipped(colours):
