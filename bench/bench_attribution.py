@@ -1,0 +1,134 @@
+"""What the photos-only fit loses to its detected landmarks and to its detected outlines:
+each rendered head fitted from the case ``solver detect`` makes of its two photos, then
+from the same case with the front photo's landmarks at their exact pixels (the detector's
+uncertainty kept, and as exact clicks without it), with every outline point moved onto the
+true silhouette (the nearest point of the head's render alpha at 0.5: the outline's
+extent and order as detected, its error taken out), and with both.
+
+    python -m bench.bench_attribution [--heads DIR ...] [--render SEED ...] [--skin TONE]
+
+Heads: as ``bench.bench_photo_variants`` (the sample and ``generated/bench_heads/seed<N>``,
+rendered when missing). Scores: skin RMS against the true head after a similarity
+(``solver.synthetic.skin_error_mm``), mm; a head whose photos are not detected as a front
+and a profile is said and left out.
+"""
+
+import argparse
+import copy
+import json
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from bench.bench_photo_size import photos_case
+from bench.common import machine_description
+from bench.rendered_heads import add_head_options, head_folders
+from solver import fit_head, load_model
+from solver.detect import Detector
+from solver.detect.iso_line import iso_lines
+from solver.synthetic import skin_error_mm
+
+#: The true silhouette is sampled this often along its iso-line (pixels): a point moved
+#: onto it lands within half of it of the line.
+SILHOUETTE_STEP_PX = 0.1
+
+#: The fits of each head, in the table's order: label -> (front's landmarks exact, their
+#: uncertainty dropped, outlines moved onto the true silhouette).
+ATTRIBUTIONS = {
+    "detected": (False, False, False),
+    "front exact": (True, False, False),
+    "front exact clicks": (True, True, False),
+    "true outlines": (False, False, True),
+    "both": (True, False, True),
+}
+
+
+def true_silhouette(alpha, step=SILHOUETTE_STEP_PX):
+    """Points every ``step`` px along the 0.5 iso-lines of a render's ``alpha`` (H, W) in
+    [0, 1] or [0, 255] uint8, (k, 2) photo pixels (pixel (r, c) covers [c, c + 1) x
+    [r, r + 1))."""
+    a = np.asarray(alpha, dtype=np.float64)
+    if np.asarray(alpha).dtype == np.uint8:
+        a = a / 255.0
+    parts = []
+    for line in iso_lines(a):
+        closed = np.vstack([line, line[:1]]) + 0.5
+        seg = np.diff(closed, axis=0)
+        n = np.maximum(np.ceil(np.linalg.norm(seg, axis=1) / step).astype(int), 1)
+        t = np.concatenate([np.arange(k) / k for k in n])
+        start = np.repeat(closed[:-1], n, axis=0)
+        parts.append(start + t[:, None] * np.repeat(seg, n, axis=0))
+    if not parts:
+        raise ValueError("the alpha has no silhouette")
+    return np.concatenate(parts)
+
+
+def onto_silhouette(points, silhouette):
+    """Each point (n, 2) moved to its nearest point of ``silhouette`` (k, 2), (n, 2)."""
+    _, i = cKDTree(silhouette).query(np.asarray(points, dtype=np.float64).reshape(-1, 2))
+    return np.asarray(silhouette, dtype=np.float64)[i]
+
+
+def attributed(case, truth):
+    """The photos-only ``case`` of a rendered head as each of ``ATTRIBUTIONS`` changes it,
+    label -> case; ``truth``: the head's ``truth.npz`` (``landmark_names``,
+    ``exact_front``, ``head_alpha_front`` and ``_side``). The case's views must be a
+    "front" and one profile (its side photo)."""
+    if "front" not in case.views or len(case.views) != 2:
+        raise ValueError(f"the photos were detected as {sorted(case.views)}, not a front "
+                         "and a profile")
+    side = next(v for v in case.views if v != "front")
+    photo = {"front": "front", side: "side"}
+    names = json.loads(str(truth["landmark_names"]))["front"]
+    exact = dict(zip(names, np.asarray(truth["exact_front"], dtype=np.float64), strict=True))
+    silhouettes = {v: true_silhouette(truth[f"head_alpha_{photo[v]}"]) for v in case.views}
+    out = {}
+    for label, (exact_front, clicks, outlines) in ATTRIBUTIONS.items():
+        c = copy.deepcopy(case)
+        front = c.views["front"]
+        if exact_front:
+            front.points = {n: tuple(exact[n]) if n in exact else p
+                            for n, p in front.points.items()}
+        if clicks:
+            front.uncertainty = {}
+        if outlines:
+            for name, view in c.views.items():
+                if view.contour is not None:
+                    view.contour = onto_silhouette(view.contour, silhouettes[name])
+        out[label] = c
+    return out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    add_head_options(ap)
+    args = ap.parse_args(argv)
+    print(f"machine: {machine_description()}")
+    folders = head_folders(args.heads, args.render, args.skin)
+    detector = Detector()
+    model = load_model()
+    columns = ["mean head", *ATTRIBUTIONS]
+    print("skin RMS vs the true head, mm, from the photos alone: the case solver detect "
+          "makes, with the front's landmarks exact (their uncertainty kept; as clicks), the "
+          "outlines on the true silhouette, both")
+    print(f"  {'head':<14}" + "".join(f"{c:>20}" for c in columns))
+    rows = []
+    for folder in folders:
+        truth = np.load(folder / "truth.npz", allow_pickle=True)
+        true_head = truth["local_vertices"]
+        try:
+            cases = attributed(photos_case(folder, detector), truth)
+        except ValueError as err:
+            print(f"  {folder.name}: {err}")
+            continue
+        row = [skin_error_mm(model, model.vertices, true_head)]
+        row += [skin_error_mm(model, fit_head(model, c).local_vertices, true_head)
+                for c in cases.values()]
+        rows.append(row)
+        print(f"  {folder.name:<14}" + "".join(f"{v:>20.2f}" for v in row), flush=True)
+    if rows:
+        print(f"  {'mean':<14}" + "".join(f"{v:>20.2f}" for v in np.mean(rows, axis=0)))
+
+
+if __name__ == "__main__":
+    main()
