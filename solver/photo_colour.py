@@ -132,18 +132,24 @@ def skin_like(colours, skin, clipped=True):
 
 def highlight_like(colours, skin):
     """Whether each colour (n, 3) may be a highlight on the face's skin (:func:`skin_colour`):
-    clipped (a channel at ``SKIN_CLIPPED`` or all at ``SKIN_WHITE``) with a chromaticity
-    between the skin's and white (within the tolerance of :func:`skin_like`), at any
-    brightness: the skin's colour plus the light's. On darker skin a highlight is further
-    from the skin's colour than ``SKIN_CHROMA``, so :func:`skin_like` cannot take it in; a
-    clipped white thing (a collar) is such a colour too, so only where skin lies on
-    either side of it is it skin (``detect.outline``)."""
+    clipped (a channel at ``SKIN_CLIPPED`` or all at ``SKIN_WHITE``) and :func:`lit_skin_like`,
+    at any brightness. On darker skin a highlight is further from the skin's colour than
+    ``SKIN_CHROMA``, so :func:`skin_like` cannot take it in; a clipped white thing (a
+    collar) is such a colour too, so only where skin lies on either side of it is it skin
+    (``detect.outline``)."""
+    return _clipped(colours) & lit_skin_like(colours, skin)
+
+
+def lit_skin_like(colours, skin):
+    """Whether each colour (n, 3) has a chromaticity between the face's skin's
+    (:func:`skin_colour`) and white, within the tolerance of :func:`skin_like`: the skin's
+    colour plus a white light's, as on a highlight or a rim of light along its edge."""
     centre, spread = skin[0], skin[1]
     chroma, _ = _chroma_brightness(colours)
     towards = np.full(2, 1.0 / 3.0) - centre
     t = np.clip((chroma - centre) @ towards / max(float(towards @ towards), 1e-12), 0.0, 1.0)
     off = np.linalg.norm(chroma - centre - t[:, None] * towards, axis=1)
-    return _clipped(colours) & (off <= _chroma_tolerance(spread))
+    return off <= _chroma_tolerance(spread)
 
 
 def _chroma_tolerance(spread):

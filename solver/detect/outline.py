@@ -9,7 +9,8 @@ Steps (numbers in docs/DECISIONS.md, "The head's outline"):
    (``iso_line``) around the face: 1.2-1.7 px (median) from the true silhouette on the
    rendered photos, its map's pixel 3.4-3.8 photo pixels;
 2. each point moved along the outline's normal to where the photo's colour crosses
-   halfway between the colours inside and outside (sub-pixel, on the photo itself);
+   halfway between the colours inside and outside (sub-pixel, on the photo itself; a
+   rim of light along darker skin's edge is inside the edge, not the edge);
    where a long stretch of it is straight, the segmentation took in something behind
    the head (a door, a frame: ``straight_stretches``), and what it took in of that
    thing's colour is taken out of the mask and the outline found again
@@ -38,6 +39,7 @@ from ..photo_colour import (
     chromaticity,
     has_colour,
     highlight_like,
+    lit_skin_like,
     sample_photo,
     skin_colour,
     skin_like,
@@ -59,6 +61,14 @@ REGROW_SHIFT = 0.2
 #: How far along the normal the photo's colour edge is looked for: this many map pixels
 #: (the mask's own error, 1-2 px median, up to about 3 px, is under one map pixel of 3-4 px).
 SEARCH_MAP_PX = 1.5
+#: A rim of light along the edge (darker skin lit from the side, brighter than the
+#: background): the outermost step along the normal (a colour change over ``STEP_PX``
+#: photo pixels, a local peak at least ``STEP_SHARE`` of the largest) that falls from the
+#: skin's colour lit, brighter than both the background and the skin further in. The rim
+#: rises from the skin more steeply than it falls to the background (docs/DECISIONS.md,
+#: "Darker skin").
+STEP_PX = 1.0
+STEP_SHARE = 0.5
 #: The outline found must be at least this many times the face's size (the detector's
 #: box) long: on james' front photo the only skin on the person's edge is a strip of neck
 #: between hair and collar.
@@ -179,11 +189,15 @@ def _normals(points, reach=2):
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
 
 
-def refine_edge(image, points, normals, reach, passes=2):
+def refine_edge(image, points, normals, reach, passes=2, skin=None, rim=None):
     """Each point moved along its outward normal to where the photo's colour crosses
-    halfway from the colour inside (the inner third of the search) to the colour
-    outside, the crossing nearest the point; then once more from there (``passes``),
-    so an edge far from the point does not tint the colour taken as the other side's.
+    halfway from the colour inside (the inner third of the search) to the colour outside
+    (the outer third), the crossing nearest the point; then once more from there
+    (``passes``), so an edge far from the point does not tint the colour taken as the
+    other side's. With the face's ``skin`` colour (``photo_colour.skin_colour``), where a
+    rim of light runs along the edge (:func:`_rim`), the colour inside is the rim's and
+    the crossing the one nearest its outer step: the skin's further in would hold the
+    crossing inside the rim.
 
     Parameters
     ----------
@@ -192,6 +206,11 @@ def refine_edge(image, points, normals, reach, passes=2):
     reach : float
         The search runs from -reach to +reach photo pixels along the normal.
     passes : int
+    skin : tuple, optional
+    rim : ndarray (n,) bool, optional
+        Where a rim may be looked for (default everywhere): where the segmentation is sure
+        of the person's edge (:func:`edge_sure`); where it is not, a bright colour past the
+        edge may be the background's (a busy one).
 
     Returns
     -------
@@ -200,37 +219,68 @@ def refine_edge(image, points, normals, reach, passes=2):
         less than 0.05 (in [0, 1] RGB).
     refined : ndarray (n,) bool
     inside : ndarray (n, 3)
-        The colour inside (the mean of the inner third).
+        The colour inside the outline (the mean of the search's inner third): what the
+        skin test reads.
     """
-    moved, ok, inside = _edge_pass(image, points, normals, reach)
+    moved, ok, inside = _edge_pass(image, points, normals, reach, skin, rim)
     for _ in range(passes - 1):
-        again, ok2, inside2 = _edge_pass(image, moved, normals, reach)
+        again, ok2, inside2 = _edge_pass(image, moved, normals, reach, skin, rim)
         moved = np.where((ok & ok2)[:, None], again, moved)
         inside = np.where(ok[:, None], inside2, inside)
     return moved, ok, inside
 
 
-def _edge_pass(image, points, normals, reach):
-    steps = np.linspace(-reach, reach, int(np.ceil(4 * reach)) + 1)
+def _rim(col, inner, outside, skin, w):
+    """Where a rim of light runs along the edge in the colours ``col`` (n, k, 3) sampled
+    along each normal: the outermost strong step (a colour change over ``w`` samples, a
+    local peak at least ``STEP_SHARE`` of the largest) falls from a colour brighter than
+    both the background (``outside`` (n, 3)) and the colour further in (``inner``, which
+    is the skin: a beard's edge has no rim), and that colour is the skin's lit
+    (``lit_skin_like``: a bright patch of a busy background is not). Returns (rim (n,)
+    bool, the step's first sample (n,)); no rim without ``skin``."""
+    rows = np.arange(len(col))
+    change = np.linalg.norm(col[:, w:] - col[:, :-w], axis=2)   # (n, k - w)
+    padded = np.pad(change, ((0, 0), (1, 1)), constant_values=-1.0)
+    peak = (change >= padded[:, :-2]) & (change >= padded[:, 2:]) \
+        & (change >= STEP_SHARE * change.max(axis=1, keepdims=True))
+    outer = change.shape[1] - 1 - np.argmax(peak[:, ::-1], axis=1)
+    lit = col[rows, outer]
+    bright = lit.sum(1)
+    if skin is None:
+        return np.zeros(len(col), bool), outer
+    return (bright > outside.sum(1)) & (bright > inner.sum(1)) & lit_skin_like(lit, skin) \
+        & skin_like(inner, skin), outer
+
+
+def _edge_pass(image, points, normals, reach, skin=None, where=None):
+    per_px = 4                                                 # samples per photo pixel
+    steps = np.linspace(-reach, reach, int(np.ceil(per_px * reach)) + 1)
     uv = points[:, None, :] + steps[None, :, None] * normals[:, None, :]
     col = sample_photo(image, uv)                              # (n, k, 3)
-    third = max(len(steps) // 3, 1)
-    inside, outside = col[:, :third].mean(1), col[:, -third:].mean(1)
-    diff = inside - outside
+    k, rows = len(steps), np.arange(len(points))
+    third = max(k // 3, 1)
+    inner, outside = col[:, :third].mean(1), col[:, -third:].mean(1)
+    w = max(int(round(STEP_PX * per_px)), 1)
+    rim, outer = _rim(col, inner, outside, skin, w)
+    if where is not None:
+        rim &= where
+    # the colour inside: the rim's own there, else the inner third's
+    diff = np.where(rim[:, None], col[rows, outer], inner) - outside
     contrast = np.linalg.norm(diff, axis=1)
     s = ((col - outside[:, None]) * diff[:, None]).sum(2) / np.maximum(contrast, 1e-9)[:, None] ** 2
     above = s >= 0.5
     cross = above[:, :-1] != above[:, 1:]                      # (n, k - 1)
     mid = (steps[:-1] + steps[1:]) / 2
-    dist = np.where(cross, np.abs(mid)[None], np.inf)
+    # the crossing nearest the rim's step, else nearest the point
+    near = np.where(rim, (steps[outer] + steps[outer + w]) / 2, 0.0)
+    dist = np.where(cross, np.abs(mid[None] - near[:, None]), np.inf)
     j = np.argmin(dist, axis=1)
-    rows = np.arange(len(points))
-    ok = np.isfinite(dist[rows, j]) & (contrast >= 0.05)
+    ok = np.isfinite(dist[rows, j]) & (np.linalg.norm(inner - outside, axis=1) >= 0.05)
     s0, s1 = s[rows, j], s[rows, j + 1]
     frac = np.clip((0.5 - s0) / np.where(s1 != s0, s1 - s0, 1.0), 0, 1)
     t = steps[j] + frac * (steps[j + 1] - steps[j])
     moved = np.where(ok[:, None], points + t[:, None] * normals, points)
-    return moved, ok, inside
+    return moved, ok, inner
 
 
 def between_keypoints(face, pairs):
@@ -346,7 +396,7 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
         mask = person_mask(network, image, square)
     nose = np.asarray(face.keypoints, float)[2]
     size = float(box[2] - box[0])
-    loop, moved, refined, inside = _edge(image, mask, nose, spacing_px)
+    loop, moved, refined, inside, skin_of_face = _edge(image, mask, face, spacing_px)
     on_photo = _seen(image, mask, loop, moved)
     taken_out = 0
     straight, sure = _straight_by_the_face(moved, on_photo, centre, size)
@@ -355,9 +405,8 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
                                         np.median(_skin_samples(image, face, mask), axis=0),
                                         LEAK_REACH * size, sure)
     if taken_out:
-        loop, moved, refined, inside = _edge(image, mask, nose, spacing_px)
+        loop, moved, refined, inside, skin_of_face = _edge(image, mask, face, spacing_px)
         on_photo = _seen(image, mask, loop, moved)
-    skin_of_face = face_skin(image, face, mask)
     colour = has_colour(skin_of_face)
     above = np.ones(len(moved), bool) if colour else _above_neck_cut(moved, face)
     skin = skin_like(inside, skin_of_face)
@@ -430,17 +479,20 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
     return Outline(moved[idx], refined[idx], notes, colour, warnings, unsure)
 
 
-def _edge(image, mask, nose, spacing_px):
-    """The person's outline around the ``nose`` in ``mask``: (the iso-line resampled
+def _edge(image, mask, face, spacing_px):
+    """The person's outline around the ``face``'s nose in ``mask``: (the iso-line resampled
     every ``spacing_px``, it moved onto the photo's colour edge, which points were, their
-    colours inside; as ``refine_edge``)."""
+    colours inside, as ``refine_edge`` with the face's skin colour; that colour,
+    :func:`face_skin`)."""
+    nose = np.asarray(face.keypoints, float)[2]
     loops = [mask.to_photo(line) for line in iso_lines(mask.probability)]
     loops = [p for p in loops if inside_polygon(nose, p)[0]] or loops[:1]
     if not loops or len(loops[0]) < 8:
         raise ValueError("no person found for an outline")
     loop = _closed_resample(loops[0], spacing_px)
-    return (loop, *refine_edge(image, loop, _normals(loop),
-                               SEARCH_MAP_PX * mask.pixel_size))
+    skin = face_skin(image, face, mask)
+    return (loop, *refine_edge(image, loop, _normals(loop), SEARCH_MAP_PX * mask.pixel_size,
+                               skin=skin, rim=edge_sure(mask, loop)), skin)
 
 
 def edge_sure(mask, loop):

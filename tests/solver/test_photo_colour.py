@@ -9,6 +9,7 @@ from solver.photo_colour import (
     has_colour,
     highlight_like,
     lighter_than_skin,
+    lit_skin_like,
     sample_photo,
     skin_colour,
     skin_like,
@@ -65,6 +66,20 @@ def test_a_highlight_on_darker_skin_may_be_one_a_clipped_colour_off_its_way_to_w
     # a white collar (no warmth) and a grey-blue shirt stay out
     edge = np.array([[0.90, 0.85, 0.85], [0.88, 0.96, 0.91], [0.42, 0.44, 0.47]])
     assert skin_like(edge, SKIN_DARK).tolist() == [True, False, False]
+
+
+def test_skin_lit_by_a_white_light_is_between_its_colour_and_white_clipped_or_not():
+    face = np.array([0.42, 0.29, 0.22])
+    lit = np.array([face + t * (1.0 - face) for t in (0.0, 0.3, 0.6, 1.0)])
+    others = np.array([[0.59, 0.78, 0.47],     # a green patch behind the head
+                       [0.3, 0.6, 1.0],        # something blue
+                       [0.95, 0.85, 0.25]])    # something yellow, as bright as the rim
+    assert lit_skin_like(lit, SKIN_DARK).all()
+    assert not lit_skin_like(others, SKIN_DARK).any()
+    # a highlight is such a colour, clipped
+    both = np.vstack([lit, others])
+    assert (highlight_like(both, SKIN_DARK)
+            == lit_skin_like(both, SKIN_DARK) & (both.max(1) >= 0.99)).all()
 
 
 def test_a_white_collar_is_lighter_than_the_skin_a_shade_or_hair_is_not():

@@ -20,6 +20,7 @@ from solver.detect.outline import (
 )
 from solver.detect.segmentation import PersonMask
 from solver.paths import DETECTOR_DIR
+from solver.photo_colour import skin_colour
 
 
 def _distance_to_line(points, line):
@@ -49,6 +50,47 @@ def test_an_edge_between_pixels_is_found_to_a_tenth_of_a_pixel():
     flat = np.full((60, 80, 3), 0.5)
     moved, refined, _ = refine_edge(flat, points, normals, reach=6.0)
     assert not refined.any() and (moved == points).all()
+
+
+def _rim_row(rim):
+    """One row of a photo across darker skin's edge at u = 40.3 (the colours across the nose
+    tip of ``tools.make_sample --skin dark``, seed 206's profile): the skin, then ``rim``
+    (4, 3) 0-255 rising to the edge, then the grey background."""
+    skin = np.array([[164, 127, 111]] * 36 + list(rim)) / 255
+    grey = np.array([183, 184, 182]) / 255
+    return np.vstack([skin, 0.3 * skin[-1] + 0.7 * grey, np.tile(grey, (39, 1))])
+
+
+RIM = [[178, 146, 132], [190, 160, 149], [205, 181, 175], [240, 217, 214]]
+
+
+def test_a_rim_of_light_on_skin_is_inside_the_edge_a_bright_patch_elsewhere_is_not():
+    """Darker skin lit from the side: a rim brighter than the background along the edge,
+    rising from the skin more steeply than it falls to the background. With the face's
+    skin colour the edge is the rim's outer step; without it, or where the rim is not the
+    skin's colour lit (a green patch of a busy background) or what lies further in is not
+    skin (a beard's edge), the halfway crossing from the colour further in holds, inside
+    the rim."""
+    skin = skin_colour(np.array([[164, 127, 111]] * 10) / 255)
+    points = np.array([[41.5, 20.0], [37.5, 30.0], [40.3, 45.0]])
+    normals = np.array([[1.0, 0.0]] * 3)
+
+    def edge(row, skin, where=None):
+        moved, refined, _ = refine_edge(np.repeat(row[None], 60, axis=0), points, normals,
+                                        reach=6.0, skin=skin, rim=where)
+        assert refined.all()
+        return moved[:, 0]
+
+    np.testing.assert_allclose(edge(_rim_row(RIM), skin), 40.3, atol=0.15)
+    assert (edge(_rim_row(RIM), None) < 39.8).all()
+    # only where a rim is looked for (where the segmentation is sure of the edge)
+    unsure = edge(_rim_row(RIM), skin, np.array([True, False, True]))
+    assert abs(unsure[0] - 40.3) < 0.15 and unsure[1] < 39.8
+    green = [[150, 200, 120], [150, 215, 120], [160, 230, 130], [170, 245, 140]]
+    assert (edge(_rim_row(green), skin) < 39.8).all()
+    beard = _rim_row(RIM)
+    beard[:36] = np.array([130, 130, 130]) / 255  # a grey beard: from inside it, no rim
+    assert edge(beard, skin)[1] < 39.9
 
 
 def test_a_highlight_is_skin_between_skin_a_white_collar_past_it_is_not():
