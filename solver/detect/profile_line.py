@@ -69,15 +69,14 @@ ARC_SHIFT = {"nasion": 0.027, "nose_tip": 0.021, "subnasale": 0.0,
 #: (their landmark vertices; ``bench.bench_detect --profile-line`` prints it again).
 HEIGHT = {"lip_upper_middle": (0.568, 0.022), "mouth_middle": (0.640, 0.020),
           "lip_lower_middle": (0.733, 0.027)}
-#: A bump or dip is taken for a lip only this near its mean height (real faces lie
-#: further out than the model's heads: james' stomion and lower lip 2.4 and 2.9
-#: standard deviations off).
-HEIGHT_TOLERANCE = 0.09
 #: The nose tip's height on the same scale (0.321 +- 0.020 over the model's heads): where
 #: the nasion is not seen (hair over the forehead, the frame of glasses), the lips are
 #: placed by the nose tip and the menton.
 TIP_HEIGHT = 0.321
-#: The cost of leaving a lip out, in squared standard deviations of its height.
+#: The cost of leaving a lip out, in squared standard deviations of its height: a bump or
+#: dip is taken for a lip only within 4 standard deviations of its mean height, where
+#: taking it costs less (real faces lie further out than the model's heads: james'
+#: stomion and lower lip 2.4 and 2.9 standard deviations off).
 MISSING_COST = 16.0
 #: Each point's median error, a fraction of the face's size: measured on 40 profiles of
 #: heads drawn from the model, their outlines traced with 1 px noise, other heads than
@@ -393,10 +392,11 @@ def _label_lips(t, bumps, dips):
     """{name: index} of the upper lip, stomion and lower lip among the ``bumps`` and
     ``dips`` (indices, in order down the outline) by their heights ``t`` (fraction of the
     nasion-to-menton height): the assignment in order down the face nearest the mean
-    head's heights (``HEIGHT``), each within ``HEIGHT_TOLERANCE`` or left out."""
+    head's heights (``HEIGHT``), each left out where taking it would cost more
+    (``MISSING_COST``)."""
     def options(name, pool):
-        mean, _ = HEIGHT[name]
-        return [None] + [i for i in pool if abs(t[i] - mean) <= HEIGHT_TOLERANCE]
+        mean, sd = HEIGHT[name]
+        return [None] + [i for i in pool if ((t[i] - mean) / sd) ** 2 < MISSING_COST]
 
     best, best_cost = {}, np.inf
     for ls in options("lip_upper_middle", bumps):

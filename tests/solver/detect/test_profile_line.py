@@ -173,3 +173,25 @@ def test_lips_and_chin_are_read_where_the_forehead_is_hidden(model):
     assert set(whole) - {"nasion"} <= set(points), (sorted(whole), sorted(points))
     err, before = _errors(points, exact, size), _errors(whole, exact, size)
     assert all(e < 0.03 and e < before[n] + 0.01 for n, e in err.items()), (err, before)
+
+
+def test_a_lip_is_left_out_where_taking_it_costs_more_than_missing_it(model, monkeypatch):
+    # the lower lip's mean height moved away from where this head has it until the lip is
+    # left out: that happens MISSING_COST standard deviations (squared) away, so a lip
+    # twice as spread is taken twice as far off its mean
+    import solver.detect.profile_line as profile_line
+
+    outline, exact, size = _profile(model, 4120, noise=0.0)
+    mean, _ = profile_line.HEIGHT["lip_lower_middle"]
+
+    def dropped_at(sd):
+        lo, hi = 0.0, 0.5  # the shift of its mean at which the lip is still taken, and not
+        for _ in range(30):
+            mid = (lo + hi) / 2
+            monkeypatch.setitem(profile_line.HEIGHT, "lip_lower_middle", (mean + mid, sd))
+            taken = "lip_lower_middle" in profile_line_points(outline, "right", size)[0]
+            lo, hi = (mid, hi) if taken else (lo, mid)
+        return lo
+
+    near, far = dropped_at(0.02), dropped_at(0.04)
+    assert far - near == pytest.approx(np.sqrt(profile_line.MISSING_COST) * 0.02, abs=1e-3)
