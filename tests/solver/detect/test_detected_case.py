@@ -43,6 +43,25 @@ def _errors(model, truth, **cases):
                                  truth["local_vertices"]) for label, c in cases.items()}
 
 
+def _mean_errors(model, truth, copies=4, **cases):
+    """:func:`_errors` averaged over each case and ``copies`` - 1 copies of it with every
+    point moved by 0.05 px (seeded): a photos-only fit lands in one of several nearby
+    minima, and which one moves with a tenth of a pixel (0.3 mm apart on these small
+    renders; docs/DECISIONS.md, "A rim of light"), so one fit is one draw of it."""
+    rng = np.random.default_rng(0)
+    out = {label: [] for label in cases}
+    for k in range(copies):
+        for label, case in cases.items():
+            moved = copy.deepcopy(case)
+            for v in moved.views.values() if k else ():
+                if v.contour is not None:
+                    v.contour = v.contour + rng.normal(0, 0.05, v.contour.shape)
+                v.points = {n: tuple(np.add(p, rng.normal(0, 0.05, 2)))
+                            for n, p in v.points.items()}
+            out[label].append(_errors(model, truth, case=moved)["case"])
+    return {label: float(np.mean(e)) for label, e in out.items()}
+
+
 def test_detect_photos_names_views_and_fails_naming_the_photo(sample, detector, tmp_path):
     folder, _ = sample
     lines = []
@@ -219,11 +238,10 @@ def test_a_profile_s_landmarks_are_read_off_its_outline_and_fit_better(sample, d
     mesh = copy.deepcopy(auto)
     mesh.views["right"].points = bare.views["right"].points
     mesh.views["right"].uncertainty = bare.views["right"].uncertainty
-    err = _errors(model, truth, outline=auto, mesh=mesh)
-    # On the full-size sample 1.35 against 1.68 mm (bench_detect --fit); on this small
-    # render, its profile half as many pixels, 1.79 against 1.71 with its settings scaled
-    # to its size (2.30 against 2.29 as given; with the hard outline cut-off 2.16-2.28
-    # against 2.24-2.25 over copies moved by 1/1000 px): no worse than 0.1 mm.
+    err = _mean_errors(model, truth, outline=auto, mesh=mesh)
+    # On this small render, its profile half as many pixels, 1.79 against 2.27 mm (the
+    # mean of the four copies; single fits 1.66-1.86 and 1.62-2.12 over six others): no
+    # worse than 0.1 mm.
     assert err["outline"] < err["mesh"] + 0.1, err
 
 
@@ -341,7 +359,8 @@ def test_a_side_photo_short_of_a_profile_fits_nearer_with_its_camera_turned(
         turned_side_sample, detector, model):
     """The photos of a head turned 15 degrees toward the side camera, alone: with the side
     camera turned to the yaw its photo shows (``view_guess.profile_yaw_deg``) the head is
-    nearer the truth than with the nominal profile's (2.5 against 3.1 mm when written)."""
+    nearer the truth than with the nominal profile's (2.40 against 2.86 mm, the mean of
+    four copies; 2.5 against 3.1 mm in one fit when written)."""
     from solver import OrthographicCamera
 
     folder, truth = turned_side_sample
@@ -351,7 +370,7 @@ def test_a_side_photo_short_of_a_profile_fits_nearer_with_its_camera_turned(
     nominal = copy.deepcopy(case)
     nominal.views["right"].camera = OrthographicCamera.nominal("orthographic-right",
                                                                side.size)
-    err = _errors(model, truth, turned=case, nominal=nominal)
+    err = _mean_errors(model, truth, turned=case, nominal=nominal)
     assert err["turned"] < 0.9 * err["nominal"], err
 
 
