@@ -230,26 +230,28 @@ def refine_edge(image, points, normals, reach, passes=2, skin=None, rim=None):
     return moved, ok, inside
 
 
-def _rim(col, inner, outside, skin, w):
+def _rim(col, inner, outside, skin, w, where=None):
     """Where a rim of light runs along the edge in the colours ``col`` (n, k, 3) sampled
-    along each normal: the outermost strong step (a colour change over ``w`` samples, a
-    local peak at least ``STEP_SHARE`` of the largest) falls from a colour brighter than
-    both the background (``outside`` (n, 3)) and the colour further in (``inner``, which
-    is the skin: a beard's edge has no rim), and that colour is the skin's lit
-    (``lit_skin_like``: a bright patch of a busy background is not). Returns (rim (n,)
-    bool, the step's first sample (n,)); no rim without ``skin``."""
-    rows = np.arange(len(col))
+    along each normal (of the points ``where`` (n,) bool, default all): the outermost
+    strong step (a colour change over ``w`` samples, a local peak at least ``STEP_SHARE``
+    of the largest) falls from a colour brighter than both the background (``outside``
+    (n, 3)) and the colour further in (``inner``, which is the skin: a beard's edge has no
+    rim), and that colour is the skin's lit (``lit_skin_like``: a bright patch of a busy
+    background is not). Returns (rim (n,) bool, the step's first sample (n,)); no rim
+    without ``skin``."""
+    n = len(col)
+    if skin is None:
+        return np.zeros(n, bool), np.zeros(n, np.intp)
     change = np.linalg.norm(col[:, w:] - col[:, :-w], axis=2)   # (n, k - w)
     padded = np.pad(change, ((0, 0), (1, 1)), constant_values=-1.0)
     peak = (change >= padded[:, :-2]) & (change >= padded[:, 2:]) \
         & (change >= STEP_SHARE * change.max(axis=1, keepdims=True))
     outer = change.shape[1] - 1 - np.argmax(peak[:, ::-1], axis=1)
-    lit = col[rows, outer]
+    lit = col[np.arange(n), outer]
     bright = lit.sum(1)
-    if skin is None:
-        return np.zeros(len(col), bool), outer
-    return (bright > outside.sum(1)) & (bright > inner.sum(1)) & lit_skin_like(lit, skin) \
-        & skin_like(inner, skin), outer
+    rim = (bright > outside.sum(1)) & (bright > inner.sum(1)) & lit_skin_like(lit, skin) \
+        & skin_like(inner, skin)
+    return (rim if where is None else rim & where), outer
 
 
 def _edge_pass(image, points, normals, reach, skin=None, where=None):
@@ -261,9 +263,7 @@ def _edge_pass(image, points, normals, reach, skin=None, where=None):
     third = max(k // 3, 1)
     inner, outside = col[:, :third].mean(1), col[:, -third:].mean(1)
     w = max(int(round(STEP_PX * per_px)), 1)
-    rim, outer = _rim(col, inner, outside, skin, w)
-    if where is not None:
-        rim &= where
+    rim, outer = _rim(col, inner, outside, skin, w, where)
     # the colour inside: the rim's own there, else the inner third's
     diff = np.where(rim[:, None], col[rows, outer], inner) - outside
     contrast = np.linalg.norm(diff, axis=1)
