@@ -130,15 +130,17 @@ def test_a_fit_from_the_photos_alone_started_from_its_own_head_stays_there(sampl
     # again from the landmarks alone (the staged start meant for the mean head), it left
     # that head and latched the outlines anew, so a change of 1/1000 px in the input sent
     # the rendered sample's head anywhere from 1.4 to 3.9 mm (docs/DECISIONS.md). A fit
-    # from a given head also goes on with its noise and expressions: here 0.17 mm away
-    # (0.0 with this small render's settings as given; then 0.22 staged, from the default
-    # noise 0.50, the landmarks as given 0.69).
+    # from a given head also goes on with its noise and expressions: here 0.19-0.22 mm
+    # away with one or two BLAS threads (0.13-0.17 before the rim of light changed a few
+    # of this render's outline points: its nearby minima lie about 0.3 mm apart; 0.0 with
+    # this small render's settings as given; then 0.22 staged, from the default noise
+    # 0.50, the landmarks as given 0.69).
     folder, truth = sample
     auto = _both_photos(folder, detector)
     first = fit_head(model, auto)
     again = fit_head(model, auto, initial=first)
     moved = np.linalg.norm(again.local_vertices - first.local_vertices, axis=1)
-    assert np.sqrt(np.mean(moved[model.skin] ** 2)) < 2e-4, moved.max()
+    assert np.sqrt(np.mean(moved[model.skin] ** 2)) < 2.5e-4, moved.max()
 
 
 def test_photos_moved_by_a_thousandth_of_a_pixel_fit_the_same_head(sample, detector, model):
