@@ -6,11 +6,15 @@ true silhouette (the nearest point of the head's render alpha at 0.5: the outlin
 extent and order as detected, its error taken out), and with both.
 
     python -m bench.bench_attribution [--heads DIR ...] [--render SEED ...] [--skin TONE]
+                                      [--copies N]
 
 Heads: as ``bench.bench_photo_variants`` (the sample and ``generated/bench_heads/seed<N>``,
 rendered when missing). Scores: skin RMS against the true head after a similarity
 (``solver.synthetic.skin_error_mm``), mm; a head whose photos are not detected as a front
-and a profile is said and left out.
+and a profile is said and left out. A photos-only fit lands in one of several nearby
+minima, and which one moves with a tenth of a pixel: ``--copies N`` fits each case and
+N - 1 copies of it with every point moved by ``COPY_PX`` (seeded) and prints their mean,
+and the spread of a head's copies (their largest less their smallest, mean over the heads).
 """
 
 import argparse
@@ -31,6 +35,9 @@ from solver.synthetic import skin_error_mm
 #: The true silhouette is sampled this often along its iso-line (pixels): a point moved
 #: onto it lands within half of it of the line.
 SILHOUETTE_STEP_PX = 0.1
+
+#: How far (standard deviation, px) ``--copies`` moves every point of a copy of a case.
+COPY_PX = 0.05
 
 #: The fits of each head, in the table's order: label -> (front's landmarks exact, their
 #: uncertainty dropped, outlines moved onto the true silhouette).
@@ -99,10 +106,35 @@ def attributed(case, truth):
     return out
 
 
+def moved_copy(case, rng, px=COPY_PX):
+    """A copy of ``case`` with every landmark and outline point moved by a normal draw of
+    ``px`` (standard deviation, pixels) from ``rng``."""
+    out = copy.deepcopy(case)
+    for view in out.views.values():
+        if view.contour is not None:
+            view.contour = view.contour + rng.normal(0.0, px, view.contour.shape)
+        view.points = {n: tuple(np.add(p, rng.normal(0.0, px, 2)))
+                       for n, p in view.points.items()}
+    return out
+
+
+def copies_error(model, case, true_head, copies, rng):
+    """Skin RMS (mm) of the fits of ``case`` and ``copies`` - 1 moved copies of it
+    (:func:`moved_copy`), (copies,)."""
+    cases = [case] + [moved_copy(case, rng) for _ in range(copies - 1)]
+    return np.array([skin_error_mm(model, fit_head(model, c).local_vertices, true_head)
+                     for c in cases])
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--copies", type=int, default=1,
+                    help="fit each case and this many - 1 copies moved by COPY_PX: their "
+                         "mean, and the spread of a head's copies (default 1)")
     add_head_options(ap)
     args = ap.parse_args(argv)
+    if args.copies < 1:
+        ap.error(f"--copies: at least 1, got {args.copies}")
     print(f"machine: {machine_description()}")
     folders = head_folders(args.heads, args.render, args.skin)
     detector = Detector()
@@ -111,8 +143,12 @@ def main(argv=None):
     print("skin RMS vs the true head, mm, from the photos alone: the case solver detect "
           "makes, with the front's landmarks exact (their uncertainty kept; as clicks), the "
           "outlines on the true silhouette, both")
+    if args.copies > 1:
+        print(f"each the mean of {args.copies} fits: the case and copies of it with every "
+              f"point moved by {COPY_PX:g} px")
     print(f"  {'head':<14}" + "".join(f"{c:>20}" for c in columns))
-    rows = []
+    rows, spreads = [], []
+    rng = np.random.default_rng(0)
     for folder in folders:
         truth = np.load(folder / "truth.npz", allow_pickle=True)
         true_head = truth["local_vertices"]
@@ -121,13 +157,16 @@ def main(argv=None):
         except ValueError as err:
             print(f"  {folder.name}: {err}")
             continue
-        row = [skin_error_mm(model, model.vertices, true_head)]
-        row += [skin_error_mm(model, fit_head(model, c).local_vertices, true_head)
-                for c in cases.values()]
+        errors = [copies_error(model, c, true_head, args.copies, rng) for c in cases.values()]
+        row = [skin_error_mm(model, model.vertices, true_head)] + [e.mean() for e in errors]
         rows.append(row)
+        spreads.append([0.0] + [e.max() - e.min() for e in errors])
         print(f"  {folder.name:<14}" + "".join(f"{v:>20.2f}" for v in row), flush=True)
     if rows:
         print(f"  {'mean':<14}" + "".join(f"{v:>20.2f}" for v in np.mean(rows, axis=0)))
+    if rows and args.copies > 1:
+        print(f"  {'spread':<14}" + " " * 20
+              + "".join(f"{v:>20.2f}" for v in np.mean(spreads, axis=0)[1:]))
 
 
 if __name__ == "__main__":

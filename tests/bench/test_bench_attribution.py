@@ -8,7 +8,9 @@ import pytest
 
 from bench.bench_attribution import (
     ATTRIBUTIONS,
+    COPY_PX,
     attributed,
+    moved_copy,
     onto_silhouette,
     true_silhouette,
 )
@@ -86,3 +88,19 @@ def test_photos_not_detected_as_a_front_and_a_profile_are_said():
     case.views["three_quarter_left"] = case.views.pop("front")
     with pytest.raises(ValueError, match="not a front and a profile"):
         attributed(case, truth)
+
+
+def test_a_moved_copy_moves_every_point_by_a_tenth_of_a_pixel_or_so_and_leaves_the_case():
+    case, _ = _case_and_truth()
+    moved = moved_copy(case, np.random.default_rng(0))
+    again = moved_copy(case, np.random.default_rng(0))
+    offsets = []
+    for name, view in case.views.items():
+        m = moved.views[name]
+        assert set(m.points) == set(view.points)
+        offsets += [np.subtract(m.points[n], p) for n, p in view.points.items()]
+        offsets += list(m.contour - view.contour)
+        assert m.points == again.views[name].points  # seeded
+    offsets = np.abs(np.array(offsets))
+    assert (offsets > 0).all() and offsets.max() < 5 * COPY_PX
+    assert case.views["front"].points["nose_tip"] == (101.0, 100.0)  # the case as it was
