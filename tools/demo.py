@@ -433,10 +433,10 @@ def run_demo(out=DEFAULT_OUT, sample=DEFAULT_SAMPLE, size=DEFAULT_SIZE,
 #: detected (issue 16 asks the demo to detect the profile's outline or to say why not).
 LANDMARKS_SOURCE = (
     "the sample's own (where the true head's landmark vertices project), the outlines of "
-    "both photos detected (python -m bench.bench_detect --fit, 2026-12-04: 0.38 mm with "
+    "both photos detected (python -m bench.bench_detect --fit, 2026-12-06: 0.37 mm with "
     "them, 0.54 mm with the profile's outline traced from the silhouette); the landmarks "
     "not detected: from the photos alone (detected landmarks and outlines) the sample fits "
-    "to 1.34 mm, better than the mean head (3.43 mm) but 3.5 x the fit from its own "
+    "to 1.16 mm, better than the mean head (3.43 mm) but 3.1 x the fit from its own "
     "landmarks")
 
 
