@@ -160,13 +160,13 @@ def main(argv=None):
         errors = [copies_error(model, c, true_head, args.copies, rng) for c in cases.values()]
         row = [skin_error_mm(model, model.vertices, true_head)] + [e.mean() for e in errors]
         rows.append(row)
-        spreads.append([0.0] + [e.max() - e.min() for e in errors])
+        spreads.append([e.max() - e.min() for e in errors])
         print(f"  {folder.name:<14}" + "".join(f"{v:>20.2f}" for v in row), flush=True)
     if rows:
         print(f"  {'mean':<14}" + "".join(f"{v:>20.2f}" for v in np.mean(rows, axis=0)))
     if rows and args.copies > 1:
         print(f"  {'spread':<14}" + " " * 20
-              + "".join(f"{v:>20.2f}" for v in np.mean(spreads, axis=0)[1:]))
+              + "".join(f"{v:>20.2f}" for v in np.mean(spreads, axis=0)))
 
 
 if __name__ == "__main__":
