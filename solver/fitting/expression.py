@@ -17,6 +17,7 @@ import dataclasses
 
 import numpy as np
 from scipy.optimize import lsq_linear
+from scipy.spatial import cKDTree
 
 #: Prior standard deviation of an expression weight.
 EXPRESSION_SIGMA = 0.5
@@ -166,9 +167,10 @@ def _pixel_columns(offsets, jac, sw):
 
 
 def neutral_case(model, case, result, expressions):
-    """``case`` with each photo's landmarks moved back by its expression (``expressions``,
-    view -> weights): the pixels the neutral head of ``result`` would show them at, given
-    the expression's pixel offsets through that photo's camera. Other views unchanged."""
+    """``case`` with each photo's landmarks and traced outline moved back by its expression
+    (``expressions``, view -> weights): the pixels the neutral head of ``result`` would
+    show them at, given the expression's pixel offsets through that photo's camera. Other
+    views unchanged."""
     expr = model.expressions
     lms = model.landmark_set
     world = result.world_vertices
@@ -185,8 +187,28 @@ def neutral_case(model, case, result, expressions):
         points = dict(view.points)
         for k, d in zip(keys, shift, strict=True):
             points[k] = tuple(np.asarray(view.points[k], dtype=np.float64) - d)
-        views[name] = dataclasses.replace(view, points=points)
+        views[name] = dataclasses.replace(
+            view, points=points, contour=_neutral_contour(view.contour, result, name, e, expr))
     return dataclasses.replace(case, views=views)
+
+
+def _neutral_contour(contour, result, name, weights, expr):
+    """A photo's traced outline (n, 2) moved back as its landmarks are: each point by the
+    pixel offset the expression ``weights`` (E,) of the shapes ``expr`` (E, V, 3) gives
+    the model vertex the fit ``result`` matched nearest to it on that outline (an open
+    jaw's chin, a smile's cheek lie outside the neutral head's outline). Unchanged where
+    the fit matched none."""
+    pairs = ((result.info or {}).get("refit_state") or {}).get("contour", {}).get(name)
+    if contour is None or pairs is None or not len(pairs["vertices"]):
+        return contour
+    verts = np.asarray(pairs["vertices"], dtype=np.int64)
+    world = result.world_vertices[verts]
+    offset = result.scale * np.tensordot(weights, expr[:, verts], axes=1) \
+        @ result.rotation.T
+    camera = result.cameras[name]
+    moved = camera.project(world + offset) - camera.project(world)
+    nearest = cKDTree(np.asarray(pairs["pixels"], dtype=np.float64)).query(contour)[1]
+    return contour - moved[nearest]
 
 
 def expressions_moved(old, new, tolerance=SHOWN):
