@@ -8,9 +8,12 @@ neutral face would put them, and the fit is repeated with them: the identity see
 neutral face, the expression is reported per photo.
 
 An expression weight lies in [0, 1] (0: neutral, 1: the shape at full strength) with a
-Gaussian prior of standard deviation ``EXPRESSION_SIGMA``, and is used from ``SHOWN`` up: a
-weight has to explain clearly more than noise, so a neutral photo keeps its landmarks and
-the identity keeps what only an identity can explain (docs/DECISIONS.md).
+Gaussian prior of standard deviation ``EXPRESSION_SIGMA``, and is used from ``SHOWN`` up,
+or from ``FAINT`` up where it stands ``SURE`` of its posterior standard deviations clear of
+neutral: a weight has to explain clearly more than noise, so a neutral photo keeps its
+landmarks and the identity keeps what only an identity can explain, while a mouth a little
+open on well placed landmarks, which the identity would half take, is still taken out
+(docs/DECISIONS.md).
 """
 
 import dataclasses
@@ -21,8 +24,12 @@ from scipy.spatial import cKDTree
 
 #: Prior standard deviation of an expression weight.
 EXPRESSION_SIGMA = 0.5
-#: Weights below this are not reported (and not applied).
+#: Weights from this up are applied (taken out of the photo's landmarks) and reported ...
 SHOWN = 0.2
+#: ... and from this up, those at least ``SURE`` posterior standard deviations (the identity
+#: solved out) clear of 0; smaller ones never.
+FAINT = 0.1
+SURE = 5.0
 #: A photo's landmarks must show this share of an expression's largest movement over all
 #: the set's landmarks (in pixels, through its camera) for the photo to be fitted with it:
 #: a profile read off its outline (nasion, nose, lips, chin) cannot tell raised brows, and
@@ -114,7 +121,8 @@ def estimate_expressions(model, case, result, noise_px, weights=None, lambda2=1.
     a[rows:rows + k, :k] = lambda2 * np.eye(k)
     rhs[rows:rows + k] = -lambda2 * np.asarray(result.identity_coeffs, dtype=np.float64)
     a[rows + k:, k:] = np.eye(cols - k) / EXPRESSION_SIGMA
-    x = _bounded_weights(a, rhs, k)
+    x, sd = _bounded_weights(a, rhs, k)
+    x = np.where((x >= SHOWN) | ((x >= FAINT) & (x >= SURE * sd)), x, 0.0)
     out = {}
     for j, (name, *_) in enumerate(blocks):
         out[name] = np.zeros(len(model.expression_names))
@@ -138,13 +146,15 @@ def _bounded_weights(a, rhs, k):
     """The last columns' part (m,) of ``argmin |a x - rhs|`` over x = (free (k,), weights
     in [0, 1] (m,)): the free part is solved out exactly (whatever the weights, it is the
     least-squares fit of the rest, so the weights minimise what lies outside its columns'
-    span), leaving a bounded problem in the weights alone."""
+    span), leaving a bounded problem in the weights alone. Returns (the weights, their
+    standard deviations (m,) with the free part solved out and the bounds left aside)."""
     q, _ = np.linalg.qr(a[:, :k])
     ae, r = a[:, k:], rhs
     ae = ae - q @ (q.T @ ae)
     r = r - q @ (q.T @ r)
     m = ae.shape[1]
-    return lsq_linear(ae, r, bounds=(np.zeros(m), np.ones(m)), method="bvls").x
+    sd = np.sqrt(np.diag(np.linalg.inv(ae.T @ ae)))
+    return lsq_linear(ae, r, bounds=(np.zeros(m), np.ones(m)), method="bvls").x, sd
 
 
 def _known(lms, view, skip=()):
@@ -176,7 +186,7 @@ def neutral_case(model, case, result, expressions):
     world = result.world_vertices
     views = dict(case.views)
     for name, e in expressions.items():
-        e = np.where(e >= SHOWN, e, 0.0)
+        e = np.where(e >= FAINT, e, 0.0)
         if not e.any() or name not in result.cameras:
             continue
         view = case.views[name]
@@ -219,7 +229,7 @@ def expressions_moved(old, new, tolerance=SHOWN):
 
 
 def expression_report(model, expressions):
-    """JSON-ready: per view, the expressions it showed (weight >= SHOWN) by name."""
+    """JSON-ready: per view, the expressions it showed (applied: weight >= FAINT) by name."""
     names = model.expression_names
-    return {view: {names[i]: float(w) for i, w in enumerate(e) if w >= SHOWN}
+    return {view: {names[i]: float(w) for i, w in enumerate(e) if w >= FAINT}
             for view, e in expressions.items()}

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from solver import FitOptions, fit_head, refit_landmarks
-from solver.fitting.expression import SHOWN, expression_report, neutral_case
+from solver.fitting.expression import FAINT, expression_report, neutral_case
 from solver.synthetic import make_case, resample_polyline, skin_error_mm, trace_silhouette
 
 
@@ -78,25 +78,26 @@ def test_neutral_case_moves_landmarks_back_by_the_expression(model, closed):
              for k, p in shut.views["front"].points.items()}
     assert max(moved, key=moved.get).endswith("_left") and "eye" in max(moved, key=moved.get)
     assert moved["nose_tip"] < 0.5
-    # what is reported: names at or above SHOWN
-    e[model.expression_names.index("jawOpen")] = 0.5 * SHOWN
+    # what is reported: names at or above FAINT (the estimate leaves no smaller one)
+    e[model.expression_names.index("jawOpen")] = 0.5 * FAINT
     assert expression_report(model, {"front": e}) == {"front": {"eyeBlink_L": 1.0}}
 
 
-@pytest.fixture(scope="module", params=[34, 35])
+@pytest.fixture(scope="module", params=[(34, 0.3), (35, 0.3), (34, 0.2), (36, 0.2)])
 def jaw_open(model, request):
-    case, truth = make_case(model, request.param, noise_px=1.0)
-    opened = _with_expression(model, case, truth, {"jawOpen": 0.3}, outline=True)
-    return _with_expression(model, case, truth, {}, outline=True), opened, truth
+    seed, weight = request.param
+    case, truth = make_case(model, seed, noise_px=1.0)
+    opened = _with_expression(model, case, truth, {"jawOpen": weight}, outline=True)
+    return _with_expression(model, case, truth, {}, outline=True), opened, truth, weight
 
 
 def test_neutral_case_moves_the_outline_back_too(model, jaw_open):
     # The open jaw's chin lies below the neutral head's outline in the profile; taken out,
     # the outline's points lie on the neutral head's again.
-    case, opened, truth = jaw_open
+    case, opened, truth, weight = jaw_open
     fit = fit_head(model, case)
     e = np.zeros(len(model.expression_names))
-    e[model.expression_names.index("jawOpen")] = 0.3
+    e[model.expression_names.index("jawOpen")] = weight
     back = neutral_case(model, opened, fit, {"right": e})
     true = trace_silhouette(model, truth.world_vertices, truth.cameras["right"])
 
@@ -105,7 +106,7 @@ def test_neutral_case_moves_the_outline_back_too(model, jaw_open):
 
     before, after = off(opened.views["right"].contour), off(back.views["right"].contour)
     moved = before > 3.0  # the chin and the lips (a few points trace the open mouth)
-    assert moved.sum() >= 8 and np.median(before[moved]) > 8.0
+    assert moved.sum() >= 6 and np.median(before[moved]) > 25.0 * weight
     assert np.median(after[moved]) < 0.25 * np.median(before[moved]), after[moved]
     # the skull's outline (from the nose on) does not move with the jaw
     assert np.abs(back.views["right"].contour - opened.views["right"].contour)[40:].max() < 0.5
@@ -113,13 +114,17 @@ def test_neutral_case_moves_the_outline_back_too(model, jaw_open):
 
 
 def test_an_open_jaw_keeps_the_identity_with_the_profile_outline(model, jaw_open):
-    case, opened, truth = jaw_open
+    case, opened, truth, weight = jaw_open
     neutral_fit = fit_head(model, case)
     open_fit = fit_head(model, opened)
-    assert open_fit.info["expressions"]["right"].get("jawOpen", 0.0) > 0.2
+    # found in both photos, a mouth a little open (0.2) too: the identity would take part
+    # of it, and the estimate (0.19-0.22) is taken out below SHOWN as it is sure
+    for view in ("front", "right"):
+        assert open_fit.info["expressions"][view].get("jawOpen", 0.0) > 0.75 * weight
     gap = skin_error_mm(model, open_fit.local_vertices, neutral_fit.local_vertices)
-    # 0.29 and 0.33 mm; 0.59 and 0.74 with the open jaw left in the outline (the chin
-    # stretched to it), 3.1 assumed neutral
+    # 0.3 open: 0.29 and 0.33 mm; 0.59 and 0.74 with the open jaw left in the outline (the
+    # chin stretched to it), 3.1 assumed neutral; 0.2 open: 0.24 and 0.33 mm, 2.03 and 1.72
+    # where only weights from SHOWN up were taken out
     assert gap < 0.45, gap
 
 
