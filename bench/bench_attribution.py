@@ -26,7 +26,7 @@ from scipy.spatial import cKDTree
 
 from bench.bench_photo_size import photos_case
 from bench.common import machine_description
-from bench.rendered_heads import add_head_options, head_folders
+from bench.rendered_heads import add_head_options, chosen_folders
 from solver import fit_head, load_model
 from solver.detect import Detector
 from solver.detect.iso_line import iso_lines
@@ -136,7 +136,7 @@ def main(argv=None):
     if args.copies < 1:
         ap.error(f"--copies: at least 1, got {args.copies}")
     print(f"machine: {machine_description()}")
-    folders = head_folders(args.heads, args.render, args.skin)
+    folders = chosen_folders(args)
     detector = Detector()
     model = load_model()
     columns = ["mean head", *ATTRIBUTIONS]

@@ -39,7 +39,7 @@ from PIL import Image
 
 from bench.bench_photo_variants import VARIANTS, changed
 from bench.common import machine_description
-from bench.rendered_heads import add_head_options, head_folders
+from bench.rendered_heads import add_head_options, chosen_folders
 from solver import fit_head, load_landmarks, load_model
 from solver.detect import Detector
 from solver.detect.detected_case import detect_photos
@@ -131,7 +131,7 @@ def main(argv=None):
                          "refit and a fit continued from its head")
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
-    folders = head_folders(args.heads, args.render, args.skin)
+    folders = chosen_folders(args)
     model, detector = load_model(), Detector()
     columns = ["photos", *GROUPS, "profile ears", "every exact"]
     print("skin RMS vs the true head, mm: fit / once (no second start); * second start kept"

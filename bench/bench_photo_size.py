@@ -23,7 +23,7 @@ import numpy as np
 from PIL import Image
 
 from bench.common import machine_description
-from bench.rendered_heads import add_head_options, head_folders
+from bench.rendered_heads import add_head_options, chosen_folders
 from solver import FitOptions, fit_head, load_model
 from solver.detect import Detector
 from solver.detect.detected_case import detect_photos
@@ -58,7 +58,7 @@ def main(argv=None):
     add_head_options(ap)
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
-    folders = head_folders(args.heads, args.render, args.skin)
+    folders = chosen_folders(args)
     model, detector = load_model(), Detector()
     columns = ["as rendered"] + [f"x{k:g} {label}" for k in args.scale
                                  for label in ("scaled", "as given")]

@@ -56,7 +56,7 @@ from bench.bench_detect import PROFILE_LINE, padded, read_profile_line
 from bench.bench_photo_size import photos_case
 from bench.common import machine_description
 from bench.realistic_cases import model_face_vertices
-from bench.rendered_heads import add_head_options, head_folders
+from bench.rendered_heads import add_head_options, chosen_folders
 from solver import fit_head, load_landmarks, load_model
 from solver.detect import Detector
 from solver.procrustes import similarity_procrustes
@@ -412,7 +412,7 @@ def main(argv=None):
     add_head_options(ap)
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
-    folders = head_folders(args.heads, args.render, args.skin)
+    folders = chosen_folders(args)
     detector = Detector()
     if args.profile_line:
         profile_line_table(folders, args.variants, detector)

@@ -1,27 +1,29 @@
-"""The rendered model heads the photos-only benchmarks fit (``bench_corrections``,
-``bench_photo_size``, ``bench_photo_variants``): the sample and ``TEN_HEADS`` more, each
-folder holding its front and profile photos, ``sample.json`` (the exact landmarks) and
-``truth.npz`` (the true head), rendered by ``tools.make_sample`` when missing; with
-``--skin`` of another complexion (``tools.make_sample.SKIN_TONES``), the sample's seed
-and the others rendered so."""
+"""The rendered model heads the photos-only benchmarks fit (``bench_attribution``,
+``bench_corrections``, ``bench_photo_size``, ``bench_photo_variants``): the sample and
+``TEN_HEADS`` more, each folder holding its front and profile photos, ``sample.json`` (the
+exact landmarks) and ``truth.npz`` (the true head), rendered by ``tools.make_sample`` when
+missing; with ``--skin`` of another complexion (``tools.make_sample.SKIN_TONES``) or
+``--expression`` (``tools.make_sample.EXPRESSIONS``: the face in the photos shows it, the
+truth is the neutral head), the sample's seed and the others rendered so."""
 
 import subprocess
 import sys
 from pathlib import Path
 
-from tools.make_sample import DEFAULT_SEED, SKIN_TONES
+from tools.make_sample import DEFAULT_SEED, EXPRESSIONS, SKIN_TONES
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def render_head(seed, folder, skin_tone="light"):
-    """Render a model head's sample photos (its skin ``skin_tone``) into ``folder`` unless
-    they are there."""
+def render_head(seed, folder, skin_tone="light", expression=None):
+    """Render a model head's sample photos (its skin ``skin_tone``, its face showing
+    ``expression`` or neutral) into ``folder`` unless they are there."""
     if (folder / "truth.npz").is_file():
         return
     print(f"rendering seed {seed} into {folder} ...", flush=True)
+    more = [] if expression is None else ["--expression", expression]
     subprocess.run([sys.executable, "-m", "tools.make_sample", "--seed", str(seed),
-                    "--out", str(folder), "--skin", skin_tone], cwd=ROOT, check=True,
+                    "--out", str(folder), "--skin", skin_tone, *more], cwd=ROOT, check=True,
                    stdout=subprocess.DEVNULL)
 
 
@@ -30,8 +32,9 @@ TEN_HEADS = [101, 201, 202, 203, 204, 205, 206, 207, 208]
 
 
 def add_head_options(parser, render=None):
-    """``--heads`` (rendered sample folders; default the sample) and ``--render`` (model
-    seeds; default ``render``, else ``TEN_HEADS``), as :func:`head_folders` takes them."""
+    """``--heads`` (rendered sample folders; default the sample), ``--render`` (model
+    seeds; default ``render``, else ``TEN_HEADS``), ``--skin`` and ``--expression``, as
+    :func:`chosen_folders` takes them."""
     parser.add_argument("--heads", nargs="*", default=None,
                         help="rendered sample folders (default: the sample and the --render "
                              "ones)")
@@ -43,22 +46,35 @@ def add_head_options(parser, render=None):
                         help="the heads' skin tone (default light: the sample and its "
                              "seeds; else the sample's seed too, rendered into "
                              "generated/bench_heads/seed<N>_<tone>)")
+    parser.add_argument("--expression", default=None, choices=list(EXPRESSIONS),
+                        help="the heads' faces show this expression in both photos (default "
+                             "neutral; else the sample's seed too, rendered into "
+                             "generated/bench_heads/seed<N>[_<tone>]_<expression>); the "
+                             "truth stays the neutral head")
 
 
-def head_folders(heads, seeds, skin_tone="light"):
+def chosen_folders(args):
+    """The folders of the options :func:`add_head_options` added (parsed ``args``)."""
+    return head_folders(args.heads, args.render, args.skin, args.expression)
+
+
+def head_folders(heads, seeds, skin_tone="light", expression=None):
     """The rendered head folders a benchmark runs on: ``heads`` (paths) if given, else the
     sample; then ``generated/bench_heads/seed<N>`` for each of ``seeds``, rendered first
-    when missing. Of another ``skin_tone`` (``--skin``) the sample's seed comes first
-    instead of the sample, and each folder is ``seed<N>_<skin_tone>``."""
+    when missing. Of another ``skin_tone`` (``--skin``) or with an ``expression`` the
+    sample's seed comes first instead of the sample, and each folder is
+    ``seed<N>[_<skin_tone>][_<expression>]``."""
+    plain = skin_tone == "light" and expression is None
     if heads is not None:
         folders = [Path(h) for h in heads]
-    elif skin_tone == "light":
+    elif plain:
         folders = [ROOT / "generated" / "sample"]
     else:
         folders, seeds = [], [DEFAULT_SEED, *seeds]
-    suffix = "" if skin_tone == "light" else f"_{skin_tone}"
+    suffix = "".join(f"_{part}" for part in (None if skin_tone == "light" else skin_tone,
+                                             expression) if part is not None)
     for seed in seeds:
         folder = ROOT / "generated" / "bench_heads" / f"seed{seed}{suffix}"
-        render_head(seed, folder, skin_tone)
+        render_head(seed, folder, skin_tone, expression)
         folders.append(folder)
     return folders

@@ -40,6 +40,13 @@ def sample(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def open_mouth_sample(tmp_path_factory):
+    """The sample with its mouth a little open in both photos (``make_sample --expression
+    jaw_open``)."""
+    return _rendered(tmp_path_factory, "open_mouth_sample", "--expression", "jaw_open")
+
+
+@pytest.fixture(scope="session")
 def turned_sample(tmp_path_factory):
     """A head turned 45 degrees toward the side camera (``make_sample --seed 201 --yaw
     -45``): two three-quarter photos."""

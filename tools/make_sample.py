@@ -3,7 +3,7 @@ landmarks file and the ground truth.
 
     python -m tools.make_sample [--out generated/sample] [--seed N] [--size WxH]
                                 [--samples N] [--force] [--lens MM] [--yaw DEG]
-                                [--side-deg DEG]
+                                [--side-deg DEG] [--skin TONE] [--expression NAME]
 
 A head is sampled from the identity model (seeded), turned a few degrees like a person who
 does not sit perfectly straight, and rendered with Cycles (CPU) through orthographic
@@ -11,7 +11,9 @@ cameras from the front and from the subject's right: ``front.png`` and ``side.pn
 (with ``--lens``, pinhole cameras of that lens as close as it frames the head alike:
 ``front.jpg`` and ``side.jpg`` with the lens in their EXIF, as a camera writes them;
 with ``--yaw``, the head turned further: three-quarter photos; with ``--side-deg``, the
-side photo taken that many degrees from the front camera's direction, short of a profile).
+side photo taken that many degrees from the front camera's direction, short of a profile;
+with ``--expression``, the face in both photos showing one of ``EXPRESSIONS``, the truth
+still the neutral head a fit should find).
 The person wears a plain shirt whose collar hides the model's neck cut, as in a real
 photo. ``sample.json`` is the landmarks file a user would make: every landmark visible in
 a view (``assets/landmarks.json`` "views", minus any the shirt covers) projected by the
@@ -67,6 +69,11 @@ CONTOUR_POINTS = 128
 MAX_TILT_DEG = 3.0
 TOP_MARGIN = (0.04, 0.07)  # space above the head, fraction of the image height
 SIDE_SCALE = 0.98  # the side photo is a second shot: slightly different scale
+#: Expressions a sample's face can show (``--expression``): model expression weights of the
+#: size people show when photographed (the middles of ``bench_realistic``'s ranges).
+EXPRESSIONS = {"smile": {"mouthSmile_L": 0.4, "mouthSmile_R": 0.4},
+               "eyes_closed": {"eyeBlink_L": 0.9, "eyeBlink_R": 0.9},
+               "jaw_open": {"jawOpen": 0.2}}
 # view name -> nominal camera (the fit handles orthographic front/right/left views)
 VIEWS = {"front": "orthographic-front", "side": "orthographic-right"}
 FILES = ("front.png", "side.png", "truth.npz", "sample.json")
@@ -715,7 +722,7 @@ def draw_overlay(photo, points, contour=None):
 
 
 def _params(model, seed, size, samples, lens_mm=None, yaw_deg=0.0, side_deg=90.0,
-            skin_tone="light"):
+            skin_tone="light", expression=None):
     params = {"version": SAMPLE_VERSION, "seed": int(seed),
               "size": [int(size[0]), int(size[1])], "samples": int(samples),
               "model": getattr(model, "build_hash", "")}
@@ -727,6 +734,8 @@ def _params(model, seed, size, samples, lens_mm=None, yaw_deg=0.0, side_deg=90.0
         params["side_deg"] = float(side_deg)
     if skin_tone != "light":
         params["skin_tone"] = skin_tone
+    if expression is not None:
+        params["expression"] = expression
     return params
 
 
@@ -752,7 +761,7 @@ def is_up_to_date(out, params):
 
 def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=DEFAULT_SAMPLES,
                 force=False, model=None, log=print, lens_mm=None, yaw_deg=0.0, side_deg=90.0,
-                skin_tone="light"):
+                skin_tone="light", expression=None):
     """Make the sample case in ``out`` unless it is up to date.
 
     Parameters
@@ -783,6 +792,10 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
         is turned so (``view_camera``).
     skin_tone : str
         The head's complexion, a key of ``SKIN_TONES``.
+    expression : str, optional
+        The face in the photos shows this key of ``EXPRESSIONS`` (its landmarks and
+        outline with it); ``truth.npz`` keeps the neutral head as ``local_vertices`` and
+        the weights as ``expression``.
 
     Returns
     -------
@@ -804,7 +817,10 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
         raise ValueError(f"side_deg: a side camera 45-90 degrees from the front, got {side_deg}")
     if skin_tone not in SKIN_TONES:
         raise ValueError(f"skin_tone: one of {', '.join(SKIN_TONES)}, got {skin_tone!r}")
-    params = _params(model, seed, size, samples, lens_mm, yaw_deg, side_deg, skin_tone)
+    if expression is not None and expression not in EXPRESSIONS:
+        raise ValueError(f"expression: one of {', '.join(EXPRESSIONS)}, got {expression!r}")
+    params = _params(model, seed, size, samples, lens_mm, yaw_deg, side_deg, skin_tone,
+                     expression)
     if not force and is_up_to_date(out, params):
         log(f"sample up to date: {out}")
         return out / "sample.json"
@@ -815,7 +831,7 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
     tmp.mkdir()
     try:
         _make_into(tmp, model, seed, size, samples, params, log, lens_mm, yaw_deg, side_deg,
-                   skin_tone)
+                   skin_tone, expression)
         old = out.parent / f".{out.name}.old-{os.getpid()}"
         if out.exists():
             out.rename(old)
@@ -828,17 +844,20 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
 
 
 def _make_into(folder, model, seed, size, samples, params, log, lens_mm=None, yaw_deg=0.0,
-               side_deg=90.0, skin_tone="light"):
+               side_deg=90.0, skin_tone="light", expression=None):
     from tools import render_util as ru
 
     coeffs, local, rotation, translation = sample_head(model, seed, yaw_deg)
-    world = local @ rotation.T + translation
-    torso = torso_mesh(local, model.skin, neck_cut_vertices(model))
+    weights = EXPRESSIONS.get(expression, {})
+    shown = local + sum((w * model.expressions[model.expression_names.index(n)]
+                         for n, w in weights.items()), np.zeros_like(local))
+    world = shown @ rotation.T + translation
+    torso = torso_mesh(shown, model.skin, neck_cut_vertices(model))
     rim = torso[4] @ rotation.T + translation  # the collar's top edge, world
     cameras = frame_cameras(world, float(rim[:, 2].mean()), size, seed, side_deg)
     if lens_mm is not None:
         cameras = perspective_cameras(cameras, world, lens_mm)
-    renders, cam_objs = render_views(model, local, (rotation, translation), torso, cameras,
+    renders, cam_objs = render_views(model, shown, (rotation, translation), torso, cameras,
                                      size, samples, seed, log, skin_tone)
 
     rng = np.random.default_rng(seed + 2)
@@ -892,6 +911,7 @@ def _make_into(folder, model, seed, size, samples, params, log, lens_mm=None, ya
         "cameras": np.array(json.dumps({v: c.to_dict() for v, c in cameras.items()})),
         "landmark_names": np.array(json.dumps({v: list(views[v].points) for v in views})),
         "collar_rim": rim,
+        "expression": np.array(json.dumps(weights)),
     }
     for view in cameras:
         truth[f"alpha_{view}"] = np.round(renders[view]["alpha"] * 255).astype(np.uint8)
@@ -939,11 +959,14 @@ def main(argv=None):
                              "(default 90: an exact profile)")
     parser.add_argument("--skin", choices=list(SKIN_TONES), default="light",
                         help="the head's skin tone (default light)")
+    parser.add_argument("--expression", choices=list(EXPRESSIONS), default=None,
+                        help="the face in the photos shows this expression (default: "
+                             "neutral); the truth stays the neutral head")
     args = parser.parse_args(argv)
     try:
         make_sample(args.out, args.seed, args.size, args.samples, args.force,
                     lens_mm=args.lens, yaw_deg=args.yaw, side_deg=args.side_deg,
-                    skin_tone=args.skin)
+                    skin_tone=args.skin, expression=args.expression)
     except (FileNotFoundError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

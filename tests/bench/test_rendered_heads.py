@@ -3,7 +3,13 @@ fit (bench_corrections', bench_photo_size's and bench_photo_variants')."""
 
 import argparse
 
-from bench.rendered_heads import ROOT, TEN_HEADS, add_head_options, head_folders
+from bench.rendered_heads import (
+    ROOT,
+    TEN_HEADS,
+    add_head_options,
+    chosen_folders,
+    head_folders,
+)
 
 
 def test_the_head_options_default_to_the_sample_and_the_ten_heads():
@@ -11,7 +17,7 @@ def test_the_head_options_default_to_the_sample_and_the_ten_heads():
     add_head_options(parser)
     args = parser.parse_args([])
     assert args.heads is None and args.render == TEN_HEADS == [101, *range(201, 209)]
-    assert args.skin == "light"
+    assert args.skin == "light" and args.expression is None
     args = parser.parse_args(["--heads", "a", "b", "--render"])
     assert args.heads == ["a", "b"] and args.render == []
     parser = argparse.ArgumentParser()
@@ -28,6 +34,23 @@ def test_heads_of_another_skin_tone_are_the_sample_s_seed_and_the_others_in_thei
     heads = ROOT / "generated" / "bench_heads"
     assert head_folders(None, [101]) == [ROOT / "generated" / "sample", heads / "seed101"]
     assert head_folders(None, [101], "dark") == [heads / "seed7_dark", heads / "seed101_dark"]
-    assert made[-2:] == [(7, heads / "seed7_dark", "dark"), (101, heads / "seed101_dark", "dark")]
+    assert made[-2:] == [(7, heads / "seed7_dark", "dark", None),
+                         (101, heads / "seed101_dark", "dark", None)]
+    # a face with an expression: the sample's seed rendered so too, the tone before it
+    assert head_folders(None, [101], "light", "smile") == [heads / "seed7_smile",
+                                                           heads / "seed101_smile"]
+    assert made[-1] == (101, heads / "seed101_smile", "light", "smile")
+    assert head_folders(None, [], "dark", "jaw_open") == [heads / "seed7_dark_jaw_open"]
     # folders given are taken as they are, before the seeds'
     assert head_folders(["x"], [], "dark") == [rendered.Path("x")]
+
+
+def test_the_chosen_folders_are_those_the_options_name(monkeypatch):
+    import bench.rendered_heads as rendered
+
+    monkeypatch.setattr(rendered, "render_head", lambda *a: None)
+    parser = argparse.ArgumentParser()
+    add_head_options(parser)
+    args = parser.parse_args(["--render", "101", "--expression", "eyes_closed"])
+    heads = ROOT / "generated" / "bench_heads"
+    assert chosen_folders(args) == [heads / "seed7_eyes_closed", heads / "seed101_eyes_closed"]

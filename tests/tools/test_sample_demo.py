@@ -17,7 +17,7 @@ from scipy import ndimage
 from solver import camera_from_dict, load_landmarks
 from solver.io.obj import read_obj
 from tests import ROOT, SAMPLE_ARGS, SAMPLE_SIZE
-from tools.make_sample import make_sample, sample_head
+from tools.make_sample import EXPRESSIONS, make_sample, sample_head
 
 SIZE, ARGS = SAMPLE_SIZE, SAMPLE_ARGS
 # The fitted head's RMS distance to the true one over the skin (after similarity
@@ -146,6 +146,36 @@ def test_a_lens_sample_is_photographed_by_pinholes_of_its_lens(lens_sample, mode
         assert px.min() >= 0 and (px <= SIZE).all()
 
 
+def test_a_sample_with_an_expression_shows_it_and_keeps_the_neutral_head_as_truth(
+        open_mouth_sample, sample, model):
+    folder, t = open_mouth_sample
+    weights = json.loads(str(t["expression"]))
+    assert weights == EXPRESSIONS["jaw_open"] == {"jawOpen": 0.2}
+    local = model.identity.instance(t["identity_coeffs"])
+    np.testing.assert_allclose(t["local_vertices"], local, atol=1e-9)  # what a fit should find
+    shown = local + 0.2 * model.expressions[model.expression_names.index("jawOpen")]
+    np.testing.assert_allclose(t["world_vertices"], shown @ t["rotation"].T + t["translation"],
+                               atol=1e-12)
+    # the points are the open mouth's: the chin lower and the lips apart, in both photos
+    case = load_landmarks(folder / "sample.json", known_names=model)
+    cams = {k: camera_from_dict(d) for k, d in json.loads(str(t["cameras"])).items()}
+    neutral = local @ t["rotation"].T + t["translation"]
+    for name, v in case.views.items():
+        names, vertices, _ = v.arrays(model)
+        np.testing.assert_allclose(cams[name].project(t["world_vertices"][vertices]),
+                                   t[f"exact_{name}"], atol=0.05)
+        drop = t[f"exact_{name}"][:, 1] - cams[name].project(neutral[vertices])[:, 1]
+        assert drop[names.index("chin_bottom")] > 3.0
+        assert abs(drop[names.index("nose_tip")]) < 0.2
+    def lips_apart(points, truth):  # the inner lips' gap on the front photo's midline, px
+        px = dict(zip(points.views["front"].arrays(model)[0], truth["exact_front"],
+                      strict=True))
+        return px["lip_lower_inner_middle"][1] - px["mouth_middle"][1]
+
+    plain = load_landmarks(sample[0] / "sample.json", known_names=model)
+    assert lips_apart(case, t) > lips_apart(plain, sample[1]) + 3.0
+
+
 def test_side_contour_traces_the_head_outline(sample, model):
     folder, t = sample
     case = load_landmarks(folder / "sample.json", known_names=model)
@@ -221,6 +251,8 @@ def test_make_sample_rejects_bad_settings(tmp_path, model):
         make_sample(tmp_path / "s", side_deg=30.0, model=model)
     with pytest.raises(ValueError, match="skin_tone: one of light, medium, dark"):
         make_sample(tmp_path / "s", skin_tone="olive", model=model)
+    with pytest.raises(ValueError, match="expression: one of smile, eyes_closed, jaw_open"):
+        make_sample(tmp_path / "s", expression="grin", model=model)
     assert not (tmp_path / "s").exists()
 
 
