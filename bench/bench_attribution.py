@@ -6,10 +6,12 @@ true silhouette (the nearest point of the head's render alpha at 0.5: the outlin
 extent and order as detected, its error taken out), and with both.
 
     python -m bench.bench_attribution [--heads DIR ...] [--render SEED ...] [--skin TONE]
-                                      [--copies N]
+                                      [--expression NAME] [--copies N]
 
 Heads: as ``bench.bench_photo_variants`` (the sample and ``generated/bench_heads/seed<N>``,
-rendered when missing). Scores: skin RMS against the true head after a similarity
+rendered when missing; ``--skin`` and ``--expression`` as ``bench.rendered_heads`` takes
+them: with an expression the photos show it and the head is scored against the neutral
+one). Scores: skin RMS against the true head after a similarity
 (``solver.synthetic.skin_error_mm``), mm; a head whose photos are not detected as a front
 and a profile is said and left out. A photos-only fit lands in one of several nearby
 minima, and which one moves with a tenth of a pixel: ``--copies N`` fits each case and
