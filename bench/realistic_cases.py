@@ -321,14 +321,6 @@ def out_of_model_displacement(model, local, rng, rms_m, n_bumps=6, radius=(0.012
     return d * (rms_m / np.sqrt((d[face] ** 2).sum(axis=1).mean()))
 
 
-def expression_offsets(model, weights):
-    """Offsets (V, 3) of an expression given as {expression key: weight}."""
-    out = np.zeros((model.n_vertices, 3))
-    for name, w in weights.items():
-        out += w * model.expressions[model.expression_names.index(name)]
-    return out
-
-
 # ---------------------------------------------------------------- landmarks as people give them
 
 
@@ -523,7 +515,7 @@ def make_realistic_case(model, seed, expression=None, displacement_mm=(1.5, 3.0)
     weights = {}
     if expression is not None:
         weights = {k: float(rng.uniform(*r)) for k, r in EXPRESSIONS[expression].items()}
-    shown = local + expression_offsets(model, weights)
+    shown = local + model.expression_offsets(weights)
     rot = random_rotation(rng, rotation_deg)
     world = float(rng.uniform(0.95, 1.05)) * shown @ rot.T + rng.uniform(-0.01, 0.01, size=3)
     drawn = Placement.draw(rng)  # drawn either way, so the rest of the case stays the same

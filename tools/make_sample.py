@@ -849,8 +849,7 @@ def _make_into(folder, model, seed, size, samples, params, log, lens_mm=None, ya
 
     coeffs, local, rotation, translation = sample_head(model, seed, yaw_deg)
     weights = EXPRESSIONS.get(expression, {})
-    shown = local + sum((w * model.expressions[model.expression_names.index(n)]
-                         for n, w in weights.items()), np.zeros_like(local))
+    shown = local + model.expression_offsets(weights)
     world = shown @ rotation.T + translation
     torso = torso_mesh(shown, model.skin, neck_cut_vertices(model))
     rim = torso[4] @ rotation.T + translation  # the collar's top edge, world

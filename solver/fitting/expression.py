@@ -183,7 +183,6 @@ def neutral_case(model, case, result, expressions):
     views unchanged."""
     expr = model.expressions
     lms = model.landmark_set
-    world = result.world_vertices
     views = dict(case.views)
     for name, e in expressions.items():
         e = np.where(e >= FAINT, e, 0.0)
@@ -192,8 +191,7 @@ def neutral_case(model, case, result, expressions):
         view = case.views[name]
         camera = result.cameras[name]
         keys, _, verts = _known(lms, view)
-        offset = result.scale * np.tensordot(e, expr[:, verts], axes=1) @ result.rotation.T
-        shift = camera.project(world[verts] + offset) - camera.project(world[verts])
+        shift = _pixel_shift(result, camera, verts, e, expr)
         points = dict(view.points)
         for k, d in zip(keys, shift, strict=True):
             points[k] = tuple(np.asarray(view.points[k], dtype=np.float64) - d)
@@ -212,13 +210,18 @@ def _neutral_contour(contour, result, name, weights, expr):
     if contour is None or pairs is None or not len(pairs["vertices"]):
         return contour
     verts = np.asarray(pairs["vertices"], dtype=np.int64)
-    world = result.world_vertices[verts]
-    offset = result.scale * np.tensordot(weights, expr[:, verts], axes=1) \
-        @ result.rotation.T
-    camera = result.cameras[name]
-    moved = camera.project(world + offset) - camera.project(world)
+    moved = _pixel_shift(result, result.cameras[name], verts, weights, expr)
     nearest = cKDTree(np.asarray(pairs["pixels"], dtype=np.float64)).query(contour)[1]
     return contour - moved[nearest]
+
+
+def _pixel_shift(result, camera, verts, weights, expr):
+    """Where the expression ``weights`` (E,) of the shapes ``expr`` (E, V, 3) moves the
+    vertices ``verts`` (n,) of the fit ``result``'s head in ``camera``'s photo: (n, 2)
+    pixels."""
+    world = result.world_vertices[verts]
+    offset = result.scale * np.tensordot(weights, expr[:, verts], axes=1) @ result.rotation.T
+    return camera.project(world + offset) - camera.project(world)
 
 
 def expressions_moved(old, new, tolerance=SHOWN):

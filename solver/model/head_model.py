@@ -194,6 +194,14 @@ class HeadModel:
         expr[moved] = self._expression_q * scale[:, None]
         return expr
 
+    def expression_offsets(self, weights):
+        """Offsets (V, 3), metres, of the expressions ``weights`` ({name in
+        ``expression_names``: weight}) together."""
+        out = np.zeros((self.n_vertices, 3))
+        for name, w in weights.items():
+            out += w * self.expressions[self.expression_names.index(name)]
+        return out
+
     def triangles(self):
         """Fan triangulation of the polygons.
 

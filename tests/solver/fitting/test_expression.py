@@ -17,9 +17,7 @@ def _with_expression(model, case, truth, weights, noise_px=1.0, seed=0, outline=
     same kind of noise; with ``outline`` the profile's outline traced again from that head
     (``make_case``'s 100 points, the same noise)."""
     rng = np.random.default_rng(seed)
-    local = truth.local_vertices.copy()
-    for name, w in weights.items():
-        local += w * model.expressions[model.expression_names.index(name)]
+    local = truth.local_vertices + model.expression_offsets(weights)
     world = truth.scale * local @ truth.rotation.T + truth.translation
     views = {}
     for name, view in case.views.items():

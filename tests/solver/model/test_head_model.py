@@ -555,3 +555,13 @@ def test_the_skin_triangles_are_the_skin_s_and_kept_with_the_model(model):
     all_tris = model.triangles()[0]
     assert len(tris) == int(skin[all_tris].all(axis=1).sum())
     assert model.skin_triangles() is tris and not tris.flags.writeable
+
+
+def test_expression_offsets_add_the_named_expressions_at_their_weights(model):
+    names = model.expression_names
+    jaw, blink = names.index("jawOpen"), names.index("eyeBlink_L")
+    np.testing.assert_allclose(
+        model.expression_offsets({"jawOpen": 0.5, "eyeBlink_L": 1.0}),
+        0.5 * model.expressions[jaw] + model.expressions[blink])
+    assert not model.expression_offsets({}).any()
+    assert model.expression_offsets({}).shape == (model.n_vertices, 3)
