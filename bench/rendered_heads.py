@@ -4,7 +4,8 @@
 exact landmarks) and ``truth.npz`` (the true head), rendered by ``tools.make_sample`` when
 missing; with ``--skin`` of another complexion (``tools.make_sample.SKIN_TONES``) or
 ``--expression`` (``tools.make_sample.EXPRESSIONS``: the face in the photos shows it, the
-truth is the neutral head), the sample's seed and the others rendered so."""
+truth is the neutral head) or ``--pitch`` (the head nodded in both photos), the sample's
+seed and the others rendered so."""
 
 import subprocess
 import sys
@@ -15,13 +16,15 @@ from tools.make_sample import DEFAULT_SEED, EXPRESSIONS, SKIN_TONES
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def render_head(seed, folder, skin_tone="light", expression=None):
+def render_head(seed, folder, skin_tone="light", expression=None, pitch=0.0):
     """Render a model head's sample photos (its skin ``skin_tone``, its face showing
-    ``expression`` or neutral) into ``folder`` unless they are there."""
+    ``expression`` or neutral, nodded ``pitch`` degrees) into ``folder`` unless they are
+    there."""
     if (folder / "truth.npz").is_file():
         return
     print(f"rendering seed {seed} into {folder} ...", flush=True)
-    more = [] if expression is None else ["--expression", expression]
+    more = ([] if expression is None else ["--expression", expression]) + \
+        ([] if not pitch else ["--pitch", f"{pitch:g}"])
     subprocess.run([sys.executable, "-m", "tools.make_sample", "--seed", str(seed),
                     "--out", str(folder), "--skin", skin_tone, *more], cwd=ROOT, check=True,
                    stdout=subprocess.DEVNULL)
@@ -51,20 +54,25 @@ def add_head_options(parser, render=None):
                              "neutral; else the sample's seed too, rendered into "
                              "generated/bench_heads/seed<N>[_<tone>]_<expression>); the "
                              "truth stays the neutral head")
+    parser.add_argument("--pitch", type=float, default=0.0, metavar="DEG",
+                        help="the heads nodded by this much in both photos (positive: the "
+                             "face down; default 0; else the sample's seed too, rendered "
+                             "into generated/bench_heads/seed<N>[_<tone>][_<expression>]"
+                             "_pitch<DEG>)")
 
 
 def chosen_folders(args):
     """The folders of the options :func:`add_head_options` added (parsed ``args``)."""
-    return head_folders(args.heads, args.render, args.skin, args.expression)
+    return head_folders(args.heads, args.render, args.skin, args.expression, args.pitch)
 
 
-def head_folders(heads, seeds, skin_tone="light", expression=None):
+def head_folders(heads, seeds, skin_tone="light", expression=None, pitch=0.0):
     """The rendered head folders a benchmark runs on: ``heads`` (paths) if given, else the
     sample; then ``generated/bench_heads/seed<N>`` for each of ``seeds``, rendered first
-    when missing. Of another ``skin_tone`` (``--skin``) or with an ``expression`` the
-    sample's seed comes first instead of the sample, and each folder is
-    ``seed<N>[_<skin_tone>][_<expression>]``."""
-    plain = skin_tone == "light" and expression is None
+    when missing. Of another ``skin_tone`` (``--skin``), with an ``expression`` or nodded
+    (``pitch`` degrees) the sample's seed comes first instead of the sample, and each
+    folder is ``seed<N>[_<skin_tone>][_<expression>][_pitch<pitch>]``."""
+    plain = skin_tone == "light" and expression is None and not pitch
     if heads is not None:
         folders = [Path(h) for h in heads]
     elif plain:
@@ -72,9 +80,10 @@ def head_folders(heads, seeds, skin_tone="light", expression=None):
     else:
         folders, seeds = [], [DEFAULT_SEED, *seeds]
     suffix = "".join(f"_{part}" for part in (None if skin_tone == "light" else skin_tone,
-                                             expression) if part is not None)
+                                             expression, f"pitch{pitch:g}" if pitch else None)
+                     if part is not None)
     for seed in seeds:
         folder = ROOT / "generated" / "bench_heads" / f"seed{seed}{suffix}"
-        render_head(seed, folder, skin_tone, expression)
+        render_head(seed, folder, skin_tone, expression, pitch)
         folders.append(folder)
     return folders

@@ -3,14 +3,16 @@ landmarks file and the ground truth.
 
     python -m tools.make_sample [--out generated/sample] [--seed N] [--size WxH]
                                 [--samples N] [--force] [--lens MM] [--yaw DEG]
-                                [--side-deg DEG] [--skin TONE] [--expression NAME]
+                                [--pitch DEG] [--side-deg DEG] [--skin TONE]
+                                [--expression NAME]
 
 A head is sampled from the identity model (seeded), turned a few degrees like a person who
 does not sit perfectly straight, and rendered with Cycles (CPU) through orthographic
 cameras from the front and from the subject's right: ``front.png`` and ``side.png``
 (with ``--lens``, pinhole cameras of that lens as close as it frames the head alike:
 ``front.jpg`` and ``side.jpg`` with the lens in their EXIF, as a camera writes them;
-with ``--yaw``, the head turned further: three-quarter photos; with ``--side-deg``, the
+with ``--yaw``, the head turned further: three-quarter photos; with ``--pitch``, the head
+nodded (the face tipped down, or up when negative) in both photos; with ``--side-deg``, the
 side photo taken that many degrees from the front camera's direction, short of a profile;
 with ``--expression``, the face in both photos showing one of ``EXPRESSIONS``, the truth
 still the neutral head a fit should find).
@@ -97,10 +99,11 @@ def rotation_from_euler(yaw, pitch, roll):
     return rz @ rx @ ry
 
 
-def sample_head(model, seed, yaw_deg=0.0):
+def sample_head(model, seed, yaw_deg=0.0, pitch_deg=0.0):
     """A seeded identity and pose; ``yaw_deg`` turns the head further about the vertical
     (toward the subject's right camera when negative: the front photo then shows a
-    three-quarter view, the side photo one nearer the front).
+    three-quarter view, the side photo one nearer the front), ``pitch_deg`` nods it about
+    the left-right axis (positive: the face tipped down, the chin toward the chest).
 
     Returns
     -------
@@ -115,8 +118,8 @@ def sample_head(model, seed, yaw_deg=0.0):
     local = model.identity.instance(coeffs)
     yaw, pitch, roll = rng.uniform(-MAX_TILT_DEG, MAX_TILT_DEG, 3)
     rotation = rotation_from_euler(yaw, pitch, roll)
-    if yaw_deg:
-        rotation = rotation_from_euler(float(yaw_deg), 0.0, 0.0) @ rotation
+    if yaw_deg or pitch_deg:
+        rotation = rotation_from_euler(float(yaw_deg), float(pitch_deg), 0.0) @ rotation
     translation = rng.uniform(-0.01, 0.01, 3)
     return coeffs, local, rotation, translation
 
@@ -722,7 +725,7 @@ def draw_overlay(photo, points, contour=None):
 
 
 def _params(model, seed, size, samples, lens_mm=None, yaw_deg=0.0, side_deg=90.0,
-            skin_tone="light", expression=None):
+            skin_tone="light", expression=None, pitch_deg=0.0):
     params = {"version": SAMPLE_VERSION, "seed": int(seed),
               "size": [int(size[0]), int(size[1])], "samples": int(samples),
               "model": getattr(model, "build_hash", "")}
@@ -730,6 +733,8 @@ def _params(model, seed, size, samples, lens_mm=None, yaw_deg=0.0, side_deg=90.0
         params["lens_mm"] = float(lens_mm)
     if yaw_deg:
         params["yaw_deg"] = float(yaw_deg)
+    if pitch_deg:
+        params["pitch_deg"] = float(pitch_deg)
     if float(side_deg) != 90.0:
         params["side_deg"] = float(side_deg)
     if skin_tone != "light":
@@ -761,7 +766,7 @@ def is_up_to_date(out, params):
 
 def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=DEFAULT_SAMPLES,
                 force=False, model=None, log=print, lens_mm=None, yaw_deg=0.0, side_deg=90.0,
-                skin_tone="light", expression=None):
+                skin_tone="light", expression=None, pitch_deg=0.0):
     """Make the sample case in ``out`` unless it is up to date.
 
     Parameters
@@ -786,6 +791,9 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
         whose cameras the fit calibrates from it (``{"kind": "pinhole", "lens_mm": ...}``).
     yaw_deg : float
         The head turned by this much more (``sample_head``): three-quarter photos.
+    pitch_deg : float
+        The head nodded by this much more (``sample_head``; positive: the face down), in
+        both photos: a sitter who looks a little down or up.
     side_deg : float
         The side camera's direction, degrees from the front camera's (``frame_cameras``):
         under 90, a side photo short of a profile; its view's camera in ``sample.json``
@@ -813,6 +821,8 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
         raise ValueError(f"lens_mm: a lens of 5-1000 mm, got {lens_mm}")
     if not -90.0 < float(yaw_deg) < 90.0:
         raise ValueError(f"yaw_deg: a turn of under 90 degrees either way, got {yaw_deg}")
+    if not -30.0 <= float(pitch_deg) <= 30.0:
+        raise ValueError(f"pitch_deg: a nod of at most 30 degrees either way, got {pitch_deg}")
     if not 45.0 <= float(side_deg) <= 90.0:
         raise ValueError(f"side_deg: a side camera 45-90 degrees from the front, got {side_deg}")
     if skin_tone not in SKIN_TONES:
@@ -820,7 +830,7 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
     if expression is not None and expression not in EXPRESSIONS:
         raise ValueError(f"expression: one of {', '.join(EXPRESSIONS)}, got {expression!r}")
     params = _params(model, seed, size, samples, lens_mm, yaw_deg, side_deg, skin_tone,
-                     expression)
+                     expression, pitch_deg)
     if not force and is_up_to_date(out, params):
         log(f"sample up to date: {out}")
         return out / "sample.json"
@@ -831,7 +841,7 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
     tmp.mkdir()
     try:
         _make_into(tmp, model, seed, size, samples, params, log, lens_mm, yaw_deg, side_deg,
-                   skin_tone, expression)
+                   skin_tone, expression, pitch_deg)
         old = out.parent / f".{out.name}.old-{os.getpid()}"
         if out.exists():
             out.rename(old)
@@ -844,10 +854,10 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
 
 
 def _make_into(folder, model, seed, size, samples, params, log, lens_mm=None, yaw_deg=0.0,
-               side_deg=90.0, skin_tone="light", expression=None):
+               side_deg=90.0, skin_tone="light", expression=None, pitch_deg=0.0):
     from tools import render_util as ru
 
-    coeffs, local, rotation, translation = sample_head(model, seed, yaw_deg)
+    coeffs, local, rotation, translation = sample_head(model, seed, yaw_deg, pitch_deg)
     weights = EXPRESSIONS.get(expression, {})
     shown = local + model.expression_offsets(weights)
     world = shown @ rotation.T + translation
@@ -953,6 +963,9 @@ def main(argv=None):
     parser.add_argument("--yaw", type=float, default=0.0, metavar="DEG",
                         help="the head turned by this much more (negative: toward the side "
                              "camera), for three-quarter photos (default 0)")
+    parser.add_argument("--pitch", type=float, default=0.0, metavar="DEG",
+                        help="the head nodded by this much more in both photos (positive: "
+                             "the face down; default 0)")
     parser.add_argument("--side-deg", type=float, default=90.0, metavar="DEG",
                         help="the side camera this many degrees from the front camera "
                              "(default 90: an exact profile)")
@@ -965,7 +978,7 @@ def main(argv=None):
     try:
         make_sample(args.out, args.seed, args.size, args.samples, args.force,
                     lens_mm=args.lens, yaw_deg=args.yaw, side_deg=args.side_deg,
-                    skin_tone=args.skin, expression=args.expression)
+                    skin_tone=args.skin, expression=args.expression, pitch_deg=args.pitch)
     except (FileNotFoundError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -17,7 +17,7 @@ def test_the_head_options_default_to_the_sample_and_the_ten_heads():
     add_head_options(parser)
     args = parser.parse_args([])
     assert args.heads is None and args.render == TEN_HEADS == [101, *range(201, 209)]
-    assert args.skin == "light" and args.expression is None
+    assert args.skin == "light" and args.expression is None and args.pitch == 0.0
     args = parser.parse_args(["--heads", "a", "b", "--render"])
     assert args.heads == ["a", "b"] and args.render == []
     parser = argparse.ArgumentParser()
@@ -34,13 +34,18 @@ def test_heads_of_another_skin_tone_are_the_sample_s_seed_and_the_others_in_thei
     heads = ROOT / "generated" / "bench_heads"
     assert head_folders(None, [101]) == [ROOT / "generated" / "sample", heads / "seed101"]
     assert head_folders(None, [101], "dark") == [heads / "seed7_dark", heads / "seed101_dark"]
-    assert made[-2:] == [(7, heads / "seed7_dark", "dark", None),
-                         (101, heads / "seed101_dark", "dark", None)]
+    assert made[-2:] == [(7, heads / "seed7_dark", "dark", None, 0.0),
+                         (101, heads / "seed101_dark", "dark", None, 0.0)]
     # a face with an expression: the sample's seed rendered so too, the tone before it
     assert head_folders(None, [101], "light", "smile") == [heads / "seed7_smile",
                                                            heads / "seed101_smile"]
-    assert made[-1] == (101, heads / "seed101_smile", "light", "smile")
+    assert made[-1] == (101, heads / "seed101_smile", "light", "smile", 0.0)
     assert head_folders(None, [], "dark", "jaw_open") == [heads / "seed7_dark_jaw_open"]
+    # a nodded head: its pitch last in the folder's name, up (negative) told from down
+    assert head_folders(None, [101], "light", None, -10.0) == [heads / "seed7_pitch-10",
+                                                               heads / "seed101_pitch-10"]
+    assert made[-1] == (101, heads / "seed101_pitch-10", "light", None, -10.0)
+    assert head_folders(None, [], "dark", "smile", 7.5) == [heads / "seed7_dark_smile_pitch7.5"]
     # folders given are taken as they are, before the seeds'
     assert head_folders(["x"], [], "dark") == [rendered.Path("x")]
 
@@ -54,3 +59,5 @@ def test_the_chosen_folders_are_those_the_options_name(monkeypatch):
     args = parser.parse_args(["--render", "101", "--expression", "eyes_closed"])
     heads = ROOT / "generated" / "bench_heads"
     assert chosen_folders(args) == [heads / "seed7_eyes_closed", heads / "seed101_eyes_closed"]
+    args = parser.parse_args(["--render", "101", "--pitch", "12"])
+    assert chosen_folders(args) == [heads / "seed7_pitch12", heads / "seed101_pitch12"]

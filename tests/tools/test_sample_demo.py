@@ -247,6 +247,8 @@ def test_make_sample_rejects_bad_settings(tmp_path, model):
         make_sample(tmp_path / "s", lens_mm=2.0, model=model)
     with pytest.raises(ValueError, match="yaw_deg"):
         make_sample(tmp_path / "s", yaw_deg=90.0, model=model)
+    with pytest.raises(ValueError, match="pitch_deg"):
+        make_sample(tmp_path / "s", pitch_deg=-35.0, model=model)
     with pytest.raises(ValueError, match="side_deg"):
         make_sample(tmp_path / "s", side_deg=30.0, model=model)
     with pytest.raises(ValueError, match="skin_tone: one of light, medium, dark"):
@@ -293,3 +295,18 @@ def test_sample_head_turned_by_the_yaw_given(model):
                                   forward[:2] @ forward_t[:2]))
     assert abs(abs(angle) - 45.0) < 1e-6
     assert forward_t[0] < forward[0]  # toward -X: the subject's right
+
+
+def test_sample_head_nodded_by_the_pitch_given(model):
+    """``pitch_deg`` nods the seeded head about the left-right axis on top of its own small
+    turn (positive: the face down), the identity and the head's place unchanged."""
+    _, local, rotation, translation = sample_head(model, 5)
+    for pitch in (12.0, -12.0):
+        _, local_n, nodded, translation_n = sample_head(model, 5, pitch_deg=pitch)
+        np.testing.assert_array_equal(local_n, local)
+        np.testing.assert_array_equal(translation_n, translation)
+        forward = rotation @ [0.0, -1.0, 0.0]  # the face looks toward -Y
+        forward_n = nodded @ [0.0, -1.0, 0.0]
+        # the face's direction leaves the level by the pitch, down for a positive one
+        down = np.degrees(np.arcsin(forward[2]) - np.arcsin(forward_n[2]))
+        assert down == pytest.approx(pitch, abs=0.5)
