@@ -18,10 +18,13 @@ the gains and offsets (``fit_view_gains``, printed too) and with the levelling a
 (each seen by one profile pass only); how much low-frequency light the shading
 removal takes out (the spread of the smoothed luminance over the skin); and the clothes
 the bake leaves out (``clothes.py``: the shirt against the truth's masks, the skin, and
-the texels bluer than red with the clothes kept and left out). On james' two real photos
-(``../shared/realdata/james``, skipped when missing), detected and fitted as ``solver
-detect`` makes the case, the texels of his white collar's colour (light, red not above
-green or blue: never skin, nor his dark hair) with the clothes kept and left out.
+the texels bluer than red with the clothes kept and left out); and how far apart the two
+UV tiles meet at the vertices they share (``seams.tile_seam_difference``). On james' two
+real photos (``../shared/realdata/james``, skipped when missing), detected and fitted as
+``solver detect`` makes the case, the texels of his white collar's colour (light, red not
+above green or blue: never skin, nor his dark hair) with the clothes kept and left out,
+and the tiles' meeting too (a three-quarter photo sees the neck behind the jaw, where the
+face's tile meets the back of the head's).
 """
 
 import argparse
@@ -49,6 +52,7 @@ from solver.texture.bake import (
 )
 from solver.texture.clothes import clothes_mask
 from solver.texture.equalise import apply_gains, seam_difference
+from solver.texture.seams import tile_seam_difference
 from solver.texture.shading import LUMA, smooth_on_mesh, srgb_to_linear
 from solver.texture.uvs import clear_raster_cache, uv_raster, uv_tiles
 
@@ -179,6 +183,16 @@ def sample_seams(model, folder, size):
               f"luminance smoothed over {100 * length:.1f} cm) "
               f"{100 * light_spread(model, result, tiles, length):.1f} %")
     sample_clothes(model, folder, case, result, photos, size)
+    print(f"    {tile_seam(model, tiles, size)}")
+
+
+def tile_seam(model, tiles, size):
+    """A line: how far apart the UV ``tiles`` (tile -> texture) meet at their shared
+    vertices (``seams.tile_seam_difference``), median and largest share, of full scale."""
+    d = tile_seam_difference({t: uv_raster(model, size, tile=t) for t in tiles}, tiles)
+    return (f"tiles meet at {len(d)} shared vertices: colour difference median "
+            f"{np.median(d):.3f}, 90 % {np.percentile(d, 90):.3f}, max {d.max():.3f} of "
+            "full scale")
 
 
 def sample_clothes(model, folder, case, result, photos, size):
@@ -212,10 +226,11 @@ def sample_clothes(model, folder, case, result, photos, size):
         print(f"    clothes {mode}: {cold} texels bluer than red")
 
 
-def james_clothes(model, size):
+def james_texture(model, size):
     """The texels of james' white collar's colour (mean over 0.4, red not above green or
     blue) in the bake from his two real photos (detected, fitted), with the clothes kept
-    and left out; nothing when the scan is missing."""
+    and left out, and how far apart the tiles meet (:func:`tile_seam`); nothing when the
+    scan is missing."""
     from bench.realistic_cases import james_folder, scan_photo_halves
     from solver.detect import Detector
     from solver.detect.detected_case import detect_photos
@@ -234,6 +249,7 @@ def james_clothes(model, size):
         collar = sum(int(((t[..., 0] <= np.maximum(t[..., 1], t[..., 2]))
                           & (t[..., :3].mean(-1) > 0.4)).sum()) for t in tiles.values())
         print(f"    james, clothes {mode}: {collar} texels of the white collar's colour")
+    print(f"    james, {tile_seam(model, tiles, size)}")
 
 
 def main(argv=None):
@@ -251,7 +267,7 @@ def main(argv=None):
     if args.seams_only:
         print("bench_texture: seams of the texture bake")
         sample_seams(model, args.sample, args.size)
-        james_clothes(model, args.size)
+        james_texture(model, args.size)
         return
     views = photos()
     world = model.vertices
@@ -301,7 +317,7 @@ def main(argv=None):
           f"{peak_cold / 2**20:.0f} MiB; process max RSS {max_rss_mb():.0f} MiB "
           "(model included)")
     sample_seams(model, args.sample, args.size)
-    james_clothes(model, args.size)
+    james_texture(model, args.size)
 
 
 if __name__ == "__main__":

@@ -46,7 +46,16 @@ from .levelling import level_field
 from .raster import depth_buffer
 from .seams import edge_graph, seam_fade
 from .shading import mesh_operators, remove_shading, shading_factor
-from .uvs import BLEED, SKIN_PARTS, UVRaster, resolve_parts, selected_triangles, uv_raster, uv_tiles
+from .uvs import (
+    BLEED,
+    SKIN_PARTS,
+    UVRaster,
+    mesh_laplacian,
+    resolve_parts,
+    selected_triangles,
+    uv_raster,
+    uv_tiles,
+)
 
 #: Longest photo side the bake samples, per texel of the texture's height: a photo larger
 #: than this is reduced before the bake (``bake_photo_size``). The skin's face tile spans
@@ -744,10 +753,13 @@ def _bake(model, world_vertices, views, rasters, parts, occluders, similarity, m
     samples = _samples(ctx, rasters)
     ctx = replace(ctx, samplers=())  # the photos and their depth buffers: sampled, let go
     colours = equalised_colours(samples, ctx.world, ctx.opts, ctx.head_size, in_place=True)
-    blended = dict(zip(samples, _map(lambda sc: _blend(*sc, ctx.opts),
-                                     [(s, colours[t]) for t, s in samples.items()],
-                                     ctx.opts.threads), strict=True))
+    sums = dict(zip(samples, _map(lambda sc: _weighted(*sc),
+                                  [(s, colours[t]) for t, s in samples.items()],
+                                  ctx.opts.threads), strict=True))
     del samples, colours  # every pass of every texel: free them before the textures
+    fill = _smooth_fill(model, rasters, sums, ctx.opts.fill_weight)
+    blended = {r.tile: _blend(r, *sums[r.tile], fill, ctx.opts) for r in rasters}
+    del sums
     if ctx.opts.shading == "remove":
         _remove_shading(blended, rasters, ctx)
     out = {}
@@ -934,19 +946,22 @@ def equalised_colours(samples, world, options=None, head_size=None, in_place=Fal
     return out
 
 
-def _blend(samples, colours, opts):
-    """The texels' colours (N, 3): the passes' (equalised) ``colours`` (P, N, 3) blended,
-    the smooth fill where they see little."""
-    raster = samples.raster
+def _weighted(samples, colours):
+    """A tile's passes' (equalised) ``colours`` (P, N, 3) summed by their weights: (the
+    weighted sums (N, 3), the weights' sums (N,))."""
     w = samples.weights
-    acc = np.einsum("pn,pnc->nc", w, colours)
-    wsum = w.sum(axis=0)
+    return np.einsum("pn,pnc->nc", w, colours), w.sum(axis=0)
+
+
+def _blend(raster, acc, wsum, fill, opts):
+    """The tile's texels' colours (N, 3) from their weighted sums ``acc`` (N, 3) and
+    ``wsum`` (N,), the smooth ``fill`` (V, 3, vertex colours) where the photos see little."""
     if not len(raster.texel):
         return acc
-    fill = _smooth_fill(raster, acc, wsum, opts.fill_weight)
+    filled = (raster.interp @ fill).astype(np.float32)
     short = np.maximum(opts.fill_weight - wsum, 0.0)
-    _by_row(fill, short)  # in place, as below: a tile's colours are large
-    acc += fill
+    _by_row(filled, short)  # in place, as below: a tile's colours are large
+    acc += filled
     _by_row(acc, wsum + short, np.divide)
     return np.clip(acc, 0.0, 1.0, out=acc)
 
@@ -969,21 +984,27 @@ def _remove_shading(blended, rasters, ctx):
         blended[r.tile] = remove_shading(blended[r.tile], r.interp @ factor).astype(np.float32)
 
 
-def _smooth_fill(raster, acc, wsum, fill_weight):
-    """Colour (N, 3) at each texel from vertex colours filled harmonically over the mesh.
+def _smooth_fill(model, rasters, sums, fill_weight):
+    """Colour (V, 3) at each vertex, filled harmonically over the mesh of every tile.
 
     Vertices whose surroundings the photos see well enough keep their seen (averaged)
     colour; the others solve the graph Laplace equation, so a hole gets the smoothest
-    blend of its rim, consistently across UV seams, and never leaves the rim's range.
+    blend of its rim, consistently across UV seams and UV tiles (a hole in one tile takes
+    the colours another tile sees at their shared vertices), and never leaves the rim's
+    range. ``sums``: tile -> (weighted colour sums (N, 3), weight sums (N,)) of its texels.
     """
-    verts = raster.vertices
-    interp_t = raster.gather  # (V, N)
-    cover = raster.cover
-    seen = (interp_t @ wsum)[verts].astype(np.float64)
-    colsum = (interp_t @ acc)[verts].astype(np.float64)
+    n = len(model.vertices)
+    seen, colsum, cover = np.zeros(n), np.zeros((n, 3)), np.zeros(n)
+    for r in rasters:
+        acc, wsum = sums[r.tile]
+        if len(r.texel):
+            seen += r.gather @ wsum.astype(np.float64)
+            colsum += r.gather @ acc.astype(np.float64)
+            cover[r.vertices] += r.cover
+    verts, lap = mesh_laplacian(model, rasters)
+    seen, colsum, cover = seen[verts], colsum[verts], cover[verts]
     known = (cover > 0) & (seen >= fill_weight * cover) & (seen > 0)
-    m = len(verts)
-    value = np.zeros((m, 3))
+    value = np.zeros((len(verts), 3))
     if known.any():
         value[known] = colsum[known] / seen[known, None]
         mean = value[known].mean(axis=0)
@@ -991,7 +1012,6 @@ def _smooth_fill(raster, acc, wsum, fill_weight):
         mean = np.full(3, 0.5)
     unknown = np.flatnonzero(~known)
     if len(unknown):
-        lap = raster.laplacian
         k = np.flatnonzero(known)
         # A tiny screening term pulls parts that touch no seen vertex to the mean colour
         # and keeps the system regular; it is far too weak to bend the fill elsewhere.
@@ -999,7 +1019,7 @@ def _smooth_fill(raster, acc, wsum, fill_weight):
         a = lap[unknown][:, unknown] + eps * sp.identity(len(unknown), format="csr")
         rhs = -(lap[unknown][:, k] @ value[k]) + eps * mean
         value[unknown] = spla.spsolve(a.tocsc(), rhs).reshape(len(unknown), 3)
-    full = np.zeros((raster.n_vertices, 3), np.float32)
+    full = np.zeros((n, 3), np.float32)
     full[verts] = value
-    return raster.interp @ full
+    return full
 

@@ -68,3 +68,38 @@ def seam_fade(unseen, graph, width):
     d = dijkstra(graph, directed=False, indices=sources, min_only=True, limit=width)
     t = np.clip(d / width, 0.0, 1.0)
     return t * t * (3.0 - 2.0 * t)
+
+
+def tile_seam_difference(rasters, textures):
+    """How far apart the textures of UV tiles meet: at each vertex two tiles share, the
+    distance between the colours they give it (each tile's texels averaged onto its
+    vertices by their interpolation weights), the largest over the pairs of tiles.
+
+    Parameters
+    ----------
+    rasters : dict of int -> UVRaster
+        Each tile's raster (``uvs.uv_raster``).
+    textures : dict of int -> ndarray, shape (size, size, 3)
+        Each tile's texture, the rasters' tiles.
+
+    Returns
+    -------
+    ndarray, shape (M,)
+        One distance per shared vertex, in the textures' units (empty for one tile).
+    """
+    colours, covered = [], []
+    for tile, r in rasters.items():
+        g = r.gather
+        w = np.asarray(g.sum(axis=1)).ravel()
+        c = g @ np.asarray(textures[tile], dtype=np.float64).reshape(-1, 3)[r.texel]
+        colours.append(c / np.maximum(w, 1e-30)[:, None])
+        covered.append(w > 0)
+    colours, covered = np.array(colours), np.array(covered)  # (T, V, 3), (T, V)
+    shared = covered.sum(axis=0) >= 2
+    out = np.zeros(shared.sum())
+    for a in range(len(colours)):
+        for b in range(a + 1, len(colours)):
+            both = (covered[a] & covered[b])[shared]
+            d = np.linalg.norm(colours[a, shared] - colours[b, shared], axis=1)
+            out = np.where(both, np.maximum(out, d), out)
+    return out

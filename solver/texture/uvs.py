@@ -372,6 +372,18 @@ def _build_raster(model, size, idx, names, tile, bleed):
                     lap, bleed_to, bleed_from)
 
 
+def mesh_laplacian(model, rasters):
+    """The vertices (M,) of the rasters' triangles and the cotangent Laplacian (M, M) over
+    them (mean shape): one tile's own (``UVRaster.laplacian``, kept with the raster), the
+    union's for several tiles, whose shared vertices join them."""
+    if len(rasters) == 1:
+        return rasters[0].vertices, rasters[0].laplacian
+    tris = np.concatenate([r.triangles for r in rasters])
+    verts = np.unique(tris)
+    return verts, cotan_laplacian(np.asarray(model.vertices, dtype=np.float64)[verts],
+                                  np.searchsorted(verts, tris))
+
+
 def cotan_laplacian(points, triangles):
     """Cotangent Laplacian (M, M) of a triangle mesh, weights clamped positive.
 

@@ -322,6 +322,34 @@ def test_tiles_and_parts():
         bake_tiles(m, m.vertices, [(coded_photo(), cam)], 64, parts=["Teeth"])
 
 
+def test_a_hole_in_one_tile_is_filled_from_what_another_tile_sees():
+    """The smooth fill is the mesh's, not a tile's: the sphere's unseen back half moved to
+    its own UV tile (sharing the sides' vertices with the seen front half) is filled as in
+    one tile, red on the subject's right and blue on the left, not the grey of a tile
+    filled from nothing of its own."""
+    one = uv_sphere()
+    split = uv_sphere()
+    back = np.repeat(split.loop_uv[split.face_loop_start, 0] < 0.5, split.face_loop_total)
+    split.loop_uv[back] += [1.0, 0.0]  # longitudes 0-180 degrees (+Y, the back): 1002
+    assert uv_tiles(split) == (1001, 1002)
+    cam = OrthographicCamera.nominal("orthographic-front", (W, H))
+    img = np.zeros((H, W, 3), np.float32)
+    img[:, : W // 2, 0] = 1.0  # image left = subject's right (-X): red
+    img[:, W // 2:, 2] = 1.0
+    whole = bake_texture(one, one.vertices, [(img, cam)], 128, mirror=False)
+    tiles = bake_tiles(split, split.vertices, [(img, cam)], 128, mirror=False)
+    for tile in (1001, 1002):
+        r = uv_raster(split, 128, tile=tile)
+        np.testing.assert_allclose(tiles[tile].reshape(-1, 3)[r.texel],
+                                   whole.reshape(-1, 3)[r.texel], atol=1e-4)
+    r = uv_raster(split, 128, tile=1002)
+    pts = r.interp @ split.vertices
+    got = tiles[1002].reshape(-1, 3)[r.texel]
+    sides = np.abs(pts[:, 2]) < 0.05
+    assert np.all(got[sides & (pts[:, 0] < -0.07)] @ [1, 0, -1] > 0.2)
+    assert np.all(got[sides & (pts[:, 0] > 0.07)] @ [1, 0, -1] < -0.2)
+
+
 def test_bad_input_names_the_culprit():
     m = uv_sphere()
     cam = OrthographicCamera.nominal("orthographic-front", (W, H))
