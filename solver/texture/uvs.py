@@ -375,13 +375,18 @@ def _build_raster(model, size, idx, names, tile, bleed):
 def mesh_laplacian(model, rasters):
     """The vertices (M,) of the rasters' triangles and the cotangent Laplacian (M, M) over
     them (mean shape): one tile's own (``UVRaster.laplacian``, kept with the raster), the
-    union's for several tiles, whose shared vertices join them."""
+    union's for several tiles, whose shared vertices join them (kept with the model)."""
     if len(rasters) == 1:
         return rasters[0].vertices, rasters[0].laplacian
-    tris = np.concatenate([r.triangles for r in rasters])
-    verts = np.unique(tris)
-    return verts, cotan_laplacian(np.asarray(model.vertices, dtype=np.float64)[verts],
-                                  np.searchsorted(verts, tris))
+
+    def build():
+        tris = np.concatenate([r.triangles for r in rasters])
+        verts = np.unique(tris)
+        return verts, cotan_laplacian(np.asarray(model.vertices, dtype=np.float64)[verts],
+                                      np.searchsorted(verts, tris))
+
+    key = ("mesh laplacian", tuple(sorted((r.tile, r.parts) for r in rasters)))
+    return _model_cached(model, key, build)
 
 
 def cotan_laplacian(points, triangles):
