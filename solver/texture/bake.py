@@ -958,7 +958,7 @@ def _blend(raster, acc, wsum, fill, opts):
     ``wsum`` (N,), the smooth ``fill`` (V, 3, vertex colours) where the photos see little."""
     if not len(raster.texel):
         return acc
-    filled = (raster.interp @ fill).astype(np.float32)
+    filled = raster.interp @ fill
     short = np.maximum(opts.fill_weight - wsum, 0.0)
     _by_row(filled, short)  # in place, as below: a tile's colours are large
     acc += filled
@@ -969,12 +969,7 @@ def _blend(raster, acc, wsum, fill, opts):
 def _remove_shading(blended, rasters, ctx):
     """Divide the low-frequency light out of the blended texels of every tile (in place),
     the light estimated on the surface across the tiles (``shading.shading_factor``)."""
-    n_vertices = len(ctx.world)
-    colour = np.zeros((n_vertices, 3))
-    cover = np.zeros(n_vertices)
-    for r in rasters:
-        colour += r.gather @ blended[r.tile]
-        cover[r.vertices] += r.cover
+    colour, cover = _on_vertices(rasters, blended)
     has = cover > 0
     colour[has] /= cover[has, None]
     tris = np.concatenate([r.triangles for r in rasters])
@@ -993,16 +988,10 @@ def _smooth_fill(model, rasters, sums, fill_weight):
     the colours another tile sees at their shared vertices), and never leaves the rim's
     range. ``sums``: tile -> (weighted colour sums (N, 3), weight sums (N,)) of its texels.
     """
-    n = len(model.vertices)
-    seen, colsum, cover = np.zeros(n), np.zeros((n, 3)), np.zeros(n)
-    for r in rasters:
-        acc, wsum = sums[r.tile]
-        if len(r.texel):
-            seen += r.gather @ wsum.astype(np.float64)
-            colsum += r.gather @ acc.astype(np.float64)
-            cover[r.vertices] += r.cover
+    on, cover = _on_vertices(rasters, {t: np.column_stack([acc, wsum])
+                                       for t, (acc, wsum) in sums.items()})
     verts, lap = mesh_laplacian(model, rasters)
-    seen, colsum, cover = seen[verts], colsum[verts], cover[verts]
+    colsum, seen, cover = on[verts, :3], on[verts, 3], cover[verts]
     known = (cover > 0) & (seen >= fill_weight * cover) & (seen > 0)
     value = np.zeros((len(verts), 3))
     if known.any():
@@ -1019,7 +1008,19 @@ def _smooth_fill(model, rasters, sums, fill_weight):
         a = lap[unknown][:, unknown] + eps * sp.identity(len(unknown), format="csr")
         rhs = -(lap[unknown][:, k] @ value[k]) + eps * mean
         value[unknown] = spla.spsolve(a.tocsc(), rhs).reshape(len(unknown), 3)
-    full = np.zeros((n, 3), np.float32)
+    full = np.zeros((len(model.vertices), 3), np.float32)
     full[verts] = value
     return full
+
+
+def _on_vertices(rasters, values):
+    """Per-tile texel values (tile -> (N, C)) summed onto the mesh's vertices across every
+    tile, (V, C) float64, and the vertices' cover summed likewise (V,): how a tile's
+    texels reach the vertices they share with another tile."""
+    n = rasters[0].n_vertices
+    total, cover = np.zeros((n, values[rasters[0].tile].shape[1])), np.zeros(n)
+    for r in rasters:
+        total += r.gather @ values[r.tile].astype(np.float64)
+        cover[r.vertices] += r.cover
+    return total, cover
 
