@@ -1015,12 +1015,13 @@ def _smooth_fill(model, rasters, sums, fill_weight):
 
 def _on_vertices(rasters, values):
     """Per-tile texel values (tile -> (N, C)) summed onto the mesh's vertices across every
-    tile, (V, C) float64, and the vertices' cover summed likewise (V,): how a tile's
-    texels reach the vertices they share with another tile."""
+    tile, (V, C) float64 (each tile's product in the texels' precision), and the vertices'
+    cover summed likewise (V,): how a tile's texels reach the vertices it shares with
+    another tile."""
     n = rasters[0].n_vertices
     total, cover = np.zeros((n, values[rasters[0].tile].shape[1])), np.zeros(n)
     for r in rasters:
-        total += r.gather @ values[r.tile].astype(np.float64)
+        total += r.gather @ values[r.tile]
         cover[r.vertices] += r.cover
     return total, cover
 
