@@ -848,20 +848,14 @@ def _map(fn, items, threads):
 def _fade_seams(samples, rasters, ctx):
     """Fade each pass's weights over ``seam_feather`` from the edge of what it sees on the
     surface (``seams.seam_fade``), keeping every texel's total weight."""
-    n_vertices = len(ctx.world)
     tris = np.concatenate([r.triangles for r in rasters])
     graph = edge_graph(ctx.world, tris)
-    cover = np.zeros(n_vertices)
-    for r in rasters:
-        cover[r.vertices] += r.cover
-    p = next(iter(samples.values())).weights.shape[0]
+    seen, cover = _on_vertices(rasters, {r.tile: (samples[r.tile].seen > 0).T.astype(np.float32)
+                                         for r in rasters})  # (V, P): every pass at once
     width = ctx.opts.seam_feather * ctx.head_size
     fades = []
-    for k in range(p):
-        seen = np.zeros(n_vertices)
-        for r in rasters:
-            seen += r.gather @ (samples[r.tile].seen[k] > 0).astype(np.float32)
-        unseen = (cover > 0) & (seen < 0.5 * cover)
+    for k in range(seen.shape[1]):
+        unseen = (cover > 0) & (seen[:, k] < 0.5 * cover)
         fades.append(seam_fade(unseen, graph, width).astype(np.float32))
     fade = np.stack(fades, axis=1)  # (V, P)
     for r in rasters:
