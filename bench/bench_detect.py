@@ -4,7 +4,7 @@ three-quarter, with the yaw), and detected vs true iBUG-68 landmarks in pixels (
 90th percentile, per group; also as % of the eye-to-mouth distance).
 
     python -m bench.bench_detect [--sample generated/sample] [--james FOLDER] [--fit]
-                                 [--uncertainty] [--profile-line] [--small-faces]
+                                 [--uncertainty] [--profile-line] [--small-faces] [--bias]
 
 Photos: the rendered sample's front photo (``./run sample``; truth: the exact landmark
 pixels in ``truth.npz``) and the two real photos of the scan "james" (its texture's
@@ -81,6 +81,49 @@ def james_truth(folder):
         numbers, px = scan_landmarks(scan, calibrate(scan, photo).camera)
         out.append((f"james {photo}", image, dict(zip(numbers, px, strict=True))))
     return out
+
+
+def face_frame_errors(detected, truth):
+    """Signed errors of ``detected`` (68, 2) px (row i - 1: iBUG point i) against
+    ``truth`` ({iBUG number: (u, v)}, at least both eyes and mouth corners) in the face's
+    frame, % of the eye-to-mouth distance: {number: (across, down)}, across along the
+    line from the subject's right eye's centre to the left eye's, down at right angles
+    to it (toward the mouth)."""
+    eyes = [np.mean([truth[i] for i in r if i in truth], axis=0)
+            for r in (range(37, 43), range(43, 49))]
+    across = (eyes[1] - eyes[0]) / np.linalg.norm(eyes[1] - eyes[0])
+    frame = np.array([across, [-across[1], across[0]]])  # rows: across, down
+    scale = eye_to_mouth(truth)
+    return {i: 100.0 * frame @ (np.asarray(detected[i - 1], float) - np.asarray(p, float))
+            / scale for i, p in truth.items()}
+
+
+def landmark_bias(detector, groups):
+    """Print each iBUG point's mean signed error per group of front photos ({label:
+    [(image, truth)]}, truth as :func:`face_frame_errors` takes it), sorted by the
+    largest mean over the groups; photos with no face are said and left out."""
+    names = load_landmark_set().ibug
+    errors = {label: {} for label in groups}
+    for label, photos in groups.items():
+        for image, truth in photos:
+            face = detector.detect(image)
+            if face is None or not face.is_face:
+                print(f"  {label}: a photo without a front face, left out")
+                continue
+            for i, e in face_frame_errors(face.ibug, truth).items():
+                errors[label].setdefault(i, []).append(e)
+    means = {label: {i: np.mean(e, axis=0) for i, e in errs.items()}
+             for label, errs in errors.items()}
+    order = sorted(names, key=lambda i: -max(
+        (float(np.linalg.norm(m[i])) for m in means.values() if i in m), default=0.0))
+    print("landmark bias: mean signed error (across, down), % of eye-to-mouth, over "
+          + ", ".join(f"{label} ({len(p)} photos)" for label, p in groups.items()))
+    for i in order:
+        cells = [f"{label} " + (f"({means[label][i][0]:+5.1f} {means[label][i][1]:+5.1f})"
+                                if i in means[label] else "(  -     -  )")
+                 for label in groups]
+        print(f"  {i:2d} {names[i]:<26} " + "   ".join(cells))
+    return means
 
 
 def eye_to_mouth(pts):
@@ -448,6 +491,9 @@ def main(argv=None):
                     help="also detect each front photo placed in a 2-6 times larger one")
     ap.add_argument("--uncertainty", action="store_true",
                     help="print the per-group relative errors (the uncertainty table)")
+    ap.add_argument("--bias", action="store_true",
+                    help="print each landmark's mean signed error on the ten rendered heads "
+                         "and on james' photos")
     args = ap.parse_args(argv)
     print(f"machine: {machine_description()}")
     detector = Detector()
@@ -496,6 +542,13 @@ def main(argv=None):
               f"in {t.median:.2f} s")
     if args.profile_line:
         profile_line_errors()
+    if args.bias:
+        from bench.rendered_heads import TEN_HEADS, head_folders
+
+        groups = {"rendered": [sample_truth(f) for f in head_folders(None, TEN_HEADS)]}
+        if (folder / "james.obj").is_file():
+            groups["james"] = [(image, truth) for _, image, truth in james_truth(folder)]
+        landmark_bias(detector, groups)
     if args.uncertainty:
         table = uncertainty_table([m for m in measured if m is not None])
         print("uncertainty (median error / detector box width):")
