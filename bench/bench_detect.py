@@ -104,12 +104,14 @@ def landmark_bias(detector, groups):
     largest mean over the groups; photos with no face are said and left out."""
     names = load_landmark_set().ibug
     errors = {label: {} for label in groups}
+    used = dict.fromkeys(groups, 0)
     for label, photos in groups.items():
         for image, truth in photos:
             face = detector.detect(image)
             if face is None or not face.is_face:
                 print(f"  {label}: a photo without a front face, left out")
                 continue
+            used[label] += 1
             for i, e in face_frame_errors(face.ibug, truth).items():
                 errors[label].setdefault(i, []).append(e)
     means = {label: {i: np.mean(e, axis=0) for i, e in errs.items()}
@@ -117,7 +119,7 @@ def landmark_bias(detector, groups):
     order = sorted(names, key=lambda i: -max(
         (float(np.linalg.norm(m[i])) for m in means.values() if i in m), default=0.0))
     print("landmark bias: mean signed error (across, down), % of eye-to-mouth, over "
-          + ", ".join(f"{label} ({len(p)} photos)" for label, p in groups.items()))
+          + ", ".join(f"{label} ({n} photos)" for label, n in used.items()))
     for i in order:
         cells = [f"{label} " + (f"({means[label][i][0]:+5.1f} {means[label][i][1]:+5.1f})"
                                 if i in means[label] else "(  -     -  )")
