@@ -6,7 +6,8 @@ true silhouette (the nearest point of the head's render alpha at 0.5: the outlin
 extent and order as detected, its error taken out), and with both.
 
     python -m bench.bench_attribution [--heads DIR ...] [--render SEED ...] [--skin TONE]
-                                      [--expression NAME] [--copies N]
+                                      [--expression NAME] [--copies N] [--copy-px PX]
+                                      [--only LABEL ...]
 
 Heads: as ``bench.bench_photo_variants`` (the sample and ``generated/bench_heads/seed<N>``,
 rendered when missing; ``--skin`` and ``--expression`` as ``bench.rendered_heads`` takes
@@ -16,7 +17,10 @@ one). Scores: skin RMS against the true head after a similarity
 and a profile is said and left out. A photos-only fit lands in one of several nearby
 minima, and which one moves with a tenth of a pixel: ``--copies N`` fits each case and
 N - 1 copies of it with every point moved by ``COPY_PX`` (seeded) and prints their mean,
-and the spread of a head's copies (their largest less their smallest, mean over the heads).
+and the spread of a head's copies (their largest less their smallest, mean over the heads);
+``--copy-px`` moves them further (0.3 px shows the far minima a change to the fit may fall
+into, which one fit per head hides: docs/DECISIONS.md), and ``--only`` fits the columns
+named (``--only detected``: the default fit alone, a fifth of the time).
 """
 
 import argparse
@@ -120,10 +124,10 @@ def moved_copy(case, rng, px=COPY_PX):
     return out
 
 
-def copies_error(model, case, true_head, copies, rng):
-    """Skin RMS (mm) of the fits of ``case`` and ``copies`` - 1 moved copies of it
-    (:func:`moved_copy`), (copies,)."""
-    cases = [case] + [moved_copy(case, rng) for _ in range(copies - 1)]
+def copies_error(model, case, true_head, copies, rng, px=COPY_PX):
+    """Skin RMS (mm) of the fits of ``case`` and ``copies`` - 1 copies of it moved by
+    ``px`` (:func:`moved_copy`), (copies,)."""
+    cases = [case] + [moved_copy(case, rng, px) for _ in range(copies - 1)]
     return np.array([skin_error_mm(model, fit_head(model, c).local_vertices, true_head)
                      for c in cases])
 
@@ -131,23 +135,31 @@ def copies_error(model, case, true_head, copies, rng):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--copies", type=int, default=1,
-                    help="fit each case and this many - 1 copies moved by COPY_PX: their "
+                    help="fit each case and this many - 1 copies moved by --copy-px: their "
                          "mean, and the spread of a head's copies (default 1)")
+    ap.add_argument("--copy-px", type=float, default=COPY_PX,
+                    help=f"standard deviation a copy's points are moved by, px (default "
+                         f"{COPY_PX:g})")
+    ap.add_argument("--only", nargs="+", choices=list(ATTRIBUTIONS), metavar="LABEL",
+                    help="fit only these columns: " + ", ".join(ATTRIBUTIONS))
     add_head_options(ap)
     args = ap.parse_args(argv)
     if args.copies < 1:
         ap.error(f"--copies: at least 1, got {args.copies}")
+    if not args.copy_px > 0:
+        ap.error(f"--copy-px: a positive number of pixels, got {args.copy_px:g}")
+    chosen = [a for a in ATTRIBUTIONS if args.only is None or a in args.only]
     print(f"machine: {machine_description()}")
     folders = chosen_folders(args)
     detector = Detector()
     model = load_model()
-    columns = ["mean head", *ATTRIBUTIONS]
+    columns = ["mean head", *chosen]
     print("skin RMS vs the true head, mm, from the photos alone: the case solver detect "
           "makes, with the front's landmarks exact (their uncertainty kept; as clicks), the "
           "outlines on the true silhouette, both")
     if args.copies > 1:
         print(f"each the mean of {args.copies} fits: the case and copies of it with every "
-              f"point moved by {COPY_PX:g} px")
+              f"point moved by {args.copy_px:g} px")
     print(f"  {'head':<14}" + "".join(f"{c:>20}" for c in columns))
     rows, spreads = [], []
     rng = np.random.default_rng(0)
@@ -155,11 +167,13 @@ def main(argv=None):
         truth = np.load(folder / "truth.npz", allow_pickle=True)
         true_head = truth["local_vertices"]
         try:
-            cases = attributed(photos_case(folder, detector), truth)
+            cases = {k: c for k, c in attributed(photos_case(folder, detector), truth).items()
+                     if k in chosen}
         except ValueError as err:
             print(f"  {folder.name}: {err}")
             continue
-        errors = [copies_error(model, c, true_head, args.copies, rng) for c in cases.values()]
+        errors = [copies_error(model, c, true_head, args.copies, rng, args.copy_px)
+                  for c in cases.values()]
         row = [skin_error_mm(model, model.vertices, true_head)] + [e.mean() for e in errors]
         rows.append(row)
         spreads.append([e.max() - e.min() for e in errors])

@@ -1,5 +1,5 @@
 """bench/bench_attribution.py: the true silhouette of a render's alpha, outline points moved
-onto it, and the photos-only case as each attribution changes it."""
+onto it, the photos-only case as each attribution changes it, and copies of it moved."""
 
 import json
 
@@ -10,6 +10,7 @@ from bench.bench_attribution import (
     ATTRIBUTIONS,
     COPY_PX,
     attributed,
+    main,
     moved_copy,
     onto_silhouette,
     true_silhouette,
@@ -104,3 +105,16 @@ def test_a_moved_copy_moves_every_point_by_a_tenth_of_a_pixel_or_so_and_leaves_t
     offsets = np.abs(np.array(offsets))
     assert (offsets > 0).all() and offsets.max() < 5 * COPY_PX
     assert case.views["front"].points["nose_tip"] == (101.0, 100.0)  # the case as it was
+
+
+def test_copies_move_as_far_as_asked_and_a_distance_not_positive_is_refused(capsys):
+    case, _ = _case_and_truth()
+    far = moved_copy(case, np.random.default_rng(0), 0.3)
+    near = moved_copy(case, np.random.default_rng(0))
+    ratio = np.subtract(far.views["front"].points["nose_tip"], (101.0, 100.0)) \
+        / np.subtract(near.views["front"].points["nose_tip"], (101.0, 100.0))
+    np.testing.assert_allclose(ratio, 0.3 / COPY_PX)
+    for bad in ("0", "-0.3"):
+        with pytest.raises(SystemExit):
+            main(["--copy-px", bad])
+        assert "--copy-px: a positive number of pixels" in capsys.readouterr().err
