@@ -89,9 +89,9 @@ def tile_seam_difference(rasters, textures):
     """
     colours, covered = [], []
     for tile, r in rasters.items():
-        g = r.gather
-        w = np.asarray(g.sum(axis=1)).ravel()
-        c = g @ np.asarray(textures[tile], dtype=np.float64).reshape(-1, 3)[r.texel]
+        w = np.zeros(r.n_vertices)
+        w[r.vertices] = r.cover  # the interpolation weights' sums, kept with the raster
+        c = r.gather @ np.asarray(textures[tile], dtype=np.float64).reshape(-1, 3)[r.texel]
         colours.append(c / np.maximum(w, 1e-30)[:, None])
         covered.append(w > 0)
     colours, covered = np.array(colours), np.array(covered)  # (T, V, 3), (T, V)
