@@ -75,6 +75,10 @@ def _parse():
                    help="heads with an expression (default: half of --cases)")
     p.add_argument("--noise-px", type=float, nargs="*", default=[3.0, 10.0, 20.0],
                    help="noise_px values of the grid (none: no grid)")
+    p.add_argument("--parts", action="store_true",
+                   help="also each head's face error per part of the face (jaw, brows, "
+                        "nose, eyes, mouth: the true surface's points nearest to each "
+                        "part's landmarks), the head laid on the whole face")
     p.add_argument("--samples", type=int, default=4000,
                    help="points sampled on the true surface per score")
     p.add_argument("--james", default=None, help="folder of the scan james")
@@ -121,6 +125,7 @@ from bench.realistic_cases import (  # noqa: E402
     detected_front_case,
     face_frame,
     face_mask,
+    face_parts,
     james_folder,
     landmark_fit_3d,
     landmark_start,
@@ -156,40 +161,54 @@ class Row:
     head: dict = field(default_factory=dict)
     landmark_px: float = float("nan")
     coeff_norm: float = float("nan")
+    parts: dict = field(default_factory=dict)  # part -> head -> face error there, mm
 
 
 class Truth:
     """The true surface of a case, sampled once (every head is scored on the same
     points), and how a head is laid onto it."""
 
-    def __init__(self, regions, target, start):
+    def __init__(self, regions, target, start, parts=None):
         self.regions = regions  # name -> sample points (n, 3)
         self.target = target  # triangles of a head's surface to measure to
         self.start = start  # (local vertices, region) -> Similarity head -> truth
+        self.parts = parts or {}  # part -> which "face" samples lie in it (``--parts``)
 
     def score(self, local):
-        """Region name -> error of a head (local vertices, model topology), mm."""
+        """Region name -> error of a head (local vertices, model topology), mm; with
+        ``parts``, also "face <part>": the face's error over that part's samples, the
+        head laid on the whole face."""
         surface = Surface(local, self.target)
-        return {name: 1e3 * align_icp(surface, pts, self.start(local, name))[1]
-                for name, pts in self.regions.items()}
+        out = {}
+        for name, pts in self.regions.items():
+            sim, out[name] = align_icp(surface, pts, self.start(local, name))
+            if name == "face" and self.parts:
+                d = sim.scale * surface.closest(sim.inverse().apply(pts))[0]
+                out.update({f"face {part}": float(np.sqrt(np.mean(d[m] ** 2)))
+                            for part, m in self.parts.items()})
+        return {name: 1e3 * e for name, e in out.items()}
 
 
 #: The seed of the points a scan's face is scored on (``scan_truth``).
 SCAN_SEED = 7000
 
 
-def scan_truth(model, scan, samples, rng):
+def scan_truth(model, scan, samples, rng, parts=False):
     """A scan's face as a :class:`Truth` (the "face" region only: a scan covers no whole
     head): ``samples`` points drawn by ``rng`` on its face (``face_mask`` of its own
     landmarks), each head laid on it from the similarity of its iBUG points to the scan's.
-    ``scan``: a ``realistic_cases.Scan`` in any frame (the score aligns the head)."""
+    ``scan``: a ``realistic_cases.Scan`` in any frame (the score aligns the head); with
+    ``parts``, the face's parts too (``face_parts``, ``--parts``)."""
     region = triangles_within(scan.triangles, face_mask(scan.vertices, scan.ibug))
     target = part_triangles(model, ("Face", "Head and Neck", "Eyeball left", "Eyeball right"))
-    return Truth({"face": sample_surface(scan.vertices, region, samples, rng)}, target,
-                 lambda v, name: landmark_start(model, v, scan.ibug))
+    face = sample_surface(scan.vertices, region, samples, rng)
+    return Truth({"face": face}, target, lambda v, name: landmark_start(model, v, scan.ibug),
+                 face_parts(face, scan.ibug) if parts else None)
 
 
-def synthetic_truth(model, truth, samples, seed):
+def synthetic_truth(model, truth, samples, seed, parts=False):
+    """A synthetic head's face and whole skin as a :class:`Truth`, each head laid on it
+    from its corresponding vertices; with ``parts``, the face's parts too."""
     rng = np.random.default_rng(seed)
     skin = part_triangles(model)
     face = model_face_vertices(model)
@@ -201,7 +220,8 @@ def synthetic_truth(model, truth, samples, seed):
     def start(v, name):
         return similarity_procrustes(v[masks[name]], local[masks[name]])
 
-    return Truth(regions, skin, start)
+    return Truth(regions, skin, start, face_parts(regions["face"], model_ibug(model, local))
+                 if parts else None)
 
 
 #: FitOptions fields every fit of the run shares (``--outline-landmarks``, ``--set``).
@@ -231,14 +251,16 @@ def scored(truth, results, others):
     vertices, or name -> {region: local vertices} for one head per region)."""
     scores = {name: truth.score(r.local_vertices) for name, r in results.items()}
     for name, head in others.items():
-        if isinstance(head, dict):
-            scores[name] = {region: truth.score(v)[region] for region, v in head.items()}
+        if isinstance(head, dict):  # a region's score, and its parts', from its own head
+            scores[name] = {k: e for region, v in head.items()
+                            for k, e in truth.score(v).items()
+                            if k == region or k.startswith(region + " ")}
         else:
             scores[name] = truth.score(head)
     return scores
 
 
-def run_synthetic(model, group, n, samples, grid):
+def run_synthetic(model, group, n, samples, grid, parts=False):
     """Rows of one synthetic group (``SEEDS[group]`` + 0 .. n - 1)."""
     rows = []
     names = list(EXPRESSIONS)
@@ -246,7 +268,7 @@ def run_synthetic(model, group, n, samples, grid):
         seed = SEEDS[group] + i
         expression = names[i % len(names)] if group == "with expression" else None
         case, truth = make_realistic_case(model, seed, expression, **CASE_OPTIONS)
-        t = synthetic_truth(model, truth, samples, seed)
+        t = synthetic_truth(model, truth, samples, seed, parts)
         results = fits(model, case, grid)
         cloud = truth.local_vertices[model.skin]
         oracle = {"face": oracle_local(model, cloud, face_only=True)[0],
@@ -258,7 +280,8 @@ def run_synthetic(model, group, n, samples, grid):
         face["eos"] = eos_face(t, model, case)
         rows.append(Row(label, face, {k: s["head"] for k, s in scores.items()},
                         truth.landmark_rms_px,
-                        float(np.linalg.norm(results["fit"].identity_coeffs))))
+                        float(np.linalg.norm(results["fit"].identity_coeffs)),
+                        parts_of(scores)))
     return rows
 
 
@@ -266,7 +289,7 @@ def run_synthetic(model, group, n, samples, grid):
 LANDMARK_NOISE_MM = (1.0, 2.0, 4.0, 8.0)
 
 
-def run_james(model, folder, samples, grid):
+def run_james(model, folder, samples, grid, parts=False):
     """Rows of the scan's variants ({"photos": its own photos, "rendered": a front and a
     profile photo of it}), after printing its calibration."""
     scan = load_scan(folder)
@@ -337,11 +360,12 @@ def run_james(model, folder, samples, grid):
     # Everything is scored on the scan moved into the model's axes (the score aligns each
     # head by ICP, so the frame does not matter; the oracle is found once).
     rng = np.random.default_rng(SCAN_SEED)
-    t = scan_truth(model, moved, samples, rng)
+    t = scan_truth(model, moved, samples, rng, parts)
     cloud = sample_surface(moved.vertices, moved.triangles, 5 * samples, rng)
     oracle = oracle_local(model, cloud, landmark_start(model, model.vertices, moved.ibug),
                           face_only=True)[0]
-    fixed = {"mean": t.score(model.vertices)["face"], "oracle": t.score(oracle)["face"]}
+    fixed_scores = {"mean": t.score(model.vertices), "oracle": t.score(oracle)}
+    fixed = {k: s["face"] for k, s in fixed_scores.items()}
     caps = {label: [t.score(landmark_fit_3d(model, moved.ibug, s, numbers))["face"]
                     for s in LANDMARK_NOISE_MM]
             for label, numbers in (("all 68", None), ("the 41 inner (28-68)", range(28, 69)))}
@@ -368,16 +392,49 @@ def run_james(model, folder, samples, grid):
         rows = out[group] = []
         for label, case in group_cases.items():
             results = fits(model, case, grid)
-            face = {k: s["face"] for k, s in scored(t, results, {}).items()}
+            scores = {**scored(t, results, {}), **fixed_scores}
+            face = {k: s["face"] for k, s in scores.items()}
             given = [np.linalg.norm(np.subtract(p, truth_px[name]))
                      for photo, view in case.views.items()
                      for truth_px in [exact_px(group, photo, view)]
                      for name, p in named(view.points).items() if name in truth_px]
             face["eos"] = eos_face(t, model, case)
-            rows.append(Row(label, {**face, **fixed}, landmark_px=float(np.sqrt(np.mean(
+            rows.append(Row(label, face, landmark_px=float(np.sqrt(np.mean(
                 np.square(given)))), coeff_norm=float(np.linalg.norm(
-                    results["fit"].identity_coeffs))))
+                    results["fit"].identity_coeffs)), parts=parts_of(scores)))
     return out
+
+
+def parts_of(scores):
+    """Part -> head -> the face's error over that part, mm, from ``scored``'s scores
+    (empty without ``--parts``)."""
+    out = {}
+    for head, s in scores.items():
+        for key, e in s.items():
+            if key.startswith("face "):
+                out.setdefault(key[len("face "):], {})[head] = e
+    return out
+
+
+PART_HEADS = ("fit", "oracle", "mean")
+
+
+def print_parts(rows):
+    """Each case's face error per part of the face (``--parts``): fit (oracle, mean)."""
+    if not rows or not rows[0].parts:
+        return
+    parts = list(rows[0].parts)
+    print("  the face by part, mm: fit (oracle, mean); the head laid on the whole face")
+    print(f"  {'case':<38}" + "".join(f"{p:>20}" for p in parts))
+
+    def cell(values):
+        return f"{values['fit']:>8.2f} ({values['oracle']:.2f}, {values['mean']:.2f})"
+
+    for r in rows:
+        print(f"  {r.label:<38}" + "".join(cell(r.parts[p]) for p in parts))
+    med = {p: {h: statistics.median(r.parts[p][h] for r in rows) for h in PART_HEADS}
+           for p in parts}
+    print(f"  {'median':<38}" + "".join(cell(med[p]) for p in parts))
 
 
 def _median(rows, region, name):
@@ -420,6 +477,7 @@ def print_group(title, rows, grid):
     print(line("median", statistics.median(r.landmark_px for r in rows),
                statistics.median(r.coeff_norm for r in rows), med, med_head))
     verdicts(rows, grid)
+    print_parts(rows)
 
 
 def verdicts(rows, grid):
@@ -482,18 +540,18 @@ def main(args):
     groups = {}
     if args.cases > 0:
         groups["out-of-model heads"] = run_synthetic(model, "out-of-model", args.cases,
-                                                     args.samples, grid)
+                                                     args.samples, grid, args.parts)
         print_group("out-of-model heads (face and whole head)", groups["out-of-model heads"],
                     grid)
     if n_expr > 0:
         groups["with expression"] = run_synthetic(model, "with expression", n_expr,
-                                                  args.samples, grid)
+                                                  args.samples, grid, args.parts)
         print_group("with expression (scored against the neutral true head)",
                     groups["with expression"], grid)
     folder = Path(args.james) if args.james else james_folder(ROOT)
     if (folder / "james.obj").is_file():
         print()
-        james = run_james(model, folder, args.samples, grid)
+        james = run_james(model, folder, args.samples, grid, args.parts)
         groups["james"] = james["photos"]
         print_group("james (real scan and its own photos; the scan covers the face)",
                     james["photos"], grid)

@@ -268,6 +268,22 @@ def face_mask(points, ibug, forehead=0.02):
     return (h >= 0) & (h <= brow + forehead) & (f >= ear)
 
 
+#: The face's parts, by iBUG numbers: a point of the face belongs to the part of its
+#: nearest landmark (``face_parts``).
+FACE_PARTS = {"jaw": range(1, 18), "brows": range(18, 28), "nose": range(28, 37),
+              "eyes": range(37, 49), "mouth": range(49, 69)}
+
+
+def face_parts(points, ibug):
+    """Part name -> which of ``points`` (n, 3) lie nearest to one of its landmarks
+    (``FACE_PARTS``; ``ibug`` dict number -> (3,) point): where on the face an error is,
+    by the same rule on the model and on a scan."""
+    numbers = [i for r in FACE_PARTS.values() for i in r if i in ibug]
+    marks = np.array([ibug[i] for i in numbers])
+    near = np.asarray(numbers)[cKDTree(marks).query(np.asarray(points, float))[1]]
+    return {name: np.isin(near, list(r)) for name, r in FACE_PARTS.items()}
+
+
 def model_ibug(model, vertices):
     """iBUG number -> (3,) point of ``vertices`` (the model's topology)."""
     return {int(e["ibug"]): vertices[int(e["vertex"])] for e in model.landmark_info

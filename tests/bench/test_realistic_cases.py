@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from bench.realistic_cases import (
+    FACE_PARTS,
     OUTLINE_IBUG,
     THREE_QUARTER,
     Placement,
@@ -15,11 +16,13 @@ from bench.realistic_cases import (
     align_icp,
     calibrate,
     closest_on_triangles,
+    face_parts,
     james_folder,
     landmark_fit_3d,
     load_scan,
     make_realistic_case,
     model_face_vertices,
+    model_ibug,
     out_of_model_displacement,
     part_triangles,
     sample_surface,
@@ -44,6 +47,24 @@ def test_displacement_is_outside_the_span_with_the_requested_rms(model):
     assert np.abs(cos).max() < 1e-8
     # Smooth and not tiny anywhere it matters: the face holds most of it.
     assert np.sqrt((d[model.skin] ** 2).sum(axis=1).mean()) < 0.002
+
+
+def test_the_face_parts_split_its_points_by_their_nearest_landmark(model):
+    ibug = model_ibug(model, model.vertices)
+    face = model.vertices[model_face_vertices(model)]
+    parts = face_parts(face, ibug)
+    assert list(parts) == list(FACE_PARTS)
+    # every point in exactly one part, and every part holds some of the face
+    assert np.array_equal(np.sum(list(parts.values()), axis=0), np.ones(len(face)))
+    assert all(m.sum() > 100 for m in parts.values())
+    # a landmark's own point is in its part: the nose tip (31) in the nose, 37 in the eyes
+    marks = face_parts(np.array([ibug[31], ibug[37], ibug[9], ibug[20], ibug[52]]), ibug)
+    assert [next(p for p, m in marks.items() if m[i]) for i in range(5)] == \
+        ["nose", "eyes", "jaw", "brows", "mouth"]
+    # the same rule in any frame: a similarity moves points and landmarks alike
+    sim = Similarity(1.7, rotation_from_vector(np.array([0.2, -0.4, 0.1])), np.ones(3))
+    moved = face_parts(sim.apply(face), {k: sim.apply(v[None])[0] for k, v in ibug.items()})
+    assert all(np.array_equal(moved[p], parts[p]) for p in parts)
 
 
 def test_closest_point_on_a_triangle_is_exact():
