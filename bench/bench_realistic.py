@@ -1,7 +1,7 @@
 """Benchmark of the fit on realistic cases: heads the model cannot express exactly,
 landmarks as people give them, and a real person's scan seen through its own photos.
 
-    python -m bench.bench_realistic [--cases 8] [--noise-px 3 10 20] [--james DIR]
+    python -m bench.bench_realistic [--cases 8] [--noise-px 3 10 20] [--james DIR] [--parts]
 
 Groups of cases (bench/realistic_cases.py; seeds fixed):
 
@@ -55,7 +55,11 @@ best of its regularisation weights 1-100 for the case: ``bench/eos_baseline.py``
 issue compares with it. "fit/mean", "fit/oracle": ratios of the face errors. "lm px": RMS
 distance of the given landmarks from the true projections of their vertices. "|c|": norm
 of the fit's identity coefficients (a head drawn from the model has about 10). "nz=x":
-the face error of the fit with ``FitOptions(noise_px=x)``.
+the face error of the fit with ``FitOptions(noise_px=x)``. With ``--parts``, each group's
+table is followed by the face's error per part (jaw, brows, nose, eyes, mouth: the true
+surface's points nearest to that part's landmarks, ``realistic_cases.face_parts``) of the
+fit, the oracle and the mean head, each laid on the whole face: where on the face a fit
+loses.
 
 Targets (issue 15): the fit beats the mean head and eos on every case; median face error
 at most 0.6 x the mean head's and at most 1.3 x the oracle's; whole-head error below the
