@@ -185,9 +185,9 @@ class Truth:
         surface = Surface(local, self.target)
         out = {}
         for name, pts in self.regions.items():
-            sim, out[name] = align_icp(surface, pts, self.start(local, name))
-            if name == "face" and self.parts:
-                d = sim.scale * surface.closest(sim.inverse().apply(pts))[0]
+            d = align_icp(surface, pts, self.start(local, name))[1]
+            out[name] = float(np.sqrt(np.mean(d**2)))
+            if name == "face":
                 out.update({f"face {part}": float(np.sqrt(np.mean(d[m] ** 2)))
                             for part, m in self.parts.items()})
         return {name: 1e3 * e for name, e in out.items()}

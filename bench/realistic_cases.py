@@ -203,8 +203,9 @@ def align_icp(surface, samples, start, iterations=30, tolerance=1e-3, tangential
     -------
     Similarity
         Mesh -> truth.
-    rms : float
-        RMS distance, metres, from the samples to the aligned mesh's surface (exact).
+    distances : ndarray (n,)
+        Metres from each sample to the aligned mesh's surface (exact); their RMS is the
+        score.
     """
     sim, best = start, (np.inf, start)
     for _ in range(iterations):
@@ -234,8 +235,7 @@ def align_icp(surface, samples, start, iterations=30, tolerance=1e-3, tangential
         sim = Similarity(grow * sim.scale, rot @ sim.rotation,
                          grow * rot @ (sim.translation - c) + c + step[4:])
     sim = best[1]
-    d, _ = surface.closest(sim.inverse().apply(samples))
-    return sim, sim.scale * float(np.sqrt(np.mean(d**2)))
+    return sim, sim.scale * surface.closest(sim.inverse().apply(samples))[0]
 
 
 # ---------------------------------------------------------------- the face region

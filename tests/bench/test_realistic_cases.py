@@ -112,8 +112,8 @@ def test_icp_finds_a_known_similarity(model):
     face_tris = tris[face[tris].all(axis=1)]
     samples = truth.apply(sample_surface(model.vertices, face_tris, 3000, rng))
     start = Similarity(1.0, np.eye(3), np.zeros(3))
-    sim, rms = align_icp(Surface(model.vertices, tris), samples, start)
-    assert rms < 2e-5
+    sim, d = align_icp(Surface(model.vertices, tris), samples, start)
+    assert d.shape == (3000,) and np.sqrt(np.mean(d**2)) < 2e-5
     assert sim.scale == pytest.approx(1.04, abs=1e-3)
     np.testing.assert_allclose(sim.rotation, truth.rotation, atol=1e-3)
 
