@@ -133,9 +133,7 @@ def apply_job(scene, job, textures=True):
     t = time.perf_counter()
     job.notes = list(job.scene_notes) + list(job.calibration_notes) \
         + list(job.result.info.get("warnings", ()))
-    job.notes += [f"photo {view!r} showed {', '.join(f'{n} {w:.2f}' for n, w in shown.items())}"
-                  " (taken out of its landmarks: the head is neutral)"
-                  for view, shown in job.result.info.get("expressions", {}).items() if shown]
+    job.notes += expression_notes(job.result.info)
     head = result_to_scene.apply_result(scene, job.model, job.result,
                                         job.textures if textures else None,
                                         calibration=job.calibration, notes=job.notes,
@@ -144,6 +142,21 @@ def apply_job(scene, job, textures=True):
     LIVE.remember(scene, head, job.model, job.result, job.options, job.calibration)
     _status(scene, head, job)
     return head
+
+
+def expression_notes(info):
+    """The Fit report's lines on the photos' expressions (``info`` a FitResult's): each
+    one taken out of a photo's landmarks with its weight and, where the fit gave it, its
+    standard deviation, so a weight the landmarks barely tell from neutral reads so."""
+    sd = info.get("expression_sd", {})
+    lines = []
+    for view, shown in info.get("expressions", {}).items():
+        if shown:
+            each = [f"{n} {w:.2f}" + (f" \u00b1 {sd[view][n]:.2f}" if n in sd.get(view, {})
+                                      else "") for n, w in shown.items()]
+            lines.append(f"photo {view!r} showed {', '.join(each)} (taken out of its "
+                         "landmarks: the head is neutral)")
+    return lines
 
 
 def unused_line(job):

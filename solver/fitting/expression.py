@@ -70,9 +70,13 @@ def estimate_expressions(model, case, result, noise_px, weights=None, lambda2=1.
 
     Returns
     -------
-    dict of str -> ndarray, shape (E,)
+    weights : dict of str -> ndarray, shape (E,)
         Per view with at least 3 landmarks: expression weights in [0, 1], in
         ``model.expression_names`` order (0 but for PHOTO_EXPRESSIONS).
+    sd : dict of str -> ndarray, shape (E,)
+        The same views: each weight's posterior standard deviation (the identity change
+        solved out, the bounds left aside; 0 but for PHOTO_EXPRESSIONS): how surely the
+        landmarks tell it from neutral.
     """
     chosen = np.array([model.expression_names.index(n) for n in PHOTO_EXPRESSIONS
                        if n in model.expression_names], dtype=np.int64)
@@ -105,7 +109,7 @@ def estimate_expressions(model, case, result, noise_px, weights=None, lambda2=1.
                        _pixel_columns(at_view, jac, sw) * seen[None, :],
                        (r * sw[:, None]).reshape(-1)))
     if not blocks:
-        return {}
+        return {}, {}
     n_e = len(chosen)
     cols = k + n_e * len(blocks)
     rows = sum(len(b[3]) for b in blocks)
@@ -123,11 +127,12 @@ def estimate_expressions(model, case, result, noise_px, weights=None, lambda2=1.
     a[rows + k:, k:] = np.eye(cols - k) / EXPRESSION_SIGMA
     x, sd = _bounded_weights(a, rhs, k)
     x = np.where((x >= SHOWN) | ((x >= FAINT) & (x >= SURE * sd)), x, 0.0)
-    out = {}
+    out, out_sd = {}, {}
     for j, (name, *_) in enumerate(blocks):
-        out[name] = np.zeros(len(model.expression_names))
+        out[name], out_sd[name] = np.zeros((2, len(model.expression_names)))
         out[name][chosen] = x[j * n_e:(j + 1) * n_e]
-    return out
+        out_sd[name][chosen] = sd[j * n_e:(j + 1) * n_e]
+    return out, out_sd
 
 
 def _observed(at_view, jac, at_all):
@@ -231,8 +236,11 @@ def expressions_moved(old, new, tolerance=SHOWN):
     return any(np.abs(old[k] - new[k]).max(initial=0.0) > tolerance for k in new)
 
 
-def expression_report(model, expressions):
-    """JSON-ready: per view, the expressions it showed (applied: weight >= FAINT) by name."""
+def expression_report(model, expressions, values=None):
+    """JSON-ready: per view, the expressions it showed (applied: weight >= FAINT) by name,
+    with their weights, or with ``values`` (per view (E,), e.g. the weights' standard
+    deviations) where given."""
     names = model.expression_names
-    return {view: {names[i]: float(w) for i, w in enumerate(e) if w >= FAINT}
-            for view, e in expressions.items()}
+    values = expressions if values is None else values
+    return {view: {names[i]: float(values[view][i]) for i, w in enumerate(e) if w >= FAINT}
+            for view, e in expressions.items() if view in values}

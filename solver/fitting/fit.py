@@ -206,7 +206,10 @@ def fit_head(model, case, options=None, initial=None):
         the first head was implausible, "prior": "first" (its plausibility and landmark
         RMS in pixels), "tried" (each fit with the prior's weight raised: "factor",
         "mahalanobis", "percentile", "rms_px") and "factor", the one kept (1: the first
-        head; see ``PRIOR_STEPS``).
+        head; see ``PRIOR_STEPS``). With ``options.expressions`` "fit": "expressions"
+        (per view, each expression its photo showed and taken out: its weight) and
+        "expression_sd" (the same names: each weight's standard deviation, how surely the
+        landmarks tell it from neutral).
 
     Raises
     ------
@@ -317,6 +320,7 @@ def _noise_rounds(model, case, opts, initial, state0, progress, t0):
     # the noise it was fitted with, so its own fit is where it stays (from the landmarks as
     # given and the default noise, its first round would move it first).
     start_noise, start_shown = state0.get("noise"), state0.get("expressions") or {}
+    start_sd = state0.get("expression_sd") or {}
     given = case
     if start_shown and opts.expressions == "fit":
         given = neutral_case(model, case, initial, start_shown)
@@ -330,20 +334,20 @@ def _noise_rounds(model, case, opts, initial, state0, progress, t0):
     result, contour, along, effective, measured, roles, finish, other_start = first
     later = opts if opts.method != "combined" else dataclasses.replace(opts,
                                                                        method="approach1")
-    noise, rounds, expressions = start_noise, 1, start_shown
+    noise, rounds, expressions, expression_sd = start_noise, 1, start_shown, start_sd
     restarted = False
     timings = dict(result.info["timings"])
     while rounds < MAX_ROUNDS:
         estimate = estimate_noise(measured[0], contour, effective, opts.noise_px, along,
                                   definition=measured[2], rim=roles[0], relative=roles[1])
-        shown = expressions
+        shown, shown_sd = expressions, expression_sd
         if opts.expressions == "fit":
-            shown = estimate_expressions(model, case, result, estimate.landmark_px,
-                                         estimate.weights, opts.lambda2)
+            shown, shown_sd = estimate_expressions(model, case, result, estimate.landmark_px,
+                                                   estimate.weights, opts.lambda2)
         if noise is not None and noise.settled(estimate) \
                 and not expressions_moved(expressions, shown):
             break
-        noise, expressions = estimate, shown
+        noise, expressions, expression_sd = estimate, shown, shown_sd
         part = 0.55 + 0.12 * (rounds - 1)
         # a first fit that bent the head to a body the model does not follow is no start
         start = None if rounds == 1 and initial is None \
@@ -378,7 +382,10 @@ def _noise_rounds(model, case, opts, initial, state0, progress, t0):
         result.info["refit_state"]["noise"] = noise
         if opts.expressions == "fit":
             result.info["expressions"] = expression_report(model, expressions)
+            result.info["expression_sd"] = expression_report(model, expressions,
+                                                             expression_sd)
             result.info["refit_state"]["expressions"] = expressions
+            result.info["refit_state"]["expression_sd"] = expression_sd
         result.info["timings"] = dict(timings)
         return result
 
