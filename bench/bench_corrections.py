@@ -39,6 +39,7 @@ from PIL import Image
 
 from bench.bench_photo_variants import VARIANTS, changed
 from bench.common import machine_description
+from bench.realistic_cases import FACE_PARTS
 from bench.rendered_heads import add_head_options, chosen_folders
 from solver import fit_head, load_landmarks, load_model
 from solver.detect import Detector
@@ -48,8 +49,7 @@ from solver.fitting.fit import refit_landmarks
 from solver.io.landmark_set import load_landmark_set
 from solver.synthetic import skin_error_mm
 
-GROUPS = {"jaw": range(1, 18), "brows": range(18, 28), "nose": range(28, 37),
-          "eyes": range(37, 49), "mouth": range(49, 69), "all 68": range(1, 69)}
+GROUPS = {**FACE_PARTS, "all 68": range(1, 69)}
 #: A fit this many times its head's photos-only error counts as made worse by a correction.
 WORSE = 1.5
 

@@ -40,6 +40,7 @@ from PIL import Image
 
 from bench.common import machine_description, median_time
 from bench.realistic_cases import (
+    FACE_PARTS,
     calibrate,
     james_folder,
     load_scan,
@@ -51,8 +52,7 @@ from solver.detect.view_guess import guess_view, point_uncertainty
 from solver.io.landmark_set import load_landmark_set
 
 ROOT = Path(__file__).resolve().parent.parent
-GROUPS = {"jaw": range(1, 18), "brows": range(18, 28), "nose": range(28, 37),
-          "eyes": range(37, 49), "mouth": range(49, 69)}
+GROUPS = FACE_PARTS
 
 
 def sample_truth(folder, view="front"):

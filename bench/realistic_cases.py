@@ -268,8 +268,8 @@ def face_mask(points, ibug, forehead=0.02):
     return (h >= 0) & (h <= brow + forehead) & (f >= ear)
 
 
-#: The face's parts, by iBUG numbers: a point of the face belongs to the part of its
-#: nearest landmark (``face_parts``).
+#: The face's parts, by iBUG numbers: the landmark groups the benchmarks report, and
+#: the part a point of the face belongs to by its nearest landmark (``face_parts``).
 FACE_PARTS = {"jaw": range(1, 18), "brows": range(18, 28), "nose": range(28, 37),
               "eyes": range(37, 49), "mouth": range(49, 69)}
 
