@@ -63,6 +63,7 @@ import time
 
 import numpy as np
 
+from ..cameras import ORTHO_VIEWS, OrthographicCamera
 from ..detect.view_guess import placed_by_landmarks
 from ..errors import rms
 from .approach1 import approach1, profile_fit
@@ -160,6 +161,10 @@ PRIOR_RMS_SLACK = 1.05
 #: this far out is more often a head bent into a wrong minimum than an unusual person
 #: (docs/DECISIONS.md, "A head far out under the model: the stronger prior's start").
 UNUSUAL_PERCENTILE = 90.0
+#: A fit with an orthographic photo turned in its own plane by more than this many degrees
+#: is fitted once more from the head that carries the turn, the photos level
+#: (:func:`level_photos_start`), kept where its posterior cost is clearly lower.
+LEVEL_START_DEG = 6.0
 
 
 def fit_head(model, case, options=None, initial=None):
@@ -200,7 +205,8 @@ def fit_head(model, case, options=None, initial=None):
         posterior cost each start ended at ("continued", "other approach" and, where the
         head kept still missed it, "mean head", then "stronger prior's head"; the last
         also where an implausible head's raised fits were not kept or the head lies beyond
-        ``UNUSUAL_PERCENTILE``), and "kept", the
+        ``UNUSUAL_PERCENTILE``; "photos level" where a photo ended turned in its plane by
+        more than ``LEVEL_START_DEG``, :func:`level_photos_start`), and "kept", the
         start whose head was kept (another's only when lower by more than
         ``SECOND_START_GAIN``); and, when
         the first head was implausible, "prior": "first" (its plausibility and landmark
@@ -236,6 +242,9 @@ def fit_head(model, case, options=None, initial=None):
         result, factor, raised = _more_plausible(result, refit)
         if factor == 1.0 and another is not None:
             result = _from_stronger_prior(case, result, raised, refit, another)
+            level = level_photos_start(result)
+            if level is not None:
+                result = another("photos level", level)
     result.info["refit_state"]["prior_factor"] = factor
     result.info["warnings"][:0] = turned
     return _checked(model, checked, _prior_raised(opts, factor), result)
@@ -306,6 +315,31 @@ def _from_stronger_prior(case, result, raised, refit, another):
         out.info["prior"] = prior
     out.info["timings"]["stronger_prior"] = before + time.perf_counter() - t
     return out
+
+
+def level_photos_start(result):
+    """``result`` with each orthographic photo turned back level in its own plane and the
+    head turned instead, so that photo sees it as before; None where no photo of two or
+    more orthographic ones is turned by more than ``LEVEL_START_DEG``. A photo's turn in
+    its plane and the head's tilt trade in that photo, and only the other photos tell them
+    apart, so a fit can end with a photo turned to match a head tilted wrongly; from
+    this start the tilt lies with the head (docs/DECISIONS.md, "A head nodded in the
+    photos")."""
+    ortho = {n: c for n, c in result.cameras.items()
+             if isinstance(c, OrthographicCamera) and c.view in ORTHO_VIEWS}
+    angles = {n: c.in_plane_angle for n, c in ortho.items()}
+    if len(ortho) < 2 or max(abs(a) for a in angles.values()) <= np.radians(LEVEL_START_DEG):
+        return None
+    turn, cameras = np.eye(3), dict(result.cameras)
+    for name, cam in ortho.items():
+        a = angles[name]
+        in_plane = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0],
+                             [0.0, 0.0, 1.0]])
+        cameras[name] = OrthographicCamera(in_plane.T @ cam.rotation, cam.scale, cam.offset,
+                                           cam.size, cam.view)
+        turn = (cam.rotation.T @ in_plane @ cam.rotation) @ turn
+    return dataclasses.replace(result, rotation=turn @ result.rotation,
+                               translation=turn @ result.translation, cameras=cameras)
 
 
 def _noise_rounds(model, case, opts, initial, state0, progress, t0):
@@ -410,15 +444,19 @@ def _noise_rounds(model, case, opts, initial, state0, progress, t0):
     result = finished(fitted, starts if len(costs) > 1 else None)
     progress(1.0, f"done ({result.info['approach']}, {rounds} fits)")
 
+    best = [result]
+
     def another(key, start):
-        """The rounds' result, or the fit from ``start`` (``from_head``) where its
-        posterior cost is clearly lower; ``info["starts"]`` records it under ``key``."""
+        """The result kept so far (the rounds', or an earlier start's), or the fit from
+        ``start`` (``from_head``) where its posterior cost is clearly lower;
+        ``info["starts"]`` records it under ``key``."""
         again, costs[key] = from_head(start, progress.part(0.99, 1.0), result)
         if costs[key] < (1.0 - SECOND_START_GAIN) * costs[starts["kept"]]:
             starts["kept"] = key
-            return finished(again, starts)
-        result.info["starts"], result.info["timings"] = starts, dict(timings)
-        return result
+            best[0] = finished(again, starts)
+            return best[0]
+        best[0].info["starts"], best[0].info["timings"] = starts, dict(timings)
+        return best[0]
 
     return result, case, another
 

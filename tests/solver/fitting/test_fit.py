@@ -2,6 +2,7 @@
 with known answers)."""
 
 import copy
+import dataclasses
 from types import SimpleNamespace
 
 import numpy as np
@@ -362,6 +363,7 @@ def test_a_head_left_in_a_wrong_minimum_is_fitted_again_from_another_start(model
     assert cost < (1.0 - fit.SECOND_START_GAIN) * starts["costs"]["continued"]
     assert starts["kept"] == "other approach"
     monkeypatch.setattr(fit, "MISSED_OUTLINE", 2.0)  # never fitted again
+    monkeypatch.setattr(fit, "LEVEL_START_DEG", 90.0)
     once = fit_head(model, case)
     assert "starts" not in once.info
     err = skin_error_mm(model, res.local_vertices, truth.local_vertices)
@@ -451,8 +453,8 @@ def test_a_head_far_out_under_the_model_is_fitted_again_from_a_stronger_prior(mo
 def test_a_fit_of_one_approach_starts_again_from_the_mean_head(model):
     case, _ = _profile_read_off_outline(model, 4)
     res = fit_head(model, case, FitOptions(method="approach1"))  # no other approach's head
-    assert set(res.info["starts"]["costs"]) - {"stronger prior's head"} == {"continued",
-                                                                           "mean head"}
+    tried = set(res.info["starts"]["costs"]) - {"stronger prior's head", "photos level"}
+    assert tried == {"continued", "mean head"}
 
 
 def test_an_implausible_head_the_landmarks_do_not_need_is_fitted_with_a_stronger_prior(
@@ -497,3 +499,50 @@ def test_a_side_photo_short_of_a_profile_placed_by_hand_is_fitted_from_where_it_
     nominal = fit_head(model, case)  # the side camera taken for an exact profile
     assert skin_error_mm(model, res.local_vertices, head) < \
         skin_error_mm(model, nominal.local_vertices, head) - 1.0
+
+
+def _turned_in_plane(cam, deg):
+    a = np.radians(deg)
+    in_plane = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0],
+                         [0.0, 0.0, 1.0]])
+    return OrthographicCamera(in_plane @ cam.rotation, cam.scale, cam.offset, cam.size,
+                              cam.view)
+
+
+def test_the_level_photos_start_turns_the_head_so_each_photo_sees_it_as_before(noisy_fit):
+    # a fit whose front photo is turned 10 degrees in its plane, the profile level: the
+    # start has every photo level and the head turned instead, the front's view of the
+    # head unchanged
+    res = noisy_fit
+    cams = {n: _turned_in_plane(c, -np.degrees(c.in_plane_angle))
+            for n, c in res.cameras.items()}
+    cams["front"] = _turned_in_plane(cams["front"], 10.0)
+    turned = dataclasses.replace(res, cameras=cams)
+    assert np.degrees(cams["front"].in_plane_angle) == pytest.approx(10.0)
+    start = fit.level_photos_start(turned)
+    assert all(abs(c.in_plane_angle) < 1e-9 for c in start.cameras.values())
+    np.testing.assert_allclose(start.cameras["front"].project(start.world_vertices),
+                               cams["front"].project(turned.world_vertices), atol=1e-6)
+    np.testing.assert_array_equal(start.local_vertices, res.local_vertices)
+    # photos within LEVEL_START_DEG of level: no such start
+    level = {n: _turned_in_plane(c, -np.degrees(c.in_plane_angle) + 3.0)
+             for n, c in res.cameras.items()}
+    assert fit.level_photos_start(dataclasses.replace(res, cameras=level)) is None
+
+
+def test_a_fit_with_a_photo_turned_in_its_plane_is_fitted_again_with_the_photos_level(
+        model, monkeypatch):
+    # the front photo ends turned more than LEVEL_START_DEG in its plane, the head tilted
+    # to match: from the level photos' start the head ends clearly lower, and nearer
+    case, truth = _profile_read_off_outline(model, 6)
+    res = fit_head(model, case)
+    costs, kept = res.info["starts"]["costs"], res.info["starts"]["kept"]
+    assert kept == "photos level"
+    assert costs[kept] < (1.0 - fit.SECOND_START_GAIN) * costs["continued"]
+    limit = fit.LEVEL_START_DEG
+    monkeypatch.setattr(fit, "LEVEL_START_DEG", 90.0)  # never tried
+    without = fit_head(model, case)
+    assert "photos level" not in without.info["starts"]["costs"]
+    assert abs(np.degrees(without.cameras["front"].in_plane_angle)) > limit
+    err = skin_error_mm(model, res.local_vertices, truth.local_vertices)
+    assert err < skin_error_mm(model, without.local_vertices, truth.local_vertices) - 0.1
