@@ -323,8 +323,8 @@ def level_photos_start(result):
     more orthographic ones is turned by more than ``LEVEL_START_DEG``. A photo's turn in
     its plane and the head's tilt trade in that photo, and only the other photos tell them
     apart, so a fit can end with a photo turned to match a head tilted wrongly; from
-    this start the tilt lies with the head (docs/DECISIONS.md, "A head nodded in the
-    photos")."""
+    this start the tilt lies with the head (docs/DECISIONS.md, "A photo turned in its
+    plane to meet a head tilted wrongly")."""
     ortho = {n: c for n, c in result.cameras.items()
              if isinstance(c, OrthographicCamera) and c.view in ORTHO_VIEWS}
     angles = {n: c.in_plane_angle for n, c in ortho.items()}
@@ -444,19 +444,20 @@ def _noise_rounds(model, case, opts, initial, state0, progress, t0):
     result = finished(fitted, starts if len(costs) > 1 else None)
     progress(1.0, f"done ({result.info['approach']}, {rounds} fits)")
 
-    best = [result]
+    best = result
 
     def another(key, start):
         """The result kept so far (the rounds', or an earlier start's), or the fit from
         ``start`` (``from_head``) where its posterior cost is clearly lower;
         ``info["starts"]`` records it under ``key``."""
+        nonlocal best
         again, costs[key] = from_head(start, progress.part(0.99, 1.0), result)
         if costs[key] < (1.0 - SECOND_START_GAIN) * costs[starts["kept"]]:
             starts["kept"] = key
-            best[0] = finished(again, starts)
-            return best[0]
-        best[0].info["starts"], best[0].info["timings"] = starts, dict(timings)
-        return best[0]
+            best = finished(again, starts)
+        else:
+            best.info["starts"], best.info["timings"] = starts, dict(timings)
+        return best
 
     return result, case, another
 
