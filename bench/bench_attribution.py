@@ -12,12 +12,16 @@ extent and order as detected, its error taken out), and with both.
 Heads: as ``bench.bench_photo_variants`` (the sample and ``generated/bench_heads/seed<N>``,
 rendered when missing; ``--skin`` and ``--expression`` as ``bench.rendered_heads`` takes
 them: with an expression the photos show it and the head is scored against the neutral
-one). Scores: skin RMS against the true head after a similarity
+one), or given folders: ``bench_lens``'s too (``--heads
+generated/bench_heads/seed7_lens85``: JPEG photos whose EXIF lens makes each camera a
+pinhole; with its ``--yaw`` the front photo a three-quarter view, scored as the front).
+Scores: skin RMS against the true head after a similarity
 (``solver.synthetic.skin_error_mm``), mm; a head whose photos are not detected as a front
-and a profile is said and left out. A photos-only fit lands in one of several nearby
-minima, and which one moves with a tenth of a pixel: ``--copies N`` fits each case and
-N - 1 copies of it with every point moved by ``COPY_PX`` (seeded) and prints their mean,
-and the spread of a head's copies (their largest less their smallest, mean over the heads);
+(or three-quarter view) and a profile is said and left out. A photos-only fit lands in
+one of several nearby minima, and which one moves with a tenth of a pixel: ``--copies N``
+fits each case and N - 1 copies of it with every point moved by ``COPY_PX`` (seeded) and
+prints their mean, and the spread of a head's copies (their largest less their smallest,
+mean over the heads);
 ``--copy-px`` moves them further (0.3 px shows the far minima a change to the fit may fall
 into, which one fit per head hides: docs/DECISIONS.md), and ``--only`` fits the columns
 named (``--only detected``: the default fit alone, a fifth of the time).
@@ -44,6 +48,9 @@ SILHOUETTE_STEP_PX = 0.1
 
 #: How far (standard deviation, px) ``--copies`` moves every point of a copy of a case.
 COPY_PX = 0.05
+
+#: The view names ``solver detect`` gives a profile photo.
+PROFILE_VIEWS = ("right", "left")
 
 #: The fits of each head, in the table's order: label -> (front's landmarks exact, their
 #: uncertainty dropped, outlines moved onto the true silhouette).
@@ -85,20 +92,22 @@ def onto_silhouette(points, silhouette):
 def attributed(case, truth):
     """The photos-only ``case`` of a rendered head as each of ``ATTRIBUTIONS`` changes it,
     label -> case; ``truth``: the head's ``truth.npz`` (``landmark_names``,
-    ``exact_front``, ``head_alpha_front`` and ``_side``). The case's views must be a
-    "front" and one profile (its side photo)."""
-    if "front" not in case.views or len(case.views) != 2:
+    ``exact_front``, ``head_alpha_front`` and ``_side``). The case's views must be one
+    profile ("right" or "left": its side photo) and one other, its front photo (a "front",
+    or a three-quarter view where the head is turned, ``bench_lens --yaw``)."""
+    sides = [v for v in case.views if v in PROFILE_VIEWS]
+    if len(case.views) != 2 or len(sides) != 1:
         raise ValueError(f"the photos were detected as {sorted(case.views)}, not a front "
-                         "and a profile")
-    side = next(v for v in case.views if v != "front")
-    photo = {"front": "front", side: "side"}
+                         "(or a three-quarter view) and a profile")
+    front_view = next(v for v in case.views if v != sides[0])
+    photo = {front_view: "front", sides[0]: "side"}
     names = json.loads(str(truth["landmark_names"]))["front"]
     exact = dict(zip(names, np.asarray(truth["exact_front"], dtype=np.float64), strict=True))
     silhouettes = {v: true_silhouette(truth[f"head_alpha_{photo[v]}"]) for v in case.views}
     out = {}
     for label, (exact_front, clicks, outlines) in ATTRIBUTIONS.items():
         c = copy.deepcopy(case)
-        front = c.views["front"]
+        front = c.views[front_view]
         if exact_front:
             front.points = {n: tuple(exact[n]) if n in exact else p
                             for n, p in front.points.items()}

@@ -33,6 +33,7 @@ import numpy as np
 from PIL import Image
 
 from bench.common import machine_description
+from bench.rendered_heads import photo_path
 from solver import fit_head, load_landmarks, load_model
 from solver.detect import Detector
 from solver.detect.detected_case import detect_photos
@@ -59,8 +60,7 @@ def head_cases(folder, model, detector, sigmas=(), given=()):
     as orthographic, every exact landmark, the EXIF-lens case with each of ``sigmas``
     (degrees) as its cameras' direction prior, and the photos without their EXIF with
     each of ``given`` (mm) as their lens."""
-    photos = [(None, next(p for p in (folder / f"{name}.jpg", folder / f"{name}.png")
-                          if p.is_file())) for name in ("front", "side")]
+    photos = [(None, photo_path(folder, name)) for name in ("front", "side")]
 
     def load(path):
         return np.asarray(Image.open(path).convert("RGB"))

@@ -23,7 +23,7 @@ import numpy as np
 from PIL import Image
 
 from bench.common import machine_description
-from bench.rendered_heads import add_head_options, chosen_folders
+from bench.rendered_heads import add_head_options, chosen_folders, photo_path
 from solver import FitOptions, fit_head, load_model
 from solver.detect import Detector
 from solver.detect.detected_case import detect_photos
@@ -44,8 +44,10 @@ def resized(folder, scale, into):
 
 
 def photos_case(folder, detector):
-    """The case ``solver detect`` makes of a folder's front and side photos."""
-    return detect_photos([(None, folder / "front.png"), (None, folder / "side.png")],
+    """The case ``solver detect`` makes of a folder's front and side photos
+    (``rendered_heads.photo_path``: a JPEG's EXIF lens makes its camera a pinhole)."""
+    return detect_photos([(None, photo_path(folder, "front")),
+                          (None, photo_path(folder, "side"))],
                          detector, lambda p: np.asarray(Image.open(p).convert("RGB")),
                          base_dir=folder)
 

@@ -61,6 +61,15 @@ def add_head_options(parser, render=None):
                              "_pitch<DEG>)")
 
 
+def photo_path(folder, view):
+    """A rendered head's photo of ``view`` ("front" or "side"): the JPEG where there is one
+    (``tools.make_sample --lens`` writes the lens into its EXIF, so the photo is taken as a
+    pinhole camera of that lens), else the PNG (a parallel render, no EXIF)."""
+    folder = Path(folder)
+    jpeg = folder / f"{view}.jpg"
+    return jpeg if jpeg.is_file() else folder / f"{view}.png"
+
+
 def chosen_folders(args):
     """The folders of the options :func:`add_head_options` added (parsed ``args``)."""
     return head_folders(args.heads, args.render, args.skin, args.expression, args.pitch)

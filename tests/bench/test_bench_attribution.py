@@ -84,10 +84,23 @@ def test_each_attribution_changes_only_what_it_names():
     np.testing.assert_array_equal(case.views["front"].contour[0], [40.0, 91.0])
 
 
-def test_photos_not_detected_as_a_front_and_a_profile_are_said():
+def test_a_three_quarter_front_beside_a_profile_is_attributed_as_the_front():
+    # a head turned in its photos (bench_lens --yaw) is detected so
     case, truth = _case_and_truth()
     case.views["three_quarter_left"] = case.views.pop("front")
-    with pytest.raises(ValueError, match="not a front and a profile"):
+    exact = attributed(case, truth)["front exact"].views
+    assert exact["three_quarter_left"].points["nose_tip"] == (100.0, 101.0)
+    assert exact["right"].points == case.views["right"].points
+
+
+def test_photos_not_detected_as_a_front_and_a_profile_are_said():
+    case, truth = _case_and_truth()
+    case.views["left"] = case.views.pop("front")  # two profiles
+    with pytest.raises(ValueError, match=r"not a front \(or a three-quarter view\) and a"):
+        attributed(case, truth)
+    case, truth = _case_and_truth()
+    case.views["three_quarter_left"] = case.views.pop("right")  # no profile
+    with pytest.raises(ValueError, match="and a profile"):
         attributed(case, truth)
 
 

@@ -9,6 +9,7 @@ from bench.rendered_heads import (
     add_head_options,
     chosen_folders,
     head_folders,
+    photo_path,
 )
 
 
@@ -61,3 +62,11 @@ def test_the_chosen_folders_are_those_the_options_name(monkeypatch):
     assert chosen_folders(args) == [heads / "seed7_eyes_closed", heads / "seed101_eyes_closed"]
     args = parser.parse_args(["--render", "101", "--pitch", "12"])
     assert chosen_folders(args) == [heads / "seed7_pitch12", heads / "seed101_pitch12"]
+
+
+def test_a_folder_s_photo_is_its_jpeg_with_the_lens_else_its_png(tmp_path):
+    (tmp_path / "front.png").write_bytes(b"")
+    assert photo_path(tmp_path, "front") == tmp_path / "front.png"
+    (tmp_path / "front.jpg").write_bytes(b"")  # tools.make_sample --lens writes JPEGs
+    assert photo_path(tmp_path, "front") == tmp_path / "front.jpg"
+    assert photo_path(tmp_path, "side") == tmp_path / "side.png"
