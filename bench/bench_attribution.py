@@ -12,9 +12,10 @@ extent and order as detected, its error taken out), and with both.
 Heads: as ``bench.bench_photo_variants`` (the sample and ``generated/bench_heads/seed<N>``,
 rendered when missing; ``--skin`` and ``--expression`` as ``bench.rendered_heads`` takes
 them: with an expression the photos show it and the head is scored against the neutral
-one), or given folders: ``bench_lens``'s too (``--heads
-generated/bench_heads/seed7_lens85``: JPEG photos whose EXIF lens makes each camera a
-pinhole; with its ``--yaw`` the front photo a three-quarter view, scored as the front).
+one), or given folders: ``bench_lens``'s too (``--render --heads
+generated/bench_heads/seed7_lens85``, ``--render`` with no seed so that only the folders
+given run: JPEG photos whose EXIF lens makes each camera a pinhole; with its ``--yaw`` the
+front photo a three-quarter view, scored as the front).
 Scores: skin RMS against the true head after a similarity
 (``solver.synthetic.skin_error_mm``), mm; a head whose photos are not detected as a front
 (or three-quarter view) and a profile is said and left out. A photos-only fit lands in
