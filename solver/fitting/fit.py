@@ -66,6 +66,7 @@ import numpy as np
 from ..cameras import ORTHO_VIEWS, OrthographicCamera
 from ..detect.view_guess import placed_by_landmarks
 from ..errors import rms
+from ..geometry import rotation_from_vector
 from .approach1 import approach1, profile_fit
 from .approach2 import approach2
 from .checks import post_fit_warnings
@@ -332,9 +333,7 @@ def level_photos_start(result):
         return None
     turn, cameras = np.eye(3), dict(result.cameras)
     for name, cam in ortho.items():
-        a = angles[name]
-        in_plane = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0],
-                             [0.0, 0.0, 1.0]])
+        in_plane = rotation_from_vector((0.0, 0.0, angles[name]))  # about the view axis
         cameras[name] = OrthographicCamera(in_plane.T @ cam.rotation, cam.scale, cam.offset,
                                            cam.size, cam.view)
         turn = (cam.rotation.T @ in_plane @ cam.rotation) @ turn

@@ -12,6 +12,7 @@ from solver import FitOptions, LandmarkCase, OrthographicCamera, View, fit_head,
 from solver.fitting import fit
 from solver.fitting.fit import outline_missed
 from solver.fitting.outcome import flag_residuals
+from solver.geometry import rotation_from_vector
 from solver.synthetic import make_case, make_hand_placed_case, skin_error_mm
 
 
@@ -502,9 +503,7 @@ def test_a_side_photo_short_of_a_profile_placed_by_hand_is_fitted_from_where_it_
 
 
 def _turned_in_plane(cam, deg):
-    a = np.radians(deg)
-    in_plane = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0],
-                         [0.0, 0.0, 1.0]])
+    in_plane = rotation_from_vector((0.0, 0.0, np.radians(deg)))
     return OrthographicCamera(in_plane @ cam.rotation, cam.scale, cam.offset, cam.size,
                               cam.view)
 
