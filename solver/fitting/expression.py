@@ -10,10 +10,10 @@ neutral face, the expression is reported per photo.
 An expression weight lies in [0, 1] (0: neutral, 1: the shape at full strength) with a
 Gaussian prior of standard deviation ``EXPRESSION_SIGMA``, and is used from ``SHOWN`` up,
 or from ``FAINT`` up where it stands ``SURE`` of its posterior standard deviations clear of
-neutral: a weight has to explain clearly more than noise, so a neutral photo keeps its
+neutral, or ``AGREED`` of them in every photo (an open jaw only where a photo shows the lips
+apart): a weight has to explain clearly more than noise, so a neutral photo keeps its
 landmarks and the identity keeps what only an identity can explain, while a mouth a little
-open on well placed landmarks, which the identity would half take, is still taken out
-(docs/DECISIONS.md).
+open, which the identity would half take, is still taken out (docs/DECISIONS.md).
 """
 
 import dataclasses
@@ -30,6 +30,15 @@ SHOWN = 0.2
 #: solved out) clear of 0; smaller ones never.
 FAINT = 0.1
 SURE = 5.0
+#: ... or, from ``FAINT`` up, where every photo (two or more) reads it at least ``AGREED``
+#: posterior standard deviations clear of 0: one photo's landmarks can carry a face's own
+#: trait (lips parted at rest read in the front alone), an expression shows in all photos ...
+AGREED = 3.0
+#: ... and, for the open jaw, where a photo shows the lips apart: the inner lips' gap on the
+#: midline at least this share of the eyes' height above the mouth (a detector reads a
+#: closed mouth's lips a few per cent apart, more on a face looking up, whose chin the
+#: photos alone would otherwise read as an open jaw).
+LIPS_APART = 0.06
 #: A photo's landmarks must show this share of an expression's largest movement over all
 #: the set's landmarks (in pixels, through its camera) for the photo to be fitted with it:
 #: a profile read off its outline (nasion, nose, lips, chin) cannot tell raised brows, and
@@ -126,13 +135,43 @@ def estimate_expressions(model, case, result, noise_px, weights=None, lambda2=1.
     rhs[rows:rows + k] = -lambda2 * np.asarray(result.identity_coeffs, dtype=np.float64)
     a[rows + k:, k:] = np.eye(cols - k) / EXPRESSION_SIGMA
     x, sd = _bounded_weights(a, rhs, k)
-    x = np.where((x >= SHOWN) | ((x >= FAINT) & (x >= SURE * sd)), x, 0.0)
+    x = applied(x.reshape(len(blocks), n_e), sd.reshape(len(blocks), n_e),
+                np.array([n == "jawOpen" for n in np.asarray(model.expression_names)[chosen]]),
+                lips_apart(lms, case)).reshape(-1)
     out, out_sd = {}, {}
     for j, (name, *_) in enumerate(blocks):
         out[name], out_sd[name] = np.zeros((2, len(model.expression_names)))
         out[name][chosen] = x[j * n_e:(j + 1) * n_e]
         out_sd[name][chosen] = sd[j * n_e:(j + 1) * n_e]
     return out, out_sd
+
+
+def applied(weights, sd, jaw, apart):
+    """The weights (P, E) of P photos with those left at neutral that do not clearly
+    explain more than noise (posterior standard deviations ``sd`` (P, E)): kept from
+    ``SHOWN`` up; from ``FAINT`` up where ``SURE`` deviations clear of 0 in their photo, or
+    ``AGREED`` in every photo of two or more, for the open jaw (``jaw`` (E,) bool) only
+    where the lips are ``apart`` (bool)."""
+    faint = weights >= FAINT
+    agreed = (faint & (weights >= AGREED * sd)).all(axis=0) & (len(weights) >= 2) \
+        & (apart | ~jaw)
+    keep = (weights >= SHOWN) | (faint & (weights >= SURE * sd)) | (faint & agreed)
+    return np.where(keep, weights, 0.0)
+
+
+def lips_apart(lms, case):
+    """Whether a photo of ``case`` shows the lips apart: the inner lips' gap on the midline
+    at least ``LIPS_APART`` of the height of the eyes' inner corners above the mouth's
+    middle (False where no photo gives those points)."""
+    wanted = ("mouth_middle", "lip_lower_inner_middle", "eye_inner_right", "eye_inner_left")
+    for view in case.views.values():
+        p = {lms.canonical(k): np.asarray(v, dtype=np.float64) for k, v in view.points.items()}
+        if all(n in p for n in wanted):
+            gap = np.linalg.norm(p["lip_lower_inner_middle"] - p["mouth_middle"])
+            eyes = 0.5 * (p["eye_inner_right"] + p["eye_inner_left"])
+            if gap >= LIPS_APART * np.linalg.norm(eyes - p["mouth_middle"]):
+                return True
+    return False
 
 
 def _observed(at_view, jac, at_all):

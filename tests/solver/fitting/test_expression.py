@@ -7,7 +7,15 @@ import numpy as np
 import pytest
 
 from solver import FitOptions, fit_head, refit_landmarks
-from solver.fitting.expression import FAINT, expression_report, neutral_case
+from solver.fitting.expression import (
+    FAINT,
+    LIPS_APART,
+    SHOWN,
+    applied,
+    expression_report,
+    lips_apart,
+    neutral_case,
+)
 from solver.synthetic import make_case, resample_polyline, skin_error_mm, trace_silhouette
 
 
@@ -152,3 +160,41 @@ def test_a_photo_is_fitted_only_with_the_expressions_its_landmarks_show(model):
     shown = fit_head(model, midline).info["expressions"]
     assert not any(n.startswith("brow") for n in shown["right"]), shown
     assert shown["front"].get("browInnerUp_R", 0.0) > 0.5, shown
+
+
+def test_a_faint_expression_is_taken_where_every_photo_reads_it():
+    # Two photos, two expressions (the second the open jaw): faint (0.15) and 3.75 of
+    # their standard deviations clear of neutral.
+    faint, sd = np.full((2, 2), 0.15), np.full((2, 2), 0.04)
+    jaw = np.array([False, True])
+    assert (applied(faint, sd, jaw, apart=True) == faint).all()
+    # the open jaw only where a photo shows the lips apart (a raised chin reads as one)
+    assert (applied(faint, sd, jaw, apart=False) == [[0.15, 0.0], [0.15, 0.0]]).all()
+    # read in one photo only (the other's 0.05 is under FAINT): a trait, not an expression
+    one = np.array([[0.15, 0.15], [0.05, 0.15]])
+    assert (applied(one, sd, jaw, apart=True) == [[0.0, 0.15], [0.0, 0.15]]).all()
+    # a single photo needs SURE deviations; from SHOWN up a weight is always kept
+    assert (applied(faint[:1], sd[:1], jaw, apart=True) == 0.0).all()
+    assert (applied(faint[:1], sd[:1] / 2, jaw, apart=True) == faint[:1]).all()
+    assert (applied(np.full((1, 2), SHOWN), sd[:1] * 10, jaw, apart=False) == SHOWN).all()
+
+
+def test_lips_apart_reads_the_inner_lips_gap_in_a_photo_that_shows_both(model):
+    case, truth = make_case(model, 31, noise_px=0.0)
+    lms = model.landmark_set
+    assert not lips_apart(lms, case)  # the model's closed mouth
+    front = case.views["front"].points
+    eyes = 0.5 * (np.asarray(front["eye_inner_right"]) + np.asarray(front["eye_inner_left"]))
+    height = np.linalg.norm(eyes - np.asarray(front["mouth_middle"]))
+
+    def lowered(by):  # the lower lip's inner midline point moved down by ``by`` heights
+        p = np.asarray(front["mouth_middle"]) + (0.0, by * height)
+        return dataclasses.replace(case, views={**case.views, "front": dataclasses.replace(
+            case.views["front"], points={**front, "lip_lower_inner_middle": tuple(p)})})
+
+    assert lips_apart(lms, lowered(1.2 * LIPS_APART))
+    assert not lips_apart(lms, lowered(0.8 * LIPS_APART))
+    # a photo without the inner lips (a profile) tells nothing
+    profile = dataclasses.replace(case, views={"right": case.views["right"]})
+    assert "lip_lower_inner_middle" not in profile.views["right"].points
+    assert not lips_apart(lms, profile)
