@@ -136,7 +136,7 @@ def estimate_expressions(model, case, result, noise_px, weights=None, lambda2=1.
     a[rows + k:, k:] = np.eye(cols - k) / EXPRESSION_SIGMA
     x, sd = _bounded_weights(a, rhs, k)
     x = applied(x.reshape(len(blocks), n_e), sd.reshape(len(blocks), n_e),
-                np.array([n == "jawOpen" for n in np.asarray(model.expression_names)[chosen]]),
+                np.asarray(model.expression_names)[chosen] == "jawOpen",
                 lips_apart(lms, case)).reshape(-1)
     out, out_sd = {}, {}
     for j, (name, *_) in enumerate(blocks):
