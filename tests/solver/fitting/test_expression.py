@@ -7,10 +7,13 @@ import numpy as np
 import pytest
 
 from solver import FitOptions, fit_head, refit_landmarks
+from solver.fitting import expression
 from solver.fitting.expression import (
+    AGREED,
     FAINT,
     LIPS_APART,
     SHOWN,
+    SURE,
     applied,
     expression_report,
     lips_apart,
@@ -198,3 +201,18 @@ def test_lips_apart_reads_the_inner_lips_gap_in_a_photo_that_shows_both(model):
     profile = dataclasses.replace(case, views={"right": case.views["right"]})
     assert "lip_lower_inner_middle" not in profile.views["right"].points
     assert not lips_apart(lms, profile)
+
+
+def test_an_open_jaw_both_photos_read_is_taken_out_where_the_lips_are_apart(model, monkeypatch):
+    # Open 0.12 behind 4-px points: the front reads it surely, the profile 3.6 of its
+    # standard deviations clear of neutral, under SURE: taken as every photo reads it.
+    case, truth = make_case(model, 36, noise_px=4.0)
+    opened = _with_expression(model, case, truth, {"jawOpen": 0.12}, noise_px=4.0, outline=True)
+    info = fit_head(model, opened).info
+    shown, sd = info["expressions"], info["expression_sd"]
+    assert shown["front"]["jawOpen"] > 0.1 and shown["right"]["jawOpen"] > 0.1, shown
+    assert AGREED <= shown["right"]["jawOpen"] / sd["right"]["jawOpen"] < SURE, sd
+    # where no photo shows the lips apart (read as closed) the profile's is left in
+    monkeypatch.setattr(expression, "LIPS_APART", 1.0)
+    shown = fit_head(model, opened).info["expressions"]
+    assert shown["front"]["jawOpen"] > 0.1 and "jawOpen" not in shown["right"], shown
