@@ -155,7 +155,7 @@ def applied(weights, sd, jaw, apart):
     faint = weights >= FAINT
     agreed = (faint & (weights >= AGREED * sd)).all(axis=0) & (len(weights) >= 2) \
         & (apart | ~jaw)
-    keep = (weights >= SHOWN) | (faint & (weights >= SURE * sd)) | (faint & agreed)
+    keep = (weights >= SHOWN) | (faint & (weights >= SURE * sd)) | agreed
     return np.where(keep, weights, 0.0)
 
 
