@@ -7,7 +7,7 @@ extent and order as detected, its error taken out), and with both.
 
     python -m bench.bench_attribution [--heads DIR ...] [--render SEED ...] [--skin TONE]
                                       [--expression NAME] [--copies N] [--copy-px PX]
-                                      [--only LABEL ...]
+                                      [--only LABEL ...] [--regions]
 
 Heads: as ``bench.bench_photo_variants`` (the sample and ``generated/bench_heads/seed<N>``,
 rendered when missing; ``--skin`` and ``--expression`` as ``bench.rendered_heads`` takes
@@ -25,7 +25,11 @@ prints their mean, and the spread of a head's copies (their largest less their s
 mean over the heads);
 ``--copy-px`` moves them further (0.3 px shows the far minima a change to the fit may fall
 into, which one fit per head hides: docs/DECISIONS.md), and ``--only`` fits the columns
-named (``--only detected``: the default fit alone, a fifth of the time).
+named (``--only detected``: the default fit alone, a fifth of the time). ``--regions``
+prints under each head its error over each region of the skin (``bench.head_regions``: the
+face, the ears, the back of the head, the rest; the same similarity as the whole skin's):
+the spread of a photos-only fit's copies lies at the ears and the back, which no photo
+shows (docs/DECISIONS.md).
 """
 
 import argparse
@@ -37,6 +41,7 @@ from scipy.spatial import cKDTree
 
 from bench.bench_photo_size import photos_case
 from bench.common import machine_description
+from bench.head_regions import region_errors, skin_regions
 from bench.rendered_heads import add_head_options, chosen_folders
 from solver import fit_head, load_model
 from solver.detect import Detector
@@ -134,12 +139,18 @@ def moved_copy(case, rng, px=COPY_PX):
     return out
 
 
-def copies_error(model, case, true_head, copies, rng, px=COPY_PX):
+def copies_error(model, case, true_head, copies, rng, px=COPY_PX, regions=None):
     """Skin RMS (mm) of the fits of ``case`` and ``copies`` - 1 copies of it moved by
-    ``px`` (:func:`moved_copy`), (copies,)."""
+    ``px`` (:func:`moved_copy`), (copies,); with ``regions`` (``head_regions.skin_regions``)
+    also each region's (``head_regions.region_errors``): name -> (copies,), the whole
+    skin's under "skin"."""
     cases = [case] + [moved_copy(case, rng, px) for _ in range(copies - 1)]
-    return np.array([skin_error_mm(model, fit_head(model, c).local_vertices, true_head)
-                     for c in cases])
+    heads = [fit_head(model, c).local_vertices for c in cases]
+    skin = np.array([skin_error_mm(model, h, true_head) for h in heads])
+    if regions is None:
+        return skin
+    parts = [region_errors(model, h, true_head, regions) for h in heads]
+    return {"skin": skin, **{name: np.array([p[name] for p in parts]) for name in regions}}
 
 
 def main(argv=None):
@@ -152,6 +163,9 @@ def main(argv=None):
                          f"{COPY_PX:g})")
     ap.add_argument("--only", nargs="+", choices=list(ATTRIBUTIONS), metavar="LABEL",
                     help="fit only these columns: " + ", ".join(ATTRIBUTIONS))
+    ap.add_argument("--regions", action="store_true",
+                    help="also each head's error over the face, the ears, the back of the "
+                         "head and the rest of the skin")
     add_head_options(ap)
     args = ap.parse_args(argv)
     if args.copies < 1:
@@ -171,7 +185,8 @@ def main(argv=None):
         print(f"each the mean of {args.copies} fits: the case and copies of it with every "
               f"point moved by {args.copy_px:g} px")
     print(f"  {'head':<14}" + "".join(f"{c:>20}" for c in columns))
-    rows, spreads = [], []
+    rows, spreads, region_rows = [], [], []
+    regions = skin_regions(model) if args.regions else None
     rng = np.random.default_rng(0)
     for folder in folders:
         truth = np.load(folder / "truth.npz", allow_pickle=True)
@@ -182,17 +197,31 @@ def main(argv=None):
         except ValueError as err:
             print(f"  {folder.name}: {err}")
             continue
-        errors = [copies_error(model, c, true_head, args.copies, rng, args.copy_px)
-                  for c in cases.values()]
+        results = [copies_error(model, c, true_head, args.copies, rng, args.copy_px,
+                                regions) for c in cases.values()]
+        errors = results if regions is None else [r["skin"] for r in results]
         row = [skin_error_mm(model, model.vertices, true_head)] + [e.mean() for e in errors]
         rows.append(row)
         spreads.append([e.max() - e.min() for e in errors])
         print(f"  {folder.name:<14}" + "".join(f"{v:>20.2f}" for v in row), flush=True)
+        if regions is not None:
+            mean_head = region_errors(model, model.vertices, true_head, regions)
+            region_rows.append([[mean_head[n]] + [r[n].mean() for r in results]
+                                for n in regions])
+            _print_regions(regions, region_rows[-1])
     if rows:
         print(f"  {'mean':<14}" + "".join(f"{v:>20.2f}" for v in np.mean(rows, axis=0)))
+    if region_rows:
+        _print_regions(regions, np.mean(region_rows, axis=0))
     if rows and args.copies > 1:
         print(f"  {'spread':<14}" + " " * 20
               + "".join(f"{v:>20.2f}" for v in np.mean(spreads, axis=0)))
+
+
+def _print_regions(regions, values):
+    """One line per region under a head's (or the mean's) line: its error in each column."""
+    for name, row in zip(regions, values, strict=True):
+        print(f"    {name:<12}" + "".join(f"{v:>20.2f}" for v in row), flush=True)
 
 
 if __name__ == "__main__":
