@@ -140,17 +140,15 @@ def moved_copy(case, rng, px=COPY_PX):
 
 
 def copies_error(model, case, true_head, copies, rng, px=COPY_PX, regions=None):
-    """Skin RMS (mm) of the fits of ``case`` and ``copies`` - 1 copies of it moved by
-    ``px`` (:func:`moved_copy`), (copies,); with ``regions`` (``head_regions.skin_regions``)
-    also each region's (``head_regions.region_errors``): name -> (copies,), the whole
-    skin's under "skin"."""
+    """The errors (mm) of the fits of ``case`` and ``copies`` - 1 copies of it moved by
+    ``px`` (:func:`moved_copy`): name -> (copies,), the skin RMS under "skin" and, with
+    ``regions`` (``head_regions.skin_regions``), each region's
+    (``head_regions.region_errors``)."""
     cases = [case] + [moved_copy(case, rng, px) for _ in range(copies - 1)]
     heads = [fit_head(model, c).local_vertices for c in cases]
-    skin = np.array([skin_error_mm(model, h, true_head) for h in heads])
-    if regions is None:
-        return skin
-    parts = [region_errors(model, h, true_head, regions) for h in heads]
-    return {"skin": skin, **{name: np.array([p[name] for p in parts]) for name in regions}}
+    parts = [region_errors(model, h, true_head, regions) if regions else {} for h in heads]
+    return {"skin": np.array([skin_error_mm(model, h, true_head) for h in heads]),
+            **{name: np.array([p[name] for p in parts]) for name in regions or ()}}
 
 
 def main(argv=None):
@@ -199,7 +197,7 @@ def main(argv=None):
             continue
         results = [copies_error(model, c, true_head, args.copies, rng, args.copy_px,
                                 regions) for c in cases.values()]
-        errors = results if regions is None else [r["skin"] for r in results]
+        errors = [r["skin"] for r in results]
         row = [skin_error_mm(model, model.vertices, true_head)] + [e.mean() for e in errors]
         rows.append(row)
         spreads.append([e.max() - e.min() for e in errors])

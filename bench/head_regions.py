@@ -6,7 +6,7 @@ skin does not say (docs/DECISIONS.md, "Where the photos-only fit's spread lies")
 import numpy as np
 
 from bench.realistic_cases import model_face_vertices
-from solver.procrustes import similarity_procrustes
+from solver.synthetic import skin_squared_distances
 
 #: Skin within this distance of an ear landmark's vertex, on the mean head, is the ears'.
 EAR_RADIUS_M = 0.025
@@ -36,12 +36,10 @@ def skin_regions(model):
 def region_errors(model, local, truth_local, regions=None):
     """Region name -> RMS vertex distance (mm) between ``local`` and ``truth_local`` (V, 3)
     metres over its skin vertices, the heads laid on each other by the similarity over the
-    whole skin (as ``solver.synthetic.skin_error_mm``), so the regions' mean squares,
-    weighted by their vertex counts, make up the skin's. ``regions``: ``skin_regions``'s
-    answer (made when not given)."""
+    whole skin (``solver.synthetic.skin_squared_distances``, as ``skin_error_mm``), so the
+    regions' mean squares, weighted by their vertex counts, make up the skin's.
+    ``regions``: ``skin_regions``'s answer (made when not given)."""
     regions = skin_regions(model) if regions is None else regions
-    skin = np.asarray(model.skin, dtype=np.intp)
-    a, b = np.asarray(local)[skin], np.asarray(truth_local)[skin]
-    d2 = ((similarity_procrustes(a, b).apply(a) - b) ** 2).sum(axis=1)
+    d2 = skin_squared_distances(model, np.asarray(local), np.asarray(truth_local))
     return {name: 1000.0 * float(np.sqrt(d2[mask].mean())) if mask.any() else float("nan")
             for name, mask in regions.items()}

@@ -707,10 +707,18 @@ def resample_polyline(points, n):
     return np.stack([np.interp(t, s, p[:, 0]), np.interp(t, s, p[:, 1])], axis=1)
 
 
-def skin_error_mm(model, local, truth_local):
-    """RMS vertex distance over the skin, millimetres, between ``local`` and
-    ``truth_local`` (V, 3) in metres, after similarity alignment (photos cannot tell
-    size): how the tests and the benchmarks measure a fitted head."""
+def skin_squared_distances(model, local, truth_local):
+    """Squared distance of each skin vertex (``model.skin``), (n,) square metres, between
+    ``local`` and ``truth_local`` (V, 3) in metres, after the similarity alignment over the
+    skin (photos cannot tell size)."""
     a, b = local[model.skin], truth_local[model.skin]
     sim = similarity_procrustes(a, b)
-    return 1000.0 * float(np.sqrt(((sim.apply(a) - b) ** 2).sum(axis=1).mean()))
+    return ((sim.apply(a) - b) ** 2).sum(axis=1)
+
+
+def skin_error_mm(model, local, truth_local):
+    """RMS vertex distance over the skin, millimetres, between ``local`` and
+    ``truth_local`` (V, 3) in metres, after similarity alignment
+    (:func:`skin_squared_distances`): how the tests and the benchmarks measure a fitted
+    head."""
+    return 1000.0 * float(np.sqrt(skin_squared_distances(model, local, truth_local).mean()))
