@@ -4,12 +4,15 @@ import numpy as np
 import pytest
 
 from solver import PinholeCamera, landmarks_to_dict, parse_landmarks
+from solver.geometry import rotation_from_vector
 from solver.synthetic import (
     make_case,
     make_hand_placed_case,
     make_mirror_case,
     make_perspective_case,
     resample_polyline,
+    skin_error_mm,
+    skin_squared_distances,
     trace_silhouette,
     vertex_normals,
 )
@@ -228,3 +231,18 @@ def test_a_hand_placed_case_has_nominal_cameras_and_the_side_seen_from_its_own_y
                        seen.project(head[[lms.vertices[n] for n in names]]))
     assert all(model.vertices[lms.vertices[n], 0] <= 0.005 for n in names)
     assert len(front.points) > len(names) >= 20
+
+
+def test_the_skin_is_scored_after_a_similarity_vertex_by_vertex(model):
+    truth = model.vertices
+    moved = 1.2 * truth @ rotation_from_vector((0.1, -0.2, 0.3)).T + [0.01, 0.02, -0.03]
+    assert skin_squared_distances(model, moved, truth).max() < 1e-20  # size and pose: none
+    assert skin_error_mm(model, moved, truth) < 1e-7
+    bumped = truth.copy()
+    one = int(model.skin[100])
+    bumped[one, 0] += 0.01  # one skin vertex 10 mm off
+    d2 = skin_squared_distances(model, bumped, truth)
+    assert d2.shape == (len(model.skin),) and int(np.argmax(d2)) == 100
+    assert np.sqrt(d2[100]) == pytest.approx(0.01, rel=1e-3)  # the alignment barely moves
+    assert skin_error_mm(model, bumped, truth) == pytest.approx(
+        1000.0 * np.sqrt(d2.mean()), rel=1e-12)
