@@ -7,7 +7,9 @@ Steps (numbers in docs/DECISIONS.md, "The head's outline"):
 1. the selfie segmentation (``segmentation.person_mask``) on a square around the face
    (a larger one where the head reaches its side or top), its 0.5 iso-line
    (``iso_line``) around the face: 1.2-1.7 px (median) from the true silhouette on the
-   rendered photos, its map's pixel 3.4-3.8 photo pixels;
+   rendered photos, its map's pixel 3.4-3.8 photo pixels; what it took in of a busy
+   background (many colours, changing every few pixels) taken out of it
+   (``busy_background``);
 2. each point moved along the outline's normal to where the photo's colour crosses
    halfway between the colours inside and outside (sub-pixel, on the photo itself; a
    rim of light along darker skin's edge is inside the edge, not the edge);
@@ -44,6 +46,7 @@ from ..photo_colour import (
     skin_colour,
     skin_like,
 )
+from .busy_background import without_busy_background
 from .crop import Square
 from .iso_line import iso_lines
 from .segmentation import PersonMask, person_mask
@@ -149,7 +152,8 @@ class Outline:
         The photo has colour (``photo_colour.has_colour``).
     warnings : list of str
         What the user should check on this outline: a thing behind the head that the
-        segmentation took in, left out of it (``without_leaks``); an outline the
+        segmentation took in, left out of it (``without_leaks``); a busy background it
+        took in, left out too (``busy_background``); an outline the
         segmentation is unsure of (``UNSURE_SHARE``).
     unsure : float
         The share of the points where the segmentation is unsure of the person's edge
@@ -388,12 +392,12 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
     box = np.asarray(face.box, float)
     centre = ((box[0] + box[2]) / 2, (box[1] + box[3]) / 2)
     square = Square(centre, SQUARE_SCALE * float(max(box[2] - box[0], box[3] - box[1])))
-    mask = person_mask(network, image, square)
+    mask, busy = without_busy_background(image, person_mask(network, image, square))
     past = _reaching(mask, np.asarray(face.keypoints, float)[3])
     if past.any():                       # the head goes on past the square: a larger one
         shift = REGROW_SHIFT * square.size * past @ np.array([[-1, 0], [1, 0], [0, -1]])
         square = Square(tuple(np.asarray(centre) + shift), REGROW * square.size)
-        mask = person_mask(network, image, square)
+        mask, busy = without_busy_background(image, person_mask(network, image, square))
     nose = np.asarray(face.keypoints, float)[2]
     size = float(box[2] - box[0])
     loop, moved, refined, inside, skin_of_face = _edge(image, mask, face, spacing_px)
@@ -461,6 +465,10 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
                 f"a shelf behind the head): {taken_out * mask.pixel_size ** 2:.0f} px\u00b2 "
                 "of it taken for the head were left out; check the outline there"] \
         if taken_out else []
+    if busy:
+        warnings.append(f"a busy background (its colours changing every few pixels) was "
+                        f"taken for the person: {busy * mask.pixel_size ** 2:.0f} px\u00b2 of "
+                        "it left out; check the outline there")
     if crossed:
         notes.append("the photo's border cuts the head: its outline goes on beyond it")
     if not colour:

@@ -419,3 +419,32 @@ def test_a_leak_is_the_thing_s_colour_and_a_loosely_straight_edge_not_the_skin_s
         assert (out.probability[60:200, 50:100] == 1).all()       # the face's skin stays
     else:
         assert count == 0 and (out.probability == person).all()
+
+
+def test_confetti_the_segmentation_takes_in_is_left_out_of_the_outline(sample, detector,
+                                                                       monkeypatch):
+    from bench.bench_photo_variants import colour_blocks
+    from solver import load_landmarks
+    from solver.detect import outline as outline_module
+
+    # before confetti (squares of random colours, 64 down the photo) MediaPipe's
+    # segmentation takes in the squares before the face's profile; their colours changing
+    # every few pixels tell them from the head, and the outline follows the head
+    folder, truth = sample
+    image = Image.fromarray(_photo(folder))
+    busy = np.asarray(colour_blocks(image, truth["alpha_side"] / 255.0, 64))
+    face = detector.detect(busy)
+    true = load_landmarks(folder / "sample.json").views["side"].contour
+
+    def off(outline):
+        d, _ = _distance_to_line(outline.points, true)
+        covered, _ = _distance_to_line(true, outline.points)
+        return np.percentile(d, 90), (covered < 3).mean()
+
+    outline = detector.outline(busy, face)
+    far, covered = off(outline)
+    assert far < 5.0 and covered > 0.9
+    assert any(w.startswith("a busy background") for w in outline.warnings)
+    # the map as the network gives it runs the outline into the squares
+    monkeypatch.setattr(outline_module, "without_busy_background", lambda im, m: (m, 0))
+    assert off(detector.outline(busy, face))[0] > 10.0
