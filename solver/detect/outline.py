@@ -30,7 +30,7 @@ Steps (numbers in docs/DECISIONS.md, "The head's outline"):
 5. an outline the segmentation is unsure of over most of it (``UNSURE_REFUSE``) is none.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import ndimage
@@ -49,7 +49,7 @@ from ..photo_colour import (
 from .busy_background import without_busy_background
 from .crop import Square
 from .iso_line import iso_lines
-from .segmentation import PersonMask, person_mask
+from .segmentation import person_mask
 
 #: Outline points every this many photo pixels (the fit weighs points by the outline
 #: length they stand for, ``solver.io.contour.SPACING_PX``, so denser is not heavier).
@@ -392,12 +392,12 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
     box = np.asarray(face.box, float)
     centre = ((box[0] + box[2]) / 2, (box[1] + box[3]) / 2)
     square = Square(centre, SQUARE_SCALE * float(max(box[2] - box[0], box[3] - box[1])))
-    mask, busy = without_busy_background(image, person_mask(network, image, square))
+    mask, busy = without_busy_background(person_mask(network, image, square))
     past = _reaching(mask, np.asarray(face.keypoints, float)[3])
     if past.any():                       # the head goes on past the square: a larger one
         shift = REGROW_SHIFT * square.size * past @ np.array([[-1, 0], [1, 0], [0, -1]])
         square = Square(tuple(np.asarray(centre) + shift), REGROW * square.size)
-        mask, busy = without_busy_background(image, person_mask(network, image, square))
+        mask, busy = without_busy_background(person_mask(network, image, square))
     nose = np.asarray(face.keypoints, float)[2]
     size = float(box[2] - box[0])
     loop, moved, refined, inside, skin_of_face = _edge(image, mask, face, spacing_px)
@@ -596,7 +596,7 @@ def without_leaks(image, mask, points, straight, skin, reach, sure=None):
     # left beside what was taken out goes with it
     kept = person & ~leak
     leak |= kept & ~ndimage.binary_opening(kept) & ndimage.binary_dilation(leak, iterations=2)
-    return (PersonMask(mask.square, np.where(leak, 0.0, mask.probability).astype(np.float32)),
+    return (replace(mask, probability=np.where(leak, 0.0, mask.probability).astype(np.float32)),
             int(leak.sum()))
 
 

@@ -28,10 +28,14 @@ class PersonMask:
     probability : ndarray (256, 256) float32
         Row r, column c: the probability at crop pixel (c, r) (``crop``'s rule: pixel i
         samples the photo at ``square.to_photo(i) + 0.5`` in continuous coordinates).
+    photo : ndarray (256, 256, 3) float32
+        The photo over the same square, as the model saw it (``crop``, the photo's edges
+        extended past it), in [0, 1].
     """
 
     square: Square
     probability: np.ndarray
+    photo: np.ndarray
 
     @property
     def pixel_size(self):
@@ -77,7 +81,7 @@ def person_mask(network, image, square):
     (the model's input range), photo edges extended past the photo."""
     x = crop(image, square, INPUT, border="edge")
     (out,) = network(x[None])
-    return PersonMask(square, np.asarray(out, np.float32).reshape(INPUT, INPUT))
+    return PersonMask(square, np.asarray(out, np.float32).reshape(INPUT, INPUT), x)
 
 
 def photo_square(shape):

@@ -402,7 +402,7 @@ def test_a_leak_is_the_thing_s_colour_and_a_loosely_straight_edge_not_the_skin_s
     image[40:216, 110:160] = WOOD if thing == "wood" else 0.6 * skin
     person = np.zeros((256, 256), np.float32)
     person[40:216, 40:160] = 1.0
-    mask = PersonMask(Square((128.0, 128.0), 256.0), person)
+    mask = PersonMask(Square((128.0, 128.0), 256.0), person, image.astype(np.float32))
     side = np.arange(0, 120, 3.0)
     down = np.arange(0, 176, 3.0)
     loop = np.vstack([np.stack([40 + side, np.full_like(side, 40)], 1),     # clockwise
@@ -446,5 +446,5 @@ def test_confetti_the_segmentation_takes_in_is_left_out_of_the_outline(sample, d
     assert far < 5.0 and covered > 0.9
     assert any(w.startswith("a busy background") for w in outline.warnings)
     # the map as the network gives it runs the outline into the squares
-    monkeypatch.setattr(outline_module, "without_busy_background", lambda im, m: (m, 0))
+    monkeypatch.setattr(outline_module, "without_busy_background", lambda m: (m, 0))
     assert off(detector.outline(busy, face))[0] > 10.0

@@ -14,7 +14,8 @@ from solver.paths import DETECTOR_DIR
 def test_the_map_and_the_photo_agree_both_ways():
     rng = np.random.default_rng(5)
     mask = PersonMask(Square((300.0, 410.0), 512.0, 0.3),
-                      rng.uniform(0, 1, (INPUT, INPUT)).astype(np.float32))
+                      rng.uniform(0, 1, (INPUT, INPUT)).astype(np.float32),
+                      np.zeros((INPUT, INPUT, 3), np.float32))
     assert mask.pixel_size == 2.0
     rc = rng.integers(1, INPUT - 1, size=(50, 2))
     uv = mask.to_photo(rc[:, ::-1])
