@@ -62,6 +62,14 @@ def turned_side_sample(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def window_sample(tmp_path_factory):
+    """A head lit by a window at the subject's left alone (``make_sample --seed 205 --light
+    window``): the front photo's far side and the whole profile in shade, a band of light
+    along the profile's forehead and nose."""
+    return _rendered(tmp_path_factory, "window_sample", "--seed", "205", "--light", "window")
+
+
+@pytest.fixture(scope="session")
 def lens_sample(tmp_path_factory):
     """The sample photographed with a 50 mm lens (``make_sample --lens 50``: pinhole cameras
     about half a metre away, JPEGs with the lens in their EXIF)."""

@@ -336,6 +336,9 @@ def appearance_attributes(model):
 #: colour rules are measured on more than one complexion.
 SKIN_TONES = {"light": (1.0, 1.0, 1.0), "medium": (0.55, 0.48, 0.42),
               "dark": (0.22, 0.18, 0.15)}
+#: Lightings (``--light``), the keys of ``render_util.LIGHTINGS`` (which needs bpy, so it is
+#: not imported here): "studio" is the sample's own.
+LIGHTS = ("studio", "window")
 
 
 def _materials(skin_tone="light"):
@@ -635,7 +638,7 @@ def torso_mesh(local, skin, cut, n_around=72):
 
 
 def render_views(model, local, pose, torso, cameras, size, samples, seed, log,
-                 skin_tone="light"):
+                 skin_tone="light", light="studio"):
     """Render each view with Cycles.
 
     Parameters
@@ -655,6 +658,8 @@ def render_views(model, local, pose, torso, cameras, size, samples, seed, log,
     log : callable
     skin_tone : str
         A key of ``SKIN_TONES``.
+    light : str
+        A key of ``render_util.LIGHTINGS``.
 
     Returns
     -------
@@ -683,7 +688,7 @@ def render_views(model, local, pose, torso, cameras, size, samples, seed, log,
     for obj in (head, shirt):
         ru.set_pose(obj, 1.0, rotation, translation)
     world = local @ rotation.T + translation
-    ru.studio_lighting(world[model.skin].mean(axis=0))
+    ru.LIGHTINGS[light](world[model.skin].mean(axis=0))
     out, cam_objs = {}, {}
     for view, cam in cameras.items():
         add = ru.add_pinhole_camera if cam.perspective else ru.add_ortho_camera
@@ -725,7 +730,7 @@ def draw_overlay(photo, points, contour=None):
 
 
 def _params(model, seed, size, samples, lens_mm=None, yaw_deg=0.0, side_deg=90.0,
-            skin_tone="light", expression=None, pitch_deg=0.0):
+            skin_tone="light", expression=None, pitch_deg=0.0, light="studio"):
     params = {"version": SAMPLE_VERSION, "seed": int(seed),
               "size": [int(size[0]), int(size[1])], "samples": int(samples),
               "model": getattr(model, "build_hash", "")}
@@ -741,6 +746,8 @@ def _params(model, seed, size, samples, lens_mm=None, yaw_deg=0.0, side_deg=90.0
         params["skin_tone"] = skin_tone
     if expression is not None:
         params["expression"] = expression
+    if light != "studio":
+        params["light"] = light
     return params
 
 
@@ -766,7 +773,7 @@ def is_up_to_date(out, params):
 
 def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=DEFAULT_SAMPLES,
                 force=False, model=None, log=print, lens_mm=None, yaw_deg=0.0, side_deg=90.0,
-                skin_tone="light", expression=None, pitch_deg=0.0):
+                skin_tone="light", expression=None, pitch_deg=0.0, light="studio"):
     """Make the sample case in ``out`` unless it is up to date.
 
     Parameters
@@ -804,6 +811,10 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
         The face in the photos shows this key of ``EXPRESSIONS`` (its landmarks and
         outline with it); ``truth.npz`` keeps the neutral head as ``local_vertices`` and
         the weights as ``expression``.
+    light : str
+        How the head is lit, a key of ``render_util.LIGHTINGS``: "studio" (soft, from the
+        front) or "window" (one side: the other in shade, a band of light along the
+        profile).
 
     Returns
     -------
@@ -829,8 +840,10 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
         raise ValueError(f"skin_tone: one of {', '.join(SKIN_TONES)}, got {skin_tone!r}")
     if expression is not None and expression not in EXPRESSIONS:
         raise ValueError(f"expression: one of {', '.join(EXPRESSIONS)}, got {expression!r}")
+    if light not in LIGHTS:
+        raise ValueError(f"light: one of {', '.join(LIGHTS)}, got {light!r}")
     params = _params(model, seed, size, samples, lens_mm, yaw_deg, side_deg, skin_tone,
-                     expression, pitch_deg)
+                     expression, pitch_deg, light)
     if not force and is_up_to_date(out, params):
         log(f"sample up to date: {out}")
         return out / "sample.json"
@@ -841,7 +854,7 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
     tmp.mkdir()
     try:
         _make_into(tmp, model, seed, size, samples, params, log, lens_mm, yaw_deg, side_deg,
-                   skin_tone, expression, pitch_deg)
+                   skin_tone, expression, pitch_deg, light)
         old = out.parent / f".{out.name}.old-{os.getpid()}"
         if out.exists():
             out.rename(old)
@@ -854,7 +867,8 @@ def make_sample(out=DEFAULT_OUT, seed=DEFAULT_SEED, size=DEFAULT_SIZE, samples=D
 
 
 def _make_into(folder, model, seed, size, samples, params, log, lens_mm=None, yaw_deg=0.0,
-               side_deg=90.0, skin_tone="light", expression=None, pitch_deg=0.0):
+               side_deg=90.0, skin_tone="light", expression=None, pitch_deg=0.0,
+               light="studio"):
     from tools import render_util as ru
 
     coeffs, local, rotation, translation = sample_head(model, seed, yaw_deg, pitch_deg)
@@ -867,7 +881,7 @@ def _make_into(folder, model, seed, size, samples, params, log, lens_mm=None, ya
     if lens_mm is not None:
         cameras = perspective_cameras(cameras, world, lens_mm)
     renders, cam_objs = render_views(model, shown, (rotation, translation), torso, cameras,
-                                     size, samples, seed, log, skin_tone)
+                                     size, samples, seed, log, skin_tone, light)
 
     rng = np.random.default_rng(seed + 2)
     noise_px = NOISE_PX * size[1] / 1024.0
@@ -974,11 +988,15 @@ def main(argv=None):
     parser.add_argument("--expression", choices=list(EXPRESSIONS), default=None,
                         help="the face in the photos shows this expression (default: "
                              "neutral); the truth stays the neutral head")
+    parser.add_argument("--light", choices=list(LIGHTS), default="studio",
+                        help="how the head is lit: studio (soft, from the front; default) or "
+                             "window (from the subject's left: the other side in shade)")
     args = parser.parse_args(argv)
     try:
         make_sample(args.out, args.seed, args.size, args.samples, args.force,
                     lens_mm=args.lens, yaw_deg=args.yaw, side_deg=args.side_deg,
-                    skin_tone=args.skin, expression=args.expression, pitch_deg=args.pitch)
+                    skin_tone=args.skin, expression=args.expression, pitch_deg=args.pitch,
+                    light=args.light)
     except (FileNotFoundError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

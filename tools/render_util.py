@@ -231,12 +231,30 @@ def studio_lighting(center, world_strength=0.2, light_scale=1.0,
     add_light("AREA", c + (1.4, -1.0, 0.1), c, 30.0 * light_scale, size=1.5,
               color=(0.92, 0.96, 1.0), name="Fill")
     add_light("AREA", c + (0.3, 1.3, 1.0), c, 40.0 * light_scale, size=0.8, name="Rim")
+    _world(world_color, world_strength)
+
+
+def window_lighting(center):
+    """A window at the subject's left, level with the head and a little in front of it, as
+    the only light but a dim room: the front photo's far side and the whole right profile
+    in shade, a band of light along the profile's forehead and nose."""
+    c = np.asarray(center, dtype=np.float64)
+    add_light("AREA", c + (1.6, -0.6, 0.4), c, 110.0, size=0.9, color=(1.0, 0.98, 0.95),
+              name="Window")
+    _world((0.55, 0.56, 0.58), 0.12)
+
+
+#: The sample photos' lightings by name (``tools.make_sample --light``).
+LIGHTINGS = {"studio": studio_lighting, "window": window_lighting}
+
+
+def _world(color, strength):
     world = bpy.data.worlds.new("World")
     if world.node_tree is None:  # Blender 4.x: node trees are switched on by hand
         world.use_nodes = True
     bg = world.node_tree.nodes.get("Background")
-    bg.inputs["Color"].default_value = tuple(world_color) + (1.0,)
-    bg.inputs["Strength"].default_value = world_strength
+    bg.inputs["Color"].default_value = tuple(color) + (1.0,)
+    bg.inputs["Strength"].default_value = strength
     bpy.context.scene.world = world
 
 

@@ -17,7 +17,7 @@ from scipy import ndimage
 from solver import camera_from_dict, load_landmarks
 from solver.io.obj import read_obj
 from tests import ROOT, SAMPLE_ARGS, SAMPLE_SIZE
-from tools.make_sample import EXPRESSIONS, make_sample, sample_head
+from tools.make_sample import EXPRESSIONS, LIGHTS, make_sample, sample_head
 
 SIZE, ARGS = SAMPLE_SIZE, SAMPLE_ARGS
 # The fitted head's RMS distance to the true one over the skin (after similarity
@@ -255,7 +255,15 @@ def test_make_sample_rejects_bad_settings(tmp_path, model):
         make_sample(tmp_path / "s", skin_tone="olive", model=model)
     with pytest.raises(ValueError, match="expression: one of smile, eyes_closed, jaw_open"):
         make_sample(tmp_path / "s", expression="grin", model=model)
+    with pytest.raises(ValueError, match="light: one of studio, window"):
+        make_sample(tmp_path / "s", light="neon", model=model)
     assert not (tmp_path / "s").exists()
+
+
+def test_the_lights_a_sample_takes_are_those_the_renderer_draws():
+    from tools.render_util import LIGHTINGS
+
+    assert LIGHTS == tuple(LIGHTINGS) and LIGHTS[0] == "studio"
 
 
 def test_a_side_camera_short_of_a_profile_frames_the_head_from_its_direction(model):
