@@ -22,6 +22,15 @@ SKIN_BRIGHTNESS = 3.0
 #: face), unless a channel is clipped (a highlight on the skull is plain white: no colour
 #: is left to tell; docs/DECISIONS.md, "Darker skin").
 SKIN_WARMTH = 0.1
+#: Skin in shade (a face lit from one side, by a window: its far side 0.2-0.33 of the face's
+#: brightness between the keypoints, which the lit side sets) is darker than
+#: ``SKIN_BRIGHTNESS`` allows but keeps the skin's colour closely: down to 1 /
+#: ``SHADE_BRIGHTNESS`` of the face's brightness a colour is skin where its chromaticity
+#: lies within ``SHADE_CHROMA`` of the face's and its warmth is at least ``SHADE_WARMTH``
+#: of the face's (docs/DECISIONS.md, "A face lit from one side").
+SHADE_BRIGHTNESS = 5.0
+SHADE_CHROMA = 0.025
+SHADE_WARMTH = 0.5
 SKIN_CLIPPED = 0.99
 #: A colour this near white in every channel is a highlight too (a clipped one a little
 #: blurred: 0.988 on the sample's skull under a 2 px blur; a white collar in the light
@@ -120,14 +129,19 @@ def skin_like(colours, skin, clipped=True):
     """Whether each colour (n, 3) is the face's skin (:func:`skin_colour`) in chromaticity
     (within ``SKIN_SPREADS``, at least ``SKIN_CHROMA``), brightness (within a factor
     ``SKIN_BRIGHTNESS``) and warmth (``SKIN_WARMTH``, or with ``clipped`` a channel at
-    ``SKIN_CLIPPED`` or all at ``SKIN_WHITE``: a highlight has no colour left to tell)."""
+    ``SKIN_CLIPPED`` or all at ``SKIN_WHITE``: a highlight has no colour left to tell); or
+    in shade, darker, where its colour is the skin's more closely (``SHADE_BRIGHTNESS``)."""
     centre, spread, bright, warmth = skin
     chroma, b = _chroma_brightness(colours)
-    near = np.linalg.norm(chroma - centre, axis=1) <= _chroma_tolerance(spread)
-    warm = _warmth(colours) >= SKIN_WARMTH * warmth
+    off = np.linalg.norm(chroma - centre, axis=1)
+    heat = _warmth(colours)
+    warm = heat >= SKIN_WARMTH * warmth
     if clipped:
         warm |= _clipped(colours)
-    return near & warm & (b >= bright / SKIN_BRIGHTNESS) & (b <= bright * SKIN_BRIGHTNESS)
+    lit = (off <= _chroma_tolerance(spread)) & warm & (b >= bright / SKIN_BRIGHTNESS)
+    shade = (off <= SHADE_CHROMA) & (heat >= SHADE_WARMTH * warmth) \
+        & (b >= bright / SHADE_BRIGHTNESS)
+    return (lit | shade) & (b <= bright * SKIN_BRIGHTNESS)
 
 
 def highlight_like(colours, skin):

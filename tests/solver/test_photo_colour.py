@@ -45,6 +45,21 @@ def test_skin_lit_or_shaded_is_skin_and_clothes_hair_collar_are_not():
     assert skin_like(white, SKIN, clipped=False).tolist() == [False]
 
 
+def test_skin_in_deep_shade_is_skin_where_it_keeps_the_skin_s_colour_closely():
+    # a face lit from one side (``tools.make_sample --light window``): its far side a
+    # quarter as bright as the face between the keypoints, the skin's colour kept
+    colour = np.array([SKIN[0][0], SKIN[0][1], 1.0 - SKIN[0].sum()])  # brightness 1
+    shade = colour * SKIN[2] / np.array([[4.0], [6.0]])
+    assert skin_like(shade, SKIN).tolist() == [True, False]  # darker than a fifth: not
+    # as dark, but hair a little redder, a grey, or a colour off toward the shirt's: not
+    hair = np.array([0.45, 0.33, 0.22]) * SKIN[2] / 4.0
+    grey = np.full(3, SKIN[2] / 12.0)
+    cold = np.array([0.37, 0.33, 0.30]) * SKIN[2] / 4.0
+    assert skin_like(np.array([hair, grey, cold]), SKIN).tolist() == [False, False, False]
+    # lit, the same colours are within the skin's wider tolerance
+    assert skin_like(np.array([hair, cold]) * 2.0, SKIN).tolist() == [True, True]
+
+
 # a darker face (``tools.make_sample --skin dark``, as face_skin gives it): its chromaticity
 # further from white than SKIN_CHROMA
 SKIN_DARK = (np.array([0.4128, 0.3176]), 0.0153, 1.285, 0.142)
