@@ -12,7 +12,9 @@ Steps (numbers in docs/DECISIONS.md, "The head's outline"):
    (``busy_background``);
 2. each point moved along the outline's normal to where the photo's colour crosses
    halfway between the colours inside and outside (sub-pixel, on the photo itself; a
-   rim of light along darker skin's edge is inside the edge, not the edge);
+   rim of light along darker skin's edge is inside the edge, not the edge, and a band
+   of light wider than that search, which the segmentation leaves out, is followed out
+   to the background: ``wide_rim``);
    where a long stretch of it is straight, the segmentation took in something behind
    the head (a door, a frame: ``straight_stretches``), and what it took in of that
    thing's colour is taken out of the mask and the outline found again
@@ -72,6 +74,17 @@ SEARCH_MAP_PX = 1.5
 #: "Darker skin").
 STEP_PX = 1.0
 STEP_SHARE = 0.5
+#: A rim wider than the search (a face lit from the side: a clipped band up to 20 px wide
+#: along a profile's forehead and nose, to which the segmentation gives a person
+#: probability of 0.2-0.6, so its edge runs along the band's inner side): looked for as far
+#: as this many map pixels out, taken where the segmentation's mean probability over it is
+#: at least ``WIDE_RIM_P`` (past a head's edge on a plain wall it falls to 0 within a map
+#: pixel or two) and it is brighter than the skin inside and the colour past it by
+#: ``RIM_STEP`` (the sum of the three channels, in [0, 1] each; docs/DECISIONS.md, "A face
+#: lit from one side").
+WIDE_RIM_MAP_PX = 6.0
+WIDE_RIM_P = 0.05
+RIM_STEP = 0.15
 #: The outline found must be at least this many times the face's size (the detector's
 #: box) long: on james' front photo the only skin on the person's edge is a strip of neck
 #: between hair and collar.
@@ -499,8 +512,60 @@ def _edge(image, mask, face, spacing_px):
         raise ValueError("no person found for an outline")
     loop = _closed_resample(loops[0], spacing_px)
     skin = face_skin(image, face, mask)
-    return (loop, *refine_edge(image, loop, _normals(loop), SEARCH_MAP_PX * mask.pixel_size,
-                               skin=skin, rim=edge_sure(mask, loop)), skin)
+    normals = _normals(loop)
+    moved, refined, inside = refine_edge(image, loop, normals, SEARCH_MAP_PX * mask.pixel_size,
+                                         skin=skin, rim=edge_sure(mask, loop))
+    moved, wide = wide_rim(image, mask, moved, normals, skin)
+    return loop, moved, refined | wide, inside, skin
+
+
+def wide_rim(image, mask, points, normals, skin):
+    """Points (n, 2) moved out across a rim of light wider than the edge search. Along each
+    point's normal, out to ``WIDE_RIM_MAP_PX`` map pixels, the photo's largest fall in
+    brightness ends a band: where that band is the skin's colour lit
+    (``photo_colour.lit_skin_like``), brighter than the skin inside the point and than the
+    colour past the fall by ``RIM_STEP``, bright all the way out to the fall, and the
+    segmentation gives it a mean person probability of at least ``WIDE_RIM_P`` (a bright
+    wall past the head's edge it gives almost none), the point goes to where the band
+    falls halfway to the colour past it. Returns (points, which moved (n,) bool)."""
+    n, rows = len(points), np.arange(len(points))
+    step = 0.5
+    k = int(WIDE_RIM_MAP_PX * mask.pixel_size / step)
+    s = np.arange(1, k + 1) * step                                         # (k,)
+    uv = points[:, None, :] + s[None, :, None] * normals[:, None, :]
+    col = sample_photo(image, uv)                                          # (n, k, 3)
+    prob = mask.at(uv.reshape(-1, 2)).reshape(n, k)
+    inner = sample_photo(image, points[:, None, :] - np.array([1.0, 2.0, 3.0])[None, :, None]
+                         * normals[:, None, :]).mean(1)
+    w = max(int(round(STEP_PX / step)), 1)
+    bright = col.sum(2)
+    fall = bright[:, :-w] - bright[:, w:]                                  # (n, k - w)
+    f = np.argmax(fall, axis=1)            # the band ends at sample f, the past from f + w
+    # the band starts where the photo has risen from the skin at the point (within w
+    # samples of it): up to there the colour is the edge's own, skin blurred into rim
+    top = bright >= bright[rows, f][:, None] - RIM_STEP
+    r = np.argmax(top, axis=1)
+    ks = np.arange(k)[None, :]
+    before = (ks >= r[:, None]) & (ks <= f[:, None])
+    count = np.maximum(before.sum(1), 1)
+    band = (col * before[..., None]).sum(1) / count[:, None]
+    after = (ks >= (f + w)[:, None]) & (ks < (f + w + max(w, 2))[:, None])
+    past = (col * after[..., None]).sum(1) / np.maximum(after.sum(1), 1)[:, None]
+    contrast = band - past
+    c2 = np.maximum((contrast ** 2).sum(1), 1e-12)
+    share = ((col - past[:, None]) * contrast[:, None]).sum(2) / c2[:, None]  # 1 band, 0 past
+    held = (prob * before).sum(1) / count
+    rim = (f + w < k) & (after.sum(1) > 0) & (r <= 2 * w) & (f >= r + w) \
+        & (band.sum(1) > inner.sum(1) + RIM_STEP) & (band.sum(1) > past.sum(1) + RIM_STEP) \
+        & lit_skin_like(band, skin) & (held >= WIDE_RIM_P) \
+        & np.all((share >= 0.5) | ~before, axis=1)
+    # the crossing: the first sample past halfway, from the fall on
+    j = np.clip(f + 1 + np.argmax((share < 0.5)[rows[:, None], np.clip(
+        f[:, None] + 1 + np.arange(w + 1)[None, :], 0, k - 1)], axis=1), 1, k - 1)
+    s0, s1 = share[rows, j - 1], share[rows, j]
+    frac = np.clip((s0 - 0.5) / np.where(s0 != s1, s0 - s1, 1.0), 0.0, 1.0)
+    out = s[j - 1] + frac * step
+    return np.where(rim[:, None], points + out[:, None] * normals, points), rim
 
 
 def edge_sure(mask, loop):

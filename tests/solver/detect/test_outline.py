@@ -16,6 +16,7 @@ from solver.detect.outline import (
     head_outline,
     refine_edge,
     straight_stretches,
+    wide_rim,
     without_leaks,
 )
 from solver.detect.segmentation import PersonMask
@@ -93,6 +94,48 @@ def test_a_rim_of_light_on_skin_is_inside_the_edge_a_bright_patch_elsewhere_is_n
     assert edge(beard, skin)[1] < 39.9
 
 
+class _Map:
+    """A stand-in for the segmentation's map: the person probability by photo column."""
+
+    pixel_size = 3.5
+
+    def __init__(self, columns):
+        self.columns = np.asarray(columns, float)
+
+    def at(self, uv):
+        return np.interp(np.asarray(uv)[:, 0], np.arange(len(self.columns)) + 0.5,
+                         self.columns)
+
+
+def test_a_rim_wider_than_the_search_is_followed_out_to_the_background_a_wall_is_not():
+    """A face lit from one side, seen from its shaded side: a clipped band of light 12 px
+    wide along the edge (pixels 50-61), which the segmentation holds as person at 0.3 and so
+    puts its edge at the band's inner side. The point goes out to the band's fall to the
+    background; where the segmentation gives the bright colour no person (a white wall
+    past the head, a darker thing on it), it stays."""
+    skin = np.array([0.35, 0.28, 0.24])
+    cols = np.arange(100) + 0.5
+    row = np.where((cols < 50)[:, None], skin,
+                   np.where((cols < 62)[:, None], 1.0, [0.70, 0.70, 0.71]))
+    image = np.repeat(row[None], 40, axis=0)
+    points = np.array([[50.0, 10.0], [50.2, 20.0], [49.8, 30.0]])
+    normals = np.array([[1.0, 0.0]] * 3)
+    tone = skin_colour(np.tile(skin, (10, 1)))
+    held = _Map(np.where(cols < 50, 1.0, np.where(cols < 62, 0.3, 0.0)))
+    moved, rim = wide_rim(image, held, points, normals, tone)
+    assert rim.all()
+    np.testing.assert_allclose(moved[:, 0], 62.0, atol=0.1)  # pixel 61's and 62's middle
+    np.testing.assert_allclose(moved[:, 1], points[:, 1])
+    # the same colours where the network gives the band no person: a wall, not a rim
+    wall = _Map(np.where(cols < 50, 1.0, np.where(cols < 52, 0.02, 0.0)))
+    moved, rim = wide_rim(image, wall, points, normals, tone)
+    assert not rim.any() and (moved == points).all()
+    # a band darker than what lies past it is no rim of light
+    dim = np.where((cols < 50)[:, None], skin, np.where((cols < 62)[:, None], 0.5, 0.9))
+    moved, rim = wide_rim(np.repeat(dim[None], 40, axis=0), held, points, normals, tone)
+    assert not rim.any()
+
+
 def test_a_highlight_is_skin_between_skin_a_white_collar_past_it_is_not():
     skin = np.array([1, 1, 0, 0, 0, 1, 1, 0, 0, 0, 0, 1], bool)
     lit = np.array([0, 0, 1, 1, 1, 0, 0, 1, 1, 0, 0, 0], bool)
@@ -149,6 +192,53 @@ def test_the_sample_front_outline_ends_where_the_shirt_begins(sample, detector):
     assert all("clothes" in note for note in outline.notes[:2])
     # the neck's sides down to the shirt are kept
     assert outline.points[:, 1].max() > truth["exact_front"][:, 1].max()
+
+
+def test_a_face_lit_from_one_side_keeps_its_shaded_side_and_its_band_of_light(
+        window_sample, detector, monkeypatch):
+    from scipy import ndimage as ndi
+
+    from solver import load_landmarks, photo_colour
+    from solver.detect import outline as outline_module
+
+    folder, truth = window_sample
+    # the front: its far side (the image's left) in shade, a quarter of the lit face's
+    # brightness, is skin still, so the outline goes on around it
+    image = _photo(folder, "front")
+    face = detector.detect(image)
+    head = truth["head_alpha_front"] >= 128
+    to_edge = ndi.distance_transform_edt(~(head ^ ndi.binary_erosion(head)))
+    outline = detector.outline(image, face)
+    r, c = np.round(outline.points[:, ::-1]).astype(int).T
+    assert np.percentile(to_edge[r, c], 90) < 1.5
+    nose = np.asarray(face.keypoints)[2, 0]
+    beside = 0.3 * (face.box[2] - face.box[0])   # the detector's box: a little wider than the face
+
+    def sides(outline):
+        return ((outline.points[:, 0] < nose - beside).sum(),      # the shaded side
+                (outline.points[:, 0] > nose + beside).sum())      # the lit side
+
+    shaded, lit = sides(outline)
+    assert lit > 100 and shaded > 0.8 * lit
+    monkeypatch.setattr(photo_colour, "SHADE_BRIGHTNESS", photo_colour.SKIN_BRIGHTNESS)
+    shaded, lit = sides(detector.outline(image, face))               # read as not skin
+    assert lit > 100 and shaded == 0
+    monkeypatch.undo()
+    # the profile: the band of light along its forehead and nose, which the segmentation
+    # leaves out, is followed out to the background
+    image = _photo(folder, "side")
+    face = detector.detect(image)
+    true = load_landmarks(folder / "sample.json").views["side"].contour
+
+    def off(outline):
+        d, _ = _distance_to_line(outline.points, true)
+        return np.percentile(d, 90), (_distance_to_line(true, outline.points)[0] < 3).mean()
+
+    far, covered = off(detector.outline(image, face))
+    assert far < 2.5 and covered > 0.9
+    monkeypatch.setattr(outline_module, "wide_rim",
+                        lambda image, mask, points, *_: (points, np.zeros(len(points), bool)))
+    assert off(detector.outline(image, face))[0] > 4.0
 
 
 def test_hair_is_left_out_of_the_forehead_and_skull(sample, detector):
