@@ -110,29 +110,34 @@ class _Map:
 def test_a_rim_wider_than_the_search_is_followed_out_to_the_background_a_wall_is_not():
     """A face lit from one side, seen from its shaded side: a clipped band of light 12 px
     wide along the edge (pixels 50-61), which the segmentation holds as person at 0.3 and so
-    puts its edge at the band's inner side. The point goes out to the band's fall to the
+    puts its edge at the band's inner side. The points go out to the band's fall to the
     background; where the segmentation gives the bright colour no person (a white wall
-    past the head, a darker thing on it), it stays."""
+    past the head, a darker thing on it), or only a few points in a row see it, they stay."""
     skin = np.array([0.35, 0.28, 0.24])
     cols = np.arange(100) + 0.5
     row = np.where((cols < 50)[:, None], skin,
                    np.where((cols < 62)[:, None], 1.0, [0.70, 0.70, 0.71]))
-    image = np.repeat(row[None], 40, axis=0)
-    points = np.array([[50.0, 10.0], [50.2, 20.0], [49.8, 30.0]])
-    normals = np.array([[1.0, 0.0]] * 3)
+    image = np.repeat(row[None], 45, axis=0)
+    points = np.stack([50.0 + 0.2 * np.sin(np.arange(12)), 5.0 + 3.0 * np.arange(12)], 1)
+    normals = np.tile([1.0, 0.0], (12, 1))
     tone = skin_colour(np.tile(skin, (10, 1)))
     held = _Map(np.where(cols < 50, 1.0, np.where(cols < 62, 0.3, 0.0)))
     moved, rim = wide_rim(image, held, points, normals, tone)
     assert rim.all()
     np.testing.assert_allclose(moved[:, 0], 62.0, atol=0.1)  # pixel 61's and 62's middle
     np.testing.assert_allclose(moved[:, 1], points[:, 1])
+    # a band runs along the edge: where only a few points in a row see one, none is moved
+    few = image.copy()
+    few[14:, 50:62] = skin                   # the band only beside the first three points
+    moved, rim = wide_rim(few, held, points, normals, tone)
+    assert not rim.any() and (moved == points).all()
     # the same colours where the network gives the band no person: a wall, not a rim
     wall = _Map(np.where(cols < 50, 1.0, np.where(cols < 52, 0.02, 0.0)))
     moved, rim = wide_rim(image, wall, points, normals, tone)
     assert not rim.any() and (moved == points).all()
     # a band darker than what lies past it is no rim of light
     dim = np.where((cols < 50)[:, None], skin, np.where((cols < 62)[:, None], 0.5, 0.9))
-    moved, rim = wide_rim(np.repeat(dim[None], 40, axis=0), held, points, normals, tone)
+    moved, rim = wide_rim(np.repeat(dim[None], 45, axis=0), held, points, normals, tone)
     assert not rim.any()
 
 
