@@ -84,11 +84,11 @@ STEP_SHARE = 0.5
 #: lit from one side").
 WIDE_RIM_MAP_PX = 6.0
 WIDE_RIM_P = 0.05
+RIM_STEP = 0.15
 #: ... and only along this many outline points in a row at least (``SPACING_PX`` apart:
 #: 18 px), as a band of light runs along the edge (on the studio-lit renders a few points
 #: alone, 2-6 a photo on a third of the profiles, had been moved).
 WIDE_RIM_RUN = 6
-RIM_STEP = 0.15
 #: The outline found must be at least this many times the face's size (the detector's
 #: box) long: on james' front photo the only skin on the person's edge is a strip of neck
 #: between hair and collar.
@@ -530,7 +530,8 @@ def wide_rim(image, mask, points, normals, skin):
     (``photo_colour.lit_skin_like``), brighter than the skin inside the point and than the
     colour past the fall by ``RIM_STEP``, bright all the way out to the fall, and the
     segmentation gives it a mean person probability of at least ``WIDE_RIM_P`` (a bright
-    wall past the head's edge it gives almost none), the point goes to where the band
+    wall past the head's edge it gives almost none), along ``WIDE_RIM_RUN`` consecutive
+    points (``points`` in the outline's order) at least, the point goes to where the band
     falls halfway to the colour past it. Returns (points, which moved (n,) bool)."""
     n, rows = len(points), np.arange(len(points))
     step = 0.5
