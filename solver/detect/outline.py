@@ -567,7 +567,7 @@ def wide_rim(image, mask, points, normals, skin):
     # a band of light runs along the edge: a few points alone (a bright spot, a patch of
     # something behind the head) are none
     along = np.zeros(n, bool)
-    for a, b in _runs(rim) if rim.any() else []:
+    for a, b in _runs(rim):
         along[np.arange(a, b) % n] = b - a >= WIDE_RIM_RUN
     rim &= along
     # the crossing: the first sample past halfway, from the fall on
