@@ -93,6 +93,19 @@ def has_colour(skin):
     return skin[3] >= MIN_COLOUR
 
 
+def lit_skin_of(lit, skin):
+    """Whether the skin colour ``lit`` (:func:`skin_colour`, e.g. of one cheek) is ``skin``
+    in a stronger light that :func:`skin_like` does not take in: brighter, with a colour
+    to tell (``MIN_COLOUR``), its chromaticity within the tolerance of ``skin``'s, and its
+    median colour not ``skin_like`` (a window's light washes the lit cheek out toward
+    white, clips it, and makes it five times the shaded one's brightness)."""
+    chroma, bright = lit[0], lit[2]
+    median = np.append(chroma, 1.0 - chroma.sum()) * bright
+    return bright > skin[2] and has_colour(lit) \
+        and float(np.linalg.norm(chroma - skin[0])) <= _chroma_tolerance(skin[1]) \
+        and not skin_like(median[None], skin, clipped=False)[0]
+
+
 def lighter_than_skin(colours, skin):
     """Whether each colour (n, 3) is brighter than the face's skin (:func:`skin_colour`):
     what a white or light collar is, and a jaw's shade or dark hair is not."""

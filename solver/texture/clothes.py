@@ -13,7 +13,14 @@ against the skin of the fitted head's cheeks in the same photo. A photo without 
 import numpy as np
 import scipy.ndimage as ndi
 
-from ..photo_colour import has_colour, lighter_than_skin, sample_photo, skin_colour, skin_like
+from ..photo_colour import (
+    has_colour,
+    lighter_than_skin,
+    lit_skin_of,
+    sample_photo,
+    skin_colour,
+    skin_like,
+)
 
 #: Cheeks: the skin nearest the point halfway between two iBUG landmarks (nose wing and
 #: jaw, per side); the skin vertices within ``CHEEK_RADIUS_M`` of it give the photo's skin
@@ -29,7 +36,8 @@ BELOW_CHIN_M = 0.015
 RISES_TO = ("ear_lobe_right", "ear_lobe_left")
 #: Pixels the clothes are grown by: their edge against the skin is a blend of both.
 GROW_PX = 2
-#: Fewest cheek samples the skin colour is taken from; fewer leave the photo as it is.
+#: Fewest cheek samples the skin colour is taken from; fewer leave the photo as it is (a
+#: cheek's own colour: its share of them).
 MIN_SKIN_SAMPLES = 20
 
 
@@ -49,15 +57,17 @@ def clothes_mask(model, world, camera, image, scale=(1.0, 1.0)):
                        for a, b in CHEEKS])  # below the cheek: on the chord between them
     to_skin = np.linalg.norm(skin[:, None] - inside[None], axis=2)  # (n, 2)
     centres = skin[np.argmin(to_skin, axis=0)]  # the cheeks' surface points
-    near = np.min(np.linalg.norm(skin[:, None] - centres[None], axis=2), axis=1)
+    to_centres = np.linalg.norm(skin[:, None] - centres[None], axis=2)
     h, w = image.shape[:2]
     projected = camera.project(skin) * to_image  # the skin in the image, once
-    px = projected[near <= CHEEK_RADIUS_M]
-    px = px[(px[:, 0] >= 0) & (px[:, 0] < w) & (px[:, 1] >= 0) & (px[:, 1] < h)]
-    if len(px) < MIN_SKIN_SAMPLES:
+    on = (to_centres.min(axis=1) <= CHEEK_RADIUS_M) & (projected[:, 0] >= 0) \
+        & (projected[:, 0] < w) & (projected[:, 1] >= 0) & (projected[:, 1] < h)
+    if on.sum() < MIN_SKIN_SAMPLES:
         return None
     rgb = image[..., :3]
-    reference = skin_colour(sample_photo(rgb, px))
+    reference = skin_colour(sample_photo(rgb, projected[on]))
+    references = [reference] + _lit_cheek(rgb, projected, on, to_centres.argmin(axis=1),
+                                          reference)
     chin = world[model.landmark_vertex("chin_bottom")]
     px_per_m = camera.pixels_per_metre(chin[None], to_image)[0]
     top = camera.project(chin[None])[0, 1] * sy + BELOW_CHIN_M * px_per_m
@@ -78,8 +88,9 @@ def clothes_mask(model, world, camera, image, scale=(1.0, 1.0)):
     # each pixel's colour over its 3 x 3 neighbourhood: single noisy pixels tell nothing
     smooth = ndi.uniform_filter(rgb[r1:, c0:c1], size=(3, 3, 1), mode="nearest")
     # a white shirt's highlights are clipped too: below the chin no clipped colour is skin
-    candidate = ~skin_like(smooth.reshape(-1, 3), reference, clipped=False).reshape(
-        smooth.shape[:2])
+    flat = smooth.reshape(-1, 3)
+    candidate = ~np.logical_or.reduce([skin_like(flat, r, clipped=False)
+                                       for r in references]).reshape(smooth.shape[:2])
     above = smooth[:r0 - r1]  # the rows a collar rises into
     candidate[:r0 - r1] &= lighter_than_skin(above.reshape(-1, 3), reference).reshape(
         above.shape[:2])
@@ -89,3 +100,16 @@ def clothes_mask(model, world, camera, image, scale=(1.0, 1.0)):
     clothes[r1:, c0:c1] = ndi.binary_dilation(found, iterations=GROW_PX) if GROW_PX \
         else found
     return clothes
+
+
+def _lit_cheek(rgb, projected, on, cheek, reference):
+    """[the skin colour of the cheek in the stronger light] where it is the face's skin
+    lit more (``photo_colour.lit_skin_of``: a window at one side washes that half of the
+    face and neck out beyond the skin's tolerance), else []. ``projected`` (n, 2): the
+    skin's pixels; ``on``: those of a cheek in the photo; ``cheek``: which cheek each is
+    nearest."""
+    lit = [skin_colour(sample_photo(rgb, projected[on & (cheek == k)]))
+           for k in range(len(CHEEKS))
+           if (on & (cheek == k)).sum() >= MIN_SKIN_SAMPLES // len(CHEEKS)]
+    lit = [c for c in lit if lit_skin_of(c, reference)]
+    return [max(lit, key=lambda c: c[2])] if lit else []

@@ -10,6 +10,7 @@ from solver.photo_colour import (
     highlight_like,
     lighter_than_skin,
     lit_skin_like,
+    lit_skin_of,
     sample_photo,
     skin_colour,
     skin_like,
@@ -95,6 +96,17 @@ def test_skin_lit_by_a_white_light_is_between_its_colour_and_white_clipped_or_no
     both = np.vstack([lit, others])
     assert (highlight_like(both, SKIN_DARK)
             == lit_skin_like(both, SKIN_DARK) & (both.max(1) >= 0.99)).all()
+
+
+def test_a_cheek_in_a_window_s_light_is_the_skin_lit_where_the_skin_rule_misses_it():
+    shaded = skin_colour(np.array([[0.223, 0.175, 0.157]] * 5))  # the cheek in shade
+    window = skin_colour(np.array([[1.0, 1.0, 0.906]] * 5))      # the other, clipped
+    assert not skin_like(np.array([[1.0, 1.0, 0.906]]), shaded, clipped=False)[0]
+    assert lit_skin_of(window, shaded)
+    assert not lit_skin_of(shaded, window)                       # darker: not lit
+    assert not lit_skin_of(skin_colour(np.array([[0.45, 0.35, 0.31]] * 5)), shaded)  # taken in
+    assert not lit_skin_of(skin_colour(np.array([[0.95, 0.95, 0.95]] * 5)), shaded)  # no colour
+    assert not lit_skin_of(skin_colour(np.array([[0.42, 0.44, 0.47]] * 5)), shaded)  # shirt
 
 
 def test_a_white_collar_is_lighter_than_the_skin_a_shade_or_hair_is_not():

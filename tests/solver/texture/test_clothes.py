@@ -1,6 +1,7 @@
 """Clothes in a photo (solver/texture/clothes.py): on the rendered sample the shirt is
 clothes and the skin is not; only what is not skin, lies below the chin and reaches the
-photo's bottom edge counts (on a black-and-white photo, all below the chin's line); a
+photo's bottom edge counts (skin in a window's light, brighter than the skin's colour
+allows, is skin where a cheek shows it) (on a black-and-white photo, all below the chin's line); a
 photo that misses the cheeks tells nothing; and the bake
 from a fit leaves the clothes out, so the neck under the shirt is not painted blue."""
 
@@ -78,6 +79,23 @@ def test_a_light_collar_rising_up_the_neck_is_clothes_a_shade_is_not(model):
     assert mask[lobe + 2:, 222:238].all() and not mask[:lobe - 2, 220:240].any()
     assert not mask[:top - 2, 122:133].any()            # the shade above the chin's line stays
     assert not mask[:top + 37, 90:110].any()            # and the skin
+
+
+def test_a_neck_lit_by_a_window_is_skin_and_the_shirt_still_clothes(model):
+    img, cam, chin, top = _photo_of_the_mean_head(model)
+    edge = 195  # the light's edge through the subject's left cheek: most of that cheek lit,
+    # most of both cheeks in shade (the skin's colour comes from the shade)
+    img[:] = np.float32(SKIN) * 0.35
+    img[:, edge:] = np.minimum(np.float32(SKIN) * 1.6, 1.0)  # 4.6 x brighter, clipped red
+    img[top + 40:, :] = (0.30, 0.35, 0.45)              # a grey-blue shirt
+    img[top + 40:, 240:260] = (0.95, 0.95, 0.95)        # with a white stripe in the light
+    mask = clothes_mask(model, model.vertices, cam, img)
+    assert not mask[:top + 37].any()                    # the lit neck, down to the shirt
+    assert mask[top + 45:, 20:280].all()                # the shirt and its stripe
+    # where no cheek shows the light, nothing tells it is skin: the lit neck is left out
+    img[:top + 40, edge:] = np.float32(SKIN) * 0.35
+    img[top:top + 40, edge + 20:] = np.minimum(np.float32(SKIN) * 1.6, 1.0)
+    assert clothes_mask(model, model.vertices, cam, img)[top:top + 37, edge + 22:edge + 40].all()
 
 
 def test_below_the_chin_a_black_and_white_photo_is_left_out(model):
