@@ -5,6 +5,7 @@ three-quarter, with the yaw), and detected vs true iBUG-68 landmarks in pixels (
 
     python -m bench.bench_detect [--sample generated/sample] [--james FOLDER] [--fit]
                                  [--uncertainty] [--profile-line] [--small-faces] [--bias]
+                                 [--second-face]
 
 Photos: the rendered sample's front photo (``./run sample``; truth: the exact landmark
 pixels in ``truth.npz``) and the two real photos of the scan "james" (its texture's
@@ -481,6 +482,30 @@ def small_faces(name, detector, image, truth, factors=(1, 2, 3, 4, 6)):
               f"error {err:.1f} px ({100 * err / scale:.1f} %), {t.median:.2f} s")
 
 
+def second_face(detector, folder, scales=(0.3, 0.45, 0.6)):
+    """The sample's two photos with a smaller copy of its front face pasted in a top
+    corner (someone further back): which face is taken (the subject's, by its box's
+    overlap with the face found on the photo alone), and how many others are reported."""
+    from PIL import Image
+
+    front = Image.open(Path(folder) / "front.png").convert("RGB")
+    u0, v0, u1, v1 = detector.detect(np.asarray(front)).box
+    m = 0.2 * (u1 - u0)
+    face = front.crop((int(u0 - m), int(v0 - m), int(u1 + m), int(v1 + 2 * m)))
+    for view in ("front", "side"):
+        photo = Image.open(Path(folder) / f"{view}.png").convert("RGB")
+        alone = detector.detect(np.asarray(photo)).box
+        for scale in scales:
+            small = face.resize((int(face.width * scale), int(face.height * scale)))
+            both = photo.copy()
+            both.paste(small, (photo.width - small.width - 2 if view == "front" else 2, 2))
+            found = detector.detect(np.asarray(both))
+            subject = np.abs(found.box - alone).max() < 0.1 * (alone[2] - alone[0])
+            print(f"  sample {view} with a face {scale:.2f} of its size in a corner: "
+                  f"{'the subject' if subject else 'the other face'} taken "
+                  f"(score {found.score:.2f}), {found.others} other(s) reported")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sample", default=str(ROOT / "generated" / "sample"))
@@ -493,6 +518,8 @@ def main(argv=None):
                     help="also detect each front photo placed in a 2-6 times larger one")
     ap.add_argument("--uncertainty", action="store_true",
                     help="print the per-group relative errors (the uncertainty table)")
+    ap.add_argument("--second-face", action="store_true",
+                    help="also detect the sample's photos with a smaller face pasted in")
     ap.add_argument("--bias", action="store_true",
                     help="print each landmark's mean signed error on the ten rendered heads "
                          "and on james' photos")
@@ -542,6 +569,9 @@ def main(argv=None):
         t = median_time(lambda: detector.detect(grey), repeats=1, warmup=0)
         print(f"  a grey 3024x4032 photo: {'no face' if t.result is None else 'a face'} "
               f"in {t.median:.2f} s")
+    if args.second_face and (Path(args.sample) / "front.png").is_file():
+        print("a second face (the sample's front face, smaller, pasted in a top corner):")
+        second_face(detector, args.sample)
     if args.profile_line:
         profile_line_errors()
     if args.bias:

@@ -22,6 +22,7 @@ from .solver_link import (
     covered_note,
     is_nominal,
     load_model,
+    other_faces_note,
     placed,
     points_yaw_deg,
     usable_cores,
@@ -139,9 +140,10 @@ class PhotoTask:
         elif self.face.profile:
             line += (" (a profile without an outline found: only the nose tip, subnasale "
                      "and upper lip are detected; trace its outline for the rest)")
-        covered = None if self.face.found is None else covered_note(self.face.found)
-        if covered:
-            line += f"; {covered}"
+        found = self.face.found
+        for note in () if found is None else (covered_note(found), other_faces_note(found)):
+            if note:
+                line += f"; {note}"
         if turned is not None:
             line += f"; its camera turned to {turned:+.0f} deg, as the photos show the face"
         out = [("INFO", line)]

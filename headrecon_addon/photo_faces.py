@@ -64,8 +64,8 @@ class Face:
 
 
 def find_face(pixels):
-    """The most confident face in ``pixels`` ((H, W, 3) float in [0, 1], row 0 at the top,
-    sRGB: ``photos.detector_pixels``), or None when there is none."""
+    """The largest face (the subject's) in ``pixels`` ((H, W, 3) float in [0, 1], row 0
+    at the top, sRGB: ``photos.detector_pixels``), or None when there is none."""
     found = detector().detect(pixels)
     if found is None:
         return None

@@ -27,7 +27,7 @@ from .cameras.pinhole import PinholeCamera
 from .cores import usable_cores
 from .detect.covered import covered_note
 from .detect.detected_case import face_landmarks
-from .detect.detector import DetectedFace, Detector
+from .detect.detector import DetectedFace, Detector, other_faces_note
 from .detect.view_guess import POINTS_YAW_MIN, ViewGuess, guess_view, placed, points_yaw_deg
 from .fitting.engine import forget_fit_subsets
 from .fitting.fit import FitOptions, fit_head, prepare_fit, refit_landmarks
@@ -85,7 +85,7 @@ __all__ = [
     "guess_view", "iris_colour", "is_nominal", "landmarks_needed", "landmarks_to_dict",
     "load_landmark_set",
     "load_landmarks", "load_model", "lens_hints", "orient", "oriented_size",
-    "orthographic_lenses", "placed", "plausible_lens", "points_yaw_deg",
+    "orthographic_lenses", "other_faces_note", "placed", "plausible_lens", "points_yaw_deg",
     "orthographic_uvs", "prepare_fit",
     "parse_landmarks", "read_photo_exif", "refit_landmarks", "save_landmarks",
     "usable_cores", "uv_raster", "uv_tiles",

@@ -59,6 +59,8 @@ class DetectedFace:
     covered : frozenset of int
         iBUG numbers of the points whose part of the face is covered (a beard over the
         jaw: ``covered.covered_points``); a case leaves them and the mesh's depths out.
+    others : int
+        How many other, smaller faces the photo shows (``other_faces_note``).
     """
 
     mesh: np.ndarray
@@ -68,6 +70,7 @@ class DetectedFace:
     keypoints: np.ndarray | None = None
     box: np.ndarray | None = None
     covered: frozenset = frozenset()
+    others: int = 0
 
     @property
     def face_size(self):
@@ -131,10 +134,10 @@ class Detector:
         return head_outline(_as_float(image), face, self._segmentation_net)
 
     def detect(self, image, refine=False):
-        """The most confident face of ``image`` (H, W, 3) (uint8, or float in [0, 1]),
-        or None when the detector finds none. A face the mesh model does not see (a
-        profile) comes back with ``is_face`` False. ``refine``: a second mesh pass on the
-        first mesh's square."""
+        """The largest face of ``image`` (H, W, 3) (uint8, or float in [0, 1]), the
+        subject's (``face_detection.detect_faces``), or None when the detector finds
+        none. A face the mesh model does not see (a profile) comes back with ``is_face``
+        False. ``refine``: a second mesh pass on the first mesh's square."""
         image = _as_float(image)
         faces = detect_faces(self.faces_net, image)
         if not faces:
@@ -143,7 +146,8 @@ class Detector:
         square = square_from_detection(face)
         mesh, presence = face_mesh(self.mesh_net, image, square)
         out = DetectedFace(mesh, mesh_to_ibug(mesh[:, :2]), face.score, presence,
-                           np.asarray(face.keypoints, float), np.asarray(face.box, float))
+                           np.asarray(face.keypoints, float), np.asarray(face.box, float),
+                           others=len(faces) - 1)
         if out.is_profile:  # the square upright, not turned by the eyes
             mesh, _ = face_mesh(self.mesh_net, image, Square(square.center, square.size))
         elif refine:
@@ -152,6 +156,16 @@ class Detector:
         if not out.is_profile:
             out.covered = covered_points(image, out)
         return out
+
+
+def other_faces_note(face):
+    """What the report says of the other faces in a face's photo
+    (``DetectedFace.others``), a phrase, or None when it shows one."""
+    if not face.others:
+        return None
+    n = face.others
+    return (f"{n} other, smaller face{'s' if n > 1 else ''} in the photo: the largest is "
+            "taken as the subject's")
 
 
 def _as_float(image):

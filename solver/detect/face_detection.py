@@ -148,12 +148,15 @@ def _distinct(faces):
 
 
 def detect_faces(network, image, min_score=MIN_SCORE):
-    """Faces in ``image`` (H, W, 3) float32 in [0, 1], best first.
+    """Faces in ``image`` (H, W, 3) float32 in [0, 1], the widest first: the subject of a
+    portrait or profile is the largest face in it. The most confident is not: a profile
+    scores lower than a smaller face looking at the camera behind it (docs/DECISIONS.md,
+    "Another face in the photo").
 
     The model sees the whole photo in 128 px, where a face narrower than about a fifth of
     the photo's longer side is not found (docs/DECISIONS.md, "Small faces"); then it sees
     halves and quarters of it in overlapping squares (``TILE_LEVELS``, none under
-    ``MIN_TILE`` px). The best face, if small in the square it was found in
+    ``MIN_TILE`` px). The widest face, if small in the square it was found in
     (``SMALL_FACE``), is found once more in a square around it that it fills as a
     portrait's face fills its photo (``FACE_FILL``): its box and keypoints come out as
     on a portrait.
@@ -171,6 +174,7 @@ def detect_faces(network, image, min_score=MIN_SCORE):
             break
         side /= 2
         faces = _faces_in_tiles(network, image, side, min_score)
+    faces = sorted(faces, key=lambda f: -(f.box[2] - f.box[0]))  # stable: then by score
     if faces and faces[0].box[2] - faces[0].box[0] < SMALL_FACE * side:
         box = faces[0].box
         square = Square(((box[0] + box[2]) / 2, (box[1] + box[3]) / 2),

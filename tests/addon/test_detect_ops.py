@@ -494,3 +494,26 @@ def test_a_bearded_face_gets_no_jaw_points_and_the_report_says_why(sample, tmp_p
     placed = set(landmarks.landmark_pixels(plane))
     assert len(placed) == 68 - 17 and not any(n.startswith("jaw") for n in placed)
     assert any("beard" in line and "17 points" in line for _, line in job.lines())
+
+
+def test_a_photo_with_a_second_face_detects_the_largest_and_the_report_says_so(sample,
+                                                                              tmp_path):
+    from headrecon_addon import detect_job, landmarks
+    from solver import Detector
+
+    folder, _ = sample
+    front = Image.open(folder / "front.png").convert("RGB")
+    u0, v0, u1, v1 = Detector().detect(np.asarray(front)).box
+    m = 0.2 * (u1 - u0)
+    small = front.crop((int(u0 - m), int(v0 - m), int(u1 + m), int(v1 + 2 * m)))
+    small = small.resize((int(small.width * 0.45), int(small.height * 0.45)))
+    both = front.copy()
+    both.paste(small, (2, 2))                    # someone further back, in the corner
+    path = tmp_path / "two_faces.png"
+    both.save(path)
+    scene = empty_scene()
+    plane = _load(path, "front", "orthographic-front")
+    job = detect_job.run_detection(scene, "front")
+    nose = landmarks.landmark_pixels(plane)["nose_tip"]
+    assert u0 < nose[0] < u1 and v0 < nose[1] < v1  # the subject's face
+    assert any("1 other, smaller face in the photo" in line for _, line in job.lines())

@@ -6,6 +6,7 @@ import pytest
 
 from solver.detect import DetectedFace, Detector
 from solver.detect.detected_case import detected_case
+from solver.detect.detector import other_faces_note
 from solver.paths import DETECTOR_DIR
 
 
@@ -59,3 +60,28 @@ def test_a_photo_darkened_or_cast_after_it_was_taken_is_detected_as_it_was_shot(
     dense = (outline.points[:-1] * (1 - t) + outline.points[1:] * t).reshape(-1, 2)
     apart = np.linalg.norm(outline_changed.points[:, None] - dense[None], axis=2).min(1)
     assert np.median(apart) < 0.5
+
+
+def test_the_subject_is_the_largest_face_not_the_most_confident(sample):
+    """A profile photo with a smaller face looking at the camera behind it: the frontal
+    face scores higher, the profile is the subject."""
+    from PIL import Image
+
+    if not (DETECTOR_DIR / "face_landmark.tflite").is_file():
+        pytest.skip(f"models missing in {DETECTOR_DIR}: run ./run detector")
+    folder, _ = sample
+    d = Detector()
+    front = Image.open(folder / "front.png").convert("RGB")
+    side = Image.open(folder / "side.png").convert("RGB")
+    alone = d.detect(np.asarray(side))
+    assert alone.is_profile and alone.others == 0 and other_faces_note(alone) is None
+    u0, v0, u1, v1 = d.detect(np.asarray(front)).box
+    m = 0.2 * (u1 - u0)
+    face = front.crop((int(u0 - m), int(v0 - m), int(u1 + m), int(v1 + 2 * m)))
+    face = face.resize((int(face.width * 0.45), int(face.height * 0.45)))
+    both = side.copy()
+    both.paste(face, (2, 2))                     # in the corner, behind the subject
+    found = d.detect(np.asarray(both))
+    assert found.is_profile and found.others == 1
+    np.testing.assert_allclose(found.box, alone.box, atol=0.02 * alone.face_size)
+    assert other_faces_note(found).startswith("1 other, smaller face in the photo")
