@@ -79,6 +79,30 @@ def _pil_open(path):
             Image.MAX_IMAGE_PIXELS = limit
 
 
+#: Pillow's grey modes of more than 8 bits (a 16-bit grey PNG or TIFF), which its own
+#: conversion to RGB clips to white.
+_WIDE_MODES = ("I;16", "I;16B", "I;16L", "I;16N", "I", "F")
+
+
+def _converted(im, mode):
+    """``im`` (a Pillow image) in ``mode`` ("RGB" or "RGBA"); a grey photo of more than 8
+    bits (``_WIDE_MODES``) scaled to 8 bits first, where Pillow would clip it white: its
+    values taken as 16-bit, or as 8-bit where none passes 255, or (a float one) as in
+    [0, 1] where none passes 1."""
+    from PIL import Image
+
+    if im.mode == mode:
+        return im
+    if im.mode in _WIDE_MODES:
+        values = np.asarray(im, dtype=np.float32)
+        peak = float(values.max(initial=0.0))
+        top = 65535.0 if im.mode.startswith("I;16") or peak > 255.0 else \
+            1.0 if im.mode == "F" and peak <= 1.0 else 255.0
+        scaled = np.clip(values * np.float32(255.0 / top), 0.0, 255.0)
+        im = Image.fromarray(np.round(scaled).astype(np.uint8))  # mode "L"
+    return im.convert(mode)
+
+
 def _orientation(path, stored_size=None, size=None):
     """The EXIF Orientation to turn a photo upright by (1: as stored), as Blender's Load
     Photos does; a photo turned by 90° whose stored size is the landmarks file's ``size``
@@ -143,7 +167,7 @@ def _read_photo(case, view_name, texture_size):
                 im.draft("RGB", target)  # JPEG: decode at a reduced scale directly
             alpha = im.mode in ("RGBA", "LA", "PA") or "transparency" in im.info
             mode = "RGBA" if alpha else "RGB"
-            rgb = im if im.mode == mode else im.convert(mode)
+            rgb = _converted(im, mode)
             if rgb.size != target:
                 rgb = rgb.resize(target, Image.Resampling.BOX, reducing_gap=2.0)
             arr = np.ascontiguousarray(orient(np.asarray(rgb, dtype=np.float32), turn))
@@ -399,7 +423,7 @@ def load_photo(path):
             if w * h > MAX_PHOTO_PIXELS:
                 raise CliError(f"{path}: {w}x{h} pixels; photos up to "
                                f"{MAX_PHOTO_PIXELS / 1e6:.0f} megapixels are read")
-            return np.ascontiguousarray(orient(np.asarray(im.convert("RGB")),
+            return np.ascontiguousarray(orient(np.asarray(_converted(im, "RGB")),
                                                _orientation(path)))
     except UnidentifiedImageError:
         raise CliError(f"{path}: not an image Pillow can read") from None

@@ -394,6 +394,25 @@ def test_photos_are_read_upright_as_their_exif_says(tmp_path):
         assert arr[:30, -30:].min() > 0.9 and arr[:30, :30].max() < 0.5
 
 
+def test_a_grey_photo_of_16_bits_or_floats_is_read_as_its_8_bit_grey(tmp_path):
+    from PIL import Image
+
+    from solver.cli import _read_photo, load_photo
+    from solver.io.landmarks_file import load_landmarks
+
+    grey = np.tile(np.linspace(0, 255, 240).round().astype(np.uint8), (320, 1))
+    Image.fromarray(grey.astype(np.uint16) * 257).save(tmp_path / "front.png")  # I;16
+    Image.fromarray(grey.astype(np.float32) / 255).save(tmp_path / "float.tif")  # F
+    Image.fromarray(grey.astype(np.int32)).save(tmp_path / "int.tif")  # I, 8-bit values
+    for name in ("front.png", "float.tif", "int.tif"):
+        photo = load_photo(tmp_path / name)  # Pillow's own conversion clips to white
+        assert photo.shape == (320, 240, 3) and np.abs(photo - grey[..., None]).max() <= 1
+    doc = landmarks_doc(w=240, h=320, margin=10)
+    doc["views"]["front"].update(image="front.png", size=[240, 320])
+    photo = _read_photo(load_landmarks(write_case(tmp_path, doc)), "front", 256)
+    assert np.abs(photo * 255 - grey[..., None]).max() <= 1
+
+
 def test_an_orthographic_phone_photo_is_warned_about_from_its_exif_lens(tmp_path, model):
     from solver.io import exif
     from solver.io.landmarks_file import save_landmarks
