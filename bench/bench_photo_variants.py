@@ -24,7 +24,8 @@ black and white), ``small`` (the photo
 in the middle of one four times its size, its corner's colour around it: the face 10 % of
 the longer side), ``jpeg50`` (JPEG at quality 50), ``dark`` (half as bright),
 ``turned10`` (turned by 10 degrees, the corners filled with its corner's colour),
-``cropped`` (its top eighth cut off: the skull's top), ``blurred`` (a 2 px Gaussian),
+``cropped`` (its top eighth cut off: the skull's top), ``tight`` (cut close around the
+detected face: a front's ears and the skull's top and back cut off), ``blurred`` (a 2 px Gaussian),
 ``noisy`` (Gaussian noise of 8 levels), ``warm`` and ``cool`` (red and blue scaled by
 1.15 and 0.8, or 0.85 and 1.15: a white balance off). Scores: skin RMS against the true
 head after a similarity (``skin_error_mm``, the whole head: under hair the skull is not
@@ -67,6 +68,18 @@ def _jpeg(image, quality=50):
     buffer = io.BytesIO()
     image.save(buffer, "JPEG", quality=quality)
     return Image.open(io.BytesIO(buffer.getvalue())).convert("RGB")
+
+
+def tight(im, head, face, person, alpha):
+    """The photo cut close around its detected face, as people crop a portrait: from a
+    quarter of the face's width beside its box and half of it above the eyes, down to the
+    bottom edge (a front's ears and the skull's top cut off, a profile's back of the head
+    too)."""
+    u0, _, u1, _ = face.box
+    size = u1 - u0
+    top = min(face.keypoints[0][1], face.keypoints[1][1]) - 0.5 * size
+    return im.crop((max(0, int(u0 - 0.25 * size)), max(0, int(top)),
+                    min(im.width, int(u1 + 0.25 * size)), im.height))
 
 
 def _noisy(image, sigma=8.0):
@@ -304,6 +317,7 @@ VARIANTS = {
     "dark": lambda im, *_: Image.fromarray((np.asarray(im) * 0.5).astype(np.uint8)),
     "turned10": lambda im, *_: im.rotate(10, Image.BICUBIC, expand=True, fillcolor=_corner(im)),
     "cropped": lambda im, *_: im.crop((0, im.height // 8, im.width, im.height)),
+    "tight": tight,
     "blurred": lambda im, *_: im.filter(ImageFilter.GaussianBlur(2)),
     "noisy": lambda im, *_: _noisy(im),
     "warm": lambda im, *_: _cast(im, (1.15, 1.0, 0.8)),

@@ -384,9 +384,20 @@ def _close_short_gaps(flags, shortest):
     return out
 
 
+class UnsureEdge(ValueError):
+    """The segmentation is unsure of the person's edge over ``UNSURE_REFUSE`` of the
+    outline."""
+
+
 def head_outline(image, face, network, spacing_px=SPACING_PX):
     """The head's outline in ``image`` (H, W, 3) float in [0, 1], for ``face`` (a
     :class:`~.detector.DetectedFace` with its keypoints and box).
+
+    Past the photo's border the segmentation sees the photo's edges extended. Where the
+    photo cuts the head tightly (the back and top of a profile's head cut off) those
+    streaks of skin may leave it unsure of the whole edge; then it sees black there
+    instead, as a photo's border looks to it, and that outline is taken if it is sure
+    (docs/DECISIONS.md, "Photos cropped tightly").
 
     Parameters
     ----------
@@ -406,15 +417,29 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
         segmentation is unsure of over ``UNSURE_REFUSE`` of it (the message names what is
         missing; the caller names the photo).
     """
+    try:
+        return _outline(image, face, network, spacing_px, "edge")
+    except UnsureEdge as unsure:
+        try:
+            return _outline(image, face, network, spacing_px, "zero")
+        except ValueError:
+            raise unsure from None
+
+
+def _outline(image, face, network, spacing_px, border):
+    """:func:`head_outline` with the segmentation seeing ``border`` past the photo (as
+    ``person_mask`` takes it); a square within the photo is never tried with "zero"."""
     box = np.asarray(face.box, float)
     centre = ((box[0] + box[2]) / 2, (box[1] + box[3]) / 2)
     square = Square(centre, SQUARE_SCALE * float(max(box[2] - box[0], box[3] - box[1])))
-    mask, busy = without_busy_background(person_mask(network, image, square))
+    mask, busy = without_busy_background(person_mask(network, image, square, border))
     past = _reaching(mask, np.asarray(face.keypoints, float)[3])
     if past.any():                       # the head goes on past the square: a larger one
         shift = REGROW_SHIFT * square.size * past @ np.array([[-1, 0], [1, 0], [0, -1]])
         square = Square(tuple(np.asarray(centre) + shift), REGROW * square.size)
-        mask, busy = without_busy_background(person_mask(network, image, square))
+        mask, busy = without_busy_background(person_mask(network, image, square, border))
+    if border != "edge" and _within(square, image):
+        raise ValueError("the segmented square lies within the photo")  # the same mask
     nose = np.asarray(face.keypoints, float)[2]
     size = float(box[2] - box[0])
     loop, moved, refined, inside, skin_of_face = _edge(image, mask, face, spacing_px)
@@ -493,7 +518,7 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
                      "gets only its points on an edge")
     unsure = float(np.mean(~edge_sure(mask, loop)[idx]))
     if unsure > UNSURE_REFUSE:
-        raise ValueError(f"the person's segmentation is unsure of the edge over "
+        raise UnsureEdge(f"the person's segmentation is unsure of the edge over "
                          f"{100 * unsure:.0f} % of the outline (over {100 * UNSURE_REFUSE:.0f}"
                          " %: a busy background, a black and white photo): no outline")
     if unsure > UNSURE_SHARE:
@@ -502,6 +527,13 @@ def head_outline(image, face, network, spacing_px=SPACING_PX):
                         "something of the skin's colour behind the head): check that the "
                         "outline follows the head")
     return Outline(moved[idx], refined[idx], notes, colour, warnings, unsure)
+
+
+def _within(square, image):
+    """Whether the upright ``square`` lies wholly inside ``image``'s pixels."""
+    h, w = image.shape[:2]
+    (u, v), half = square.center, square.size / 2
+    return u - half >= 0 and v - half >= 0 and u + half <= w and v + half <= h
 
 
 def _edge(image, mask, face, spacing_px):

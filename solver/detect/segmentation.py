@@ -76,10 +76,11 @@ class PersonMask:
                 + (get(y0 + 1, x0) * (1 - fx) + get(y0 + 1, x0 + 1) * fx) * fy)
 
 
-def person_mask(network, image, square):
+def person_mask(network, image, square, border="edge"):
     """The person probability over ``square`` of ``image`` (H, W, 3) float32 in [0, 1]
-    (the model's input range), photo edges extended past the photo."""
-    x = crop(image, square, INPUT, border="edge")
+    (the model's input range), past the photo its edges extended (or black: ``border``
+    as ``crop`` takes it)."""
+    x = crop(image, square, INPUT, border=border)
     (out,) = network(x[None])
     return PersonMask(square, np.asarray(out, np.float32).reshape(INPUT, INPUT), x)
 

@@ -25,6 +25,7 @@ from bench.bench_photo_variants import (
     profile_line_table,
     room_behind,
     thick_hair,
+    tight,
 )
 from bench.realistic_cases import james_folder
 from solver import load_model
@@ -163,6 +164,15 @@ def test_the_variants_of_a_real_photo_change_the_photo_alone():
         assert out.mode == "RGB" and min(out.size) >= 50, name
     grey = np.asarray(VARIANTS["grey"](photo, None, None, None, None))
     assert (grey == grey[..., :1]).all()
+
+
+def test_a_tight_crop_keeps_the_face_and_cuts_the_skull():
+    head, face = _head()
+    photo = Image.fromarray(np.zeros(head.shape + (3,), np.uint8))
+    out = tight(photo, head, face, None, None)
+    # the 200 px box and 50 px beside it; from 100 px above the eyes to the bottom
+    assert out.size == (300, 560 - 140)
+    assert np.nonzero(head)[0].min() < 140       # the skull's top cut off
 
 
 def test_grey_hair_is_the_hair_in_black_and_white():

@@ -9,6 +9,7 @@ from PIL import Image
 from solver.detect import Detector
 from solver.detect.crop import Square
 from solver.detect.outline import (
+    SPACING_PX,
     STRAIGHT_LONG,
     UNSURE_REFUSE,
     UNSURE_SHARE,
@@ -316,6 +317,29 @@ def test_a_head_cut_by_the_photo_s_top_keeps_its_outline_on_both_sides(sample, d
     below = whole.points[whole.points[:, 1] > top + 2]
     assert abs(len(outline.points) - len(below)) < 0.05 * len(below)
     assert outline.points[:, 0].min() < face.keypoints[4][0] - 50   # behind the ear
+
+
+def test_a_profile_cut_tightly_at_the_back_and_top_keeps_its_face_s_outline(sample, detector):
+    from solver import load_landmarks
+
+    folder, _ = sample
+    photo = _photo(folder)
+    face = detector.detect(photo)
+    size = face.box[2] - face.box[0]
+    u0 = int(face.keypoints[4][0] - 0.3 * size)     # through the ear: the back cut off
+    v0 = int(face.keypoints[0][1] - 0.45 * size)    # above the brow: the top cut off
+    cropped = np.ascontiguousarray(photo[v0:, u0:])
+    outline = detector.outline(cropped, detector.detect(cropped))
+    assert "the photo's border cuts the head" in outline.notes[-1]
+    truth = load_landmarks(folder / "sample.json").views["side"].contour
+    # the face's side from the cut down past the chin (below, at this size, the outline
+    # also runs along the shirt's top edge: the segmentation, seeing black past the photo,
+    # leaves the shirt out)
+    face_side = outline.points[outline.points[:, 1] < face.keypoints[3][1] - v0 + 0.5 * size]
+    d, _ = _distance_to_line(face_side + [u0, v0], truth)
+    assert np.median(d) < 1.0 and np.percentile(d, 90) < 2.5
+    assert len(face_side) * SPACING_PX > 1.5 * size  # the forehead, nose, lips and chin
+    assert face_side[:, 0].max() > face.keypoints[2][0] - u0 - 0.05 * size  # the nose tip
 
 
 def test_a_black_and_white_profile_ends_under_the_chin_and_gives_its_edge(sample, detector):
