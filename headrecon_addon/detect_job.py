@@ -19,10 +19,9 @@ from .job_progress import Progress
 from .solver_link import (
     POINTS_YAW_MIN,
     ViewGuess,
-    covered_note,
+    face_notes,
     is_nominal,
     load_model,
-    other_faces_note,
     placed,
     points_yaw_deg,
     usable_cores,
@@ -140,10 +139,8 @@ class PhotoTask:
         elif self.face.profile:
             line += (" (a profile without an outline found: only the nose tip, subnasale "
                      "and upper lip are detected; trace its outline for the rest)")
-        found = self.face.found
-        for note in () if found is None else (covered_note(found), other_faces_note(found)):
-            if note:
-                line += f"; {note}"
+        for note in [] if self.face.found is None else face_notes(self.face.found):
+            line += f"; {note}"
         if turned is not None:
             line += f"; its camera turned to {turned:+.0f} deg, as the photos show the face"
         out = [("INFO", line)]

@@ -27,7 +27,7 @@ from .cameras.pinhole import PinholeCamera
 from .cores import usable_cores
 from .detect.covered import covered_note
 from .detect.detected_case import face_landmarks
-from .detect.detector import DetectedFace, Detector, other_faces_note
+from .detect.detector import DetectedFace, Detector, face_notes
 from .detect.view_guess import POINTS_YAW_MIN, ViewGuess, guess_view, placed, points_yaw_deg
 from .fitting.engine import forget_fit_subsets
 from .fitting.fit import FitOptions, fit_head, prepare_fit, refit_landmarks
@@ -81,11 +81,11 @@ __all__ = [
     "ViewGuess", "ViewResidual", "bake_fit_texture", "bake_texture", "blender_to_krc",
     "camera_class", "camera_from_dict", "camera_from_json", "camera_to_json", "check_case",
     "check_passpoints", "count_problems", "covered_note", "dlt_to_blender", "face_landmarks",
-    "fit_dlt", "fit_head", "forget_fit_subsets",
+    "face_notes", "fit_dlt", "fit_head", "forget_fit_subsets",
     "guess_view", "iris_colour", "is_nominal", "landmarks_needed", "landmarks_to_dict",
     "load_landmark_set",
     "load_landmarks", "load_model", "lens_hints", "orient", "oriented_size",
-    "orthographic_lenses", "other_faces_note", "placed", "plausible_lens", "points_yaw_deg",
+    "orthographic_lenses", "placed", "plausible_lens", "points_yaw_deg",
     "orthographic_uvs", "prepare_fit",
     "parse_landmarks", "read_photo_exif", "refit_landmarks", "save_landmarks",
     "usable_cores", "uv_raster", "uv_tiles",

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..paths import DETECTOR_DIR
 from ..photo_colour import stretched_to_white
-from .covered import covered_points
+from .covered import covered_note, covered_points
 from .crop import Square
 from .face_detection import detect_faces
 from .face_landmarks import face_mesh, square_from_detection, square_from_mesh
@@ -166,6 +166,13 @@ def other_faces_note(face):
     n = face.others
     return (f"{n} other, smaller face{'s' if n > 1 else ''} in the photo: the largest is "
             "taken as the subject's")
+
+
+def face_notes(face):
+    """What the report says of a detected face beyond where it is and which way it looks:
+    its covered points (``covered.covered_note``) and the other faces in its photo
+    (:func:`other_faces_note`), the phrases that apply, in that order."""
+    return [n for n in (covered_note(face), other_faces_note(face)) if n]
 
 
 def _as_float(image):
