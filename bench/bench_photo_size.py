@@ -25,6 +25,7 @@ from PIL import Image
 from bench.common import machine_description
 from bench.rendered_heads import add_head_options, chosen_folders, photo_path
 from solver import FitOptions, fit_head, load_model
+from solver.cli import load_photo
 from solver.detect import Detector
 from solver.detect.detected_case import detect_photos
 from solver.fitting.views import photo_scale
@@ -45,11 +46,11 @@ def resized(folder, scale, into):
 
 def photos_case(folder, detector):
     """The case ``solver detect`` makes of a folder's front and side photos
-    (``rendered_heads.photo_path``: a JPEG's EXIF lens makes its camera a pinhole)."""
+    (``rendered_heads.photo_path``: a JPEG's EXIF lens makes its camera a pinhole), read
+    as it reads them (``cli.load_photo``: a cut-out keeps its alpha)."""
     return detect_photos([(None, photo_path(folder, "front")),
                           (None, photo_path(folder, "side"))],
-                         detector, lambda p: np.asarray(Image.open(p).convert("RGB")),
-                         base_dir=folder)
+                         detector, load_photo, base_dir=folder)
 
 
 def main(argv=None):

@@ -19,10 +19,11 @@ bare shoulders or a skin-coloured top), ``room`` (a room behind the person, by t
 render's alpha: a lit wall, a painted door, a bookshelf and a window, out of focus; each
 photo its own), ``wood`` (the same with a wooden door: a thing of the skin's colour behind
 the head), ``blocks`` and ``confetti`` (a busy background: random colours in squares,
-16 or 64 down the photo), ``grey`` (black and white), ``grey_hair`` (``hair``, then
-black and white), ``small`` (the photo
-in the middle of one four times its size, its corner's colour around it: the face 10 % of
-the longer side), ``jpeg50`` (JPEG at quality 50), ``dark`` (half as bright),
+16 or 64 down the photo), ``cut_out`` (cut out around the person: a PNG with the
+render's alpha, white under its transparency), ``grey`` (black and white),
+``grey_hair`` (``hair``, then black and white), ``small`` (the photo in the middle of one
+four times its size, its corner's colour around it: the face 10 % of the longer side),
+``jpeg50`` (JPEG at quality 50), ``dark`` (half as bright),
 ``turned10`` (turned by 10 degrees, the corners filled with its corner's colour),
 ``cropped`` (its top eighth cut off: the skull's top), ``tight`` (cut close around the
 detected face: a front's ears and the skull's top and back cut off), ``blurred`` (a 2 px Gaussian),
@@ -268,6 +269,15 @@ def colour_blocks(image, alpha, rows):
     return _behind(image, alpha, blocks)
 
 
+def cut_out(image, alpha, under=255):
+    """The person cut out as a background remover gives it: RGBA, the render's alpha,
+    ``under`` (white) left under the transparent pixels."""
+    rgb = np.asarray(image).copy()
+    a = np.round(255 * alpha).astype(np.uint8)
+    rgb[a == 0] = under
+    return Image.fromarray(np.dstack([rgb, a]))
+
+
 def glasses(image, head, face, *_):
     """Dark-framed glasses drawn from the detected face's keypoints: on a front photo a
     rim around each eye, the bridge between them and the arms out past the ears; on a
@@ -310,6 +320,7 @@ VARIANTS = {
     "wood": lambda im, head, face, person, alpha: in_a_room(im, alpha, "wood"),
     "blocks": lambda im, head, face, person, alpha: colour_blocks(im, alpha, 16),
     "confetti": lambda im, head, face, person, alpha: colour_blocks(im, alpha, 64),
+    "cut_out": lambda im, head, face, person, alpha: cut_out(im, alpha),
     "grey": lambda im, *_: im.convert("L").convert("RGB"),
     "grey_hair": lambda im, head, face, *_: hair(im, head, face).convert("L").convert("RGB"),
     "small": lambda im, *_: Image.fromarray(padded(np.asarray(im), {}, 4)[0]),

@@ -65,7 +65,8 @@ class Face:
 
 def find_face(pixels):
     """The largest face (the subject's) in ``pixels`` ((H, W, 3) float in [0, 1], row 0
-    at the top, sRGB: ``photos.detector_pixels``), or None when there is none."""
+    at the top, sRGB, or (H, W, 4) with alpha for a cut-out: ``photos.detector_pixels``),
+    or None when there is none."""
     found = detector().detect(pixels)
     if found is None:
         return None

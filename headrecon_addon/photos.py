@@ -206,18 +206,23 @@ def image_to_array(image):
 def detector_pixels(image, read=None):
     """A Blender image's pixels as the detector reads a photo: (H, W, 3) float32 in [0, 1],
     row 0 at the top, sRGB-encoded (a float image, which Blender holds in linear light, is
-    encoded; an 8-bit one is as stored). ``read``: a dict of the images read so far (name
-    -> pixels, read-only), for a job that reads a photo twice (Auto Fit)."""
+    encoded; an 8-bit one is as stored); (H, W, 4) with its alpha where the photo has
+    transparent pixels (a cut-out, which the detector lays on a grey backdrop). ``read``: a
+    dict of the images read so far (name -> pixels, read-only), for a job that reads a
+    photo twice (Auto Fit)."""
     if read is not None and image.name in read:
         return read[image.name]
+    pixels = image_to_array(image)
+    cut_out = pixels[:, :, 3].min() < 1.0
     # clamped into a contiguous array in two passes: np.clip on the strided RGB view of
     # the RGBA pixels took 2-3 times as long
-    rgb = np.empty((image.size[1], image.size[0], 3), np.float32)
-    np.minimum(image_to_array(image)[:, :, :3], np.float32(1.0), out=rgb)
+    rgb = np.empty((image.size[1], image.size[0], 4 if cut_out else 3), np.float32)
+    np.minimum(pixels[:, :, :rgb.shape[2]], np.float32(1.0), out=rgb)
     np.maximum(rgb, np.float32(0.0), out=rgb)
     if image.is_float and image.colorspace_settings.name not in _RAW_SPACES:
-        rgb = np.where(rgb <= 0.0031308, 12.92 * rgb,
-                       1.055 * rgb ** (1 / 2.4) - 0.055).astype(np.float32)
+        colour = rgb[:, :, :3]
+        rgb[:, :, :3] = np.where(colour <= 0.0031308, 12.92 * colour,
+                                 1.055 * colour ** (1 / 2.4) - 0.055)
     if read is not None:
         rgb.flags.writeable = False
         read[image.name] = rgb

@@ -84,6 +84,12 @@ def _pil_open(path):
 _WIDE_MODES = ("I;16", "I;16B", "I;16L", "I;16N", "I", "F")
 
 
+def _photo_mode(im):
+    """"RGBA" for a photo with transparency (a cut-out), else "RGB"."""
+    alpha = im.mode in ("RGBA", "LA", "PA") or "transparency" in im.info
+    return "RGBA" if alpha else "RGB"
+
+
 def _converted(im, mode):
     """``im`` (a Pillow image) in ``mode`` ("RGB" or "RGBA"); a grey photo of more than 8
     bits (``_WIDE_MODES``) scaled to 8 bits first, where Pillow would clip it white: its
@@ -165,9 +171,7 @@ def _read_photo(case, view_name, texture_size):
             target = bake_photo_size(im.size, texture_size)
             if target != im.size:
                 im.draft("RGB", target)  # JPEG: decode at a reduced scale directly
-            alpha = im.mode in ("RGBA", "LA", "PA") or "transparency" in im.info
-            mode = "RGBA" if alpha else "RGB"
-            rgb = _converted(im, mode)
+            rgb = _converted(im, _photo_mode(im))
             if rgb.size != target:
                 rgb = rgb.resize(target, Image.Resampling.BOX, reducing_gap=2.0)
             arr = np.ascontiguousarray(orient(np.asarray(rgb, dtype=np.float32), turn))
@@ -410,8 +414,9 @@ def _cmd_landmarks(args):
 
 
 def load_photo(path):
-    """A photo file as uint8 RGB (H, W, 3), upright as its EXIF says; problems name the
-    photo."""
+    """A photo file as uint8 RGB (H, W, 3), or RGBA (H, W, 4) where it has transparency (a
+    cut-out: the detector lays it on a grey backdrop), upright as its EXIF says; problems
+    name the photo."""
     from PIL import UnidentifiedImageError
 
     path = Path(path)
@@ -423,7 +428,7 @@ def load_photo(path):
             if w * h > MAX_PHOTO_PIXELS:
                 raise CliError(f"{path}: {w}x{h} pixels; photos up to "
                                f"{MAX_PHOTO_PIXELS / 1e6:.0f} megapixels are read")
-            return np.ascontiguousarray(orient(np.asarray(_converted(im, "RGB")),
+            return np.ascontiguousarray(orient(np.asarray(_converted(im, _photo_mode(im))),
                                                _orientation(path)))
     except UnidentifiedImageError:
         raise CliError(f"{path}: not an image Pillow can read") from None

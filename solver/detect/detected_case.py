@@ -198,7 +198,8 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="a
         names it.
     detector : Detector
     load : callable
-        path -> uint8 RGB image (H, W, 3); its errors name the photo.
+        path -> uint8 RGB image (H, W, 3), or RGBA (H, W, 4) for a cut-out
+        (``Detector.detect``); its errors name the photo.
     base_dir : Path, optional
         As for :func:`detected_case`.
     echo : callable, optional

@@ -221,7 +221,8 @@ def test_load_photos_sorts_photos_whose_names_say_nothing_by_the_face(sample, sc
 
 def test_detector_pixels_are_clamped_srgb_and_read_once(scene):
     """The detector reads a photo as sRGB in [0, 1], row 0 at the top: an 8-bit image as
-    stored, a float image (linear light) encoded, values beyond [0, 1] clamped; a job
+    stored, a float image (linear light) encoded, values beyond [0, 1] clamped, the alpha
+    of a photo with transparent pixels (a cut-out) kept beside the colour; a job
     that reads a photo twice gets the same read-only array back."""
     import bpy
 
@@ -241,6 +242,13 @@ def test_detector_pixels_are_clamped_srgb_and_read_once(scene):
     byte = bpy.data.images.new("ldr", 3, 2)
     byte.pixels.foreach_set(rgba[::-1].clip(0, 1).ravel())
     assert np.allclose(photos.detector_pixels(byte)[..., 2], np.clip(linear, 0, 1), atol=1 / 255)
+    assert photos.detector_pixels(byte).shape == (2, 3, 3)  # opaque: no alpha
+    rgba[0, 1, 3] = 0.0                        # a cut-out: its alpha goes to the detector
+    cut = bpy.data.images.new("cut", 3, 2, alpha=True)
+    cut.pixels.foreach_set(rgba[::-1].clip(0, 1).ravel())
+    px_cut = photos.detector_pixels(cut)
+    assert px_cut.shape == (2, 3, 4) and px_cut[0, 1, 3] == 0.0 and px_cut[1, 2, 3] == 1.0
+    assert np.allclose(px_cut[..., 2], np.clip(linear, 0, 1), atol=1 / 255)
     read = {}
     first = photos.detector_pixels(img, read)
     assert photos.detector_pixels(img, read) is first and not first.flags.writeable

@@ -17,6 +17,7 @@ from bench.bench_photo_variants import (
     bare,
     beard_region,
     colour_blocks,
+    cut_out,
     glasses,
     hair,
     hair_region,
@@ -125,6 +126,19 @@ def test_a_room_goes_behind_the_person_by_their_alpha_and_each_photo_has_its_own
         near = np.linalg.norm(room - np.asarray(DOORS[door]), axis=2) < 40
         red, _, blue = np.median(room[near], axis=0)
         assert near.mean() > 0.05 and (red > blue + 40 if warm else red < blue)
+
+
+def test_a_cut_out_keeps_the_person_and_leaves_white_under_its_transparency():
+    photo = np.full((60, 40, 3), 90, np.uint8)
+    photo[20:40, 10:30] = [210, 160, 140]
+    alpha = np.zeros((60, 40))
+    alpha[20:40, 10:30] = 1.0
+    alpha[19, 10:30] = 0.5                                  # a soft edge
+    out = np.asarray(cut_out(Image.fromarray(photo), alpha))
+    assert out.shape == (60, 40, 4)
+    assert (out[20:40, 10:30] == [210, 160, 140, 255]).all()
+    assert (out[19, 10:30] == [90, 90, 90, 128]).all()     # the edge's colour as it was
+    assert (out[alpha == 0] == [255, 255, 255, 0]).all()
 
 
 def test_colour_blocks_go_behind_the_person_in_squares_of_the_rows_asked():

@@ -413,6 +413,29 @@ def test_a_grey_photo_of_16_bits_or_floats_is_read_as_its_8_bit_grey(tmp_path):
     assert np.abs(photo * 255 - grey[..., None]).max() <= 1
 
 
+def test_a_cut_out_photo_is_read_with_its_transparency(tmp_path):
+    """A PNG cut out around the person, RGBA or a palette with a transparent colour, keeps
+    its alpha for the detector (``Detector.detect`` lays it on grey); an opaque one is RGB."""
+    from PIL import Image
+
+    from solver.cli import load_photo
+
+    rgb = np.zeros((40, 30, 3), np.uint8)
+    rgb[10:30, 5:25] = (200, 150, 120)
+    alpha = np.where(rgb[..., 0] > 0, 255, 0).astype(np.uint8)
+    Image.fromarray(np.dstack([rgb, alpha])).save(tmp_path / "rgba.png")
+    palette = Image.frombytes("P", (30, 40), (alpha > 0).astype(np.uint8).tobytes())
+    palette.putpalette([0, 0, 0, 200, 150, 120])
+    palette.save(tmp_path / "palette.png", transparency=0)
+    Image.fromarray(rgb).save(tmp_path / "opaque.png")
+    for name in ("rgba.png", "palette.png"):
+        photo = load_photo(tmp_path / name)
+        assert photo.shape == (40, 30, 4), name
+        np.testing.assert_array_equal(photo[..., 3], alpha)
+        np.testing.assert_array_equal(photo[alpha > 0, :3], rgb[alpha > 0])
+    assert load_photo(tmp_path / "opaque.png").shape == (40, 30, 3)
+
+
 def test_an_orthographic_phone_photo_is_warned_about_from_its_exif_lens(tmp_path, model):
     from solver.io import exif
     from solver.io.landmarks_file import save_landmarks

@@ -85,3 +85,35 @@ def test_the_subject_is_the_largest_face_not_the_most_confident(sample):
     assert found.is_profile and found.others == 1
     np.testing.assert_allclose(found.box, alone.box, atol=0.02 * alone.face_size)
     assert other_faces_note(found).startswith("1 other, smaller face in the photo")
+
+
+@pytest.mark.parametrize("view", ["front", "side"])
+def test_a_cut_out_photo_is_detected_on_grey_whatever_its_transparency_hides(sample, view):
+    """A photo cut out around the person (alpha 0 beyond it) whose transparent pixels hold
+    black or white: the same face and outline either way, the outline on the head's true
+    silhouette (white under the transparency cut into a bright skull before)."""
+    from PIL import Image
+    from scipy import ndimage
+
+    if not (DETECTOR_DIR / "face_landmark.tflite").is_file():
+        pytest.skip(f"models missing in {DETECTOR_DIR}: run ./run detector")
+    folder, truth = sample
+    d = Detector()
+    photo = np.asarray(Image.open(folder / f"{view}.png").convert("RGB"))
+    alpha = truth[f"alpha_{view}"]
+    found = []
+    for under in (0, 255):
+        rgb = photo.copy()
+        rgb[alpha == 0] = under
+        cut_out = np.dstack([rgb, alpha])
+        face = d.detect(cut_out)
+        found.append((face, d.outline(cut_out, face)))
+    (black, black_outline), (white, white_outline) = found
+    np.testing.assert_array_equal(black.ibug, white.ibug)
+    np.testing.assert_array_equal(black_outline.points, white_outline.points)
+    person = alpha >= 128
+    off = ndimage.distance_transform_edt(~(person ^ ndimage.binary_erosion(person)))
+    chin = black.box[3]                          # the head's points: above the face box's foot
+    head = white_outline.points[white_outline.points[:, 1] < chin]
+    u, v = np.round(head).astype(int).T
+    assert np.mean(off[v.clip(0, alpha.shape[0] - 1), u.clip(0, alpha.shape[1] - 1)] > 3) < 0.02
