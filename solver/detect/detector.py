@@ -23,6 +23,7 @@ from .face_landmarks import face_mesh, square_from_detection, square_from_mesh
 from .ibug_map import mesh_to_ibug
 from .operators import Network
 from .outline import head_outline
+from .overexposed import clipped_share, overexposed_note
 
 DETECTION_MODEL = "face_detection_short_range.tflite"
 LANDMARK_MODEL = "face_landmark.tflite"
@@ -66,6 +67,9 @@ class DetectedFace:
         jaw: ``covered.covered_points``); a case leaves them and the mesh's depths out.
     others : int
         How many other, smaller faces the photo shows (``other_faces_note``).
+    clipped : float
+        The share of the face's skin the photo clipped to white (a front or three-quarter
+        face: ``overexposed.clipped_share``; 0 for a profile).
     """
 
     mesh: np.ndarray
@@ -76,6 +80,7 @@ class DetectedFace:
     box: np.ndarray | None = None
     covered: frozenset = frozenset()
     others: int = 0
+    clipped: float = 0.0
 
     @property
     def face_size(self):
@@ -161,6 +166,7 @@ class Detector:
         out.mesh, out.ibug = mesh, mesh_to_ibug(mesh[:, :2])
         if not out.is_profile:
             out.covered = covered_points(image, out)
+            out.clipped = clipped_share(image, out)
         return out
 
 
@@ -176,9 +182,11 @@ def other_faces_note(face):
 
 def face_notes(face):
     """What the report says of a detected face beyond where it is and which way it looks:
-    its covered points (``covered.covered_note``) and the other faces in its photo
+    its covered points (``covered.covered_note``), its skin clipped white
+    (``overexposed.overexposed_note``) and the other faces in its photo
     (:func:`other_faces_note`), the phrases that apply, in that order."""
-    return [n for n in (covered_note(face), other_faces_note(face)) if n]
+    return [n for n in (covered_note(face), overexposed_note(face), other_faces_note(face))
+            if n]
 
 
 def _as_float(image):
