@@ -23,7 +23,8 @@ the head), ``blocks`` and ``confetti`` (a busy background: random colours in squ
 render's alpha, white under its transparency), ``grey`` (black and white),
 ``grey_hair`` (``hair``, then black and white), ``small`` (the photo in the middle of one
 four times its size, its corner's colour around it: the face 10 % of the longer side),
-``jpeg50`` (JPEG at quality 50), ``dark`` (half as bright),
+``jpeg50`` (JPEG at quality 50), ``dark`` (half as bright), ``overexposed`` (1.2 times
+as bright, clipped: the rendered faces' lit skin white),
 ``turned10`` (turned by 10 degrees, the corners filled with its corner's colour),
 ``cropped`` (its top eighth cut off: the skull's top), ``tight`` (cut close around the
 detected face: a front's ears and the skull's top and back cut off), ``blurred`` (a 2 px Gaussian),
@@ -326,6 +327,8 @@ VARIANTS = {
     "small": lambda im, *_: Image.fromarray(padded(np.asarray(im), {}, 4)[0]),
     "jpeg50": lambda im, *_: _jpeg(im),
     "dark": lambda im, *_: Image.fromarray((np.asarray(im) * 0.5).astype(np.uint8)),
+    "overexposed": lambda im, *_: Image.fromarray(
+        np.clip(np.asarray(im) * 1.2, 0, 255).astype(np.uint8)),
     "turned10": lambda im, *_: im.rotate(10, Image.BICUBIC, expand=True, fillcolor=_corner(im)),
     "cropped": lambda im, *_: im.crop((0, im.height // 8, im.width, im.height)),
     "tight": tight,
@@ -338,8 +341,8 @@ VARIANTS = {
 
 #: The variants a real photo can be given: they change the photo alone, not the render's
 #: head or person (``--james``).
-PHOTO_ONLY = ("grey", "small", "jpeg50", "dark", "turned10", "cropped", "blurred", "noisy",
-              "warm", "cool")
+PHOTO_ONLY = ("grey", "small", "jpeg50", "dark", "overexposed", "turned10", "cropped",
+              "blurred", "noisy", "warm", "cool")
 
 
 def changed(folder, variant, into, detector):
