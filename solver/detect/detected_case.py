@@ -17,7 +17,7 @@ from ..io.photo_lens import plausible_lens
 from .detector import face_notes
 from .face_detection import KEYPOINTS
 from .ibug_map import mesh_to_ibug
-from .profile_line import profile_line_points
+from .profile_line import profile_line_points, profile_turn_deg
 from .view_guess import ViewGuess, guess_view, placed, point_uncertainty
 
 #: The view names the detection gives (and ``--view NAME=PHOTO`` may use to say one).
@@ -96,7 +96,8 @@ def face_landmarks(face, size, side=None, contour=None):
     if face.is_profile and side in ("right", "left") and contour is not None \
             and face.face_size is not None:
         hint = None if face.keypoints is None else face.keypoints[KEYPOINTS.index("nose_tip")]
-        line, line_sigma = profile_line_points(contour, side, face.face_size, hint)
+        turn = 0.0 if face.keypoints is None else profile_turn_deg(face.keypoints, side)
+        line, line_sigma = profile_line_points(contour, side, face.face_size, hint, turn)
         w, h = size
         line = {n: p for n, p in line.items() if 0 <= p[0] <= w and 0 <= p[1] <= h}
         if line:

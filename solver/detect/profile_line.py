@@ -9,6 +9,7 @@ are read off its outline").
 
 import numpy as np
 
+from .face_detection import KEYPOINTS
 from .view_guess import MEDIAN_TO_SIGMA
 
 #: Where the points are looked for, in the face's sizes (the detector box's width) of
@@ -58,6 +59,15 @@ SULCUS = 0.02
 #: vertices) in profile, degrees forward of straight down: the face's frame is the one
 #: where the nasion-to-chin line leans so.
 FACE_LINE_DEG = 2.3
+#: In an upright profile the line from the visible ear's tragion to the nose tip (the face
+#: detector's keypoints) runs this many degrees above the face's forward direction (the
+#: ten rendered heads' profiles -8.5 to +4.5, mean -4.1; docs/DECISIONS.md, "A profile
+#: photo turned in its plane").
+TRAGION_NOSE_DEG = -4.1
+#: A profile whose tragion-to-nose line turns further than this from
+#: ``TRAGION_NOSE_DEG`` is read in its own upright frame: the points' rules take the photo's
+#: rows for the face's up and down (an upright profile's estimate strays up to 9 degrees).
+MAX_TURN_DEG = 12.0
 #: How far each point is moved along the outline from the feature read (fraction of the
 #: face's size; away from the nose tip, the nose tip itself upward): the model's vertex
 #: for the landmark lies there on average (``bench.bench_detect``).
@@ -127,7 +137,28 @@ def _extremes(signal, prominence, kind):
     return out
 
 
-def profile_line_points(contour, side, face_size, nose_tip=None):
+def profile_turn_deg(keypoints, side):
+    """How far a profile photo shows the face turned in its plane, degrees (positive:
+    counterclockwise as the photo shows it), from the face detector's ``keypoints`` (6, 2)
+    px: the tragion-to-nose line against ``TRAGION_NOSE_DEG``; 0.0 within ``MAX_TURN_DEG``
+    of upright, where the estimate is no better than the face's own build."""
+    sign = 1.0 if side == "right" else -1.0
+    k = np.asarray(keypoints, dtype=float)
+    d = k[KEYPOINTS.index("nose_tip")] - k[KEYPOINTS.index(f"tragion_{side}")]
+    turn = sign * (np.degrees(np.arctan2(-d[1], sign * d[0])) - TRAGION_NOSE_DEG)
+    return float(turn) if abs(turn) > MAX_TURN_DEG else 0.0
+
+
+def _turned(points, deg, centre):
+    """``points`` (n, 2) px turned by ``deg`` degrees counterclockwise as a photo shows
+    them (rows run down) about ``centre`` (2,)."""
+    t = np.radians(deg)
+    cos, sin = np.cos(t), np.sin(t)
+    return centre + (np.asarray(points, dtype=float) - centre) @ np.array([[cos, -sin],
+                                                                              [sin, cos]])
+
+
+def profile_line_points(contour, side, face_size, nose_tip=None, turn_deg=0.0):
     """The profile line's landmarks on a profile photo's outline.
 
     Parameters
@@ -143,6 +174,9 @@ def profile_line_points(contour, side, face_size, nose_tip=None):
     nose_tip : (float, float), optional
         Where the nose tip roughly is (the face detector's), px; default: the outline's
         most forward point.
+    turn_deg : float
+        How far the photo shows the face turned in its plane (:func:`profile_turn_deg`):
+        the outline is read turned back upright, and the points given in the photo.
 
     Returns
     -------
@@ -155,6 +189,12 @@ def profile_line_points(contour, side, face_size, nose_tip=None):
     if c.ndim != 2 or c.shape[1] != 2 or len(c) < 8 or not face_size > 0 \
             or np.median(np.linalg.norm(np.diff(c, axis=0), axis=1)) > MAX_SPACING * face_size:
         return {}, {}
+    if turn_deg:
+        centre = c.mean(axis=0) if nose_tip is None else np.asarray(nose_tip, dtype=float)
+        points, sigma = profile_line_points(_turned(c, -turn_deg, centre), side, face_size,
+                                            None if nose_tip is None else centre)
+        back = _turned(np.array(list(points.values())).reshape(-1, 2), turn_deg, centre)
+        return {n: (float(u), float(v)) for n, (u, v) in zip(points, back, strict=True)}, sigma
     sign = 1.0 if side == "right" else -1.0
     c = _piece_with_tip(c, sign, face_size, nose_tip)
     if len(c) < 8:

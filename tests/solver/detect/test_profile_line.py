@@ -6,7 +6,12 @@ projections."""
 import numpy as np
 import pytest
 
-from solver.detect.profile_line import MAX_SPACING, profile_line_points
+from solver.detect.profile_line import (
+    MAX_SPACING,
+    MAX_TURN_DEG,
+    profile_line_points,
+    profile_turn_deg,
+)
 from solver.synthetic import make_case, resample_polyline
 
 NAMES = ("nasion", "nose_tip", "subnasale", "lip_upper_middle", "mouth_middle",
@@ -58,6 +63,53 @@ def test_the_outline_s_direction_and_side_do_not_matter(model):
     for n, p in right.items():
         assert np.linalg.norm(np.subtract(backward[n], p)) < 1.5, n
         assert np.linalg.norm(np.subtract(mirrored[n], (2000.0 - p[0], p[1]))) < 1e-6, n
+
+
+def _turn(points, deg, centre):
+    """``points`` turned ``deg`` degrees counterclockwise as a photo shows them."""
+    t = np.radians(deg)
+    d = np.asarray(points, float) - centre
+    return centre + np.column_stack([np.cos(t) * d[:, 0] + np.sin(t) * d[:, 1],
+                                     -np.sin(t) * d[:, 0] + np.cos(t) * d[:, 1]])
+
+
+@pytest.mark.parametrize("view, deg", [("right", 25.0), ("left", -25.0)])
+def test_a_profile_turned_in_the_photo_is_read_upright(model, view, deg):
+    """A profile photo turned by 25 degrees, its face looking up, read with its turn: the
+    points of the upright profile, turned; read as if upright, the rows no longer the
+    face's up and down, some are far off (a face looking down is read well either way)."""
+    centre = np.array([500.0, 500.0])
+    right_turns, errors = [], []
+    for seed in range(4100, 4104):
+        outline, exact, size = _profile(model, seed, view)
+        upright, _ = profile_line_points(outline, view, size, exact["nose_tip"])
+        turned = _turn(outline, deg, centre)
+        tip = _turn(exact["nose_tip"][None], deg, centre)[0]
+        points, _ = profile_line_points(turned, view, size, tip, deg)
+        assert set(points) == set(upright)
+        for n, p in upright.items():
+            assert np.linalg.norm(points[n] - _turn(np.array([p]), deg, centre)[0]) < 1.0, n
+        naive, _ = profile_line_points(turned, view, size, tip)
+        truth = {n: _turn(np.array([p]), deg, centre)[0] for n, p in exact.items()}
+        errors.append(max(_errors({n: p for n, p in naive.items() if n in truth}, truth,
+                                  size).values()))
+        right_turns.append(max(_errors(points, truth, size).values()))
+    assert max(right_turns) < 0.08 < max(errors), (right_turns, errors)
+
+
+def test_a_profile_s_turn_is_read_off_its_tragion_and_nose_tip():
+    # the right ear's tragion behind and below the nose tip as in an upright profile
+    kp = np.zeros((6, 2))
+    kp[2], kp[4] = (600.0, 400.0), (400.0, 400.0 - 200.0 * np.tan(np.radians(4.1)))
+    assert profile_turn_deg(kp, "right") == 0.0
+    for deg in (-30.0, 20.0, 30.0):
+        turned = _turn(kp, deg, np.array([500.0, 500.0]))
+        assert profile_turn_deg(turned, "right") == pytest.approx(deg, abs=1e-6)
+        mirrored = turned * [-1.0, 1.0]
+        mirrored[[4, 5]] = mirrored[[5, 4]]       # a left profile shows the left tragion
+        assert profile_turn_deg(mirrored, "left") == pytest.approx(-deg, abs=1e-6)
+    small = _turn(kp, MAX_TURN_DEG - 1.0, np.array([500.0, 500.0]))
+    assert profile_turn_deg(small, "right") == 0.0   # within the build's own spread
 
 
 def test_a_lip_without_a_bump_is_left_out_not_taken_for_another(model):
