@@ -25,7 +25,6 @@ from .cameras.calib_errors import check_passpoints
 from .cameras.dlt import DLTCamera, fit_dlt
 from .cameras.pinhole import PinholeCamera
 from .cores import usable_cores
-from .detect.covered import covered_note
 from .detect.detected_case import face_landmarks
 from .detect.detector import DetectedFace, Detector, face_notes
 from .detect.view_guess import POINTS_YAW_MIN, ViewGuess, guess_view, placed, points_yaw_deg
@@ -80,7 +79,7 @@ __all__ = [
     "LandmarkCase", "LandmarksError", "OrthographicCamera", "PinholeCamera", "View",
     "ViewGuess", "ViewResidual", "bake_fit_texture", "bake_texture", "blender_to_krc",
     "camera_class", "camera_from_dict", "camera_from_json", "camera_to_json", "check_case",
-    "check_passpoints", "count_problems", "covered_note", "dlt_to_blender", "face_landmarks",
+    "check_passpoints", "count_problems", "dlt_to_blender", "face_landmarks",
     "face_notes", "fit_dlt", "fit_head", "forget_fit_subsets",
     "guess_view", "iris_colour", "is_nominal", "landmarks_needed", "landmarks_to_dict",
     "load_landmark_set",
