@@ -62,6 +62,14 @@ def turned_side_sample(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def three_quarter_sample(tmp_path_factory):
+    """A head turned 25 degrees (``make_sample --seed 201 --yaw -25``): a three-quarter
+    front photo about 26 degrees off, a side photo about 65 degrees from the front."""
+    return _rendered(tmp_path_factory, "three_quarter_sample", "--seed", "201", "--yaw",
+                     "-25")
+
+
+@pytest.fixture(scope="session")
 def window_sample(tmp_path_factory):
     """A head lit by a window at the subject's left alone (``make_sample --seed 205 --light
     window``): the front photo's far side and the whole profile in shade, a band of light

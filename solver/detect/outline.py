@@ -5,7 +5,8 @@ of skin that holds the face (hair and clothes cut off, the photo's border left o
 Steps (numbers in docs/DECISIONS.md, "The head's outline"):
 
 1. the selfie segmentation (``segmentation.person_mask``) on a square around the face
-   (a larger one where the head reaches its side or top), its 0.5 iso-line
+   (turned upright with a face that leans in the photo: ``upright_angle``; a larger one
+   where the head reaches its side or top), its 0.5 iso-line
    (``iso_line``) around the face: 1.2-1.7 px (median) from the true silhouette on the
    rendered photos, its map's pixel 3.4-3.8 photo pixels; what it took in of a busy
    background (many colours, changing every few pixels) taken out of it
@@ -29,7 +30,8 @@ Steps (numbers in docs/DECISIONS.md, "The head's outline"):
 4. on a photo without colour (black and white), where skin cannot be told from clothes,
    the outline ends under the chin (``NECK_CUT``), is the face's run alone, and the fit
    gets only the points moved onto the photo's edge (``Outline.contour``);
-5. an outline the segmentation is unsure of over most of it (``UNSURE_REFUSE``) is none.
+5. an outline the segmentation is unsure of over most of it (``UNSURE_REFUSE``) is none,
+   and so is a three-quarter view's that shows the face's side alone (``over_the_head``).
 """
 
 from dataclasses import dataclass, field, replace
@@ -51,7 +53,9 @@ from ..photo_colour import (
 from .busy_background import without_busy_background
 from .crop import Square
 from .iso_line import iso_lines
+from .profile_line import MAX_TURN_DEG
 from .segmentation import person_mask
+from .view_guess import guess_view
 
 #: Outline points every this many photo pixels (the fit weighs points by the outline
 #: length they stand for, ``solver.io.contour.SPACING_PX``, so denser is not heavier).
@@ -103,6 +107,17 @@ MIN_STRETCH = 0.12
 #: On a photo without colour no other run is kept: nothing tells it is skin (a white
 #: collar, the neck behind a three-quarter face's ear).
 NEAR_FACE = 1.0
+#: A three-quarter view within ``SIDE_ONLY_YAW_DEG`` of the front (its guessed yaw) has
+#: an outline only where it goes over the head: its points more than ``OVER_HEAD_HEIGHT``
+#: eye-to-mouth distances above the eyes span ``OVER_HEAD_SPAN`` of the face's width
+#: across it (rendered bald heads at 26-57 degrees: 0.82-1.41; with hair, and james' real
+#: photos: 0.02 at most). The far cheek's side alone, with hair around it, took the fit
+#: further from the truth there, on james and on rendered and out-of-model heads; farther
+#: round (rendered heads with hair, read at 48-57 degrees) it brought the fit nearer
+#: (docs/DECISIONS.md, "A three-quarter view's outline of the face's side alone").
+OVER_HEAD_HEIGHT = 0.8
+OVER_HEAD_SPAN = 0.5
+SIDE_ONLY_YAW_DEG = 40.0
 #: On a photo without colour (``photo_colour.has_colour``: black and white), where skin
 #: cannot be told from clothes, the outline ends this many eye-to-mouth distances below
 #: the mouth (along the line from the eyes to the mouth): about 2 cm under the chin.
@@ -431,12 +446,15 @@ def _outline(image, face, network, spacing_px, border):
     ``person_mask`` takes it); a square within the photo is never tried with "zero"."""
     box = np.asarray(face.box, float)
     centre = ((box[0] + box[2]) / 2, (box[1] + box[3]) / 2)
-    square = Square(centre, SQUARE_SCALE * float(max(box[2] - box[0], box[3] - box[1])))
+    angle = upright_angle(face)
+    square = Square(centre, SQUARE_SCALE * float(max(box[2] - box[0], box[3] - box[1])),
+                    angle)
     mask, busy = without_busy_background(person_mask(network, image, square, border))
     past = _reaching(mask, np.asarray(face.keypoints, float)[3])
     if past.any():                       # the head goes on past the square: a larger one
         shift = REGROW_SHIFT * square.size * past @ np.array([[-1, 0], [1, 0], [0, -1]])
-        square = Square(tuple(np.asarray(centre) + shift), REGROW * square.size)
+        shift = shift @ np.stack(square.axes())
+        square = Square(tuple(np.asarray(centre) + shift), REGROW * square.size, angle)
         mask, busy = without_busy_background(person_mask(network, image, square, border))
     if border != "edge" and _within(square, image):
         raise ValueError("the segmented square lies within the photo")  # the same mask
@@ -494,6 +512,10 @@ def _outline(image, face, network, spacing_px, border):
             idx = np.concatenate([idx, more])
     crossed = not on_photo[idx].all()
     idx = idx[on_photo[idx]]
+    if _short_three_quarter(face) and not over_the_head(moved[idx], face):
+        raise ValueError("a three-quarter view's outline that shows the face's side alone, "
+                         "not over the head (hair around the face): no outline, the fit is "
+                         "nearer the truth without one in a view this close to the front")
     notes = [_end_note(i % n, skin, on_photo, above) for i in (idx[0] - 1, idx[-1] + 1)]
     # drawn from the chin's side: the mouth comes before the nose
     mouth = np.asarray(face.keypoints, float)[3]
@@ -529,11 +551,25 @@ def _outline(image, face, network, spacing_px, border):
     return Outline(moved[idx], refined[idx], notes, colour, warnings, unsure)
 
 
+def upright_angle(face):
+    """The angle (radians, as ``Square.angle`` takes it) that turns the segmented square
+    upright with ``face`` where its eye keypoints lean more than ``MAX_TURN_DEG`` (a
+    camera held askew: the segmentation model was trained on people upright); else 0,
+    the photo's own rows. A profile keeps them: its turn read off the tragion-to-nose
+    line took the ten rendered heads' outlines further off (docs/DECISIONS.md)."""
+    if face.is_profile:
+        return 0.0
+    d = np.asarray(face.keypoints[1], float) - np.asarray(face.keypoints[0], float)
+    angle = float(np.arctan2(d[1], d[0]))
+    return angle if abs(np.degrees(angle)) > MAX_TURN_DEG else 0.0
+
+
 def _within(square, image):
-    """Whether the upright ``square`` lies wholly inside ``image``'s pixels."""
+    """Whether ``square`` lies wholly inside ``image``'s pixels."""
     h, w = image.shape[:2]
-    (u, v), half = square.center, square.size / 2
-    return u - half >= 0 and v - half >= 0 and u + half <= w and v + half <= h
+    corners = square.to_photo(np.array([[0, 0], [1, 0], [0, 1], [1, 1]]), 1)
+    return bool((corners >= 0).all() and (corners[:, 0] <= w).all()
+                and (corners[:, 1] <= h).all())
 
 
 def _edge(image, mask, face, spacing_px):
@@ -715,6 +751,30 @@ def _reaching(mask, mouth):
     x, y = mask.to_map(np.asarray(mouth, float)[None])
     rows = slice(0, int(np.clip(y[0], 0, p.shape[0])))
     return np.array([p[rows, 0].any(), p[rows, -1].any(), p[0].any()])
+
+
+def over_the_head(points, face):
+    """Whether an outline's ``points`` (n, 2) px go over the head of ``face`` (the
+    detector's keypoints: its eyes, its mouth, its box): those more than
+    ``OVER_HEAD_HEIGHT`` eye-to-mouth distances above the eyes span at least
+    ``OVER_HEAD_SPAN`` of the face's width across the face."""
+    k = np.asarray(face.keypoints, float)
+    eyes = k[:2].mean(0)
+    up = eyes - k[3]
+    length = max(float(np.linalg.norm(up)), 1e-9)
+    up = up / length
+    d = np.asarray(points, float) - eyes
+    high = d[d @ up > OVER_HEAD_HEIGHT * length]
+    across = high @ np.array([up[1], -up[0]])
+    return len(high) > 1 and float(np.ptp(across)) >= OVER_HEAD_SPAN * face.face_size
+
+
+def _short_three_quarter(face):
+    """Whether ``face`` is a three-quarter view within ``SIDE_ONLY_YAW_DEG`` of the front
+    (``view_guess.guess_view``)."""
+    guess = guess_view(face)
+    return guess is not None and guess.name.startswith("three_quarter") \
+        and abs(guess.yaw_deg) < SIDE_ONLY_YAW_DEG
 
 
 def _above_neck_cut(points, face):

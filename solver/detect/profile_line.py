@@ -67,6 +67,8 @@ TRAGION_NOSE_DEG = -4.1
 #: A profile whose tragion-to-nose line turns further than this from
 #: ``TRAGION_NOSE_DEG`` is read in its own upright frame: the points' rules take the photo's
 #: rows for the face's up and down (an upright profile's estimate strays up to 9 degrees).
+#: A face whose eye line leans further is segmented upright (``outline.upright_angle``;
+#: the rendered and real faces' eye lines lean 3 degrees at most).
 MAX_TURN_DEG = 12.0
 #: How far each point is moved along the outline from the feature read (fraction of the
 #: face's size; away from the nose tip, the nose tip itself upward): the model's vertex

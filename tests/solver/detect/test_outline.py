@@ -9,6 +9,7 @@ from PIL import Image
 from solver.detect import Detector
 from solver.detect.crop import Square
 from solver.detect.outline import (
+    SIDE_ONLY_YAW_DEG,
     SPACING_PX,
     STRAIGHT_LONG,
     UNSURE_REFUSE,
@@ -17,12 +18,16 @@ from solver.detect.outline import (
     head_outline,
     refine_edge,
     straight_stretches,
+    over_the_head,
+    upright_angle,
     wide_rim,
     without_leaks,
 )
 from solver.detect.segmentation import PersonMask
+from solver.detect.view_guess import guess_view
 from solver.paths import DETECTOR_DIR
 from solver.photo_colour import skin_colour
+from tests import ROOT
 
 
 def _distance_to_line(points, line):
@@ -286,6 +291,72 @@ def test_no_person_is_said(detector, sample):
     wall = np.full_like(image, 128)
     with pytest.raises(ValueError, match="no person found for an outline"):
         detector.outline(wall, face)
+
+
+def _turned(photo, degrees):
+    """``photo`` (PIL) turned ``degrees`` counterclockwise, the canvas grown, its corner's
+    colour around it; and the map of the turned photo's points back to ``photo``'s."""
+    fill = tuple(int(c) for c in np.asarray(photo)[2, 2])
+    turned = photo.rotate(degrees, Image.BICUBIC, expand=True, fillcolor=fill)
+    t = np.radians(degrees)
+    (w, h), (tw, th) = photo.size, turned.size
+
+    def back(points):
+        x, y = points[:, 0] - tw / 2, points[:, 1] - th / 2
+        return np.c_[w / 2 + x * np.cos(t) - y * np.sin(t), h / 2 + x * np.sin(t)
+                     + y * np.cos(t)]
+
+    return np.asarray(turned), back
+
+
+@pytest.mark.parametrize("degrees", [25, -25])
+def test_a_face_turned_in_the_photo_is_segmented_upright(sample, detector, degrees):
+    folder, _ = sample
+    photo = Image.open(folder / "front.png").convert("RGB")
+    upright_face = detector.detect(np.asarray(photo))
+    assert upright_angle(upright_face) == 0.0
+    upright = detector.outline(np.asarray(photo), upright_face)
+    image, back = _turned(photo, degrees)
+    face = detector.detect(image)
+    assert np.degrees(upright_angle(face)) == pytest.approx(-degrees, abs=4.0)
+    outline = detector.outline(image, face)
+    # segmented in the photo's rows, the turned shirt ran to the square's edge
+    assert all("clothes" in note for note in outline.notes[:2]), outline.notes
+    d, _ = _distance_to_line(back(outline.points), upright.points)
+    covered, _ = _distance_to_line(upright.points, back(outline.points))
+    assert np.median(d) < 1.0 and (covered < 3).mean() > 0.93
+
+
+def test_a_three_quarter_outline_of_the_face_s_side_alone_is_none(three_quarter_sample,
+                                                                    detector):
+    from bench.bench_photo_variants import hair
+
+    folder, truth = three_quarter_sample
+    photo = Image.open(folder / "front.png").convert("RGB")
+    face = detector.detect(np.asarray(photo))
+    assert guess_view(face).name == "three_quarter_left"
+    assert abs(guess_view(face).yaw_deg) < SIDE_ONLY_YAW_DEG
+    # bald: the outline goes over the head
+    assert over_the_head(detector.outline(np.asarray(photo), face).points, face)
+    # hair: only the far cheek's skin is on the outline
+    haired = np.asarray(hair(photo, truth["head_alpha_front"] >= 128, face))
+    with pytest.raises(ValueError, match="three-quarter view's outline that shows the "
+                                         "face's side alone, not over the head"):
+        detector.outline(haired, detector.detect(haired))
+
+
+def test_james_three_quarter_photo_turned_in_its_plane_gets_no_outline(detector):
+    from bench.realistic_cases import james_folder, scan_photo_halves
+
+    folder = james_folder(ROOT)
+    if not (folder / "james.obj").is_file():
+        pytest.skip(f"the scan james is not in {folder} (set HEADRECON_REALDATA)")
+    photo = Image.fromarray(scan_photo_halves(folder)["photo_b"])
+    for degrees in (0, 10, 25):
+        image = np.asarray(photo) if degrees == 0 else _turned(photo, degrees)[0]
+        # upright the skin on its edge is too short; turned, it reached up the hair's edge
+        with pytest.raises(ValueError, match="side alone|under 1 x the face"):
+            detector.outline(image, detector.detect(image))
 
 
 @pytest.mark.parametrize("degrees", [10, 20])
