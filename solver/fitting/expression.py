@@ -48,6 +48,14 @@ OBSERVED = 0.5
 #: closed or squinting, a smile, the jaw open, raised brows). The model's other shapes
 #: (a pout, the jaw pushed sideways, the eyes looking away) would mostly fit the
 #: difference between the person and the model's identities instead, and bend it.
+#: A photo whose camera the fit placed between these yaws about the head (degrees from
+#: the front) is fitted without an expression: a three-quarter view far round, whose face
+#: mesh points drift with the yaw (neutral rendered heads photographed at 45 degrees
+#: either side read as smiling and squinting, weights up to 0.9, and taken out that bent
+#: the identity). From the second on it is a profile, whose points are read off its
+#: outline or placed by hand (docs/DECISIONS.md, "A three-quarter view far round is
+#: fitted without an expression").
+FAR_ROUND_DEG = (40.0, 70.0)
 PHOTO_EXPRESSIONS = ("eyeBlink_L", "eyeBlink_R", "eyeSquint_L", "eyeSquint_R",
                      "mouthSmile_L", "mouthSmile_R", "jawOpen", "browInnerUp_L",
                      "browInnerUp_R", "browOuterUp_L", "browOuterUp_R")
@@ -101,7 +109,8 @@ def estimate_expressions(model, case, result, noise_px, weights=None, lambda2=1.
     for name, view in case.views.items():
         camera = result.cameras.get(name)
         res = result.residuals.get(name)
-        if camera is None or res is None or not view.points:
+        if camera is None or res is None or not view.points \
+                or FAR_ROUND_DEG[0] < abs(view_yaw_deg(result, camera)) < FAR_ROUND_DEG[1]:
             continue
         keys, canon, verts = _known(lms, view, skip=set(res.unused) | set(res.outline))
         if len(keys) < 3:
@@ -144,6 +153,13 @@ def estimate_expressions(model, case, result, noise_px, weights=None, lambda2=1.
         out[name][chosen] = x[j * n_e:(j + 1) * n_e]
         out_sd[name][chosen] = sd[j * n_e:(j + 1) * n_e]
     return out, out_sd
+
+
+def view_yaw_deg(result, camera):
+    """The yaw (degrees) of ``camera``'s optical axis about the fitted head of ``result``:
+    0 looking at the face from the front, +-90 from a side."""
+    axis = result.rotation.T @ np.asarray(camera.rotation, dtype=np.float64)[2]
+    return float(np.degrees(np.arctan2(axis[0], axis[1])))
 
 
 def applied(weights, sd, jaw, apart):

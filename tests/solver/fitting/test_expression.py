@@ -11,15 +11,24 @@ from solver.fitting import expression
 from solver.fitting.expression import (
     AGREED,
     FAINT,
+    FAR_ROUND_DEG,
     LIPS_APART,
     SHOWN,
     SURE,
     applied,
+    estimate_expressions,
     expression_report,
     lips_apart,
     neutral_case,
+    view_yaw_deg,
 )
-from solver.synthetic import make_case, resample_polyline, skin_error_mm, trace_silhouette
+from solver.synthetic import (
+    make_case,
+    make_perspective_case,
+    resample_polyline,
+    skin_error_mm,
+    trace_silhouette,
+)
 
 
 def _with_expression(model, case, truth, weights, noise_px=1.0, seed=0, outline=False):
@@ -216,3 +225,16 @@ def test_an_open_jaw_both_photos_read_is_taken_out_where_the_lips_are_apart(mode
     monkeypatch.setattr(expression, "LIPS_APART", 1.0)
     shown = fit_head(model, opened).info["expressions"]
     assert shown["front"]["jawOpen"] > 0.1 and "jawOpen" not in shown["right"], shown
+
+
+def test_a_three_quarter_view_far_round_is_fitted_without_an_expression(model):
+    # three photos: near the front, 51 degrees to one side, 30 to the other
+    case, truth = make_perspective_case(model, 0, n_views=3, yaw_deg=60)
+    fit = fit_head(model, case)
+    yaws = {name: view_yaw_deg(fit, camera) for name, camera in fit.cameras.items()}
+    for name, yaw in yaws.items():
+        assert yaw == pytest.approx(view_yaw_deg(truth, truth.cameras[name]), abs=1.0)
+    far = {name for name, yaw in yaws.items() if FAR_ROUND_DEG[0] < abs(yaw) < FAR_ROUND_DEG[1]}
+    assert far == {"photo1"}
+    weights, sd = estimate_expressions(model, case, fit, {name: 1.0 for name in case.views})
+    assert set(weights) == set(sd) == set(case.views) - far
