@@ -16,10 +16,17 @@ SCALE = 1.5
 EYE_CORNERS = (33, 263)
 
 
+def eye_line_angle(keypoints):
+    """The angle (radians, as ``Square.angle`` takes it) of the line from the face
+    detector's first eye keypoint to its second (``keypoints`` (6, 2) px): a square turned
+    by it holds the face upright."""
+    d = np.asarray(keypoints[1], float) - np.asarray(keypoints[0], float)
+    return float(np.arctan2(d[1], d[0]))
+
+
 def square_from_detection(face):
     """The landmark model's crop for a :class:`~.face_detection.Face`."""
-    d = face.keypoints[1] - face.keypoints[0]
-    angle = float(np.arctan2(d[1], d[0]))
+    angle = eye_line_angle(face.keypoints)
     box = face.box
     centre = ((box[0] + box[2]) / 2, (box[1] + box[3]) / 2)
     return Square(centre, SCALE * float(max(box[2] - box[0], box[3] - box[1])), angle)

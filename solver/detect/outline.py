@@ -52,6 +52,7 @@ from ..photo_colour import (
 )
 from .busy_background import without_busy_background
 from .crop import Square
+from .face_landmarks import eye_line_angle
 from .iso_line import iso_lines
 from .profile_line import MAX_TURN_DEG
 from .segmentation import person_mask
@@ -559,8 +560,7 @@ def upright_angle(face):
     line took the ten rendered heads' outlines further off (docs/DECISIONS.md)."""
     if face.is_profile:
         return 0.0
-    d = np.asarray(face.keypoints[1], float) - np.asarray(face.keypoints[0], float)
-    angle = float(np.arctan2(d[1], d[0]))
+    angle = eye_line_angle(face.keypoints)
     return angle if abs(np.degrees(angle)) > MAX_TURN_DEG else 0.0
 
 

@@ -44,10 +44,6 @@ LIPS_APART = 0.06
 #: a profile read off its outline (nasion, nose, lips, chin) cannot tell raised brows, and
 #: would explain its points' own errors with them.
 OBSERVED = 0.5
-#: The expressions a photo is fitted with: those people show when photographed (eyes
-#: closed or squinting, a smile, the jaw open, raised brows). The model's other shapes
-#: (a pout, the jaw pushed sideways, the eyes looking away) would mostly fit the
-#: difference between the person and the model's identities instead, and bend it.
 #: A photo whose camera the fit placed between these yaws about the head (degrees from
 #: the front) is fitted without an expression: a three-quarter view far round, whose face
 #: mesh points drift with the yaw (neutral rendered heads photographed at 45 degrees
@@ -56,6 +52,10 @@ OBSERVED = 0.5
 #: outline or placed by hand (docs/DECISIONS.md, "A three-quarter view far round is
 #: fitted without an expression").
 FAR_ROUND_DEG = (40.0, 70.0)
+#: The expressions a photo is fitted with: those people show when photographed (eyes
+#: closed or squinting, a smile, the jaw open, raised brows). The model's other shapes
+#: (a pout, the jaw pushed sideways, the eyes looking away) would mostly fit the
+#: difference between the person and the model's identities instead, and bend it.
 PHOTO_EXPRESSIONS = ("eyeBlink_L", "eyeBlink_R", "eyeSquint_L", "eyeSquint_R",
                      "mouthSmile_L", "mouthSmile_R", "jawOpen", "browInnerUp_L",
                      "browInnerUp_R", "browOuterUp_L", "browOuterUp_R")
