@@ -25,8 +25,9 @@ render's alpha, white under its transparency), ``grey`` (black and white),
 four times its size, its corner's colour around it: the face 10 % of the longer side),
 ``jpeg50`` (JPEG at quality 50), ``dark`` (half as bright), ``overexposed`` (1.2 times
 as bright, clipped: the rendered faces' lit skin white),
-``turned10`` and ``turned25`` (turned by 10 or 25 degrees counterclockwise, the corners
-filled with its corner's colour: the profile's face looking up),
+``turned10``, ``turned25`` and ``turned45`` (turned by 10, 25 or 45 degrees
+counterclockwise, the corners filled with its corner's colour: the profile's face looking
+up),
 ``cropped`` (its top eighth cut off: the skull's top), ``tight`` (cut close around the
 detected face: a front's ears and the skull's top and back cut off), ``blurred`` (a 2 px Gaussian),
 ``noisy`` (Gaussian noise of 8 levels), ``warm`` and ``cool`` (red and blue scaled by
@@ -332,6 +333,7 @@ VARIANTS = {
         np.clip(np.asarray(im) * 1.2, 0, 255).astype(np.uint8)),
     "turned10": lambda im, *_: im.rotate(10, Image.BICUBIC, expand=True, fillcolor=_corner(im)),
     "turned25": lambda im, *_: im.rotate(25, Image.BICUBIC, expand=True, fillcolor=_corner(im)),
+    "turned45": lambda im, *_: im.rotate(45, Image.BICUBIC, expand=True, fillcolor=_corner(im)),
     "cropped": lambda im, *_: im.crop((0, im.height // 8, im.width, im.height)),
     "tight": tight,
     "blurred": lambda im, *_: im.filter(ImageFilter.GaussianBlur(2)),
@@ -344,7 +346,7 @@ VARIANTS = {
 #: The variants a real photo can be given: they change the photo alone, not the render's
 #: head or person (``--james``).
 PHOTO_ONLY = ("grey", "small", "jpeg50", "dark", "overexposed", "turned10", "turned25",
-              "cropped", "blurred", "noisy", "warm", "cool")
+              "turned45", "cropped", "blurred", "noisy", "warm", "cool")
 
 
 def changed(folder, variant, into, detector):

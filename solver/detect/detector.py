@@ -36,6 +36,13 @@ MIN_PRESENCE = 0.5
 #: three-quarter views at 22 and 30 degrees 0.38 and 0.35). The mesh may still report a
 #: face there (0.51 on the mirrored profile) while its points are 45 px off.
 PROFILE_EYES = 0.2
+#: A face turned further than this in the photo (the detector's eye keypoints' line, the
+#: first square's angle) gets the mesh's second pass on its own square (``refine``): on
+#: the sample's front photo turned 45 or 90 degrees the first pass's points lie 4-5 % of
+#: the face's size (p90) off the upright photo's, the second pass's 1.3-1.6 %, while at
+#: 20-25 degrees the first pass is as near or nearer (docs/DECISIONS.md, "A face turned
+#: far in the photo").
+REFINE_TURN_DEG = 35.0
 #: The grey a cut-out photo (transparent around the person) is laid on before detection,
 #: sRGB in [0, 1]: the ten rendered heads cut out and left white under the transparency fit
 #: 2.1 times worse than from their photos, laid on this grey as well as from their photos
@@ -148,7 +155,9 @@ class Detector:
         cut-out, its alpha fourth, laid on a grey backdrop: :func:`on_backdrop`), the
         subject's (``face_detection.detect_faces``), or None when the detector finds
         none. A face the mesh model does not see (a profile) comes back with ``is_face``
-        False. ``refine``: a second mesh pass on the first mesh's square."""
+        False. ``refine``: a second mesh pass on the first mesh's square, which a face
+        turned in the photo further than ``REFINE_TURN_DEG`` always gets (the detector's
+        eye keypoints turn the first square less surely than the mesh's eye corners do)."""
         image = _as_float(image)
         faces = detect_faces(self.faces_net, image)
         if not faces:
@@ -161,7 +170,7 @@ class Detector:
                            others=len(faces) - 1)
         if out.is_profile:  # the square upright, not turned by the eyes
             mesh, _ = face_mesh(self.mesh_net, image, Square(square.center, square.size))
-        elif refine:
+        elif refine or abs(np.degrees(square.angle)) > REFINE_TURN_DEG:
             mesh, out.presence = face_mesh(self.mesh_net, image, square_from_mesh(mesh))
         out.mesh, out.ibug = mesh, mesh_to_ibug(mesh[:, :2])
         if not out.is_profile:
