@@ -113,3 +113,16 @@ def inside_polygon(points, polygon):
     dy = np.where(b[:, 1] != a[:, 1], b[:, 1] - a[:, 1], 1.0)
     xs = a[:, 0] + (p[..., 1] - a[:, 1]) * (b[:, 0] - a[:, 0]) / dy
     return (np.sum(crosses & (xs > p[..., 0]), axis=1) % 2).astype(bool)
+
+
+def distance_to_segments(points, a, b):
+    """Distance of each point (n, 2) to the nearest of the segments ``a``-``b`` (m, 2)
+    each, (n,); infinite without segments."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    if len(a) == 0:
+        return np.full(len(p), np.inf)
+    ab = b - a
+    ll = np.maximum((ab * ab).sum(1), 1e-12)
+    t = np.clip(((p[:, None, :] - a[None]) * ab[None]).sum(2) / ll[None], 0.0, 1.0)
+    d = p[:, None, :] - (a[None] + t[..., None] * ab[None])
+    return np.sqrt((d * d).sum(2)).min(axis=1)

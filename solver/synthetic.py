@@ -617,7 +617,7 @@ def trace_outline(world, triangles, camera, cut_edges):
     normal[mask[probe[:, 1], probe[:, 0]]] *= -1.0
     pts = pts + 0.5 * normal
     cut = np.asarray(cut_edges, dtype=np.int64).reshape(-1, 2)
-    near = _distance_to_segments(pts, px[cut[:, 0]], px[cut[:, 1]]) <= 2.0
+    near = geometry.distance_to_segments(pts, px[cut[:, 0]], px[cut[:, 1]]) <= 2.0
     keep = _longest_cyclic_run(~near)
     out = pts[keep]
     # Start at the end toward the face (drawing order of the profile chain).
@@ -670,17 +670,6 @@ def _direction(frm, to):
         if m[0] == d[0] and m[1] == d[1]:
             return i
     raise ValueError("moore trace: pixels are not neighbours")
-
-
-def _distance_to_segments(p, a, b):
-    """Distance of each point (n, 2) to the nearest of the segments a-b (m, 2)."""
-    if len(a) == 0:
-        return np.full(len(p), np.inf)
-    ab = b - a
-    ll = np.maximum((ab * ab).sum(1), 1e-12)
-    t = np.clip(((p[:, None, :] - a[None]) * ab[None]).sum(2) / ll[None], 0.0, 1.0)
-    d = p[:, None, :] - (a[None] + t[..., None] * ab[None])
-    return np.sqrt((d * d).sum(2)).min(axis=1)
 
 
 def _longest_cyclic_run(flags):

@@ -51,8 +51,8 @@ from solver import (
     load_model,
     save_landmarks,
 )
+from solver.geometry import distance_to_segments
 from solver.synthetic import (
-    _distance_to_segments,
     _longest_cyclic_run,
     _moore_trace,
     resample_polyline,
@@ -232,7 +232,7 @@ def _polygon_signed_distance(points, polygon):
     shape (n,), in the points' unit."""
     a = polygon
     b = np.roll(polygon, -1, axis=0)
-    d = _distance_to_segments(points, a, b)
+    d = distance_to_segments(points, a, b)
     # crossing number: edges straddling the point's horizontal line, crossing to its right
     y0, y1 = a[:, 1][None], b[:, 1][None]
     py, px = points[:, 1:2], points[:, 0:1]
@@ -481,7 +481,7 @@ def side_contour(alpha, cut_pixels, n_points=CONTOUR_POINTS, margin=None):
     pts = rc[:, ::-1].astype(np.float64) + 0.5
     h, w = mask.shape
     on_border = (rc[:, 0] <= 0) | (rc[:, 0] >= h - 1) | (rc[:, 1] <= 0) | (rc[:, 1] >= w - 1)
-    near_cut = _distance_to_segments(pts, cut_pixels, np.roll(cut_pixels, -1, axis=0)) <= margin
+    near_cut = distance_to_segments(pts, cut_pixels, np.roll(cut_pixels, -1, axis=0)) <= margin
     keep = ~near_cut & ~on_border
     if keep.all() or not keep.any():
         raise ValueError("side contour: the outline neither meets the image's edge nor the "

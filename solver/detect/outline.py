@@ -40,7 +40,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from ..geometry import inside_polygon
+from ..geometry import distance_to_segments, inside_polygon
 from ..photo_colour import (
     chromaticity,
     has_colour,
@@ -119,6 +119,11 @@ NEAR_FACE = 1.0
 OVER_HEAD_HEIGHT = 0.8
 OVER_HEAD_SPAN = 0.5
 SIDE_ONLY_YAW_DEG = 40.0
+#: Outline points within an eye's contour or this close to it (fraction of the face's
+#: size) are left out (``by_the_eyes``): on heads photographed 45 degrees round, the far
+#: eye's cornea lies on the face's outline (docs/DECISIONS.md, "The far eye on a
+#: three-quarter outline"; 0.03 left out more of the skin beside it).
+EYE_MARGIN = 0.01
 #: On a photo without colour (``photo_colour.has_colour``: black and white), where skin
 #: cannot be told from clothes, the outline ends this many eye-to-mouth distances below
 #: the mouth (along the line from the eyes to the mouth): about 2 cm under the chin.
@@ -479,7 +484,8 @@ def _outline(image, face, network, spacing_px, border):
     shortest = max(int(round(MIN_STRETCH * size / spacing_px)), 1)
     skin = _close_short_gaps(skin, shortest)
     # off the photo nothing is seen: the head's outline goes on across the photo's border
-    keep = (skin | ~on_photo) & above
+    by_eye = by_the_eyes(moved, face)
+    keep = (skin | ~on_photo | by_eye) & above
     if not (keep & on_photo).any():
         raise ValueError("no skin on the person's outline")
     front = int(np.argmin(np.linalg.norm(moved - nose, axis=1)))
@@ -512,7 +518,7 @@ def _outline(image, face, network, spacing_px, border):
                 moved[more] - centre, axis=1)) <= NEAR_FACE * size:
             idx = np.concatenate([idx, more])
     crossed = not on_photo[idx].all()
-    idx = idx[on_photo[idx]]
+    idx = idx[on_photo[idx] & ~by_eye[idx]]
     if _short_three_quarter(face) and not over_the_head(moved[idx], face):
         raise ValueError("a three-quarter view's outline that shows the face's side alone, "
                          "not over the head (hair around the face): no outline, the fit is "
@@ -767,6 +773,22 @@ def over_the_head(points, face):
     high = d[d @ up > OVER_HEAD_HEIGHT * length]
     across = high @ np.array([up[1], -up[0]])
     return len(high) > 1 and float(np.ptp(across)) >= OVER_HEAD_SPAN * face.face_size
+
+
+def by_the_eyes(points, face):
+    """Which outline points (n, 2) px lie on or within ``EYE_MARGIN`` of the face's eyes
+    (the mesh's iBUG eye contours; a face, not a profile): far round, the far eye's
+    cornea stands out on the face's outline, and the head's mesh, without eyeballs, has
+    no silhouette there. The outline goes on across them, as across the photo's border,
+    and leaves them out."""
+    points = np.asarray(points, float)
+    out = np.zeros(len(points), bool)
+    if face.is_profile or not len(points):
+        return out
+    for eye in (face.ibug[36:42], face.ibug[42:48]):
+        gap = distance_to_segments(points, eye, np.roll(eye, -1, axis=0))
+        out |= inside_polygon(points, eye) | (gap < EYE_MARGIN * face.face_size)
+    return out
 
 
 def _short_three_quarter(face):

@@ -7,6 +7,7 @@ from scipy.spatial.transform import Rotation
 from solver.geometry import (
     check_orthonormal,
     check_rotation,
+    distance_to_segments,
     orthonormalize,
     rotation_between,
     rotation_from_vector,
@@ -135,3 +136,11 @@ def test_check_orthonormal_keeps_exact_matrices_and_reflections():
         check_orthonormal(r + 1e-3, "R")
     with pytest.raises(ValueError, match="R: must be a finite 3x3 matrix"):
         check_orthonormal(np.full((3, 3), np.nan), "R")
+
+
+def test_a_point_s_distance_to_segments_is_to_the_nearest_and_within_its_ends():
+    a = np.array([[0.0, 0.0], [10.0, 0.0]])
+    b = np.array([[10.0, 0.0], [10.0, 10.0]])
+    points = np.array([[5.0, 3.0], [13.0, 5.0], [-3.0, -4.0], [10.0, 0.0]])
+    np.testing.assert_allclose(distance_to_segments(points, a, b), [3.0, 3.0, 5.0, 0.0])
+    assert np.isinf(distance_to_segments(points, a[:0], b[:0])).all()

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from solver.detect import Detector
+from solver.detect import DetectedFace, Detector
 from solver.detect.crop import Square
 from solver.detect.outline import (
     SIDE_ONLY_YAW_DEG,
@@ -15,6 +15,7 @@ from solver.detect.outline import (
     UNSURE_REFUSE,
     UNSURE_SHARE,
     between_skin,
+    by_the_eyes,
     head_outline,
     over_the_head,
     refine_edge,
@@ -343,6 +344,46 @@ def test_a_three_quarter_outline_of_the_face_s_side_alone_is_none(three_quarter_
     with pytest.raises(ValueError, match="three-quarter view's outline that shows the "
                                          "face's side alone, not over the head"):
         detector.outline(haired, detector.detect(haired))
+
+
+def _face_with_eyes(presence=1.0):
+    """A front face 200 px wide whose iBUG eye contours are hexagons 40 px wide around
+    (60, 100) and (140, 100)."""
+    ibug = np.zeros((68, 2))
+    hexagon = 20 * np.c_[np.cos(np.arange(6) * np.pi / 3), 0.5 * np.sin(np.arange(6) * np.pi / 3)]
+    ibug[36:42], ibug[42:48] = hexagon + (60, 100), hexagon + (140, 100)
+    keypoints = np.array([[60, 100], [140, 100], [100, 140], [100, 170], [0, 110], [200, 110]])
+    return DetectedFace(np.zeros((468, 3)), ibug, 0.9, presence, keypoints.astype(float),
+                        np.array([0.0, 50.0, 200.0, 250.0]))
+
+
+def test_outline_points_by_the_eyes_are_those_on_or_near_their_contours():
+    points = np.array([[60, 100], [79, 100], [81.5, 100], [84, 100], [100, 100], [140, 96]])
+    face = _face_with_eyes()
+    # inside, on the contour, 1.5 px (0.75 % of the face) off it, 4 px off, between the eyes
+    np.testing.assert_array_equal(by_the_eyes(points, face),
+                                  [True, True, True, False, False, True])
+    # a profile's mesh, 22-46 px off, says nothing of where its eye is
+    assert not by_the_eyes(points, _face_with_eyes(presence=0.1)).any()
+
+
+def test_a_three_quarter_outline_goes_on_across_the_far_eye_and_leaves_it_out(turned_sample,
+                                                                            detector,
+                                                                            monkeypatch):
+    from solver.detect import outline as outline_module
+
+    folder, _ = turned_sample
+    image = _photo(folder, "front")
+    face = detector.detect(image)
+    kept = detector.outline(image, face)
+    assert not by_the_eyes(kept.points, face).any()
+    monkeypatch.setattr(outline_module, "by_the_eyes",
+                        lambda points, face: np.zeros(len(points), bool))
+    before = detector.outline(image, face)
+    near = int(by_the_eyes(before.points, face).sum())
+    assert near >= 5, "the far eye's cornea on the outline"
+    # the points there are left out, the outline holds on past them (not cut short)
+    assert len(kept.points) == len(before.points) - near
 
 
 def test_james_three_quarter_photo_turned_in_its_plane_gets_no_outline(detector):
