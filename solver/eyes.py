@@ -1,7 +1,8 @@
 """The eyes of the bundled head (ICT's vertex order): which vertices are each eyeball's
 sclera and iris, how large the iris and pupil are, and where on the sclera a point lies
-against the eye's axis. The add-on's eye material paints by it and the texture reads the
-irises' colour off the photos by it, so both agree on where the iris is."""
+against the eye's axis; and which landmarks draw the eye openings in a photo. The add-on's
+eye material paints by it and the texture reads the irises' colour off the photos by it,
+so both agree on where the iris is."""
 
 import numpy as np
 
@@ -12,6 +13,9 @@ SCLERA_RANGES = ((21451, 22220), (23021, 23790))
 IRIS_RANGES = ((22221, 23020), (23791, 24590))
 IRIS_RADIUS = 0.0058  # metres from the eye's axis
 PUPIL_RADIUS = 0.0021
+#: The eye openings' landmarks, in order round each eye (iBUG 37-42 and 43-48): where a
+#: photo's landmarks draw the eyes.
+EYE_OPENINGS = (range(37, 43), range(43, 49))
 
 
 def sclera_axis_distance(vertices):

@@ -40,6 +40,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
+from ..eyes import EYE_OPENINGS
 from ..geometry import distance_to_segments, inside_polygon
 from ..photo_colour import (
     chromaticity,
@@ -785,7 +786,8 @@ def by_the_eyes(points, face):
     out = np.zeros(len(points), bool)
     if face.is_profile or not len(points):
         return out
-    for eye in (face.ibug[36:42], face.ibug[42:48]):
+    for numbers in EYE_OPENINGS:
+        eye = np.asarray(face.ibug, float)[np.array(numbers) - 1]
         gap = distance_to_segments(points, eye, np.roll(eye, -1, axis=0))
         out |= inside_polygon(points, eye) | (gap < EYE_MARGIN * face.face_size)
     return out

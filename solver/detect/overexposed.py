@@ -5,6 +5,7 @@ take the photo again in softer light."""
 
 import numpy as np
 
+from ..eyes import EYE_OPENINGS
 from ..geometry import inside_polygon
 from ..photo_colour import SKIN_WHITE, sample_photo
 
@@ -17,7 +18,7 @@ GRID = 40
 #: The face's outline, iBUG numbers in order: the jaw, then the brows back across.
 FACE = tuple(range(1, 18)) + tuple(range(27, 17, -1))
 #: What is not skin inside it: the eyes and the lips' outer line.
-HOLES = (tuple(range(37, 43)), tuple(range(43, 49)), tuple(range(49, 61)))
+HOLES = (*(tuple(eye) for eye in EYE_OPENINGS), tuple(range(49, 61)))
 
 
 def clipped_share(image, face):

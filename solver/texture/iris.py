@@ -16,7 +16,13 @@ out before the median.
 import numpy as np
 import scipy.ndimage as ndi
 
-from ..eyes import IRIS_RADIUS, IRIS_RANGES, PUPIL_RADIUS, sclera_axis_distance
+from ..eyes import (
+    EYE_OPENINGS,
+    IRIS_RADIUS,
+    IRIS_RANGES,
+    PUPIL_RADIUS,
+    sclera_axis_distance,
+)
 from ..geometry import inside_polygon
 from ..photo_colour import sample_photo
 from .raster import depth_buffer
@@ -34,8 +40,6 @@ OCCLUDER_REACH = 0.03
 TRIM = (0.1, 0.3)
 #: Fewest samples (over both eyes and all photos) a colour is read from.
 MIN_SAMPLES = 20
-#: The eye openings' landmarks, in order round each eye (iBUG 37-42, 43-48).
-EYE_OPENINGS = (range(37, 43), range(43, 49))
 #: An opening drawn by the landmarks is shrunk toward its centre by this share: the lashes
 #: and the lid's shadow lie along its edge.
 OPENING_SHRINK = 0.15
