@@ -6,6 +6,7 @@ with a colour cast.
 
     python -m bench.bench_photo_variants [--variants NAME ...] [--face] [--james DIR]
                                          [--heads DIR ...] [--render SEED ...]
+                                         [--profile-line] [--upside-down]
 
 Heads: as ``bench.bench_photo_size`` (the sample and ``generated/bench_heads/seed<N>``).
 Variants (``VARIANTS``; all by default), each applied to both photos, written to a
@@ -45,6 +46,10 @@ With ``--profile-line`` nothing is fitted: the profile line's points read off ea
 profile photo's detected outline (as ``solver detect`` reads them) are scored against the
 head's own profile landmarks (its ``sample.json``), per point the median, 90th percentile
 and largest error in % of the face's size and how many of the heads' profiles gave it.
+With ``--upside-down`` nothing is fitted either: each photo (a head folder's PNG, or the
+JPEG a render with a lens writes) is detected as given and turned half round, and the
+photos said to be upside down wrongly, and those missed, are counted
+(``upside_down_table``).
 """
 
 import argparse
@@ -60,7 +65,7 @@ from scipy import ndimage
 from bench.bench_detect import PROFILE_LINE, padded, read_profile_line
 from bench.bench_photo_size import photos_case
 from bench.common import machine_description
-from bench.realistic_cases import model_face_vertices
+from bench.realistic_cases import model_face_vertices, scan_photo_halves
 from bench.rendered_heads import add_head_options, chosen_folders
 from solver import fit_head, load_landmarks, load_model
 from solver.detect import Detector
@@ -349,14 +354,21 @@ PHOTO_ONLY = ("grey", "small", "jpeg50", "dark", "overexposed", "turned10", "tur
               "turned45", "cropped", "blurred", "noisy", "warm", "cool")
 
 
+def photo_path(folder, view):
+    """A rendered head's photo of ``view`` ("front", "side"): its PNG, or the JPEG a render
+    with a lens writes."""
+    png = Path(folder) / f"{view}.png"
+    return png if png.is_file() else Path(folder) / f"{view}.jpg"
+
+
 def changed(folder, variant, into, detector):
-    """The head's two photos changed by ``VARIANTS[variant]``, written into ``into``. A
-    variant takes (photo, the head's pixels, the detected face, the person's pixels, the
-    person's alpha in [0, 1])."""
+    """The head's two photos changed by ``VARIANTS[variant]``, written into ``into`` (as
+    PNG). A variant takes (photo, the head's pixels, the detected face, the person's pixels,
+    the person's alpha in [0, 1])."""
     into.mkdir(parents=True, exist_ok=True)
     truth = np.load(folder / "truth.npz", allow_pickle=True)
     for view in ("front", "side"):
-        image = Image.open(folder / f"{view}.png").convert("RGB")
+        image = Image.open(photo_path(folder, view)).convert("RGB")
         face = detector.detect(np.asarray(image))
         alpha = truth[f"alpha_{view}"]
         VARIANTS[variant](image, truth[f"head_alpha_{view}"] >= 128, face, alpha >= 128,
@@ -371,7 +383,7 @@ def james_errors(folder, variants, detector, model, samples=4000):
     ``variants`` in ``PHOTO_ONLY`` (the others need a render's masks), NaN where the photos
     are refused."""
     from bench.bench_realistic import SCAN_SEED, scan_truth
-    from bench.realistic_cases import load_scan, scan_photo_halves
+    from bench.realistic_cases import load_scan
     from solver.detect.detected_case import detect_photos
 
     truth = scan_truth(model, load_scan(folder), samples, np.random.default_rng(SCAN_SEED))
@@ -429,6 +441,53 @@ def profile_line_table(folders, variants, detector):
     return table
 
 
+def upside_down_table(folders, variants, detector, james=None):
+    """Print, per variant (None: as rendered), how the detection tells a photo upside down
+    (``DetectedFace.upside_down``): each head's two photos (and james' two, ``james``: the
+    folder of james.obj, as rendered only) detected as given and turned half round. Counts:
+    the photos, those read as profiles (not looked at turned), those said upside down as
+    given (wrongly), the faces the mesh sees turned half round and not said upside down
+    (missed), and the smallest margins (as given: score less the turned score; turned:
+    the turned score less the score). Returns {variant or "as rendered": counts}."""
+    table = {}
+    print("photos upside down: detected as given and turned half round (no fits)")
+    print(f"  {'variant':<12}{'photos':>8}{'profiles':>10}{'wrong':>7}{'missed':>8}"
+          f"{'min margin as given':>21}{'turned':>8}")
+    extra = {}
+    if james:
+        extra = {f"james {k}": v for k, v in scan_photo_halves(Path(james)).items()}
+    with tempfile.TemporaryDirectory() as tmp:
+        for variant in [None] + variants:
+            photos = [] if variant else list(extra.values())
+            for folder in folders:
+                where = folder if variant is None else \
+                    changed(folder, variant, Path(tmp) / f"{folder.name}_{variant}", detector)
+                photos += [np.asarray(Image.open(photo_path(where, v)).convert("RGB"))
+                           for v in ("front", "side")]
+            n = profiles = wrong = missed = 0
+            given, turned = [], []
+            for image in photos:
+                face = detector.detect(image)
+                half = detector.detect(np.ascontiguousarray(image[::-1, ::-1]))
+                if face is None or half is None:
+                    continue
+                n += 1
+                wrong += face.upside_down
+                if face.is_profile:
+                    profiles += 1
+                    continue
+                given.append(face.score - face.half_turn_score)
+                missed += not half.upside_down
+                if half.half_turn_score is not None:
+                    turned.append(half.half_turn_score - half.score)
+            row = {"photos": n, "profiles": profiles, "wrong": wrong, "missed": missed,
+                   "given": min(given, default=np.nan), "turned": min(turned, default=np.nan)}
+            print(f"  {variant or 'as rendered':<12}{n:>8}{profiles:>10}{wrong:>7}{missed:>8}"
+                  f"{row['given']:>21.2f}{row['turned']:>8.2f}", flush=True)
+            table[variant or "as rendered"] = row
+    return table
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--variants", nargs="*", choices=list(VARIANTS), default=list(VARIANTS))
@@ -437,6 +496,9 @@ def main(argv=None):
     ap.add_argument("--profile-line", action="store_true",
                     help="no fits: score the profile line's points read off each profile "
                          "photo's detected outline against the head's own landmarks")
+    ap.add_argument("--upside-down", action="store_true",
+                    help="no fits: each photo detected as given and turned half round, "
+                         "counting the photos said to be upside down wrongly and missed")
     ap.add_argument("--james", default=None, metavar="DIR",
                     help="also the scan james' own two photos (the folder of james.obj) "
                          "through the variants a real photo can be given, scored against "
@@ -448,6 +510,9 @@ def main(argv=None):
     detector = Detector()
     if args.profile_line:
         profile_line_table(folders, args.variants, detector)
+        return
+    if args.upside_down:
+        upside_down_table(folders, args.variants, detector, args.james)
         return
     model = load_model()
     columns = ["mean head", "as rendered"] + args.variants

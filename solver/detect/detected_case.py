@@ -14,7 +14,7 @@ from ..io.exif import photo_lens_mm
 from ..io.landmark_counts import landmarks_needed
 from ..io.landmark_set import load_landmark_set
 from ..io.photo_lens import plausible_lens
-from .detector import face_notes
+from .detector import face_notes, upside_down_note
 from .face_detection import KEYPOINTS
 from .ibug_map import mesh_to_ibug
 from .profile_line import profile_line_points, profile_turn_deg
@@ -275,6 +275,8 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="a
         lens = f", its {lenses[-1]:.0f} mm lens ({source})" if lenses[-1] else ""
         echo(f"{path}: face (score {face.score:.2f}), {guess.describe()}{lens} -> view "
              f"{name!r}")
+        if face.upside_down:
+            echo(f"warning: {path}: {upside_down_note(face)}")
         for note in face_notes(face):
             echo(f"note: {path}: {note}")
         traced.append(photo_outline(detector, image, face, path, echo)

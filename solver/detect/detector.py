@@ -48,6 +48,15 @@ REFINE_TURN_DEG = 35.0
 #: 2.1 times worse than from their photos, laid on this grey as well as from their photos
 #: (docs/DECISIONS.md, "Cut-out photos").
 CUTOUT_BACKDROP = 0.5
+#: A photo whose face the detector is surer of turned half round than as given, by more
+#: than this, shows the face upside down: the detector then reads it as if it were upright
+#: (its keypoints, and the mesh's eyes on the chin). On 30 rendered heads' photos and
+#: james' two, as rendered and through 22 of ``bench_photo_variants``' changes, the two
+#: scores were 0.02 or more apart, the upright one always the higher. A profile's score is
+#: no guide, so a face read as a profile is upside down only where, turned half round, the
+#: mesh sees a face that is not one (a three-quarter face upside down is read as a
+#: profile) (docs/DECISIONS.md, "A photo upside down").
+UPSIDE_DOWN_MARGIN = 0.0
 
 
 @dataclass
@@ -77,6 +86,10 @@ class DetectedFace:
     clipped : float
         The share of the face's skin the photo clipped to white (a front or three-quarter
         face: ``overexposed.clipped_share``; 0 for a profile).
+    half_turn_score : float or None
+        The detector's confidence in the subject's face with the photo turned half round
+        (0 where it finds none there; None: a profile, not a face the mesh sees turned half
+        round either): above ``score`` the face is upside down (:attr:`upside_down`).
     """
 
     mesh: np.ndarray
@@ -88,6 +101,7 @@ class DetectedFace:
     covered: frozenset = frozenset()
     others: int = 0
     clipped: float = 0.0
+    half_turn_score: float | None = None
 
     @property
     def face_size(self):
@@ -107,6 +121,13 @@ class DetectedFace:
         coincide (``PROFILE_EYES``)."""
         apart = self.eyes_apart
         return not self.is_face or (apart is not None and apart < PROFILE_EYES)
+
+    @property
+    def upside_down(self):
+        """The detector is surer of the face with the photo turned half round
+        (``UPSIDE_DOWN_MARGIN``): what it read on the photo as given is not the face's."""
+        return self.half_turn_score is not None \
+            and self.half_turn_score > self.score + UPSIDE_DOWN_MARGIN
 
     @property
     def is_face(self):
@@ -176,7 +197,38 @@ class Detector:
         if not out.is_profile:
             out.covered = covered_points(image, out)
             out.clipped = clipped_share(image, out)
+        out.half_turn_score = self._half_turn_score(image, out)
         return out
+
+    def _half_turn_score(self, image, face):
+        """The face detector's confidence in the largest face of ``image`` turned half
+        round (0 where it finds none), for ``DetectedFace.half_turn_score``; for ``face``
+        read as a profile, None unless that score is the surer and the mesh sees a face
+        there that is not a profile (``UPSIDE_DOWN_MARGIN``)."""
+        turned = np.ascontiguousarray(image[::-1, ::-1])
+        faces = detect_faces(self.faces_net, turned)
+        score = float(faces[0].score) if faces else 0.0
+        if not face.is_profile:
+            return score
+        if score <= face.score + UPSIDE_DOWN_MARGIN:
+            return None
+        square = square_from_detection(faces[0])
+        mesh, presence = face_mesh(self.mesh_net, turned, square)
+        seen = DetectedFace(mesh, face.ibug, score, presence,
+                            np.asarray(faces[0].keypoints, float),
+                            np.asarray(faces[0].box, float))
+        return None if seen.is_profile else score
+
+
+def upside_down_note(face):
+    """What the report says of a face the photo shows upside down
+    (``DetectedFace.upside_down``), a phrase, or None."""
+    if not face.upside_down:
+        return None
+    return (f"the face looks upside down: the face detector is surer of it with the photo "
+            f"turned half round ({face.half_turn_score:.2f} against {face.score:.2f}), so "
+            "its landmarks, outline and which way it looks are not to be trusted; turn the "
+            "photo upright (its EXIF says nothing of a turn) and detect again")
 
 
 def other_faces_note(face):
@@ -193,7 +245,8 @@ def face_notes(face):
     """What the report says of a detected face beyond where it is and which way it looks:
     its covered points (``covered.covered_note``), its skin clipped white
     (``overexposed.overexposed_note``) and the other faces in its photo
-    (:func:`other_faces_note`), the phrases that apply, in that order."""
+    (:func:`other_faces_note`), the phrases that apply, in that order. A face upside
+    down is a warning of its own (:func:`upside_down_note`)."""
     return [n for n in (covered_note(face), overexposed_note(face), other_faces_note(face))
             if n]
 

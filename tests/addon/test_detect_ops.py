@@ -517,3 +517,23 @@ def test_a_photo_with_a_second_face_detects_the_largest_and_the_report_says_so(s
     nose = landmarks.landmark_pixels(plane)["nose_tip"]
     assert u0 < nose[0] < u1 and v0 < nose[1] < v1  # the subject's face
     assert any("1 other, smaller face in the photo" in line for _, line in job.lines())
+
+
+def test_a_photo_upside_down_is_a_warning_naming_it(sample, tmp_path):
+    from headrecon_addon import detect_job
+
+    folder, _ = sample
+    front = np.asarray(Image.open(folder / "front.png").convert("RGB"))
+    path = tmp_path / "upside_down.png"
+    Image.fromarray(np.ascontiguousarray(front[::-1, ::-1])).save(path)
+    scene = empty_scene()
+    _load(path, "front", "orthographic-front")
+    job = detect_job.run_detection(scene, "front")
+    warnings = [line for level, line in job.lines() if level == "WARNING"]
+    assert len(warnings) == 1, job.lines()
+    assert warnings[0].startswith("view 'front' (upside_down.png): the face looks upside down")
+    # as given, no such warning
+    scene = empty_scene()
+    _load(folder / "front.png", "front", "orthographic-front")
+    job = detect_job.run_detection(scene, "front")
+    assert not any("upside down" in line for _, line in job.lines())

@@ -23,10 +23,12 @@ from bench.bench_photo_variants import (
     hair_region,
     in_a_room,
     james_errors,
+    photo_path,
     profile_line_table,
     room_behind,
     thick_hair,
     tight,
+    upside_down_table,
 )
 from bench.realistic_cases import james_folder
 from solver import load_model
@@ -168,6 +170,25 @@ def test_the_profile_line_table_scores_the_points_read_on_the_sample_s_profile(s
         # sample's profile within 5 % of the face's size either way
         for name in ("nose_tip", "subnasale", "pogonion", "chin_bottom"):
             assert len(errors[name]) == 1 and errors[name][0] < 5.0, (variant, errors)
+
+
+def test_the_upside_down_table_counts_the_sample_s_photos_as_given_and_turned(sample):
+    if not (DETECTOR_DIR / "face_landmark.tflite").is_file():
+        pytest.skip(f"models missing in {DETECTOR_DIR}: run ./run detector")
+    folder, _ = sample
+    table = upside_down_table([folder], ["dark"], Detector())
+    assert set(table) == {"as rendered", "dark"}
+    for row in table.values():
+        # the front is looked at and told either way; the profile is not looked at
+        assert (row["photos"], row["profiles"], row["wrong"], row["missed"]) == (2, 1, 0, 0)
+        assert row["given"] > 0.05 and row["turned"] > 0.05
+
+
+def test_a_rendered_head_s_photo_is_its_png_or_its_jpeg(tmp_path):
+    (tmp_path / "front.png").write_bytes(b"")
+    (tmp_path / "side.jpg").write_bytes(b"")
+    assert photo_path(tmp_path, "front") == tmp_path / "front.png"
+    assert photo_path(tmp_path, "side") == tmp_path / "side.jpg"
 
 
 def test_the_variants_of_a_real_photo_change_the_photo_alone():

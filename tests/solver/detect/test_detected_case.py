@@ -405,3 +405,15 @@ def test_photos_beside_a_side_photo_short_of_a_profile_are_placed_in_the_face_s_
     assert quarter.camera is None and quarter.camera_hints["kind"] == "pinhole"
     assert quarter.camera_hints["direction_prior"][0] < -15.0
     assert _yaw(case.views["right"].camera) == pytest.approx(side_yaw)
+
+
+def test_a_photo_upside_down_is_one_warning_naming_it(sample, detector, tmp_path):
+    folder, _ = sample
+    front = _load(folder / "front.png")
+    Image.fromarray(np.ascontiguousarray(front[::-1, ::-1])).save(tmp_path / "front.png")
+    lines = []
+    detect_photos([(None, tmp_path / "front.png"), (None, folder / "side.png")], detector,
+                  _load, echo=lines.append, outlines="none")
+    warned = [ln for ln in lines if "upside down" in ln]
+    assert len(warned) == 1 and warned[0].startswith(f"warning: {tmp_path / 'front.png'}: ")
+    assert "turn the photo upright" in warned[0]

@@ -6,7 +6,7 @@ import pytest
 
 from solver.detect import DetectedFace, Detector
 from solver.detect.detected_case import detected_case
-from solver.detect.detector import other_faces_note
+from solver.detect.detector import other_faces_note, upside_down_note
 from solver.paths import DETECTOR_DIR
 
 
@@ -141,3 +141,44 @@ def test_a_cut_out_photo_is_detected_on_grey_whatever_its_transparency_hides(sam
     head = white_outline.points[white_outline.points[:, 1] < chin]
     u, v = np.round(head).astype(int).T
     assert np.mean(off[v.clip(0, alpha.shape[0] - 1), u.clip(0, alpha.shape[1] - 1)] > 3) < 0.02
+
+
+@pytest.mark.parametrize("rendered, photo, profile", [
+    ("sample", "front.png", False), ("sample", "side.png", True),
+    ("three_quarter_sample", "front.png", False), ("three_quarter_sample", "side.png", True),
+    ("turned_sample", "front.png", False), ("turned_sample", "side.png", False)])
+def test_a_photo_upside_down_is_said_to_be(request, rendered, photo, profile):
+    """A front and three-quarter views at 25 and 45 degrees: as given none is upside down;
+    turned half round, each is (the detector reads the face there as if upright; at 45
+    degrees the mesh sees no face there, so it is read as a profile). A profile (the
+    sample's, and the photo 65 degrees round, read as one) is not: its score is no guide."""
+    from PIL import Image
+
+    if not (DETECTOR_DIR / "face_landmark.tflite").is_file():
+        pytest.skip(f"models missing in {DETECTOR_DIR}: run ./run detector")
+    folder, _ = request.getfixturevalue(rendered)
+    d = Detector()
+    image = np.asarray(Image.open(folder / photo).convert("RGB"))
+    upright = d.detect(image)
+    turned = d.detect(np.ascontiguousarray(image[::-1, ::-1]))
+    assert upright.is_profile == profile
+    assert not upright.upside_down and upside_down_note(upright) is None
+    if profile:
+        assert upright.half_turn_score is None and turned.half_turn_score is None
+        assert not turned.upside_down
+        return
+    assert upright.half_turn_score < upright.score - 0.05
+    assert turned.upside_down
+    assert turned.half_turn_score > turned.score + 0.05
+    assert "the face looks upside down" in upside_down_note(turned)
+
+
+def test_a_face_not_looked_at_half_round_is_not_upside_down():
+    ibug = np.zeros((68, 2))
+    face = DetectedFace(np.zeros((468, 3)), ibug, 0.9, 1.0)
+    assert face.half_turn_score is None and not face.upside_down
+    assert upside_down_note(face) is None
+    face.half_turn_score = 0.9  # as sure either way
+    assert not face.upside_down
+    face.half_turn_score = 0.92
+    assert face.upside_down and "0.92 against 0.90" in upside_down_note(face)
