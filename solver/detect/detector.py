@@ -228,7 +228,7 @@ def upside_down_note(face):
     return (f"the face looks upside down: the face detector is surer of it with the photo "
             f"turned half round ({face.half_turn_score:.2f} against {face.score:.2f}), so "
             "its landmarks, outline and which way it looks are not to be trusted; turn the "
-            "photo upright (its EXIF says nothing of a turn) and detect again")
+            "photo upright and detect again")
 
 
 def other_faces_note(face):
