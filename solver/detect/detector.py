@@ -178,7 +178,9 @@ class Detector:
         none. A face the mesh model does not see (a profile) comes back with ``is_face``
         False. ``refine``: a second mesh pass on the first mesh's square, which a face
         turned in the photo further than ``REFINE_TURN_DEG`` always gets (the detector's
-        eye keypoints turn the first square less surely than the mesh's eye corners do)."""
+        eye keypoints turn the first square less surely than the mesh's eye corners do).
+        The face detector also looks at the photo turned half round
+        (``DetectedFace.half_turn_score``: a face upside down)."""
         image = _as_float(image)
         faces = detect_faces(self.faces_net, image)
         if not faces:
@@ -214,7 +216,7 @@ class Detector:
             return None
         square = square_from_detection(faces[0])
         mesh, presence = face_mesh(self.mesh_net, turned, square)
-        seen = DetectedFace(mesh, face.ibug, score, presence,
+        seen = DetectedFace(mesh, mesh_to_ibug(mesh[:, :2]), score, presence,
                             np.asarray(faces[0].keypoints, float),
                             np.asarray(faces[0].box, float))
         return None if seen.is_profile else score
