@@ -94,8 +94,9 @@ class AutoFitJob:
 
     def share_outlines(self):
         """What the landmarks' detection found given to the outline tasks of the same
-        photos, not looked for again: the outlines found already (a profile's, read for
-        its landmarks), and each face the outline starts from."""
+        photos, not looked for again: the outlines it traced (``DetectJob.outline_views``,
+        and a profile's, read for its landmarks) or why none was found, and each face the
+        outline starts from."""
         faces = {t.view: t.face for t in self.detect.tasks if t.face is not None}
         for task in self.outlines.tasks if self.outlines is not None else ():
             face = faces.get(task.view)
@@ -105,6 +106,8 @@ class AutoFitJob:
             if face.outline is not None:
                 task.points, task.notes = face.outline.contour, list(face.outline.notes)
                 task.warnings = list(face.outline.warnings)
+            elif face.outline_problem is not None:
+                task.problem = face.outline_problem
 
     def run(self):
         """Detect, merge, fit, bake. Errors are kept in ``error``, never raised."""
@@ -144,9 +147,10 @@ def prepare_auto_fit(scene, replace=False):
     read = {}  # each photo's pixels read once for both detections
     detect = detect_job.prepare_detection(scene, "", replace, skip_hand_placed=True,
                                           read=read)
+    outlines = outline_job.prepare_outlines(scene, "", replace, read=read)
+    detect.outline_views = frozenset(t.view for t in outlines.tasks)
     return AutoFitJob(detect, fit_job.job_from_scene(scene, None),
-                      scene_to_case.case_dict_from_scene(scene),
-                      outline_job.prepare_outlines(scene, "", replace, read=read))
+                      scene_to_case.case_dict_from_scene(scene), outlines)
 
 
 def apply_auto_fit(scene, job):

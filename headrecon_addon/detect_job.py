@@ -211,11 +211,14 @@ class DetectJob(PhotosJob):
     face_frame: bool = False
     #: Else a front photo not detected in this run whose landmarks show its yaw.
     placed_front: PlacedFront = None
+    #: The views whose outline is traced with their face (Auto Fit's: a photo's outline
+    #: found while the other photos' faces are, not after them all).
+    outline_views: frozenset = frozenset()
     DOING = "detecting the face on"
     DONE = "placing the landmarks"
 
     def examine(self, task):
-        task.face = photo_faces.find_face(task.pixels)
+        task.face = photo_faces.find_face(task.pixels, task.view in self.outline_views)
 
     @property
     def found_any(self):

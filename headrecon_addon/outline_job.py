@@ -62,8 +62,8 @@ class OutlineJob(PhotosJob):
     DONE = "drawing the outlines"
 
     def examine(self, task):
-        if task.points is not None:
-            return  # found already (Auto Fit: by the landmarks' detection on a profile)
+        if task.points is not None or task.problem is not None:
+            return  # looked for already (Auto Fit: with the landmarks' detection)
         try:
             found = photo_faces.find_outline(task.pixels, task.face)
             task.points, task.notes, task.warnings = found.contour, found.notes, found.warnings

@@ -46,10 +46,13 @@ class Face:
     off_outline : bool
         The landmarks were read off the photo's outline (a profile's).
     outline : solver Outline or None
-        The outline a profile's landmarks were read off (found for them), so a job that
-        wants the outline too need not look again.
+        The photo's outline: a profile's, its landmarks read off it, or any face's traced
+        with it (``find_face(outline=True)``), so a job that wants the outline too need
+        not look again.
     found : solver DetectedFace or None
         The detector's own answer, which the outline starts from (``find_outline``).
+    outline_problem : str or None
+        Why the outline looked for was not found (``find_outline``'s error), one line.
     """
 
     points: dict
@@ -61,28 +64,31 @@ class Face:
     off_outline: bool = False
     outline: object = None
     found: object = None
+    outline_problem: str = None
 
 
-def find_face(pixels):
+def find_face(pixels, outline=False):
     """The largest face (the subject's) in ``pixels`` ((H, W, 3) float in [0, 1], row 0
     at the top, sRGB, or (H, W, 4) with alpha for a cut-out: ``photos.detector_pixels``),
-    or None when there is none."""
+    or None when there is none. A profile's outline is traced for its landmarks;
+    ``outline``: any face's is (Auto Fit's, while the other photos are detected)."""
     found = detector().detect(pixels)
     if found is None:
         return None
     h, w = pixels.shape[:2]
     guess = guess_view(found)
     side = guess.side if guess is not None else None
-    outline = None
-    if found.is_profile and side is not None:
-        try:  # a profile's landmarks are read off its outline
-            outline = detector().outline(pixels, found)
-        except ValueError:
-            outline = None
+    read_off = found.is_profile and side is not None  # a profile's landmarks: its outline
+    traced, problem = None, None
+    if outline or read_off:
+        try:
+            traced = find_outline(pixels, found)
+        except ValueError as e:
+            problem = str(e)
     points, sigma, depth, off_outline = face_landmarks(
-        found, (w, h), side, None if outline is None else outline.points)
+        found, (w, h), side, traced.points if read_off and traced is not None else None)
     return Face(points, sigma, depth, guess, found.is_profile, float(found.score),
-                off_outline, outline, found)
+                off_outline, traced, found, problem)
 
 
 def find_outline(pixels, found=None):

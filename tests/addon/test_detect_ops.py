@@ -472,10 +472,38 @@ def test_auto_fit_finds_each_face_and_outline_once(sample, monkeypatch):
     assert side.face.off_outline and drawn.points is side.face.outline.contour
     assert all(t.points is not None for t in job.outlines.tasks)
     front = next(t for t in job.outlines.tasks if t.view == "front")
-    assert front.face is next(t for t in job.detect.tasks if t.view == "front").face.found
+    found = next(t for t in job.detect.tasks if t.view == "front").face
+    assert front.face is found.found
+    # the front's outline traced with its face, while the profile's face was detected
+    assert found.outline is not None and front.points is found.outline.contour
     # the same outline as a Detect Outline that looks for the face itself
     alone = photo_faces.find_outline(np.array(front.pixels))
     assert np.array_equal(alone.contour, front.points)
+
+
+def test_auto_fit_says_once_why_an_outline_was_not_found(sample, monkeypatch):
+    from headrecon_addon import auto_fit_job, photo_faces
+
+    folder, _ = sample
+    empty_scene()
+    _load(folder / "front.png", "front", "orthographic-front")
+    _load(folder / "side.png", "side", "orthographic-right")
+    kind = type(photo_faces.detector())
+    calls = []
+
+    def no_person(self, image, face):
+        calls.append(face.is_profile)
+        raise ValueError("no person found for an outline")
+
+    monkeypatch.setattr(kind, "outline", no_person)
+    job = auto_fit_job.prepare_auto_fit(bpy.context.scene)
+    job.detect.run()
+    job.share_outlines()
+    job.outlines.run()
+    assert sorted(calls) == [False, True]  # each photo's outline looked for once
+    assert [t.problem for t in job.outlines.tasks] == ["no person found for an outline"] * 2
+    lines = [line for level, line in job.lines() if level == "WARNING"]
+    assert sum("no person found for an outline" in line for line in lines) == 2
 
 
 def test_a_bearded_face_gets_no_jaw_points_and_the_report_says_why(sample, tmp_path):
