@@ -29,6 +29,14 @@ def _load(path, view, direction):
     return photos.find_plane(bpy.context.scene, view)
 
 
+def _sample_scene(folder):
+    """An empty scene with the sample's front photo and profile loaded: (scene, front
+    plane, side plane)."""
+    scene = empty_scene()
+    front = _load(folder / "front.png", "front", "orthographic-front")
+    return scene, front, _load(folder / "side.png", "side", "orthographic-right")
+
+
 def _truth(folder, view):
     return json.loads((folder / "sample.json").read_text())["views"][view]["points"]
 
@@ -134,9 +142,7 @@ def test_auto_fit_fits_a_head_from_the_photos(sample):
     from headrecon_addon import landmarks, photos
 
     folder, _ = sample
-    scene = empty_scene()
-    _load(folder / "front.png", "front", "orthographic-front")
-    _load(folder / "side.png", "side", "orthographic-right")
+    scene, _, _ = _sample_scene(folder)
     scene.headrecon.texture_size = "256"
     assert scene.headrecon.head is None
     assert bpy.ops.headrecon.auto_fit() == {"FINISHED"}
@@ -386,9 +392,7 @@ def test_auto_fit_detects_only_photos_without_hand_placed_landmarks(sample):
     from headrecon_addon import auto_fit_job, landmarks
 
     folder, _ = sample
-    scene = empty_scene()
-    front = _load(folder / "front.png", "front", "orthographic-front")
-    _load(folder / "side.png", "side", "orthographic-right")
+    scene, front, _ = _sample_scene(folder)
     landmarks.place_landmark(front, "nose_tip", (190.0, 300.0))
     before = snapshot()
     job = auto_fit_job.prepare_auto_fit(scene)
@@ -435,9 +439,7 @@ def test_auto_fit_finds_each_face_and_outline_once(sample, monkeypatch):
     from headrecon_addon import auto_fit_job, photo_faces, photos
 
     folder, _ = sample
-    empty_scene()
-    _load(folder / "front.png", "front", "orthographic-front")
-    _load(folder / "side.png", "side", "orthographic-right")
+    _sample_scene(folder)
     kind = type(photo_faces.detector())
     calls, outline, detect = [], kind.outline, kind.detect
     reads, read = [], photos.image_to_array
@@ -485,9 +487,7 @@ def test_auto_fit_says_once_why_an_outline_was_not_found(sample, monkeypatch):
     from headrecon_addon import auto_fit_job, photo_faces
 
     folder, _ = sample
-    empty_scene()
-    _load(folder / "front.png", "front", "orthographic-front")
-    _load(folder / "side.png", "side", "orthographic-right")
+    _sample_scene(folder)
     kind = type(photo_faces.detector())
     calls = []
 
