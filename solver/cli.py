@@ -420,6 +420,9 @@ def load_photo(path):
     from PIL import UnidentifiedImageError
 
     path = Path(path)
+    if path.is_dir():
+        raise CliError(f"{path}: a folder, not a photo (give its photos; headless --detect "
+                       "takes a folder of one head's photos)")
     if not path.is_file():
         raise CliError(f"{path}: photo not found")
     try:

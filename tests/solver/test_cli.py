@@ -583,6 +583,9 @@ def test_detect_errors_name_the_photo(tmp_path):
     (tmp_path / "text.png").write_text("not an image")
     proc = run_cli("detect", tmp_path / "text.png", "--out", tmp_path / "case.json")
     assert_one_line_error(proc, "text.png", "not an image")
+    (tmp_path / "photos").mkdir()
+    proc = run_cli("detect", tmp_path / "photos", "--out", tmp_path / "case.json")
+    assert_one_line_error(proc, "photos", "a folder, not a photo")
     assert not (tmp_path / "case.json").exists()
 
 
