@@ -48,7 +48,9 @@ def run_task(task, model):
                                         time.perf_counter() - t0)
 
 
-def _summary_row(name, where, result, outputs, seconds):
+def _summary_row(name, where, result, outputs, seconds, detected=()):
+    """A written head's summary row; its ``warnings`` those of its photos' detection
+    (``detected``, when the batch detected its landmarks), then the fit's."""
     noise = (result.info.get("noise") or {}).get("landmark_px") or {}
     plaus = result.info.get("plausibility") or {}
     percentile = plaus.get("percentile")
@@ -57,7 +59,7 @@ def _summary_row(name, where, result, outputs, seconds):
             "rms_px": round(float(result.rms_px()), 4),
             "noise_px": {v: round(float(x), 4) for v, x in noise.items()},
             "plausibility": None if percentile is None else round(float(percentile), 3),
-            "warnings": list(result.info.get("warnings", ())),
+            "warnings": [*detected, *result.info.get("warnings", ())],
             "flagged": len(result.flagged()), "seconds": round(seconds, 3),
             "outputs": {k: str(p) for k, p in outputs.items()}, "input": where}
 
@@ -84,7 +86,8 @@ def write_head(task, model):
         "name", "landmarks", "base" (outputs' path without suffix), "where" (the input
         in messages), "settings" (``outputs``, ``texture_size``, ``bake``,
         ``texture_shading``, ``texture_clothes``, ``bake_identity``, ``morph_normals`` and
-        the fit options), "hash" (recorded with the outputs, ``batch_stamp``).
+        the fit options), "hash" (recorded with the outputs, ``batch_stamp``), optionally
+        "warnings" (its photos' detection's, first in its summary row's).
     model : HeadModel
 
     Every output is written into a temporary folder beside the outputs and renamed into
@@ -139,7 +142,7 @@ def write_head(task, model):
         shutil.rmtree(staging, ignore_errors=True)
     row = _summary_row(name, task["where"], result,
                        {k: p for k, p in targets.items() if k in staged},
-                       time.perf_counter() - t0)
+                       time.perf_counter() - t0, task.get("warnings", ()))
     batch_stamp.write_record(base, task["hash"], row)
     return row
 

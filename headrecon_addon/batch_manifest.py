@@ -76,7 +76,8 @@ class Head:
     own settings (parsed); ``where`` names the input in messages ("heads.csv row 3");
     ``error`` says why the head cannot be run (it is listed as failed, not fitted);
     ``photos`` (a row's ``photos`` column, when it gives no landmarks file) are the photos
-    to detect the landmarks in.
+    to detect the landmarks in; ``warnings`` what their detection warned of, for the
+    head's summary row.
     """
 
     name: str
@@ -86,6 +87,7 @@ class Head:
     options: dict = field(default_factory=dict)
     error: str | None = None
     photos: tuple = ()
+    warnings: tuple = ()
 
 
 def is_manifest(path):

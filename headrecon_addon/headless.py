@@ -171,7 +171,7 @@ def _tasks(heads, settings, force):
         rows.append(None)
         tasks.append({"index": i, "name": h.name, "landmarks": str(h.landmarks),
                       "base": str(h.base), "where": h.where, "settings": mine,
-                      "hash": digest})
+                      "hash": digest, "warnings": list(h.warnings)})
     return rows, tasks
 
 
@@ -219,16 +219,17 @@ def detected_head(head, lens_mm=None):
         return head
     cli = solver_module("cli")
     landmarks = head.base.with_name(head.base.name + ".landmarks.json")
+    warnings = []
     try:
         head.base.parent.mkdir(parents=True, exist_ok=True)
         cli.detect_landmarks([str(p) for p in head.photos], landmarks, quiet=True,
-                             lens_mm=lens_mm)
+                             lens_mm=lens_mm, warnings=warnings)
     except (cli.CliError, ValueError, OSError) as e:
         message = str(e) if head.where in str(e) else f"{head.where}: {e}"
         return batch_manifest.Head(head.name, None, head.base, head.where, head.options,
                                    error=message, photos=head.photos)
     return batch_manifest.Head(head.name, landmarks, head.base, head.where, head.options,
-                               photos=head.photos)
+                               photos=head.photos, warnings=tuple(warnings))
 
 
 def detected_heads(groups, out, lens_mm=None):

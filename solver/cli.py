@@ -460,14 +460,15 @@ def view_entries(photos, views):
 
 
 def detect_landmarks(photos, out, views=(), models=None, quiet=False, outlines="all",
-                     exif_lens=True, lens_mm=None):
+                     exif_lens=True, lens_mm=None, warnings=None):
     """Detect the face in each photo, and the head's outline in those ``outlines`` says
     (``detected_case.wants_outline``), and write the landmarks file ``out`` (a photo whose
     EXIF gives its lens gets a pinhole camera of it unless ``exif_lens`` is False, one
     whose EXIF gives none a pinhole of ``lens_mm`` when given); the
     lines of ``solver.detect.detected_case.detect_photos`` go to stderr ("warning:" and
-    "note:" lines even when ``quiet``). Returns the case. ``CliError`` / ``ValueError``:
-    one line naming the photo or option."""
+    "note:" lines even when ``quiet``), and the warnings, without their "warning: ", to the
+    list ``warnings`` when given (a batch's summary). Returns the case. ``CliError`` /
+    ``ValueError``: one line naming the photo or option."""
     from .detect import Detector
     from .detect.detected_case import detect_photos
     from .io.landmarks_file import save_landmarks
@@ -481,6 +482,8 @@ def detect_landmarks(photos, out, views=(), models=None, quiet=False, outlines="
     def echo(line):
         if line.startswith(("warning:", "note:")):
             print(line, file=sys.stderr, flush=True)
+            if warnings is not None and line.startswith("warning: "):
+                warnings.append(line[len("warning: "):])
         else:
             done.append(line)
             faces = sum(" -> view " in ln for ln in done)

@@ -193,6 +193,29 @@ def test_headless_detect_folder_of_heads_fails_a_photo_without_a_face(sample, tm
     assert proc.returncode == 2 and "empty: no photos in it" in proc.stderr, proc.stderr
 
 
+def test_a_detected_head_s_summary_row_gives_its_detection_s_warnings(sample, tmp_path):
+    """``--detect FOLDER`` of two heads, one's front photo upside down: that head's summary
+    row lists the detection's warning naming the photo; the other's none of it."""
+    from PIL import Image
+
+    folder, _ = sample
+    heads = tmp_path / "heads"
+    front = np.asarray(Image.open(folder / "front.png").convert("RGB"))
+    for name, photo in (("alice", front), ("carol", np.ascontiguousarray(front[::-1, ::-1]))):
+        (heads / name).mkdir(parents=True)
+        Image.fromarray(photo).save(heads / name / "front.png")
+    out = tmp_path / "out"
+    proc = run_python(["-m", "headrecon_addon.headless", "--detect", heads, "--out", out,
+                       "--no-texture", "--outputs", "report", "--jobs", "1"])
+    assert proc.returncode == 0, proc.stderr
+    rows = {r["name"]: r for r in map(json.loads,
+                                      (out / "summary.jsonl").read_text().splitlines())}
+    upside = [w for w in rows["carol"]["warnings"] if "upside down" in w]
+    assert len(upside) == 1 and upside[0].startswith(str(heads / "carol" / "front.png"))
+    assert not any("upside down" in w for w in rows["alice"]["warnings"])
+    assert "front.png: the face looks upside down" in proc.stderr
+
+
 def test_a_manifest_photos_column_is_detected(sample, tmp_path):
     """A manifest row with ``photos`` (";"-separated, relative to the manifest) instead of
     a landmarks file: detected, then fitted with the row's own options."""
