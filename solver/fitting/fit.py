@@ -325,10 +325,14 @@ def level_photos_start(result):
     its plane and the head's tilt trade in that photo, and only the other photos tell them
     apart, so a fit can end with a photo turned to match a head tilted wrongly; from
     this start the tilt lies with the head (docs/DECISIONS.md, "A photo turned in its
-    plane to meet a head tilted wrongly")."""
+    plane to meet a head tilted wrongly"). A photo stored a quarter or half turn round
+    (a camera held on its side) is level at that turn: its angle is taken off the nearest
+    quarter turn."""
     ortho = {n: c for n, c in result.cameras.items()
              if isinstance(c, OrthographicCamera) and c.view in ORTHO_VIEWS}
-    angles = {n: c.in_plane_angle for n, c in ortho.items()}
+    quarter = np.pi / 2
+    angles = {n: c.in_plane_angle - quarter * np.round(c.in_plane_angle / quarter)
+              for n, c in ortho.items()}
     if len(ortho) < 2 or max(abs(a) for a in angles.values()) <= np.radians(LEVEL_START_DEG):
         return None
     turn, cameras = np.eye(3), dict(result.cameras)

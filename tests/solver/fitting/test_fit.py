@@ -527,6 +527,15 @@ def test_the_level_photos_start_turns_the_head_so_each_photo_sees_it_as_before(n
     level = {n: _turned_in_plane(c, -np.degrees(c.in_plane_angle) + 3.0)
              for n, c in res.cameras.items()}
     assert fit.level_photos_start(dataclasses.replace(res, cameras=level)) is None
+    # a photo stored a quarter or half turn round is level at that turn
+    one, other = sorted(level)
+    level[one] = _turned_in_plane(level[one], 90.0)
+    level[other] = _turned_in_plane(level[other], 180.0)
+    assert fit.level_photos_start(dataclasses.replace(res, cameras=level)) is None
+    cams["front"] = _turned_in_plane(cams["front"], 90.0)  # 100 degrees: 10 past a quarter
+    start = fit.level_photos_start(dataclasses.replace(res, cameras=cams))
+    assert np.degrees(start.cameras["front"].in_plane_angle) == pytest.approx(90.0)
+    assert all(abs(c.in_plane_angle) < 1e-9 for n, c in start.cameras.items() if n != "front")
 
 
 def test_a_fit_with_a_photo_turned_in_its_plane_is_fitted_again_with_the_photos_level(
