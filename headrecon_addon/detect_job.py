@@ -24,7 +24,6 @@ from .solver_link import (
     load_model,
     placed,
     points_yaw_deg,
-    upside_down_note,
     usable_cores,
 )
 
@@ -148,8 +147,6 @@ class PhotoTask:
         problem = photo_faces.loaded_as_problem(self.kind, self.perspective, self.face.guess)
         if problem and turned is None:
             out.append(("WARNING", f"{where}: {problem}"))
-        if self.face.found is not None and self.face.found.upside_down:
-            out.append(("WARNING", f"{where}: {upside_down_note(self.face.found)}"))
         return out
 
 

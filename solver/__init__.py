@@ -26,7 +26,7 @@ from .cameras.dlt import DLTCamera, fit_dlt
 from .cameras.pinhole import PinholeCamera
 from .cores import usable_cores
 from .detect.detected_case import face_landmarks
-from .detect.detector import DetectedFace, Detector, face_notes, upside_down_note
+from .detect.detector import DetectedFace, Detector, face_notes
 from .detect.view_guess import POINTS_YAW_MIN, ViewGuess, guess_view, placed, points_yaw_deg
 from .fitting.engine import forget_fit_subsets
 from .fitting.fit import FitOptions, fit_head, prepare_fit, refit_landmarks
@@ -87,5 +87,5 @@ __all__ = [
     "orthographic_lenses", "placed", "plausible_lens", "points_yaw_deg",
     "orthographic_uvs", "prepare_fit",
     "parse_landmarks", "read_photo_exif", "refit_landmarks", "save_landmarks",
-    "upside_down_note", "usable_cores", "uv_raster", "uv_tiles",
+    "usable_cores", "uv_raster", "uv_tiles",
 ]

@@ -8,15 +8,18 @@ off its outline, and the outline as the view's contour, so ``python -m solver de
 import os
 from pathlib import Path
 
+import numpy as np
+
 from ..cameras import PinholeCamera
 from ..io.case import LandmarkCase, View
 from ..io.exif import photo_lens_mm
 from ..io.landmark_counts import landmarks_needed
 from ..io.landmark_set import load_landmark_set
 from ..io.photo_lens import plausible_lens
-from .detector import face_notes, upside_down_note
+from .detector import face_notes
 from .face_detection import KEYPOINTS
 from .ibug_map import mesh_to_ibug
+from .photo_turn import camera_to_photo, turned_size
 from .profile_line import profile_line_points, profile_turn_deg
 from .view_guess import ViewGuess, guess_view, placed, point_uncertainty
 
@@ -27,6 +30,11 @@ VIEW_NAMES = ("front", "right", "left", "three_quarter_right", "three_quarter_le
 NO_PROFILE_NOTE = ("none of the photos is a profile: the head's depth comes from the "
                    "landmarks alone, which fits it several times less accurately than a "
                    "front and a profile photo do (README: three-quarter photos)")
+#: Said of a profile photo beside a photo that was turned to show its face upright: the
+#: photos may all have lost the turn their EXIF gave them, and a profile's turn is not told
+#: (``Detector.detect``: only where the photo turned shows a face that is not a profile).
+TURNED_PROFILE_NOTE = ("a profile, whose turn the detection does not tell, beside a photo "
+                       "stored turned: check that this one is upright")
 #: A three-quarter photo without a lens gets a pinhole camera whose focal length the fit
 #: estimates; two photos' points tell it poorly (docs/DECISIONS.md: `bench_lens --yaw -22
 #: --lens 50 85`, 1.98 mm mean with the EXIF lens, 2.94 without).
@@ -48,7 +56,7 @@ def detected_points(face, size):
     Returns
     -------
     points : dict of str -> (float, float)
-        Landmark name -> (u, v) px.
+        Landmark name -> (u, v) px on the photo as given (``DetectedFace.in_photo``).
     uncertainty : dict of str -> float
         Landmark name -> standard deviation px (rounded to 1/1000 px, as files store it).
     """
@@ -56,7 +64,7 @@ def detected_points(face, size):
     w, h = size
     points, sigma = {}, {}
     kept = point_uncertainty(face)
-    for number, (u, v) in enumerate(face.ibug, start=1):
+    for number, (u, v) in enumerate(face.in_photo(face.ibug), start=1):
         if number in names and number in kept and number not in face.covered \
                 and 0 <= u <= w and 0 <= v <= h:
             points[names[number]] = (float(u), float(v))
@@ -90,16 +98,20 @@ def face_landmarks(face, size, side=None, contour=None):
     uncertainty, depth, off_outline) with points, uncertainty and depth as
     :func:`detected_points` and :func:`detected_depth` give them; but in a profile
     (``side`` "right" or "left") with its outline (``contour`` (n, 2) px), the profile
-    line's points read off the outline (``profile_line_points``: 1-2 % of the face's size)
-    in place of the mesh's few (22-46 px), when it shows any, and then ``off_outline`` is
-    True."""
+    line's points read off the outline (``profile_line_points``: 1-2 % of the face's size,
+    on the photo turned as the face was detected) in place of the mesh's few (22-46 px),
+    when it shows any, and then ``off_outline`` is True. Points are on the photo as
+    given."""
     if face.is_profile and side in ("right", "left") and contour is not None \
             and face.face_size is not None:
         hint = None if face.keypoints is None else face.keypoints[KEYPOINTS.index("nose_tip")]
         turn = 0.0 if face.keypoints is None else profile_turn_deg(face.keypoints, side)
-        line, line_sigma = profile_line_points(contour, side, face.face_size, hint, turn)
+        line, line_sigma = profile_line_points(face.in_frame(contour), side, face.face_size,
+                                               hint, turn)
         w, h = size
-        line = {n: p for n, p in line.items() if 0 <= p[0] <= w and 0 <= p[1] <= h}
+        at = face.in_photo(np.array(list(line.values()), float).reshape(-1, 2))
+        line = {n: (float(u), float(v)) for n, (u, v) in zip(line, at, strict=True)
+                if 0 <= u <= w and 0 <= v <= h}
         if line:
             return line, {n: line_sigma[n] for n in line}, {}, True
     points, sigma = detected_points(face, size)
@@ -148,7 +160,8 @@ def detected_case(photos, faces, base_dir=None, guesses=None, outlines=None, len
             image = Path(os.path.relpath(image, Path(base_dir).absolute()))
         if len(points) < landmarks_needed(PinholeCamera.min_refit_points):
             lens = None
-        camera, hints = guess.camera((w, h), lens)
+        camera, hints = guess.camera(turned_size((w, h), face.turn), lens)
+        camera = camera_to_photo(camera, face.turn, (w, h))
         views[name] = View(name, image.as_posix(), (w, h), camera, points,
                            camera_hints=hints, uncertainty=sigma, depth=depth,
                            contour=contour)
@@ -205,8 +218,9 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="a
         As for :func:`detected_case`.
     echo : callable, optional
         Gets each message line: per photo what was found, "warning: ..." for a given view
-        the detection contradicts or an outline not found, "note: ..." for a profile's
-        few points.
+        the detection contradicts, an outline not found or a profile beside a photo found
+        turned (``TURNED_PROFILE_NOTE``), "note: ..." for a profile's few points and a
+        photo detected turned upright (``face_notes``).
     outlines : {"all", "profile", "none"}
         Which photos get the head's outline as their contour (``wants_outline``).
     exif_lens : bool
@@ -275,14 +289,16 @@ def detect_photos(entries, detector, load, base_dir=None, echo=None, outlines="a
         lens = f", its {lenses[-1]:.0f} mm lens ({source})" if lenses[-1] else ""
         echo(f"{path}: face (score {face.score:.2f}), {guess.describe()}{lens} -> view "
              f"{name!r}")
-        if face.upside_down:
-            echo(f"warning: {path}: {upside_down_note(face)}")
         for note in face_notes(face):
             echo(f"note: {path}: {note}")
         traced.append(photo_outline(detector, image, face, path, echo)
                       if wants_outline(face, outlines) else None)
     if len(guesses) > 1 and not any(g.profile for g in guesses):
         echo(f"note: {NO_PROFILE_NOTE}")
+    turned_ones = [path for (_, path, _), face in zip(photos, faces, strict=True) if face.turn]
+    for (_, path, _), face in zip(photos, faces, strict=True):
+        if turned_ones and face.is_profile and not face.turn:
+            echo(f"warning: {path}: {TURNED_PROFILE_NOTE} ({', '.join(map(str, turned_ones))})")
     case = detected_case(photos, faces, base_dir=base_dir, guesses=guesses,
                          outlines=traced, lenses=lenses)
     for (name, path, _), lens in zip(photos, lenses, strict=True):

@@ -6,10 +6,12 @@ no face on the detector's square, or the detector's two eye keypoints nearly coi
 profile: the square's angle from them is arbitrary, often upside down), the mesh is run once more
 on the same square upright: on the sample's profile photo its iBUG points came 22 px
 (median) from the truth so, 177 px on the tilted square; only a few of them are kept
-there (``views.PROFILE_KEEP``)."""
+there (``views.PROFILE_KEEP``). A face upside down or a quarter round in the photo is
+detected on the photo turned upright (``photo_turn``)."""
 
+import functools
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -19,11 +21,12 @@ from ..photo_colour import stretched_to_white
 from .covered import covered_note, covered_points
 from .crop import Square
 from .face_detection import detect_faces
-from .face_landmarks import face_mesh, square_from_detection, square_from_mesh
+from .face_landmarks import eye_line_angle, face_mesh, square_from_detection, square_from_mesh
 from .ibug_map import mesh_to_ibug
 from .operators import Network
 from .outline import head_outline
 from .overexposed import clipped_share, overexposed_note
+from .photo_turn import quarter_turn, to_photo, to_turned, turned
 
 DETECTION_MODEL = "face_detection_short_range.tflite"
 LANDMARK_MODEL = "face_landmark.tflite"
@@ -49,14 +52,20 @@ REFINE_TURN_DEG = 35.0
 #: (docs/DECISIONS.md, "Cut-out photos").
 CUTOUT_BACKDROP = 0.5
 #: A photo whose face the detector is surer of turned half round than as given, by more
-#: than this, shows the face upside down: the detector then reads it as if it were upright
-#: (its keypoints, and the mesh's eyes on the chin). On 30 rendered heads' photos and
-#: james' two, as rendered and through 22 of ``bench_photo_variants``' changes, the two
-#: scores were 0.02 or more apart, the upright one always the higher. A profile's score is
-#: no guide, so a face read as a profile is upside down only where, turned half round, the
-#: mesh sees a face that is not one (a three-quarter face upside down is read as a
-#: profile) (docs/DECISIONS.md, "A photo upside down").
+#: than this, shows the face upside down: the detector reads it as if it were upright (its
+#: keypoints, and the mesh's eyes on the chin). On 30 rendered heads' photos and james' two,
+#: as rendered and through 22 of ``bench_photo_variants``' changes, the two scores were
+#: 0.02 or more apart, the upright one always the higher. A profile's score is no guide,
+#: so a face read as a profile is turned only where the photo turned shows a face the
+#: mesh sees that is not a profile (a three-quarter face upside down or a quarter round
+#: is read as a profile) (docs/DECISIONS.md, "A photo upside down", "A photo turned").
 UPSIDE_DOWN_MARGIN = 0.0
+#: A face whose eye line (the detector's keypoints) lies further than this from level, or
+#: that the detector is surer of upside down, is looked for on the photo turned each way,
+#: and the turn it is surest of is taken: the keypoints of a face turned a quarter round
+#: lie 70-90 degrees from level, of one turned further read upside down (on the sample's,
+#: a window-lit head's and james' photos turned, docs/DECISIONS.md, "A photo turned").
+LEVEL_EYES_DEG = 30.0
 
 
 @dataclass
@@ -86,10 +95,15 @@ class DetectedFace:
     clipped : float
         The share of the face's skin the photo clipped to white (a front or three-quarter
         face: ``overexposed.clipped_share``; 0 for a profile).
-    half_turn_score : float or None
-        The detector's confidence in the subject's face with the photo turned half round
-        (0 where it finds none there; None: a profile, not a face the mesh sees turned half
-        round either): above ``score`` the face is upside down (:attr:`upside_down`).
+    turn : int
+        The quarter turns anticlockwise (``photo_turn``) the photo was turned by to show
+        the face upright, 0-3: the points above lie on the photo so turned
+        (:meth:`in_photo` gives them on the photo as given).
+    photo_size : tuple of int
+        The photo's (w, h) as given.
+    given_score : float or None
+        The detector's confidence in the face on the photo as given (0: none found there),
+        where it was turned.
     """
 
     mesh: np.ndarray
@@ -101,7 +115,17 @@ class DetectedFace:
     covered: frozenset = frozenset()
     others: int = 0
     clipped: float = 0.0
-    half_turn_score: float | None = None
+    turn: int = 0
+    photo_size: tuple | None = None
+    given_score: float | None = None
+
+    def in_photo(self, points):
+        """Pixels (n, 2) on the photo turned by :attr:`turn` -> on the photo as given."""
+        return to_photo(points, self.turn, self.photo_size)
+
+    def in_frame(self, points):
+        """Pixels (n, 2) on the photo as given -> on it turned by :attr:`turn`."""
+        return to_turned(points, self.turn, self.photo_size)
 
     @property
     def face_size(self):
@@ -113,7 +137,7 @@ class DetectedFace:
         """The detector's eye keypoints' distance / its box's width (None without them)."""
         if self.keypoints is None or self.box is None:
             return None
-        return float(np.linalg.norm(self.keypoints[1] - self.keypoints[0])) / self.face_size
+        return _eyes_apart(self)
 
     @property
     def is_profile(self):
@@ -121,13 +145,6 @@ class DetectedFace:
         coincide (``PROFILE_EYES``)."""
         apart = self.eyes_apart
         return not self.is_face or (apart is not None and apart < PROFILE_EYES)
-
-    @property
-    def upside_down(self):
-        """The detector is surer of the face with the photo turned half round
-        (``UPSIDE_DOWN_MARGIN``): what it read on the photo as given is not the face's."""
-        return self.half_turn_score is not None \
-            and self.half_turn_score > self.score + UPSIDE_DOWN_MARGIN
 
     @property
     def is_face(self):
@@ -165,11 +182,13 @@ class Detector:
         """The head's outline around ``face`` (a :class:`DetectedFace` of ``image``
         (H, W, 3), uint8 or float in [0, 1]): ``outline.head_outline``'s
         :class:`~.outline.Outline`. Raises ``ValueError`` (no person, no skin on its
-        edge) without naming the photo."""
+        edge) without naming the photo. It is traced on the photo turned as the face was
+        detected (``DetectedFace.turn``) and given on the photo as it is."""
         with self._segmentation_lock:
             if self._segmentation_net is None:
                 self._segmentation_net = _network(self.folder, SEGMENTATION_MODEL)
-        return head_outline(_as_float(image), face, self._segmentation_net)
+        found = head_outline(turned(_as_float(image), face.turn), face, self._segmentation_net)
+        return replace(found, points=face.in_photo(found.points)) if face.turn else found
 
     def detect(self, image, refine=False):
         """The largest face of ``image`` (H, W, 3) (uint8, or float in [0, 1]; (H, W, 4): a
@@ -179,16 +198,79 @@ class Detector:
         False. ``refine``: a second mesh pass on the first mesh's square, which a face
         turned in the photo further than ``REFINE_TURN_DEG`` always gets (the detector's
         eye keypoints turn the first square less surely than the mesh's eye corners do).
-        The face detector also looks at the photo turned half round
-        (``DetectedFace.half_turn_score``: a face upside down)."""
+        A face a quarter round (the detector's eye keypoints) or upside down (the detector
+        surer of it turned half round: ``UPSIDE_DOWN_MARGIN``) is detected on the photo
+        turned upright (``DetectedFace.turn``); so is one read as a profile, or not found,
+        where the photo turned shows a face that is not a profile, surer."""
         image = _as_float(image)
+        size = (image.shape[1], image.shape[0])
         faces = detect_faces(self.faces_net, image)
+        given_score = float(faces[0].score) if faces else 0.0  # 0: none found as given
+        look = functools.partial(self._look, image)
+        if not faces or _eyes_apart(faces[0]) < PROFILE_EYES:
+            turn, faces = self._turned_from_profile(image, faces, look)
+        else:
+            turn, faces = self._turned_from_front(faces, look)
         if not faces:
             return None
+        out = self._face(turned(image, turn), faces, refine)
+        out.turn, out.photo_size = turn, size
+        out.given_score = given_score if turn else None
+        return out
+
+    def _look(self, image, turn):
+        """``detect_faces`` on ``image`` turned by ``turn``."""
+        return detect_faces(self.faces_net, turned(image, turn))
+
+    def _turned_from_front(self, faces, look):
+        """(turn, faces) for a photo whose largest face (of ``faces``) is seen from the
+        front or three-quarter (``look``: turn -> the faces on the photo so turned): as
+        given where its eye line lies within ``LEVEL_EYES_DEG`` of level and the detector
+        is not surer of it turned half round (``UPSIDE_DOWN_MARGIN``); else the turn (0-3)
+        whose photo the detector is surest of (:func:`_nearest_level`), with its faces."""
+        found = {0: faces, 2: look(2)}
+        level = _off_level(faces[0]) <= LEVEL_EYES_DEG
+        if level and not (found[2] and found[2][0].score > faces[0].score + UPSIDE_DOWN_MARGIN):
+            return 0, faces
+        found.update({t: look(t) for t in (1, 3)})
+        best = _nearest_level(found, max((t for t in found if found[t]),
+                                         key=lambda t: found[t][0].score))
+        return best, found[best]
+
+    def _turned_from_profile(self, image, faces, look):
+        """(turn, faces) for a photo whose largest face (of ``faces``, maybe none) is read
+        as a profile (``look`` as :meth:`_turned_from_front` takes it): the turn (1-3)
+        whose photo shows the surest face, surer than as given (``UPSIDE_DOWN_MARGIN``),
+        that is not a profile (:func:`_nearest_level`), with its faces (a three-quarter
+        face turned in the photo reads as a profile); else (0, ``faces``). A profile's own
+        score is no guide to its turn."""
+        least = faces[0].score + UPSIDE_DOWN_MARGIN if faces else 0.0
+        found = {0: faces}
+        found.update({t: look(t) for t in (1, 2, 3)})
+        seen = [t for t in (1, 2, 3) if found[t] and found[t][0].score > least
+                and _eyes_apart(found[t][0]) >= PROFILE_EYES]
+        if not seen:
+            return 0, faces
+        best = _nearest_level(found, max(seen, key=lambda t: found[t][0].score))
+        if not self._mesh_sees(turned(image, best), found[best][0]):
+            return 0, faces
+        return best, found[best]
+
+    def _mesh_sees(self, image, face):
+        """Whether the mesh sees a face that is not a profile on ``face``'s square of
+        ``image`` (``DetectedFace.is_profile``)."""
+        mesh, presence = face_mesh(self.mesh_net, image, square_from_detection(face))
+        seen = DetectedFace(mesh, mesh_to_ibug(mesh[:, :2]), float(face.score), presence,
+                            np.asarray(face.keypoints, float), np.asarray(face.box, float))
+        return not seen.is_profile
+
+    def _face(self, image, faces, refine):
+        """The :class:`DetectedFace` of the largest of ``faces`` (``detect_faces`` on
+        ``image``, float): the mesh, its iBUG points and what covers the face."""
         face = faces[0]
         square = square_from_detection(face)
         mesh, presence = face_mesh(self.mesh_net, image, square)
-        out = DetectedFace(mesh, mesh_to_ibug(mesh[:, :2]), face.score, presence,
+        out = DetectedFace(mesh, mesh_to_ibug(mesh[:, :2]), float(face.score), presence,
                            np.asarray(face.keypoints, float), np.asarray(face.box, float),
                            others=len(faces) - 1)
         if out.is_profile:  # the square upright, not turned by the eyes
@@ -199,38 +281,46 @@ class Detector:
         if not out.is_profile:
             out.covered = covered_points(image, out)
             out.clipped = clipped_share(image, out)
-        out.half_turn_score = self._half_turn_score(image, out)
         return out
 
-    def _half_turn_score(self, image, face):
-        """The face detector's confidence in the largest face of ``image`` turned half
-        round (0 where it finds none), for ``DetectedFace.half_turn_score``; for ``face``
-        read as a profile, None unless that score is the surer and the mesh sees a face
-        there that is not a profile (``UPSIDE_DOWN_MARGIN``)."""
-        turned = np.ascontiguousarray(image[::-1, ::-1])
-        faces = detect_faces(self.faces_net, turned)
-        score = float(faces[0].score) if faces else 0.0
-        if not face.is_profile:
-            return score
-        if score <= face.score + UPSIDE_DOWN_MARGIN:
-            return None
-        square = square_from_detection(faces[0])
-        mesh, presence = face_mesh(self.mesh_net, turned, square)
-        seen = DetectedFace(mesh, mesh_to_ibug(mesh[:, :2]), score, presence,
-                            np.asarray(faces[0].keypoints, float),
-                            np.asarray(faces[0].box, float))
-        return None if seen.is_profile else score
+
+def _nearest_level(found, best):
+    """``best`` (a turn, a key of ``found``: turn -> ``detect_faces`` on the photo so
+    turned), or the turn a quarter from it its face's eye line points to, where the face
+    there is seen from the front and nearer level: a face turned about half way between
+    two quarter turns gets the detector's confidence alike in both (on the rendered heads'
+    photos turned 25 degrees and a quarter round, the one 65 degrees from level was often
+    taken; its points 0.8-1.8 % of the face's size off the other's)."""
+    nearer = (best + quarter_turn(eye_line_angle(found[best][0].keypoints))) % 4
+    there = found.get(nearer)
+    if nearer != best and there and _eyes_apart(there[0]) >= PROFILE_EYES \
+            and _off_level(there[0]) < _off_level(found[best][0]):
+        return nearer
+    return best
 
 
-def upside_down_note(face):
-    """What the report says of a face the photo shows upside down
-    (``DetectedFace.upside_down``), a phrase, or None."""
-    if not face.upside_down:
+def _off_level(face):
+    """How far the eye line of a ``face_detection.Face`` lies from level, degrees."""
+    return abs(np.degrees(eye_line_angle(face.keypoints)))
+
+
+def _eyes_apart(face):
+    """The face detector's eye keypoints' distance / its box's width (``PROFILE_EYES``), of
+    a ``face_detection.Face`` or a :class:`DetectedFace`."""
+    return float(np.linalg.norm(face.keypoints[1] - face.keypoints[0])) \
+        / float(face.box[2] - face.box[0])
+
+
+def turn_note(face):
+    """What the report says of a face detected on its photo turned (``DetectedFace.turn``),
+    a phrase, or None."""
+    if not face.turn:
         return None
-    return (f"the face looks upside down: the face detector is surer of it with the photo "
-            f"turned half round ({face.half_turn_score:.2f} against {face.score:.2f}), so "
-            "its landmarks, outline and which way it looks are not to be trusted; turn the "
-            "photo upright and detect again")
+    how = {1: "a quarter round clockwise", 2: "upside down",
+           3: "a quarter round anticlockwise"}[face.turn]
+    return (f"the face is {how} in the photo: detected on the photo turned upright (the "
+            f"face detector's confidence {face.score:.2f} there, {face.given_score:.2f} as "
+            "given); its points are given on the photo as it is")
 
 
 def other_faces_note(face):
@@ -247,10 +337,10 @@ def face_notes(face):
     """What the report says of a detected face beyond where it is and which way it looks:
     its covered points (``covered.covered_note``), its skin clipped white
     (``overexposed.overexposed_note``) and the other faces in its photo
-    (:func:`other_faces_note`), the phrases that apply, in that order. A face upside
-    down is a warning of its own (:func:`upside_down_note`)."""
-    return [n for n in (covered_note(face), overexposed_note(face), other_faces_note(face))
-            if n]
+    (:func:`other_faces_note`), and first the photo's turn to show it upright
+    (:func:`turn_note`), the phrases that apply."""
+    return [n for n in (turn_note(face), covered_note(face), overexposed_note(face),
+                        other_faces_note(face)) if n]
 
 
 def _as_float(image):

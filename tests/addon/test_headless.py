@@ -194,8 +194,11 @@ def test_headless_detect_folder_of_heads_fails_a_photo_without_a_face(sample, tm
 
 
 def test_a_detected_head_s_summary_row_gives_its_detection_s_warnings(sample, tmp_path):
-    """``--detect FOLDER`` of two heads, one's front photo upside down: that head's summary
-    row lists the detection's warning naming the photo; the other's none of it."""
+    """``--detect FOLDER`` of two heads, one's front photo upside down beside its profile:
+    that head's summary row lists the detection's warning naming the profile (whose turn
+    is not told); the other's none of it."""
+    import shutil
+
     from PIL import Image
 
     folder, _ = sample
@@ -204,16 +207,17 @@ def test_a_detected_head_s_summary_row_gives_its_detection_s_warnings(sample, tm
     for name, photo in (("alice", front), ("carol", np.ascontiguousarray(front[::-1, ::-1]))):
         (heads / name).mkdir(parents=True)
         Image.fromarray(photo).save(heads / name / "front.png")
+        shutil.copy(folder / "side.png", heads / name / "side.png")
     out = tmp_path / "out"
     proc = run_python(["-m", "headrecon_addon.headless", "--detect", heads, "--out", out,
                        "--no-texture", "--outputs", "report", "--jobs", "1"])
     assert proc.returncode == 0, proc.stderr
     rows = {r["name"]: r for r in map(json.loads,
                                       (out / "summary.jsonl").read_text().splitlines())}
-    upside = [w for w in rows["carol"]["warnings"] if "upside down" in w]
-    assert len(upside) == 1 and upside[0].startswith(str(heads / "carol" / "front.png"))
-    assert not any("upside down" in w for w in rows["alice"]["warnings"])
-    assert "front.png: the face looks upside down" in proc.stderr
+    check = [w for w in rows["carol"]["warnings"] if "check that this one is upright" in w]
+    assert len(check) == 1 and check[0].startswith(str(heads / "carol" / "side.png"))
+    assert not any("upright" in w for w in rows["alice"]["warnings"])
+    assert "front.png: the face is upside down in the photo" in proc.stderr
 
 
 def test_a_manifest_photos_column_is_detected(sample, tmp_path):

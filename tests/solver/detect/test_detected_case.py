@@ -12,7 +12,12 @@ from PIL import Image
 
 from solver import fit_head, load_landmarks
 from solver.detect import Detector
-from solver.detect.detected_case import NO_PROFILE_NOTE, UNKNOWN_LENS_NOTE, detect_photos
+from solver.detect.detected_case import (
+    NO_PROFILE_NOTE,
+    TURNED_PROFILE_NOTE,
+    UNKNOWN_LENS_NOTE,
+    detect_photos,
+)
 from solver.detect.view_guess import guess_view
 from solver.fitting.depth import mirror_pairs
 from solver.io.landmark_set import load_landmark_set
@@ -407,13 +412,36 @@ def test_photos_beside_a_side_photo_short_of_a_profile_are_placed_in_the_face_s_
     assert _yaw(case.views["right"].camera) == pytest.approx(side_yaw)
 
 
-def test_a_photo_upside_down_is_one_warning_naming_it(sample, detector, tmp_path):
+def test_a_photo_turned_gives_the_upright_photo_s_case_on_it_as_turned(model, sample,
+                                                                      detector, tmp_path):
+    """The front photo stored a quarter round: its points, outline and camera are the
+    upright photo's, on the photo as given, one note says so, and the head is the same."""
+    from solver.detect.photo_turn import to_turned
+
     folder, _ = sample
     front = _load(folder / "front.png")
-    Image.fromarray(np.ascontiguousarray(front[::-1, ::-1])).save(tmp_path / "front.png")
+    h, w = front.shape[:2]
+    Image.fromarray(np.ascontiguousarray(np.rot90(front))).save(tmp_path / "front.png")
     lines = []
-    detect_photos([(None, tmp_path / "front.png"), (None, folder / "side.png")], detector,
-                  _load, echo=lines.append, outlines="none")
-    warned = [ln for ln in lines if "upside down" in ln]
-    assert len(warned) == 1 and warned[0].startswith(f"warning: {tmp_path / 'front.png'}: ")
-    assert "turn the photo upright" in warned[0]
+    case = detect_photos([(None, tmp_path / "front.png"), (None, folder / "side.png")],
+                         detector, _load, echo=lines.append)
+    upright = _both_photos(folder, detector)
+    view, was = case.views["front"], upright.views["front"]
+    assert view.size == (h, w) and set(view.points) == set(was.points)
+    names = sorted(was.points)
+    assert np.allclose([view.points[n] for n in names],
+                       to_turned([was.points[n] for n in names], 1, (w, h)))
+    assert np.allclose(view.contour, to_turned(was.contour, 1, (w, h)))
+    assert view.uncertainty == was.uncertainty
+    somewhere = np.random.default_rng(0).normal(0.0, 0.1, (10, 3))
+    assert np.allclose(view.camera.project(somewhere),
+                       to_turned(was.camera.project(somewhere), 1, (w, h)))
+    turned = [ln for ln in lines if "in the photo: detected on the photo turned" in ln]
+    assert len(turned) == 1 and turned[0].startswith(f"note: {tmp_path / 'front.png'}: ")
+    assert "a quarter round anticlockwise" in turned[0]
+    # the profile beside it: its turn is not told, so the user is asked to check it
+    warned = [ln for ln in lines if ln.startswith("warning:")]
+    assert warned == [f"warning: {folder / 'side.png'}: {TURNED_PROFILE_NOTE} "
+                      f"({tmp_path / 'front.png'})"]
+    heads = [fit_head(model, c).local_vertices for c in (case, upright)]
+    assert skin_error_mm(model, *heads) < 0.05

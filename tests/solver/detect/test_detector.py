@@ -6,7 +6,7 @@ import pytest
 
 from solver.detect import DetectedFace, Detector
 from solver.detect.detected_case import detected_case
-from solver.detect.detector import other_faces_note, upside_down_note
+from solver.detect.detector import face_notes, other_faces_note, turn_note
 from solver.paths import DETECTOR_DIR
 
 
@@ -78,7 +78,7 @@ def test_a_face_turned_far_in_the_photo_is_read_as_upright(sample, degrees):
     # the turned photo's points turned back onto the upright photo
     t = np.radians(degrees)
     (w, h), (tw, th) = photo.size, turned.size
-    x, y = face.ibug[:, 0] - tw / 2, face.ibug[:, 1] - th / 2
+    x, y = (face.in_photo(face.ibug) - [tw / 2, th / 2]).T
     back = np.c_[w / 2 + x * np.cos(t) - y * np.sin(t), h / 2 + x * np.sin(t) + y * np.cos(t)]
     off = np.linalg.norm(back - upright.ibug, axis=1) / upright.face_size
     # the first pass alone, its square turned by the detector's eye keypoints: 1.3-1.6 %
@@ -147,12 +147,15 @@ def test_a_cut_out_photo_is_detected_on_grey_whatever_its_transparency_hides(sam
     ("sample", "front.png", False), ("sample", "side.png", True),
     ("three_quarter_sample", "front.png", False), ("three_quarter_sample", "side.png", True),
     ("turned_sample", "front.png", False), ("turned_sample", "side.png", False)])
-def test_a_photo_upside_down_is_said_to_be(request, rendered, photo, profile):
-    """A front and three-quarter views at 25 and 45 degrees: as given none is upside down;
-    turned half round, each is (the detector reads the face there as if upright; at 45
-    degrees the mesh sees no face there, so it is read as a profile). A profile (the
-    sample's, and the photo 65 degrees round, read as one) is not: its score is no guide."""
+def test_a_photo_turned_is_detected_upright(request, rendered, photo, profile):
+    """A front and three-quarter views at 25 and 45 degrees, turned by one, two and three
+    quarter turns: each is detected on the photo turned back upright, so its points are
+    the upright photo's, given on the photo as turned (at 45 degrees the mesh sees no face
+    upside down: read as a profile there). A profile (the sample's, and the photo 65
+    degrees round, read as one) is not turned: its score is no guide."""
     from PIL import Image
+
+    from solver.detect.photo_turn import to_turned, turned
 
     if not (DETECTOR_DIR / "face_landmark.tflite").is_file():
         pytest.skip(f"models missing in {DETECTOR_DIR}: run ./run detector")
@@ -160,25 +163,29 @@ def test_a_photo_upside_down_is_said_to_be(request, rendered, photo, profile):
     d = Detector()
     image = np.asarray(Image.open(folder / photo).convert("RGB"))
     upright = d.detect(image)
-    turned = d.detect(np.ascontiguousarray(image[::-1, ::-1]))
     assert upright.is_profile == profile
-    assert not upright.upside_down and upside_down_note(upright) is None
+    assert upright.turn == 0 and upright.given_score is None and turn_note(upright) is None
     if profile:
-        assert upright.half_turn_score is None and turned.half_turn_score is None
-        assert not turned.upside_down
         return
-    assert upright.half_turn_score < upright.score - 0.05
-    assert turned.upside_down
-    assert turned.half_turn_score > turned.score + 0.05
-    assert "the face looks upside down" in upside_down_note(turned)
+    h, w = image.shape[:2]
+    for k in (1, 2, 3):
+        seen = d.detect(turned(image, k))
+        assert seen.turn == (4 - k) % 4, k
+        assert seen.photo_size == ((h, w) if k % 2 else (w, h))
+        assert np.allclose(seen.ibug, upright.ibug) and seen.score == upright.score
+        assert np.allclose(seen.in_photo(seen.ibug), to_turned(upright.ibug, k, (w, h)))
+        assert seen.given_score < seen.score
 
 
-def test_a_face_not_looked_at_half_round_is_not_upside_down():
+def test_a_face_detected_turned_is_said_to_be():
     ibug = np.zeros((68, 2))
     face = DetectedFace(np.zeros((468, 3)), ibug, 0.9, 1.0)
-    assert face.half_turn_score is None and not face.upside_down
-    assert upside_down_note(face) is None
-    face.half_turn_score = 0.9  # as sure either way
-    assert not face.upside_down
-    face.half_turn_score = 0.92
-    assert face.upside_down and "0.92 against 0.90" in upside_down_note(face)
+    assert turn_note(face) is None and face_notes(face) == []
+    face.turn, face.given_score = 2, 0.71
+    assert "the face is upside down in the photo" in turn_note(face)
+    assert "0.90 there, 0.71 as given" in turn_note(face)
+    face.turn = 1
+    assert face_notes(face) == [turn_note(face)]
+    assert "a quarter round clockwise" in turn_note(face)
+    face.turn = 3
+    assert "a quarter round anticlockwise" in turn_note(face)
