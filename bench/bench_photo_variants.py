@@ -48,8 +48,8 @@ head's own profile landmarks (its ``sample.json``), per point the median, 90th p
 and largest error in % of the face's size and how many of the heads' profiles gave it.
 With ``--turned`` nothing is fitted either: each photo (a head folder's PNG, or the JPEG a
 render with a lens writes) is detected as given and turned by one, two and three quarter
-turns, and the photos given a turn wrongly, and those whose turn was missed, are counted
-(``turn_table``).
+turns, and the photos given a turn wrongly, and the turned ones whose points do not come
+back to the photo's own, are counted (``turn_table``).
 """
 
 import argparse
@@ -455,8 +455,10 @@ def turn_table(folders, variants, detector, james=None):
     one, two and three quarter turns. Counts: the photos, those read as profiles as given
     (a profile turned is found only where the photo turned back shows a face that is not a
     profile: not counted turned), those given a turn as given (wrongly), and the turned
-    photos of the others whose turn was not found, or no face at all (missed); and the
-    smallest margin of the detector's confidence as given, upright less upside down.
+    photos of the others with no face found, or whose points, given back on the photo as
+    it was, lie further than ``TURN_AGREE`` of the face's size (median) from the points
+    found as given (missed: a turn not found, or a poor one); and the smallest margin of
+    the detector's confidence as given, upright less upside down.
     Returns {variant or "as rendered": counts}."""
     table = {}
     print("photos turned: detected as given and turned by 1, 2 and 3 quarter turns "
