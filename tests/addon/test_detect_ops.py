@@ -572,20 +572,23 @@ def test_a_photo_upside_down_is_detected_upright_and_said_to_be(sample, tmp_path
         assert np.allclose(turned[name], (w - u, h - v), atol=0.01), name
 
 
-def test_auto_fit_of_a_photo_upside_down_fits_the_head(sample, model, tmp_path):
-    # the front photo stored upside down: the head as from the upright photos (1.77 mm
-    # from the true head either way on these small photos; the mean head 3.43)
+def test_auto_fit_of_a_photo_upside_down_fits_the_upright_photo_s_head(sample, model,
+                                                                     tmp_path):
+    # the front photo stored upside down: the head the upright photos give (1.77 mm from
+    # the true head either way on these small photos on Blender 5.0; the mean head 3.43)
     from headrecon_addon import shape_keys
     from solver.synthetic import skin_error_mm
 
-    folder, truth = sample
+    folder, _ = sample
     front = np.asarray(Image.open(folder / "front.png").convert("RGB"))
     Image.fromarray(np.ascontiguousarray(front[::-1, ::-1])).save(tmp_path / "front.png")
-    scene = empty_scene()
-    _load(tmp_path / "front.png", "front", "orthographic-front")
-    _load(folder / "side.png", "side", "orthographic-right")
-    scene.headrecon.texture_size = "256"
-    assert bpy.ops.headrecon.auto_fit() == {"FINISHED"}
-    head = scene.headrecon.head
-    local = shape_keys.evaluated_vertices(head, bpy.context.evaluated_depsgraph_get())
-    assert skin_error_mm(model, local, truth["local_vertices"]) < 1.9
+    heads = []
+    for photos in (tmp_path, folder):
+        scene = empty_scene()
+        _load(photos / "front.png", "front", "orthographic-front")
+        _load(folder / "side.png", "side", "orthographic-right")
+        scene.headrecon.texture_size = "256"
+        assert bpy.ops.headrecon.auto_fit() == {"FINISHED"}
+        heads.append(shape_keys.evaluated_vertices(scene.headrecon.head,
+                                                   bpy.context.evaluated_depsgraph_get()))
+    assert skin_error_mm(model, *heads) < 0.05
