@@ -159,11 +159,17 @@ def test_colour_blocks_go_behind_the_person_in_squares_of_the_rows_asked():
     assert (np.abs(np.diff(small, axis=1)).sum(axis=2) > 0).mean() > 0.9
 
 
-def test_the_profile_line_table_scores_the_points_read_on_the_sample_s_profile(sample):
+@pytest.fixture(scope="module")
+def detector():
     if not (DETECTOR_DIR / "face_landmark.tflite").is_file():
         pytest.skip(f"models missing in {DETECTOR_DIR}: run ./run detector")
+    return Detector()
+
+
+def test_the_profile_line_table_scores_the_points_read_on_the_sample_s_profile(sample,
+                                                                                detector):
     folder, _ = sample
-    table = profile_line_table([folder], ["hair"], Detector())
+    table = profile_line_table([folder], ["hair"], detector)
     assert set(table) == {"as rendered", "hair"}
     for variant, errors in table.items():
         # hair hides the forehead, not the nose, lips and chin: those are read on the
@@ -172,11 +178,9 @@ def test_the_profile_line_table_scores_the_points_read_on_the_sample_s_profile(s
             assert len(errors[name]) == 1 and errors[name][0] < 5.0, (variant, errors)
 
 
-def test_the_turn_table_counts_the_sample_s_photos_as_given_and_turned(sample):
-    if not (DETECTOR_DIR / "face_landmark.tflite").is_file():
-        pytest.skip(f"models missing in {DETECTOR_DIR}: run ./run detector")
+def test_the_turn_table_counts_the_sample_s_photos_as_given_and_turned(sample, detector):
     folder, _ = sample
-    table = turn_table([folder], ["dark"], Detector())
+    table = turn_table([folder], ["dark"], detector)
     assert set(table) == {"as rendered", "dark"}
     for row in table.values():
         # the front is looked at and its three turns told; the profile is not looked at
